@@ -1,0 +1,339 @@
+"""The canonical model: what every backend consumes, whatever the input dialect was.
+
+Frozen dataclasses, tuples in TD order, JSON data frozen into read-only mappings. Source pointers are kept
+for diagnostics but excluded from equality, so a TD and its migrated form compile to equal models.
+"""
+
+from __future__ import annotations
+
+import enum
+import types
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any
+
+# ---------------------------------------------------------------------------------------------------------
+# JSON values, frozen
+
+
+def freeze(value: Any) -> Any:
+    """Deep-freeze JSON data: dicts become read-only mappings, lists become tuples."""
+    if isinstance(value, Mapping):
+        return types.MappingProxyType({k: freeze(v) for k, v in value.items()})
+    if isinstance(value, (list, tuple)):
+        return tuple(freeze(v) for v in value)
+    return value
+
+
+def thaw(value: Any) -> Any:
+    """Inverse of `freeze`: plain dicts and lists again (for JSON output)."""
+    if isinstance(value, Mapping):
+        return {k: thaw(v) for k, v in value.items()}
+    if isinstance(value, tuple):
+        return [thaw(v) for v in value]
+    return value
+
+
+# ---------------------------------------------------------------------------------------------------------
+# ROS interface types (resolved definitions)
+
+
+class ArrayKind(str, enum.Enum):
+    NONE = "none"
+    FIXED = "fixed"  # T[N]
+    SEQUENCE = "sequence"  # T[] (bound 0) or T[<=N]
+
+
+@dataclass(frozen=True)
+class FieldType:
+    """The type of one message field.
+
+    `base` is a primitive (`bool`, `int32`, `float64`, `string`, `time`, ...) or a message name in canonical
+    `pkg/msg/Name` form (`is_message`). `length` is N for fixed arrays and the bound of bounded sequences
+    (0 = unbounded); `string_bound` is N for `string<=N`.
+    """
+
+    base: str
+    is_message: bool = False
+    array: ArrayKind = ArrayKind.NONE
+    length: int = 0
+    string_bound: int = 0
+
+    def __str__(self) -> str:
+        s = self.base
+        if self.string_bound:
+            s += f"<={self.string_bound}"
+        if self.array is ArrayKind.FIXED:
+            s += f"[{self.length}]"
+        elif self.array is ArrayKind.SEQUENCE:
+            s += f"[<={self.length}]" if self.length else "[]"
+        return s
+
+
+@dataclass(frozen=True)
+class MessageField:
+    name: str
+    type: FieldType
+    default: Any = None  # ROS 2 default value from the definition, if any
+
+
+@dataclass(frozen=True)
+class Constant:
+    name: str
+    type: str
+    value: Any
+
+
+@dataclass(frozen=True)
+class MessageDef:
+    """One message (or one half of a service/action) in canonical `pkg/msg/Name` / `pkg/srv/Name_Request`."""
+
+    name: str
+    fields: tuple[MessageField, ...]
+    constants: tuple[Constant, ...] = ()
+    origin: str = field(default="", compare=False)  # typestore or file it came from
+
+    @property
+    def package(self) -> str:
+        return self.name.split("/", 1)[0]
+
+    @property
+    def short_name(self) -> str:
+        return self.name.rsplit("/", 1)[-1]
+
+
+@dataclass(frozen=True)
+class ServiceDef:
+    name: str  # pkg/srv/Name
+    request: MessageDef
+    response: MessageDef
+
+    @property
+    def package(self) -> str:
+        return self.name.split("/", 1)[0]
+
+
+@dataclass(frozen=True)
+class ActionDef:
+    name: str  # pkg/action/Name
+    goal: MessageDef
+    result: MessageDef
+    feedback: MessageDef
+
+
+@dataclass(frozen=True)
+class TypeTable:
+    """Every interface type a model uses, resolved for one ROS distribution, in first-use order."""
+
+    distro: str  # "ros1" (Noetic rules) or "ros2" (Jazzy)
+    messages: tuple[MessageDef, ...] = ()
+    services: tuple[ServiceDef, ...] = ()
+    actions: tuple[ActionDef, ...] = ()
+    missing: tuple[str, ...] = ()  # names that did not resolve for this distro
+
+    @cached_property
+    def _by_name(self) -> dict[str, Any]:
+        table: dict[str, Any] = {m.name: m for m in self.messages}
+        table.update({s.name: s for s in self.services})
+        table.update({a.name: a for a in self.actions})
+        return table
+
+    def message(self, name: str) -> MessageDef:
+        found = self._by_name[name]
+        assert isinstance(found, MessageDef)
+        return found
+
+    def service(self, name: str) -> ServiceDef:
+        found = self._by_name[name]
+        assert isinstance(found, ServiceDef)
+        return found
+
+    def get(self, name: str) -> MessageDef | ServiceDef | ActionDef | None:
+        found: MessageDef | ServiceDef | ActionDef | None = self._by_name.get(name)
+        return found
+
+    @property
+    def complete(self) -> bool:
+        return not self.missing
+
+
+# ---------------------------------------------------------------------------------------------------------
+# ROS graph side
+
+
+@dataclass(frozen=True)
+class RosName:
+    """A ROS graph name, possibly under the robot namespace.
+
+    `namespaced` names are written `/{{robotName}}/rest` (td2adaptor binding) or `/#robotName/rest`
+    (reference dialect); `path` is then `rest`. Other names are kept verbatim in `path`.
+    """
+
+    path: str
+    namespaced: bool = False
+
+    def resolve(self, namespace: str = "") -> str:
+        if not self.namespaced:
+            return self.path
+        ns = namespace.strip("/")
+        return f"/{ns}/{self.path}" if ns else f"/{self.path}"
+
+    def binding_form(self) -> str:
+        """How the td2adaptor binding writes this name."""
+        return f"/{{{{robotName}}}}/{self.path}" if self.namespaced else self.path
+
+
+class Interface(str, enum.Enum):
+    SERVICE = "service"
+    TOPIC = "topic"
+    ACTION = "action"  # ROS 2 actions: reserved in the binding, not generated yet
+
+
+class Role(str, enum.Enum):
+    CLIENT = "client"
+    PUBLISHER = "publisher"
+    SUBSCRIBER = "subscriber"
+
+
+class ProcedureRole(str, enum.Enum):
+    NONE = "none"
+    RUN = "run"
+    QUERY = "query"
+    CANCEL = "cancel"
+
+
+class Reliability(str, enum.Enum):
+    RELIABLE = "reliable"
+    BEST_EFFORT = "best_effort"
+
+
+class Durability(str, enum.Enum):
+    VOLATILE = "volatile"
+    TRANSIENT_LOCAL = "transient_local"
+
+
+class History(str, enum.Enum):
+    KEEP_LAST = "keep_last"
+    KEEP_ALL = "keep_all"
+
+
+@dataclass(frozen=True)
+class QoS:
+    """Topic quality of service. ROS 2 uses reliability/durability/history/depth; ROS 1 latch/queue size."""
+
+    reliability: Reliability = Reliability.RELIABLE
+    durability: Durability = Durability.VOLATILE
+    history: History = History.KEEP_LAST
+    depth: int = 10
+    latch: bool = False
+    queue_size: int = 10
+
+
+@dataclass(frozen=True)
+class Text:
+    """Human text of an affordance: title/description plus their language maps."""
+
+    title: str | None = None
+    description: str | None = None
+    titles: Mapping[str, str] = field(default_factory=lambda: types.MappingProxyType({}))
+    descriptions: Mapping[str, str] = field(default_factory=lambda: types.MappingProxyType({}))
+
+
+@dataclass(frozen=True)
+class ServiceEndpoint:
+    """A TD action bound to a ROS service, called by the adaptor (client side)."""
+
+    name: str  # the affordance key, e.g. "gotoRun"
+    ros_name: RosName
+    type_name: str  # canonical pkg/srv/Name
+    text: Text = Text()
+    procedure_role: ProcedureRole = ProcedureRole.NONE
+    input_schema: Any = None  # frozen JSON
+    output_schema: Any = None
+    pointer: str = field(default="", compare=False)
+
+
+@dataclass(frozen=True)
+class TopicEndpoint:
+    """A TD property bound to a ROS topic, subscribed or published by the adaptor."""
+
+    name: str
+    ros_name: RosName
+    type_name: str  # canonical pkg/msg/Name
+    role: Role
+    qos: QoS = QoS()
+    text: Text = Text()
+    schema: Any = None
+    pointer: str = field(default="", compare=False)
+
+
+@dataclass(frozen=True)
+class Procedure:
+    """A long-running robot procedure: the run action and the actions that query and cancel it.
+
+    `mission_id` is the response field path (e.g. ("state", "header", "id")) holding the id the robot assigns.
+    """
+
+    run: str
+    query: str | None = None
+    cancel: str | None = None
+    mission_id: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Component:
+    """One generated class: services and topics grouped by the TD."""
+
+    name: str
+    services: tuple[ServiceEndpoint, ...] = ()
+    topics: tuple[TopicEndpoint, ...] = ()
+    procedures: tuple[Procedure, ...] = ()
+
+    @property
+    def subscribers(self) -> tuple[TopicEndpoint, ...]:
+        return tuple(t for t in self.topics if t.role is Role.SUBSCRIBER)
+
+    @property
+    def publishers(self) -> tuple[TopicEndpoint, ...]:
+        return tuple(t for t in self.topics if t.role is Role.PUBLISHER)
+
+    def service(self, name: str) -> ServiceEndpoint:
+        return next(s for s in self.services if s.name == name)
+
+    def procedure_of(self, action: str) -> Procedure | None:
+        return next((p for p in self.procedures if action in (p.run, p.query, p.cancel)), None)
+
+
+@dataclass(frozen=True)
+class Thing:
+    """Thing-level metadata that generated packages carry."""
+
+    title: str
+    id: str | None = None
+    description: str | None = None
+    version: str | None = None
+    master_uri: str | None = None
+    security: Any = None  # frozen securityDefinitions of the Thing, for the runtime
+
+
+@dataclass(frozen=True)
+class Model:
+    thing: Thing
+    package_name: str
+    components: tuple[Component, ...]
+    ros1: TypeTable
+    ros2: TypeTable
+
+    @property
+    def namespaced(self) -> bool:
+        """Whether any ROS name lives under the robot namespace (constructors then take one)."""
+        return any(
+            e.ros_name.namespaced for c in self.components for e in (*c.services, *c.topics)
+        )
+
+    def types_for(self, distro: str) -> TypeTable:
+        return self.ros1 if distro == "ros1" else self.ros2
+
+    def component(self, name: str) -> Component:
+        return next(c for c in self.components if c.name == name)

@@ -1,0 +1,1 @@
+"""Front end: load, validate, JSON-LD, Thing Models and the input dialects."""

@@ -1,0 +1,284 @@
+"""JSON documents that remember where every value came from.
+
+Parsing uses the C `json` module (fast, strict); positions are computed lazily by a small scanner only when a
+diagnostic needs a `line:col`, so valid input pays nothing for them. The scanner also finds duplicate keys,
+which `json.loads` silently collapses.
+"""
+
+from __future__ import annotations
+
+import bisect
+import json
+import re
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity, pointer_join
+
+DEFAULT_MAX_BYTES = 64 * 1024 * 1024
+
+_WS = re.compile(r"[ \t\n\r]*")
+_STR = re.compile(r'"(?:[^"\\]|\\.)*"', re.S)
+_SCALAR = re.compile(r"[^\s,\]}:]+")
+
+
+@dataclass
+class SourceMap:
+    """Pointer → character offset of values and keys, plus duplicate keys, for one JSON text."""
+
+    values: dict[str, int]
+    keys: dict[str, int]
+    duplicates: list[tuple[str, str, int]]  # (object pointer, key, offset of the repeated key)
+    _newlines: list[int]
+
+    @classmethod
+    def build(cls, text: str) -> SourceMap:
+        values, keys, dups = _scan(text)
+        newlines = [m.start() for m in re.finditer("\n", text)]
+        return cls(values, keys, dups, newlines)
+
+    def line_col(self, offset: int) -> tuple[int, int]:
+        line = bisect.bisect_left(self._newlines, offset)
+        start = self._newlines[line - 1] + 1 if line else 0
+        return line + 1, offset - start + 1
+
+    def offset(self, pointer: str, *, key: bool = False) -> int | None:
+        """Offset of the value (or its key) at `pointer`, else of the nearest existing ancestor."""
+        if key and pointer in self.keys:
+            return self.keys[pointer]
+        ptr = pointer
+        while True:
+            if ptr in self.values:
+                return self.values[ptr]
+            if not ptr:
+                return None
+            ptr = ptr.rsplit("/", 1)[0]
+
+
+def _scan(text: str) -> tuple[dict[str, int], dict[str, int], list[tuple[str, str, int]]]:
+    """Walk a JSON text already accepted by `json.loads`, recording where each value and key starts."""
+    values: dict[str, int] = {}
+    keys: dict[str, int] = {}
+    dups: list[tuple[str, str, int]] = []
+    # frame: [is_object, pointer, array index, keys seen]
+    stack: list[list[Any]] = []
+    i = _WS.match(text, 1 if text.startswith("\ufeff") else 0).end()  # type: ignore[union-attr]
+    pointer = ""
+
+    def read_key(frame: list[Any], i: int) -> tuple[str, int]:
+        m = _STR.match(text, i)
+        assert m is not None
+        name = json.loads(m.group())
+        ptr = pointer_join(frame[1], name)
+        if name in frame[3]:
+            dups.append((frame[1], name, i))
+        else:
+            frame[3].add(name)
+            keys[ptr] = i
+        i = _WS.match(text, m.end()).end()  # type: ignore[union-attr]
+        return ptr, _WS.match(text, i + 1).end()  # type: ignore[union-attr]  # skip ':'
+
+    while True:
+        values.setdefault(pointer, i)
+        c = text[i]
+        if c in "{[":
+            is_obj = c == "{"
+            i = _WS.match(text, i + 1).end()  # type: ignore[union-attr]
+            if text[i] in "}]":
+                i = _WS.match(text, i + 1).end()  # type: ignore[union-attr]
+            else:
+                frame = [is_obj, pointer, 0, set()]
+                stack.append(frame)
+                if is_obj:
+                    pointer, i = read_key(frame, i)
+                else:
+                    pointer = pointer_join(frame[1], 0)
+                continue
+        else:
+            m = (_STR if c == '"' else _SCALAR).match(text, i)
+            assert m is not None
+            i = _WS.match(text, m.end()).end()  # type: ignore[union-attr]
+        # a value ended at i: close containers until the next sibling
+        while stack:
+            frame = stack[-1]
+            if i < len(text) and text[i] == ",":
+                i = _WS.match(text, i + 1).end()  # type: ignore[union-attr]
+                if frame[0]:
+                    pointer, i = read_key(frame, i)
+                else:
+                    frame[2] += 1
+                    pointer = pointer_join(frame[1], frame[2])
+                break
+            stack.pop()
+            i = _WS.match(text, i + 1).end()  # type: ignore[union-attr]
+        else:
+            return values, keys, dups
+
+
+@dataclass
+class JsonDocument:
+    """A parsed JSON document with its text, for positions, and its path, for relative references."""
+
+    name: str
+    text: str
+    data: Any
+    path: Path | None = None
+    _map: SourceMap | None = field(default=None, repr=False)
+
+    @property
+    def source_map(self) -> SourceMap:
+        if self._map is None:
+            self._map = SourceMap.build(self.text)
+        return self._map
+
+    def position(self, pointer: str, *, key: bool = False) -> tuple[int, int] | None:
+        off = self.source_map.offset(pointer, key=key)
+        return None if off is None else self.source_map.line_col(off)
+
+    def locate(self, diag: Diagnostic) -> Diagnostic:
+        """Attach this document's file name and the line:col of the diagnostic's pointer."""
+        if diag.line is not None:
+            return diag if diag.file else replace(diag, file=self.name)
+        pos = self.position(diag.pointer, key=diag.code in _KEY_CODES)
+        if pos is None:
+            return replace(diag, file=diag.file or self.name)
+        return replace(diag, file=diag.file or self.name, line=pos[0], col=pos[1])
+
+
+# diagnostics about a key itself (unknown term, duplicate) point at the key, not its value
+_KEY_CODES = {"TD003", "TD201", "TD202", "TD203", "TD204"}
+
+
+class _Duplicates(Exception):
+    pass
+
+
+def _pairs_hook(flag: list[bool]) -> Any:
+    def hook(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+        d = dict(pairs)
+        if len(d) != len(pairs):
+            flag[0] = True
+        return d
+
+    return hook
+
+
+def _reject_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not valid JSON")
+
+
+def parse_json(
+    raw: bytes | str,
+    name: str,
+    diags: Diagnostics,
+    *,
+    path: Path | None = None,
+    max_bytes: int = DEFAULT_MAX_BYTES,
+) -> JsonDocument | None:
+    """Decode and parse `raw`; report encoding, syntax and duplicate-key problems into `diags`.
+
+    Returns None when the text cannot be parsed at all (an error has then been reported).
+    """
+    size = len(raw)
+    if size > max_bytes:
+        diags.add(
+            "TD006",
+            Severity.ERROR,
+            f"input is {size} bytes, more than the limit of {max_bytes} bytes",
+            hint="raise the limit with --max-bytes if this document is really that large",
+            file=name,
+        )
+        return None
+    if isinstance(raw, bytes):
+        if raw.startswith(b"\xef\xbb\xbf"):
+            diags.add("TD002", Severity.WARNING, "input starts with a UTF-8 byte order mark", "", "remove the BOM", file=name)
+            raw = raw[3:]
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            before = raw[: exc.start]
+            line = before.count(b"\n") + 1
+            col = len(before[before.rfind(b"\n") + 1 :].decode("utf-8", "replace")) + 1
+            diags.append(
+                Diagnostic(
+                    "TD001",
+                    Severity.ERROR,
+                    f"input is not valid UTF-8: byte 0x{raw[exc.start]:02x} at offset {exc.start}",
+                    "",
+                    "Thing Descriptions must be encoded in UTF-8",
+                    name,
+                    line,
+                    col,
+                )
+            )
+            return None
+    else:
+        text = raw
+        if text.startswith("\ufeff"):
+            diags.add("TD002", Severity.WARNING, "input starts with a byte order mark", "", "remove the BOM", file=name)
+            text = text[1:]
+    flag = [False]
+    try:
+        data = json.loads(text, object_pairs_hook=_pairs_hook(flag), parse_constant=_reject_constant)
+    except json.JSONDecodeError as exc:
+        diags.append(
+            Diagnostic("TD004", Severity.ERROR, f"invalid JSON: {exc.msg}", "", None, name, exc.lineno, exc.colno)
+        )
+        return None
+    except ValueError as exc:  # NaN / Infinity
+        off = _find_constant(text)
+        doc = JsonDocument(name, text, None, path)
+        line, col = (None, None) if off is None else doc_line_col(text, off)
+        diags.append(
+            Diagnostic("TD005", Severity.ERROR, f"invalid JSON: {exc}", "", "use null or a finite number", name, line, col)
+        )
+        return None
+    except RecursionError:
+        diags.add("TD007", Severity.ERROR, "JSON nesting is too deep to process", "", None, file=name)
+        return None
+    doc = JsonDocument(name, text, data, path)
+    if flag[0]:
+        for obj_ptr, key, off in doc.source_map.duplicates:
+            line, col = doc.source_map.line_col(off)
+            diags.append(
+                Diagnostic(
+                    "TD003",
+                    Severity.ERROR,
+                    f"duplicate key {key!r}: JSON parsers silently keep only the last one",
+                    pointer_join(obj_ptr, key),
+                    "give every member of an object a unique name",
+                    name,
+                    line,
+                    col,
+                )
+            )
+    return doc
+
+
+def doc_line_col(text: str, offset: int) -> tuple[int, int]:
+    line = text.count("\n", 0, offset) + 1
+    return line, offset - (text.rfind("\n", 0, offset) + 1) + 1
+
+
+def _find_constant(text: str) -> int | None:
+    m = re.search(r"(?<![\w\"])(-?Infinity|NaN)(?![\w\"])", text)
+    return m.start() if m else None
+
+
+def load_path(source: str, diags: Diagnostics, *, stdin: Any = None, max_bytes: int = DEFAULT_MAX_BYTES) -> JsonDocument | None:
+    """Read a path or `-` (stdin) and parse it."""
+    import sys
+
+    if source == "-":
+        stream = stdin if stdin is not None else sys.stdin.buffer
+        raw = stream.read(max_bytes + 1)
+        return parse_json(raw, "<stdin>", diags, path=None, max_bytes=max_bytes)
+    p = Path(source)
+    try:
+        with p.open("rb") as fh:
+            raw = fh.read(max_bytes + 1)
+    except OSError as exc:
+        diags.add("TD000", Severity.ERROR, f"cannot read {source}: {exc.strerror or exc}", file=source)
+        return None
+    return parse_json(raw, source, diags, path=p.resolve(), max_bytes=max_bytes)
