@@ -192,7 +192,14 @@ def parse_json(
         return None
     if isinstance(raw, bytes):
         if raw.startswith(b"\xef\xbb\xbf"):
-            diags.add("TD002", Severity.WARNING, "input starts with a UTF-8 byte order mark", "", "remove the BOM", file=name)
+            diags.add(
+                "TD002",
+                Severity.WARNING,
+                "input starts with a UTF-8 byte order mark",
+                "",
+                "remove the BOM",
+                file=name,
+            )
             raw = raw[3:]
         try:
             text = raw.decode("utf-8")
@@ -216,14 +223,23 @@ def parse_json(
     else:
         text = raw
         if text.startswith("\ufeff"):
-            diags.add("TD002", Severity.WARNING, "input starts with a byte order mark", "", "remove the BOM", file=name)
+            diags.add(
+                "TD002",
+                Severity.WARNING,
+                "input starts with a byte order mark",
+                "",
+                "remove the BOM",
+                file=name,
+            )
             text = text[1:]
     flag = [False]
     try:
         data = json.loads(text, object_pairs_hook=_pairs_hook(flag), parse_constant=_reject_constant)
     except json.JSONDecodeError as exc:
         diags.append(
-            Diagnostic("TD004", Severity.ERROR, f"invalid JSON: {exc.msg}", "", None, name, exc.lineno, exc.colno)
+            Diagnostic(
+                "TD004", Severity.ERROR, f"invalid JSON: {exc.msg}", "", None, name, exc.lineno, exc.colno
+            )
         )
         return None
     except ValueError as exc:  # NaN / Infinity
@@ -231,7 +247,16 @@ def parse_json(
         doc = JsonDocument(name, text, None, path)
         line, col = (None, None) if off is None else doc_line_col(text, off)
         diags.append(
-            Diagnostic("TD005", Severity.ERROR, f"invalid JSON: {exc}", "", "use null or a finite number", name, line, col)
+            Diagnostic(
+                "TD005",
+                Severity.ERROR,
+                f"invalid JSON: {exc}",
+                "",
+                "use null or a finite number",
+                name,
+                line,
+                col,
+            )
         )
         return None
     except RecursionError:
@@ -266,7 +291,9 @@ def _find_constant(text: str) -> int | None:
     return m.start() if m else None
 
 
-def load_path(source: str, diags: Diagnostics, *, stdin: Any = None, max_bytes: int = DEFAULT_MAX_BYTES) -> JsonDocument | None:
+def load_path(
+    source: str, diags: Diagnostics, *, stdin: Any = None, max_bytes: int = DEFAULT_MAX_BYTES
+) -> JsonDocument | None:
     """Read a path or `-` (stdin) and parse it."""
     import sys
 

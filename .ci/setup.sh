@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# Set up td2adaptor in ./.venv on a fresh Debian/Ubuntu machine (root, or sudo available).
+#   bash .ci/setup.sh          the tool itself
+#   bash .ci/setup.sh --test   plus everything the test suite needs
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+want_test=0
+for arg in "$@"; do
+  case "$arg" in
+    --test) want_test=1 ;;
+    *) echo "usage: $0 [--test]" >&2; exit 2 ;;
+  esac
+done
+
+SUDO=""
+if [ "$(id -u)" != 0 ] && command -v sudo >/dev/null; then SUDO="sudo"; fi
+apt_updated=0
+apt_install() {
+  if ! command -v apt-get >/dev/null; then
+    echo "setup: please install these packages yourself: $*" >&2; return 1
+  fi
+  if [ "$apt_updated" = 0 ]; then $SUDO apt-get update -qq; apt_updated=1; fi
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "$@" >/dev/null
+}
+
+PY="${PYTHON:-python3}"
+if ! command -v "$PY" >/dev/null; then apt_install python3 python3-venv; fi
+"$PY" - <<'PYCHECK' || { echo "setup: Python >= 3.10 is required" >&2; exit 1; }
+import sys
+raise SystemExit(sys.version_info < (3, 10))
+PYCHECK
+
+if [ ! -x .venv/bin/python ]; then
+  if ! "$PY" -m venv .venv 2>/dev/null; then
+    rm -rf .venv
+    apt_install python3-venv
+    "$PY" -m venv .venv
+  fi
+fi
+.venv/bin/python -m pip install -q --upgrade pip >/dev/null 2>&1 || true
+if [ "$want_test" = 1 ]; then
+  .venv/bin/python -m pip install -q -e '.[test]'
+else
+  .venv/bin/python -m pip install -q -e .
+fi
+echo "setup: td2adaptor $(.venv/bin/td2adaptor --version | cut -d' ' -f2) ready in .venv"

@@ -1,0 +1,3 @@
+from td2adaptor.cli import main
+
+main()

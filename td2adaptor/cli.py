@@ -1,0 +1,316 @@
+"""The `td2adaptor` command line. Only click is imported at start-up; everything else loads on use.
+
+Exit codes: 0 valid (warnings allowed), 1 invalid input, 2 usage error, 3 internal error.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import click
+
+from td2adaptor import __version__
+
+if TYPE_CHECKING:
+    from td2adaptor.compiler import Result
+    from td2adaptor.diagnostics import Diagnostic
+
+EXIT_OK, EXIT_INVALID, EXIT_USAGE, EXIT_INTERNAL = 0, 1, 2, 3
+
+_COLOURS = {"error": "red", "warning": "yellow", "info": "cyan"}
+
+
+def _print_version(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
+    if value and not ctx.resilient_parsing:
+        click.echo(f"td2adaptor {__version__}")
+        ctx.exit(0)
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 110})
+@click.option(
+    "--version",
+    is_flag=True,
+    expose_value=False,
+    is_eager=True,
+    callback=_print_version,
+    help="Show the version.",
+)
+def cli() -> None:
+    """Turn W3C WoT Thing Descriptions of robots into ROS adaptor packages."""
+
+
+# ---------------------------------------------------------------------------------------------------------
+# shared options
+
+
+def _input_options(f: Any) -> Any:
+    f = click.option(
+        "--max-bytes",
+        type=click.IntRange(min=1),
+        default=64 * 1024 * 1024,
+        show_default=True,
+        help="Refuse inputs larger than this.",
+    )(f)
+    f = click.option("--strict", is_flag=True, help="Treat warnings as errors.")(f)
+    f = click.option(
+        "--values",
+        "values_file",
+        type=click.Path(dir_okay=False, path_type=Path),
+        help="JSON or YAML map of Thing Model placeholder values.",
+    )(f)
+    f = click.option(
+        "--set",
+        "sets",
+        multiple=True,
+        metavar="NAME=VALUE",
+        help="A Thing Model placeholder value (repeatable; JSON values are typed).",
+    )(f)
+    f = click.option(
+        "--interfaces",
+        "-I",
+        multiple=True,
+        type=click.Path(file_okay=False, path_type=Path),
+        help="Folder of interface packages (pkg/msg/*.msg, pkg/srv/*.srv); repeatable.",
+    )(f)
+    return f
+
+
+def _format_option(f: Any) -> Any:
+    return click.option(
+        "--format",
+        "fmt",
+        type=click.Choice(["human", "json"]),
+        default="human",
+        show_default=True,
+        help="Diagnostics as text or as JSON on stdout.",
+    )(f)
+
+
+def _placeholder_values(
+    sets: Sequence[str], values_file: Path | None
+) -> tuple[dict[str, Any], list[Diagnostic]]:
+    from td2adaptor.diagnostics import Diagnostics
+    from td2adaptor.td.thingmodel import load_placeholder_map, parse_set_options
+
+    diags = Diagnostics()
+    values: dict[str, Any] = {}
+    if values_file is not None:
+        loaded = load_placeholder_map(values_file, diags)
+        values.update(loaded or {})
+    values.update(parse_set_options(list(sets), diags))
+    return values, list(diags)
+
+
+def _compile(
+    sources: Sequence[str],
+    interfaces: Sequence[Path],
+    sets: Sequence[str],
+    values_file: Path | None,
+    strict: bool,
+    max_bytes: int,
+    package: str | None = None,
+) -> Result:
+    from td2adaptor.compiler import Result, compile
+
+    values, problems = _placeholder_values(sets, values_file)
+    if any(d.severity.value == "error" for d in problems):
+        return Result(None, tuple(problems))
+    result = compile(
+        list(sources),
+        interfaces=list(interfaces),
+        values=values,
+        strict=strict,
+        package=package,
+        max_bytes=max_bytes,
+    )
+    return Result(result.model, tuple(problems) + result.diagnostics, result.input)
+
+
+def report(
+    diagnostics: Sequence[Diagnostic], fmt: str, *, label: str, extra: dict[str, Any] | None = None
+) -> bool:
+    """Print diagnostics (stderr for humans, stdout JSON); True when there is no error."""
+    errors = sum(d.severity.value == "error" for d in diagnostics)
+    warnings = sum(d.severity.value == "warning" for d in diagnostics)
+    if fmt == "json":
+        doc = {"valid": errors == 0, "errors": errors, "warnings": warnings}
+        doc.update(extra or {})
+        doc["diagnostics"] = [d.to_json() for d in diagnostics]
+        click.echo(json.dumps(doc, indent=2, ensure_ascii=False))
+        return errors == 0
+    for d in diagnostics:
+        sev = click.style(d.severity.value, fg=_COLOURS[d.severity.value], bold=True)
+        where = f" at {d.pointer}" if d.pointer else ""
+        click.echo(f"{d.location}: {sev} {d.code}: {d.message}{where}", err=True)
+        if d.hint:
+            click.echo(f"    hint: {d.hint}", err=True)
+    verdict = click.style("valid", fg="green") if errors == 0 else click.style("invalid", fg="red", bold=True)
+    click.echo(
+        f"{label}: {verdict} ({errors} error{'s' * (errors != 1)}, "
+        f"{warnings} warning{'s' * (warnings != 1)})",
+        err=True,
+    )
+    return errors == 0
+
+
+# ---------------------------------------------------------------------------------------------------------
+# commands
+
+
+@cli.command()
+@click.argument("sources", nargs=-1, required=True, metavar="TD...")
+@_input_options
+@_format_option
+@click.option("--package-name", help="Override the ROS package name derived from the Thing title.")
+def validate(
+    sources: tuple[str, ...],
+    interfaces: tuple[Path, ...],
+    sets: tuple[str, ...],
+    values_file: Path | None,
+    strict: bool,
+    max_bytes: int,
+    fmt: str,
+    package_name: str | None,
+) -> None:
+    """Validate a TD, Thing Model or legacy config ('-' reads stdin) and resolve its ROS types."""
+    result = _compile(sources, interfaces, sets, values_file, strict, max_bytes, package_name)
+    ok = report(result.diagnostics, fmt, label=", ".join(sources))
+    sys.exit(EXIT_OK if ok else EXIT_INVALID)
+
+
+@cli.command()
+@click.argument("sources", nargs=-1, required=True, metavar="TD...")
+@_input_options
+@_format_option
+def types(
+    sources: tuple[str, ...],
+    interfaces: tuple[Path, ...],
+    sets: tuple[str, ...],
+    values_file: Path | None,
+    strict: bool,
+    max_bytes: int,
+    fmt: str,
+) -> None:
+    """Show components, their services and topics, and the resolved ROS types."""
+    from td2adaptor.typestable import types_json, types_text
+
+    result = _compile(sources, interfaces, sets, values_file, strict, max_bytes)
+    if result.model is None:
+        report(result.diagnostics, fmt, label=", ".join(sources))
+        sys.exit(EXIT_INVALID)
+    if fmt == "json":
+        report(result.diagnostics, fmt, label=", ".join(sources), extra={"types": types_json(result.model)})
+    else:
+        click.echo(types_text(result.model), nl=False)
+        if result.diagnostics:
+            report(result.diagnostics, fmt, label=", ".join(sources))
+    sys.exit(EXIT_OK)
+
+
+@cli.command()
+@click.argument("model", metavar="TM")
+@click.option("-o", "--output", required=True, help="Where to write the TD ('-' for stdout).")
+@click.option("--set", "sets", multiple=True, metavar="NAME=VALUE", help="A placeholder value (repeatable).")
+@click.option(
+    "--values", "values_file", type=click.Path(dir_okay=False, path_type=Path), help="JSON/YAML value map."
+)
+@click.option(
+    "--keep",
+    multiple=True,
+    default=("robotName",),
+    show_default=True,
+    help="Placeholders left in place when no value is given (runtime placeholders).",
+)
+@_format_option
+def instantiate(
+    model: str, output: str, sets: tuple[str, ...], values_file: Path | None, keep: tuple[str, ...], fmt: str
+) -> None:
+    """Instantiate a Thing Model into a Thing Description."""
+    from td2adaptor.compiler import _in_input_order
+    from td2adaptor.diagnostics import Diagnostics
+    from td2adaptor.td.jsonsrc import load_path
+    from td2adaptor.td.thingmodel import instantiate as do_instantiate
+    from td2adaptor.td.thingmodel import is_thing_model
+
+    values, problems = _placeholder_values(sets, values_file)
+    diags = Diagnostics(problems)
+    td = None
+    if not diags.has_errors:
+        doc = load_path(model, diags)
+        if doc is not None:
+            if not is_thing_model(doc.data):
+                diags.error("TM300", "input is not a Thing Model (its @type lacks 'tm:ThingModel')", "/@type")
+            else:
+                from td2adaptor.td.conformance import check_tm
+
+                local = Diagnostics()
+                check_tm(doc, local)
+                if not local.has_errors:
+                    td = do_instantiate(doc, values, local, keep=keep)
+                diags.extend(doc.locate(d) for d in local)
+    ok = report(_in_input_order(list(diags), None), fmt, label=model) and td is not None
+    if not ok:
+        sys.exit(EXIT_INVALID)
+    write_json(td, output)
+    sys.exit(EXIT_OK)
+
+
+@cli.command()
+@click.argument("sources", nargs=-1, required=True, metavar="IN...")
+@click.option("-o", "--output", required=True, help="Where to write the TD ('-' for stdout).")
+@click.option(
+    "--interfaces",
+    "-I",
+    multiple=True,
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Folder of interface packages; repeatable.",
+)
+@_format_option
+def migrate(sources: tuple[str, ...], output: str, interfaces: tuple[Path, ...], fmt: str) -> None:
+    """Convert a reference-dialect TD or legacy RosClasses config files into the td2adaptor binding."""
+    from td2adaptor.compiler import compile
+    from td2adaptor.diagnostics import Diagnostics
+    from td2adaptor.migrate import migrate as do_migrate
+
+    result = compile(list(sources), interfaces=list(interfaces))
+    if result.model is None or result.input is None:
+        report(result.diagnostics, fmt, label=", ".join(sources))
+        sys.exit(EXIT_INVALID)
+    notes = Diagnostics()
+    td = do_migrate(result.input, result.model, notes)
+    report([*result.diagnostics, *notes], fmt, label=", ".join(sources))
+    write_json(td, output)
+    sys.exit(EXIT_OK)
+
+
+def write_json(data: Any, output: str) -> None:
+    """Write JSON to a file atomically (temp file + rename), or to stdout for '-'."""
+    text = json.dumps(data, indent=2, ensure_ascii=False) + "\n"
+    if output == "-":
+        click.echo(text, nl=False)
+        return
+    from td2adaptor.fsutil import write_atomic
+
+    write_atomic(Path(output), text.encode("utf-8"))
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    """Console-script entry point: bad input never ends in a traceback."""
+    try:
+        cli.main(args=list(argv) if argv is not None else None, prog_name="td2adaptor", standalone_mode=True)
+    except SystemExit:
+        raise
+    except KeyboardInterrupt:
+        click.echo("td2adaptor: interrupted", err=True)
+        sys.exit(130)
+    except Exception as exc:  # noqa: BLE001 - the one place that turns bugs into a clean exit 3
+        click.echo(f"td2adaptor: internal error: {type(exc).__name__}: {exc} (please report this)", err=True)
+        sys.exit(EXIT_INTERNAL)
+
+
+if __name__ == "__main__":
+    main()
