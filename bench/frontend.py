@@ -1,0 +1,73 @@
+"""Front-end benchmarks (issue 2). Every figure is a ratio against a baseline measured in this run.
+
+* `td2adaptor validate` of the RB-1 TD, cold CLI process, vs `python -c pass` (target <= 0.2 s absolute);
+* compile of synthetic TDs with 1,000 and 10,000 affordances, in process (targets <= 1 s, linear growth);
+* `td2adaptor --version` vs `python -c "import click"` (target <= 2x).
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "bench"))
+from synth import synthetic_td  # noqa: E402
+
+PY = sys.executable
+CLI = str(Path(PY).parent / "td2adaptor")
+EXAMPLE = REPO / "examples" / "robotnik_rb1"
+
+
+def cold(cmd: list[str], runs: int = 7) -> float:
+    """Median wall time of a fresh process (after one warm-up run for the file cache)."""
+    subprocess.run(cmd, capture_output=True, check=False)
+    times = []
+    for _ in range(runs):
+        t0 = time.perf_counter()
+        subprocess.run(cmd, capture_output=True, check=False)
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def row(name: str, value: float, baseline_name: str, baseline: float, target: str) -> None:
+    print(f"{name:<44} {value * 1000:8.1f} ms   {baseline_name:<28} {baseline * 1000:8.1f} ms"
+          f"   ratio {value / baseline:5.2f}   target {target}")
+
+
+def main() -> None:
+    print(f"python {sys.version.split()[0]}, {time.strftime('%Y-%m-%d')}")
+    base_pass = cold([PY, "-c", "pass"])
+    base_click = cold([PY, "-c", "import click"])
+    version = cold([CLI, "--version"])
+    row("td2adaptor --version", version, "python -c 'import click'", base_click, "<= 2x")
+    validate = cold([CLI, "validate", str(EXAMPLE / "td.json"), "-I", str(EXAMPLE / "interfaces")])
+    row("td2adaptor validate RB-1 (cold)", validate, "python -c pass", base_pass, "<= 200 ms")
+
+    from td2adaptor import compile as td_compile
+
+    td_compile(str(EXAMPLE / "td.json"), interfaces=[EXAMPLE / "interfaces"])  # warm caches once
+    with tempfile.TemporaryDirectory() as tmp:
+        results = {}
+        for n in (1000, 10000):
+            path = Path(tmp) / f"synth{n}.json"
+            path.write_text(json.dumps(synthetic_td(n)))
+            times = []
+            for _ in range(3):
+                t0 = time.perf_counter()
+                res = td_compile(str(path))
+                times.append(time.perf_counter() - t0)
+                assert res.model is not None, [d.message for d in res.diagnostics][:5]
+            results[n] = min(times)
+        row("compile 1,000 affordances", results[1000], "(absolute)", 1.0, "<= 1 s")
+        row("compile 10,000 affordances", results[10000], "compile 1,000 affordances", results[1000],
+            "linear: ~10x")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,74 @@
+"""The position-aware JSON loader: syntax errors, duplicate keys, encodings, positions of pointers."""
+
+from __future__ import annotations
+
+import io
+
+from td2adaptor.diagnostics import Diagnostics, Severity
+from td2adaptor.td.jsonsrc import load_path, parse_json
+
+
+def test_positions_of_values_and_keys() -> None:
+    diags = Diagnostics()
+    doc = parse_json(b'{\n  "a": 1,\n  "b": [true, {"c/d": "x"}]\n}', "t.json", diags)
+    assert doc is not None and not diags.items
+    assert doc.position("/a") == (2, 8)
+    assert doc.position("/b/1/c~1d") == (3, 23)
+    assert doc.position("/b/1/c~1d", key=True) == (3, 16)
+    # a pointer that does not exist falls back to its nearest existing ancestor
+    assert doc.position("/b/1/missing") == (3, 15)
+
+
+def test_duplicate_keys_reported_with_pointer_and_position() -> None:
+    diags = Diagnostics()
+    doc = parse_json(b'{"properties": {"status": {}, "x": 1,\n "status": {}}}', "d.json", diags)
+    assert doc is not None
+    [dup] = diags.items
+    assert (dup.code, dup.severity, dup.pointer) == ("TD003", Severity.ERROR, "/properties/status")
+    assert (dup.line, dup.col) == (2, 2)
+    assert "status" in dup.message
+
+
+def test_syntax_error_has_line_and_column() -> None:
+    diags = Diagnostics()
+    assert parse_json(b'{"a": 1,\n  "b": }', "s.json", diags) is None
+    [d] = diags.items
+    assert d.code == "TD004" and (d.line, d.col) == (2, 8) and d.file == "s.json"
+
+
+def test_bom_is_tolerated_with_a_warning() -> None:
+    diags = Diagnostics()
+    doc = parse_json(b'\xef\xbb\xbf{"title": "x"}', "b.json", diags)
+    assert doc is not None and doc.data == {"title": "x"}
+    assert [d.code for d in diags] == ["TD002"] and diags.items[0].severity is Severity.WARNING
+
+
+def test_invalid_utf8_is_an_error_with_position() -> None:
+    diags = Diagnostics()
+    assert parse_json(b'{"a":\n "caf\xe9"}', "u.json", diags) is None
+    [d] = diags.items
+    assert d.code == "TD001" and (d.line, d.col) == (2, 6)
+
+
+def test_nan_and_infinity_are_rejected() -> None:
+    for text in (b'{"a": NaN}', b'{"a": [1, -Infinity]}'):
+        diags = Diagnostics()
+        assert parse_json(text, "n.json", diags) is None
+        assert diags.codes() == ["TD005"] and diags.items[0].line == 1
+
+
+def test_size_limit_and_deep_nesting() -> None:
+    diags = Diagnostics()
+    assert parse_json(b"[" * 20 + b"]" * 20, "big.json", diags, max_bytes=10) is None
+    assert diags.codes() == ["TD006"]
+    diags = Diagnostics()
+    assert parse_json(b"[" * 100_000 + b"]" * 100_000, "deep.json", diags) is None
+    assert diags.codes() == ["TD007"]
+
+
+def test_stdin_and_missing_file(tmp_path: object) -> None:
+    diags = Diagnostics()
+    doc = load_path("-", diags, stdin=io.BytesIO(b'{"title": "from stdin"}'))
+    assert doc is not None and doc.name == "<stdin>" and doc.data["title"] == "from stdin"
+    assert load_path("/nonexistent/td.json", diags) is None
+    assert diags.codes() == ["TD000"] and "cannot read" in diags.items[0].message

@@ -1,0 +1,75 @@
+"""ROS graph names, namespace placeholders, identifiers and package names."""
+
+from __future__ import annotations
+
+import pytest
+
+from td2adaptor.model import RosName
+from td2adaptor.rosnames import (
+    identifier_problem,
+    name_problems,
+    package_name,
+    package_name_problem,
+    split_namespace,
+)
+
+
+@pytest.mark.parametrize(
+    ("raw", "path", "namespaced"),
+    [
+        ("/#robotName/robot_local_control/state", "robot_local_control/state", True),
+        ("/{{robotName}}/ar_pose_marker", "ar_pose_marker", True),
+        ("{{robotName}}/odom", "odom", True),
+        ("/door1/door_controller/command", "/door1/door_controller/command", False),
+    ],
+)
+def test_split_namespace(raw: str, path: str, namespaced: bool) -> None:
+    name, _ = split_namespace(raw)
+    assert name == RosName(path, namespaced)
+    assert name_problems(name) == []
+
+
+def test_resolve_with_and_without_namespace() -> None:
+    name = RosName("robot_local_control/state", True)
+    assert name.resolve("rb1_base_a") == "/rb1_base_a/robot_local_control/state"
+    assert name.resolve("/rb1_base_b/") == "/rb1_base_b/robot_local_control/state"
+    assert name.resolve("") == "/robot_local_control/state"
+    assert RosName("/door1/cmd").resolve("rb1_base_a") == "/door1/cmd"
+    assert name.binding_form() == "/{{robotName}}/robot_local_control/state"
+
+
+@pytest.mark.parametrize(
+    ("raw", "fragment"),
+    [
+        ("/a//b", "ROS 1"),
+        ("/1abc", "ROS 1"),
+        ("/abc/", "end with '/'"),
+        ("/a__b", "'__'"),
+        ("/x/{{robotName}}/y", "placeholder"),
+        ("/has space", "ROS 1"),
+        ("", "empty"),
+    ],
+)
+def test_invalid_names(raw: str, fragment: str) -> None:
+    name, _ = split_namespace(raw)
+    problems = name_problems(name)
+    assert problems and any(fragment in p for p in problems), problems
+
+
+def test_identifiers() -> None:
+    assert identifier_problem("GoToComponent") is None
+    assert identifier_problem("class") is not None  # Python and C++
+    assert identifier_problem("namespace") is not None  # C++ only
+    assert identifier_problem("9lives") is not None
+    assert identifier_problem("bad-name") is not None
+    assert identifier_problem("a__b") is not None
+
+
+def test_package_names() -> None:
+    assert package_name("Robotnik RB-1") == "robotnik_rb_1_adaptor"
+    assert package_name("  42 Weird -- Title!! ") == "weird_title_adaptor"
+    assert package_name("door_adaptor") == "door_adaptor"
+    assert package_name("") == "thing_adaptor"
+    assert package_name_problem("robotnik_rb_1_adaptor") is None
+    assert package_name_problem("Bad-Name") is not None
+    assert package_name_problem("a__b") is not None
