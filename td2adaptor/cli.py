@@ -282,7 +282,7 @@ def migrate(sources: tuple[str, ...], output: str, interfaces: tuple[Path, ...],
         sys.exit(EXIT_INVALID)
     notes = Diagnostics()
     td = do_migrate(result.input, result.model, notes)
-    report([*result.diagnostics, *notes], fmt, label=", ".join(sources))
+    report([*result.diagnostics, *(result.input.doc.locate(d) for d in notes)], fmt, label=", ".join(sources))
     write_json(td, output)
     sys.exit(EXIT_OK)
 

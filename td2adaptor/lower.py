@@ -535,27 +535,39 @@ def _resolve_types(
 
 
 def _crosscheck(endpoints: Sequence[_Endpoint], tables: Mapping[str, TypeTable], diags: Diagnostics) -> None:
-    try:
-        from td2adaptor.crosscheck import crosscheck
-    except ImportError:  # pragma: no cover - module arrives with the cross-check work
-        return
+    """Compare each affordance's data schemas with its message types.
+
+    Schemas may follow ROS 1 or ROS 2 layouts (Header.seq, secs/nsecs vs sec/nanosec); each endpoint is
+    checked against every distro its type resolves in, and the distro its schemas fit best is reported.
+    """
+    from td2adaptor.crosscheck import crosscheck
+
     for ep in endpoints:
-        order = ("ros1", "ros2") if ep.raw.dialect == REFERENCE else ("ros2", "ros1")
-        table = next((tables[d] for d in order if tables[d].get(ep.type_name) is not None), None)
-        if table is None:
-            continue
         raw = ep.raw
+        pairs: list[tuple[Any, str, str]] = []
         if raw.interface is Interface.SERVICE:
             for schema, half, key in (
                 (raw.input_schema, "_Request", "input"),
                 (raw.output_schema, "_Response", "output"),
             ):
                 if isinstance(schema, Mapping):
-                    crosscheck(
-                        _plain(schema), pointer_join(raw.pointer, key), ep.type_name + half, table, diags
-                    )
+                    pairs.append((schema, pointer_join(raw.pointer, key), ep.type_name + half))
         elif isinstance(raw.schema, Mapping):
-            crosscheck(_plain(raw.schema), raw.pointer, ep.type_name, table, diags)
+            pairs.append((raw.schema, raw.pointer, ep.type_name))
+        if not pairs:
+            continue
+        best: Diagnostics | None = None
+        order = ("ros1", "ros2") if raw.dialect == REFERENCE else ("ros2", "ros1")
+        for distro in order:
+            if tables[distro].get(ep.type_name) is None:
+                continue
+            local = Diagnostics()
+            for schema, ptr, msg in pairs:
+                crosscheck(_plain(schema), ptr, msg, tables[distro], local)
+            if best is None or len(local) < len(best):
+                best = local
+        if best is not None:
+            diags.extend(best)
 
 
 def _plain(value: Any) -> Any:

@@ -136,6 +136,7 @@ class TypeTable:
     def _by_name(self) -> dict[str, Any]:
         table: dict[str, Any] = {m.name: m for m in self.messages}
         table.update({s.name: s for s in self.services})
+        table.update({m.name: m for s in self.services for m in (s.request, s.response)})
         table.update({a.name: a for a in self.actions})
         return table
 

@@ -387,6 +387,13 @@ def _read_reference(
     diags: Diagnostics,
 ) -> RawEndpoint | None:
     what = f"{kind} {name!r}"
+    if form.get("contentType") == "application/xml":
+        diags.warning(
+            "ROS415",
+            f"{what}: contentType 'application/xml' but the data is not XML (reference-dialect defect)",
+            pointer_join(fptr, "contentType"),
+            "remove it: the default application/json describes the JSON data schemas",
+        )
     component = _component(aff, ptr, REFERENCE_CLASS_KEY, what, diags)
     common = _common(kind, name, aff, form, fptr)
     if kind == "action":
