@@ -206,6 +206,7 @@ def types(
         report(result.diagnostics, fmt, label=", ".join(sources), extra={"types": types_json(result.model)})
     else:
         click.echo(types_text(result.model), nl=False)
+        sys.stdout.flush()
         if result.diagnostics:
             report(result.diagnostics, fmt, label=", ".join(sources))
     sys.exit(EXIT_OK)

@@ -58,8 +58,7 @@ def to_reference_td(docs: Sequence[JsonDocument], diags: Diagnostics) -> LegacyI
         },
         list(docs),
     )
-    actions: dict[str, Any] = {}
-    properties: dict[str, Any] = {}
+    groups: dict[str, dict[str, Any]] = {}  # "actions"/"properties" in order of first use
     for index, doc in enumerate(docs):
         local = Diagnostics()
         classes = doc.data.get("RosClasses") if isinstance(doc.data, dict) else None
@@ -101,8 +100,8 @@ def to_reference_td(docs: Sequence[JsonDocument], diags: Diagnostics) -> LegacyI
                             "MIG702", f"{name_key!r} is missing or not a string", pointer_join(iptr, name_key)
                         )
                         continue
-                    target = actions if kind == "action" else properties
                     group = "actions" if kind == "action" else "properties"
+                    target = groups.setdefault(group, {})
                     tptr = pointer_join("", group, name)
                     if name in target:
                         local.error(
@@ -127,8 +126,5 @@ def to_reference_td(docs: Sequence[JsonDocument], diags: Diagnostics) -> LegacyI
                     target[name] = {REFERENCE_CLASS_KEY: class_name, "forms": [form]}
         for d in local:
             diags.append(doc.locate(replace(d, file=doc.name)))
-    if properties:
-        out.td["properties"] = properties
-    if actions:
-        out.td["actions"] = actions
+    out.td.update(groups)
     return out

@@ -109,9 +109,7 @@ _TD_ORDER = (
     "profile",
     "schemaDefinitions",
     "uriVariables",
-    "properties",
-    "actions",
-    "events",
+    # properties/actions/events keep the model's own order: it decides the order of generated classes
     "forms",
     "links",
 )
