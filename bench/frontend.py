@@ -36,8 +36,10 @@ def cold(cmd: list[str], runs: int = 7) -> float:
 
 
 def row(name: str, value: float, baseline_name: str, baseline: float, target: str) -> None:
-    print(f"{name:<44} {value * 1000:8.1f} ms   {baseline_name:<28} {baseline * 1000:8.1f} ms"
-          f"   ratio {value / baseline:5.2f}   target {target}")
+    print(
+        f"{name:<44} {value * 1000:8.1f} ms   {baseline_name:<28} {baseline * 1000:8.1f} ms"
+        f"   ratio {value / baseline:5.2f}   target {target}"
+    )
 
 
 def main() -> None:
@@ -65,8 +67,13 @@ def main() -> None:
                 assert res.model is not None, [d.message for d in res.diagnostics][:5]
             results[n] = min(times)
         row("compile 1,000 affordances", results[1000], "(absolute)", 1.0, "<= 1 s")
-        row("compile 10,000 affordances", results[10000], "compile 1,000 affordances", results[1000],
-            "linear: ~10x")
+        row(
+            "compile 10,000 affordances",
+            results[10000],
+            "compile 1,000 affordances",
+            results[1000],
+            "linear: ~10x",
+        )
 
 
 if __name__ == "__main__":

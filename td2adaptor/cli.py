@@ -90,9 +90,7 @@ def _format_option(f: Any) -> Any:
     )(f)
 
 
-def _placeholder_values(
-    sets: Sequence[str], values_file: Path | None
-) -> tuple[dict[str, Any], list[Diagnostic]]:
+def _placeholder_values(sets: Sequence[str], values_file: Path | None) -> tuple[dict[str, Any], list[Diagnostic]]:
     from td2adaptor.diagnostics import Diagnostics
     from td2adaptor.td.thingmodel import load_placeholder_map, parse_set_options
 
@@ -130,14 +128,12 @@ def _compile(
     return Result(result.model, tuple(problems) + result.diagnostics, result.input)
 
 
-def report(
-    diagnostics: Sequence[Diagnostic], fmt: str, *, label: str, extra: dict[str, Any] | None = None
-) -> bool:
+def report(diagnostics: Sequence[Diagnostic], fmt: str, *, label: str, extra: dict[str, Any] | None = None) -> bool:
     """Print diagnostics (stderr for humans, stdout JSON); True when there is no error."""
     errors = sum(d.severity.value == "error" for d in diagnostics)
     warnings = sum(d.severity.value == "warning" for d in diagnostics)
     if fmt == "json":
-        doc = {"valid": errors == 0, "errors": errors, "warnings": warnings}
+        doc: dict[str, Any] = {"valid": errors == 0, "errors": errors, "warnings": warnings}
         doc.update(extra or {})
         doc["diagnostics"] = [d.to_json() for d in diagnostics]
         click.echo(json.dumps(doc, indent=2, ensure_ascii=False))
@@ -150,8 +146,7 @@ def report(
             click.echo(f"    hint: {d.hint}", err=True)
     verdict = click.style("valid", fg="green") if errors == 0 else click.style("invalid", fg="red", bold=True)
     click.echo(
-        f"{label}: {verdict} ({errors} error{'s' * (errors != 1)}, "
-        f"{warnings} warning{'s' * (warnings != 1)})",
+        f"{label}: {verdict} ({errors} error{'s' * (errors != 1)}, {warnings} warning{'s' * (warnings != 1)})",
         err=True,
     )
     return errors == 0
@@ -178,7 +173,7 @@ def validate(
 ) -> None:
     """Validate a TD, Thing Model or legacy config ('-' reads stdin) and resolve its ROS types."""
     result = _compile(sources, interfaces, sets, values_file, strict, max_bytes, package_name)
-    ok = report(result.diagnostics, fmt, label=", ".join(sources))
+    ok = report(result.diagnostics, fmt, label=_label(sources))
     sys.exit(EXIT_OK if ok else EXIT_INVALID)
 
 
@@ -200,15 +195,15 @@ def types(
 
     result = _compile(sources, interfaces, sets, values_file, strict, max_bytes)
     if result.model is None:
-        report(result.diagnostics, fmt, label=", ".join(sources))
+        report(result.diagnostics, fmt, label=_label(sources))
         sys.exit(EXIT_INVALID)
     if fmt == "json":
-        report(result.diagnostics, fmt, label=", ".join(sources), extra={"types": types_json(result.model)})
+        report(result.diagnostics, fmt, label=_label(sources), extra={"types": types_json(result.model)})
     else:
         click.echo(types_text(result.model), nl=False)
         sys.stdout.flush()
         if result.diagnostics:
-            report(result.diagnostics, fmt, label=", ".join(sources))
+            report(result.diagnostics, fmt, label=_label(sources))
     sys.exit(EXIT_OK)
 
 
@@ -216,9 +211,7 @@ def types(
 @click.argument("model", metavar="TM")
 @click.option("-o", "--output", required=True, help="Where to write the TD ('-' for stdout).")
 @click.option("--set", "sets", multiple=True, metavar="NAME=VALUE", help="A placeholder value (repeatable).")
-@click.option(
-    "--values", "values_file", type=click.Path(dir_okay=False, path_type=Path), help="JSON/YAML value map."
-)
+@click.option("--values", "values_file", type=click.Path(dir_okay=False, path_type=Path), help="JSON/YAML value map.")
 @click.option(
     "--keep",
     multiple=True,
@@ -251,7 +244,8 @@ def instantiate(
                 local = Diagnostics()
                 check_tm(doc, local)
                 if not local.has_errors:
-                    td = do_instantiate(doc, values, local, keep=keep)
+                    href = _relative_href(model, output)
+                    td = do_instantiate(doc, values, local, keep=keep, model_href=href)
                 diags.extend(doc.locate(d) for d in local)
     ok = report(_in_input_order(list(diags), None), fmt, label=model) and td is not None
     if not ok:
@@ -279,13 +273,27 @@ def migrate(sources: tuple[str, ...], output: str, interfaces: tuple[Path, ...],
 
     result = compile(list(sources), interfaces=list(interfaces))
     if result.model is None or result.input is None:
-        report(result.diagnostics, fmt, label=", ".join(sources))
+        report(result.diagnostics, fmt, label=_label(sources))
         sys.exit(EXIT_INVALID)
     notes = Diagnostics()
     td = do_migrate(result.input, result.model, notes)
-    report([*result.diagnostics, *(result.input.doc.locate(d) for d in notes)], fmt, label=", ".join(sources))
+    report([*result.diagnostics, *(result.input.doc.locate(d) for d in notes)], fmt, label=_label(sources))
     write_json(td, output)
     sys.exit(EXIT_OK)
+
+
+def _relative_href(model: str, output: str) -> str | None:
+    """The Thing Model as the TD's `rel: type` link should name it: relative to where the TD is written."""
+    import os
+
+    if model == "-":
+        return None
+    base = Path.cwd() if output == "-" else Path(output).resolve().parent
+    return Path(os.path.relpath(Path(model).resolve(), base)).as_posix()
+
+
+def _label(sources: Sequence[str]) -> str:
+    return ", ".join("<stdin>" if s == "-" else s for s in sources)
 
 
 def write_json(data: Any, output: str) -> None:

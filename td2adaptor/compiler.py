@@ -82,22 +82,27 @@ def load(
             return None
         docs.append(doc)
     if not docs:
-        diags.error("TD000", "no input given")
+        diags.add("TD000", Severity.ERROR, "no input given", file="<input>")
         return None
     legacy = [is_legacy(d.data) for d in docs]
     if all(legacy):
         lin = to_reference_td(docs, diags)
         return Input("legacy", docs, lin.td, lin)
     if len(docs) > 1:
-        diags.error(
+        diags.add(
             "TD008",
+            Severity.ERROR,
             "several inputs can only be legacy RosClasses config files (service.json, topic.json)",
             hint="give one Thing Description or Thing Model",
+            file=docs[0].name,
         )
         return None
     doc = docs[0]
     if not isinstance(doc.data, dict):
-        diags.error("TD009", f"a Thing Description is a JSON object, not {type(doc.data).__name__}")
+        kind = "null" if doc.data is None else type(doc.data).__name__
+        local = Diagnostics()
+        local.error("TD009", f"a Thing Description is a JSON object, not {kind}")
+        diags.extend(doc.locate(d) for d in local)
         return None
     from td2adaptor.td.thingmodel import is_thing_model
 

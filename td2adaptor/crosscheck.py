@@ -138,9 +138,7 @@ class _Checker:
 
     # -- walking ----------------------------------------------------------------------------------------
 
-    def field(
-        self, schema: Any, ptr: str, ftype: FieldType, path: str, owner: MessageDef | None, depth: int
-    ) -> None:
+    def field(self, schema: Any, ptr: str, ftype: FieldType, path: str, owner: MessageDef | None, depth: int) -> None:
         """Compare `schema` with a field of type `ftype` (array or not)."""
         if not _comparable(schema) or depth > _MAX_DEPTH:
             return
@@ -162,9 +160,7 @@ class _Checker:
         if isinstance(items, dict):
             self.field(items, pointer_join(ptr, "items"), element, path + "[]", owner, depth + 1)
 
-    def scalar(
-        self, schema: Any, ptr: str, ftype: FieldType, path: str, owner: MessageDef | None, depth: int
-    ) -> None:
+    def scalar(self, schema: Any, ptr: str, ftype: FieldType, path: str, owner: MessageDef | None, depth: int) -> None:
         """Compare `schema` with one (non-array) value of type `ftype`."""
         if not _comparable(schema) or depth > _MAX_DEPTH:
             return
@@ -213,9 +209,7 @@ class _Checker:
                 "XC601",
                 f"schema property `{name}`{self.at(path)} is not a field of `{msg.name}` ({members})",
                 pointer_join(ptr, "properties", name),
-                f"did you mean `{guess}`?"
-                if guess
-                else "remove it, or bind the affordance to the right type",
+                f"did you mean `{guess}`?" if guess else "remove it, or bind the affordance to the right type",
             )
         for name, (where, value) in misplaced.items():
             self.warn(
@@ -247,9 +241,7 @@ class _Checker:
                     depth + 1,
                 )
 
-    def time(
-        self, schema: Any, ptr: str, ftype: FieldType, kind: str, path: str, jtypes: set[str], depth: int
-    ) -> None:
+    def time(self, schema: Any, ptr: str, ftype: FieldType, kind: str, path: str, jtypes: set[str], depth: int) -> None:
         if jtypes and "object" not in jtypes:
             self.mismatch(ptr, path, ftype, jtypes, "object")
             return
@@ -329,8 +321,7 @@ class _Checker:
         if ftype.length and hi is not None and hi > ftype.length:
             self.warn(
                 "XC607",
-                f"{self.where(path)} is {ftype}, at most {ftype.length} items, "
-                f"but the schema allows up to {hi}",
+                f"{self.where(path)} is {ftype}, at most {ftype.length} items, but the schema allows up to {hi}",
                 pointer_join(ptr, "maxItems"),
                 f'use "maxItems": {ftype.length} or less',
             )

@@ -14,8 +14,8 @@ from td2adaptor.diagnostics import Diagnostics, pointer_join
 from td2adaptor.model import (
     Component,
     Interface,
-    Model,
     MessageDef,
+    Model,
     Procedure,
     ProcedureRole,
     Role,
@@ -204,9 +204,10 @@ def _endpoint(raw: RawEndpoint, diags: Diagnostics) -> _Endpoint | None:
         )
         ok = False
     component = raw.component.value if raw.component else _default_component(raw.name)
-    if not ok or type_name is None:
+    if type_name is None or type_name.split("/")[1] != kind:
         return None
-    return _Endpoint(raw, component, ros_name, type_name)
+    # other problems were reported; keep going so type resolution can report its own too
+    return _Endpoint(raw, component, ros_name, type_name, errors=not ok)
 
 
 def _default_component(name: str) -> str:
@@ -225,8 +226,12 @@ def _check_href(raw: RawEndpoint, ros_name: Any, diags: Diagnostics) -> None:
             "td2adaptor reads the ROS name from the form; 'td2adaptor migrate' writes a ros: href",
         )
     elif raw.dialect == BINDING and isinstance(href.value, str) and href.value.startswith("ros:"):
-        expected = "ros:" + (ros_name.path if ros_name.namespaced else ros_name.path)
-        if href.value != expected:
+        expected = "ros:" + ros_name.path
+        ref = href.value[4:]
+        # a relative href is the name as seen from inside the robot namespace, whether that namespace is
+        # still a placeholder or was baked in by instantiating a Thing Model
+        baked = not ros_name.namespaced and not ref.startswith("/") and ros_name.path.endswith("/" + ref)
+        if href.value != expected and not baked:
             diags.warning(
                 "ROS413",
                 f"{raw.kind} {raw.name!r}: href {href.value!r} does not match rosv:name",
@@ -251,7 +256,8 @@ def _check_declared(raw: RawEndpoint, type_name: str, diags: Diagnostics) -> Non
         if want is not None and declared.value != want:
             diags.warning(
                 "ROS422",
-                f"{raw.kind} {raw.name!r}: {key} {declared.value!r} does not match {want!r} derived from {raw.type_name.value!r}",
+                f"{raw.kind} {raw.name!r}: {key} {declared.value!r} does not match {want!r} "
+                f"derived from {raw.type_name.value!r}",
                 declared.pointer,
                 "td2adaptor uses the ROS type; remove the redundant class name or correct it",
             )
@@ -404,9 +410,7 @@ def _role_of(ep: _Endpoint) -> ProcedureRole:
     return ProcedureRole.NONE
 
 
-def _derived_procedure(
-    services: Mapping[str, _Endpoint], group: _Group, diags: Diagnostics
-) -> Procedure | None:
+def _derived_procedure(services: Mapping[str, _Endpoint], group: _Group, diags: Diagnostics) -> Procedure | None:
     """Reference dialect: nothing links xRun to xQuery/xCancel except names (defect 10); derive it."""
     by_role: dict[ProcedureRole, list[str]] = {}
     for name, ep in services.items():
@@ -528,9 +532,7 @@ def _resolve_types(
     for d in DISTROS:
         for name in tables[d].missing:
             if name not in names:
-                diags.warning(
-                    "ROS426", f"type {name!r} used by the interface definitions is not known for {d}"
-                )
+                diags.warning("ROS426", f"type {name!r} used by the interface definitions is not known for {d}")
     return tables
 
 
@@ -593,6 +595,4 @@ def _service(ep: _Endpoint) -> ServiceEndpoint:
 def _topic(ep: _Endpoint) -> TopicEndpoint:
     raw = ep.raw
     role = raw.role if raw.role is not Role.CLIENT else Role.SUBSCRIBER
-    return TopicEndpoint(
-        raw.name, ep.ros_name, ep.type_name, role, raw.qos, raw.text, raw.schema, raw.pointer
-    )
+    return TopicEndpoint(raw.name, ep.ros_name, ep.type_name, role, raw.qos, raw.text, raw.schema, raw.pointer)

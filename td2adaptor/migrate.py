@@ -30,7 +30,8 @@ def migrate(inp: Input, model: Model, diags: Diagnostics) -> dict[str, Any]:
     endpoints: dict[str, ServiceEndpoint | TopicEndpoint] = {}
     component_of: dict[str, str] = {}
     for comp in model.components:
-        for ep in (*comp.services, *comp.topics):
+        eps: list[ServiceEndpoint | TopicEndpoint] = [*comp.services, *comp.topics]
+        for ep in eps:
             endpoints[ep.pointer] = ep
             component_of[ep.pointer] = comp.name
     procedures = {p.run: p for c in model.components for p in c.procedures}

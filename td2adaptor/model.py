@@ -329,7 +329,8 @@ class Model:
     @property
     def namespaced(self) -> bool:
         """Whether any ROS name lives under the robot namespace (constructors then take one)."""
-        return any(e.ros_name.namespaced for c in self.components for e in (*c.services, *c.topics))
+        services = any(s.ros_name.namespaced for c in self.components for s in c.services)
+        return services or any(t.ros_name.namespaced for c in self.components for t in c.topics)
 
     def types_for(self, distro: str) -> TypeTable:
         return self.ros1 if distro == "ros1" else self.ros2

@@ -41,9 +41,7 @@ def name_problems(name: RosName) -> list[str]:
     if name.namespaced and name.path.startswith(("/", "~")):
         problems.append("the part after the namespace placeholder must be relative")
     if not _ROS1.match(full) or "//" in full:
-        problems.append(
-            "not a valid ROS 1 name (a letter, '/' or '~' first, then letters, digits, '_' and single '/')"
-        )
+        problems.append("not a valid ROS 1 name (a letter, '/' or '~' first, then letters, digits, '_' and single '/')")
     body = full.lstrip("~").lstrip("/")
     if full.endswith("/"):
         problems.append("a ROS 2 name must not end with '/'")

@@ -43,9 +43,7 @@ def types_json(model: Model) -> dict[str, Any]:
 def types_text(model: Model) -> str:
     rows = _rows(model)
     out = [f"package {model.package_name}\n"]
-    widths = {
-        k: max([len(str(r[k])) for r in rows] + [0]) for k in ("name", "kind", "role", "ros_name", "type")
-    }
+    widths = {k: max([len(str(r[k])) for r in rows] + [0]) for k in ("name", "kind", "role", "ros_name", "type")}
     current = None
     for r in rows:
         if r["component"] != current:

@@ -26,7 +26,10 @@ from td2adaptor.model import (
 from .conftest import EXAMPLE, REPO
 
 INTERFACES = [EXAMPLE / "interfaces"]
-LEGACY = [REPO / "tests" / "data" / "legacy" / "service.json", REPO / "tests" / "data" / "legacy" / "topic.json"]
+LEGACY = [
+    REPO / "tests" / "data" / "legacy" / "service.json",
+    REPO / "tests" / "data" / "legacy" / "topic.json",
+]
 
 
 def compile_(src: Any, **kw: Any) -> Result:
@@ -210,19 +213,73 @@ def _form(td: dict[str, Any], group: str, name: str) -> dict[str, Any]:
 
 
 CASES = {
-    "unknown type": (lambda td: _form(td, "actions", "gotoRun").update({"rosv:type": "robot_local_control_msgs/srv/GoToPetitio"}), "ROS423", "/actions/gotoRun/forms/0/rosv:type"),
-    "malformed type": (lambda td: _form(td, "actions", "gotoRun").update({"rosv:type": "not a type"}), "ROS420", "/actions/gotoRun/forms/0/rosv:type"),
-    "msg type on a service": (lambda td: _form(td, "actions", "gotoRun").update({"rosv:type": "std_msgs/msg/Float64"}), "ROS421", "/actions/gotoRun/forms/0/rosv:type"),
-    "bad ROS name": (lambda td: _form(td, "properties", "door").update({"rosv:name": "/door1//command"}), "ROS410", "/properties/door/forms/0/rosv:name"),
-    "bad role": (lambda td: _form(td, "properties", "door").update({"rosv:role": "server"}), "ROS407", "/properties/door/forms/0/rosv:role"),
-    "same name two types": (lambda td: _form(td, "actions", "gotoCancel").update({"rosv:name": _form(td, "actions", "gotoRun")["rosv:name"]}), "ROS414", "/actions/gotoCancel/forms/0/rosv:type"),
-    "component keyword": (lambda td: td["properties"]["door"].update({"rosv:component": "class"}), "ROS430", "/properties/door/rosv:component"),
-    "unbound action": (lambda td: td["actions"]["gotoRun"].update({"forms": [{"href": "http://x/y"}]}), "ROS401", "/actions/gotoRun"),
-    "procedure link to nothing": (lambda td: td["actions"]["gotoRun"]["rosv:procedure"].update({"query": "nope"}), "ROS442", "/actions/gotoRun/rosv:procedure/query"),
-    "procedure link to self": (lambda td: td["actions"]["gotoRun"]["rosv:procedure"].update({"cancel": "gotoRun"}), "ROS443", "/actions/gotoRun/rosv:procedure/cancel"),
-    "mission id not in response": (lambda td: td["actions"]["gotoRun"]["rosv:procedure"].update({"missionId": "state/header/nope"}), "ROS444", "/actions/gotoRun/rosv:procedure/missionId"),
-    "bad QoS": (lambda td: _form(td, "properties", "door").update({"rosv:qos": {"reliability": "sometimes"}}), "ROS408", "/properties/door/forms/0/rosv:qos/reliability"),
-    "two ROS forms": (lambda td: td["actions"]["gotoRun"]["forms"].append(copy.deepcopy(_form(td, "actions", "gotoRun"))), "ROS402", "/actions/gotoRun/forms/1"),
+    "unknown type": (
+        lambda td: _form(td, "actions", "gotoRun").update({"rosv:type": "robot_local_control_msgs/srv/GoToPetitio"}),
+        "ROS423",
+        "/actions/gotoRun/forms/0/rosv:type",
+    ),
+    "malformed type": (
+        lambda td: _form(td, "actions", "gotoRun").update({"rosv:type": "not a type"}),
+        "ROS420",
+        "/actions/gotoRun/forms/0/rosv:type",
+    ),
+    "msg type on a service": (
+        lambda td: _form(td, "actions", "gotoRun").update({"rosv:type": "std_msgs/msg/Float64"}),
+        "ROS421",
+        "/actions/gotoRun/forms/0/rosv:type",
+    ),
+    "bad ROS name": (
+        lambda td: _form(td, "properties", "door").update({"rosv:name": "/door1//command"}),
+        "ROS410",
+        "/properties/door/forms/0/rosv:name",
+    ),
+    "bad role": (
+        lambda td: _form(td, "properties", "door").update({"rosv:role": "server"}),
+        "ROS407",
+        "/properties/door/forms/0/rosv:role",
+    ),
+    "same name two types": (
+        lambda td: _form(td, "actions", "gotoCancel").update(
+            {"rosv:name": _form(td, "actions", "gotoRun")["rosv:name"]}
+        ),
+        "ROS414",
+        "/actions/gotoCancel/forms/0/rosv:type",
+    ),
+    "component keyword": (
+        lambda td: td["properties"]["door"].update({"rosv:component": "class"}),
+        "ROS430",
+        "/properties/door/rosv:component",
+    ),
+    "unbound action": (
+        lambda td: td["actions"]["gotoRun"].update({"forms": [{"href": "http://x/y"}]}),
+        "ROS401",
+        "/actions/gotoRun",
+    ),
+    "procedure link to nothing": (
+        lambda td: td["actions"]["gotoRun"]["rosv:procedure"].update({"query": "nope"}),
+        "ROS442",
+        "/actions/gotoRun/rosv:procedure/query",
+    ),
+    "procedure link to self": (
+        lambda td: td["actions"]["gotoRun"]["rosv:procedure"].update({"cancel": "gotoRun"}),
+        "ROS443",
+        "/actions/gotoRun/rosv:procedure/cancel",
+    ),
+    "mission id not in response": (
+        lambda td: td["actions"]["gotoRun"]["rosv:procedure"].update({"missionId": "state/header/nope"}),
+        "ROS444",
+        "/actions/gotoRun/rosv:procedure/missionId",
+    ),
+    "bad QoS": (
+        lambda td: _form(td, "properties", "door").update({"rosv:qos": {"reliability": "sometimes"}}),
+        "ROS408",
+        "/properties/door/forms/0/rosv:qos/reliability",
+    ),
+    "two ROS forms": (
+        lambda td: td["actions"]["gotoRun"]["forms"].append(copy.deepcopy(_form(td, "actions", "gotoRun"))),
+        "ROS402",
+        "/actions/gotoRun/forms/1",
+    ),
 }
 
 

@@ -56,9 +56,7 @@ ROS1_MESSAGES = (
     msg("geometry_msgs/msg/Pose2D", "x:float64 y:float64 theta:float64"),
     msg("geometry_msgs/msg/Point", "x:float64 y:float64 z:float64"),
     msg("geometry_msgs/msg/Quaternion", "x:float64 y:float64 z:float64 w:float64"),
-    msg(
-        "geometry_msgs/msg/Pose", "position:geometry_msgs/msg/Point orientation:geometry_msgs/msg/Quaternion"
-    ),
+    msg("geometry_msgs/msg/Pose", "position:geometry_msgs/msg/Point orientation:geometry_msgs/msg/Quaternion"),
     msg("geometry_msgs/msg/PoseStamped", f"header:{HEADER} pose:geometry_msgs/msg/Pose"),
     msg(RLC + "Pose2DStamped", f"header:{HEADER} pose:geometry_msgs/msg/Pose2D"),
     msg(RLC + "Twist2D", "linear_x:float64 linear_y:float64 angular_z:float64"),
@@ -282,9 +280,7 @@ def test_query_output_extra_format_number_id_and_missing_last_message() -> None:
     assert "`last_message`" in missing.message and f"of `{QUERY_RES}`" in missing.message
     id_num = one(diags, "XC605", f"{base}/state/properties/header/properties/id/type")
     assert "`state.header.id`" in id_num.message
-    assert (
-        one(diags, "XC601", f"{base}/state/properties/header/properties/title").hint == "did you mean `name`?"
-    )
+    assert one(diags, "XC601", f"{base}/state/properties/header/properties/title").hint == "did you mean `name`?"
     assert not only(diags, "XC609")  # enums agree with the ProcedureState / ProcedureResult constants
     assert len(diags) == 4
 
@@ -305,9 +301,7 @@ def availability() -> dict[str, Any]:
             "robot_state": {"type": "string", "enum": ["init", "standby", "ready", "emergency", "failure"]},
             "control_state": STR,
             "operation_state": STR,
-            "mission_status": obj(
-                current=obj(id=INT, description=STR, state=STR), last=obj(id=INT, state=STR)
-            ),
+            "mission_status": obj(current=obj(id=INT, description=STR, state=STR), last=obj(id=INT, state=STR)),
             "localization_status": obj(
                 pose=pose,
                 reliable=BOOL,
@@ -396,9 +390,7 @@ def test_misplaced_in_both_status_poses(status_diags: Diagnostics) -> None:
     pointers = {d.pointer for d in only(status_diags, "XC603")}
     stamp = "properties/pose/properties/header/properties/stamp"
     assert pointers == {
-        f"{P}/{owner}/{stamp}/{key}"
-        for owner in ("localization_status", "robot_status")
-        for key in ("frame_id", "seq")
+        f"{P}/{owner}/{stamp}/{key}" for owner in ("localization_status", "robot_status") for key in ("frame_id", "seq")
     }
 
 
@@ -502,9 +494,7 @@ def test_ros1_time_as_builtin_message_still_uses_ros1_names() -> None:
     """Registries such as rosbags spell ROS 1 `time` as builtin_interfaces/msg/Time; JSON keeps secs/nsecs."""
     table = TypeTable("ros1", (msg(HEADER, "seq:uint32 stamp:builtin_interfaces/msg/Time frame_id:string"),))
     assert len(run(good_header(), HEADER, table)) == 0
-    assert run(obj(seq=INT, stamp=obj(sec=INT, nanosec=INT), frame_id=STR), HEADER, table).codes() == [
-        "XC606"
-    ]
+    assert run(obj(seq=INT, stamp=obj(sec=INT, nanosec=INT), frame_id=STR), HEADER, table).codes() == ["XC606"]
 
 
 # -- arrays, ranges, loose types --

@@ -86,9 +86,7 @@ def no_network(monkeypatch: pytest.MonkeyPatch) -> None:
 # -- differential: our context vs the official one --
 
 
-def test_same_rdf_as_official_context_on_corpus(
-    corpus: list[Path], official_context: Any, no_network: None
-) -> None:
+def test_same_rdf_as_official_context_on_corpus(corpus: list[Path], official_context: Any, no_network: None) -> None:
     differing = []
     for path in corpus:
         doc = load(path)
@@ -106,11 +104,7 @@ def _meaning(ctx: dict[str, Any], inherited: dict[str, str]) -> dict[str, Any]:
     """A context with every compact IRI written out, so two spellings of one definition compare equal."""
     prefixes = dict(inherited)
     prefixes.update(
-        {
-            k: v
-            for k, v in ctx.items()
-            if isinstance(v, str) and not k.startswith("@") and v.endswith(("#", "/"))
-        }
+        {k: v for k, v in ctx.items() if isinstance(v, str) and not k.startswith("@") and v.endswith(("#", "/"))}
     )
 
     def iri(value: Any) -> Any:

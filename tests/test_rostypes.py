@@ -311,9 +311,7 @@ def test_bundled_std_srvs(distro: str) -> None:
     assert [f.name for f in set_bool.request.fields] == ["data"]
     empty = registry.resolve("std_srvs/srv/Empty")
     assert isinstance(empty, ServiceDef) and empty.request.fields == empty.response.fields == ()
-    assert {"std_srvs/srv/Empty", "std_srvs/srv/SetBool", "std_srvs/srv/Trigger"} <= set(
-        registry.known_names("srv")
-    )
+    assert {"std_srvs/srv/Empty", "std_srvs/srv/SetBool", "std_srvs/srv/Trigger"} <= set(registry.known_names("srv"))
     if distro == "ros1":  # the well-known genpy md5 sums
         assert registry.ros1_definition("std_srvs/srv/Empty")[1] == "d41d8cd98f00b204e9800998ecf8427e"
         assert registry.ros1_definition("std_srvs/srv/Trigger")[1] == "937c9679a518e3a18d831e57125ea522"
@@ -326,9 +324,7 @@ def test_bundled_std_srvs(distro: str) -> None:
 
 def test_table_closure_order(rb1_ros1: tuple[TypeRegistry, Diagnostics]) -> None:
     registry, _ = rb1_ros1
-    table = registry.table(
-        ["robot_local_control_msgs/srv/GoToPetition", "procedures_msgs/srv/ProcedureQuery"]
-    )
+    table = registry.table(["robot_local_control_msgs/srv/GoToPetition", "procedures_msgs/srv/ProcedureQuery"])
     assert table.distro == "ros1"
     assert [s.name for s in table.services] == [
         "robot_local_control_msgs/srv/GoToPetition",
@@ -349,15 +345,9 @@ def test_table_closure_order(rb1_ros1: tuple[TypeRegistry, Diagnostics]) -> None
     assert table.missing == ()
     assert table.get("std_msgs/msg/Header") is not None
     # deterministic: the same input gives the same table, in this and in a fresh registry
-    assert (
-        registry.table(["robot_local_control_msgs/srv/GoToPetition", "procedures_msgs/srv/ProcedureQuery"])
-        == table
-    )
+    assert registry.table(["robot_local_control_msgs/srv/GoToPetition", "procedures_msgs/srv/ProcedureQuery"]) == table
     again = TypeRegistry("ros1", [RB1_INTERFACES])
-    assert (
-        again.table(["robot_local_control_msgs/srv/GoToPetition", "procedures_msgs/srv/ProcedureQuery"])
-        == table
-    )
+    assert again.table(["robot_local_control_msgs/srv/GoToPetition", "procedures_msgs/srv/ProcedureQuery"]) == table
 
 
 def test_table_lists_missing_names(rb1_ros1: tuple[TypeRegistry, Diagnostics]) -> None:
@@ -503,9 +493,7 @@ def test_missing_folder(tmp_path: Path) -> None:
 
 
 def test_undefined_type_names_the_field_and_suggests(tmp_path: Path) -> None:
-    path = write(
-        tmp_path, "demo_msgs/msg/Thing.msg", "int32 a\ngeometry_msgs/Pose2d pose\nUnknownLocal other\n"
-    )
+    path = write(tmp_path, "demo_msgs/msg/Thing.msg", "int32 a\ngeometry_msgs/Pose2d pose\nUnknownLocal other\n")
     diags = Diagnostics()
     registry = TypeRegistry("ros1", [tmp_path], diags)
     errors = diags.errors()
@@ -524,18 +512,13 @@ def test_closest_names(rb1_ros1: tuple[TypeRegistry, Diagnostics]) -> None:
     # the same type in another package (or of another kind) comes first
     assert registry.closest("std_msgs/msg/Pose")[0] == "geometry_msgs/msg/Pose"
     assert registry.closest("procedures_msgs/msg/ProcedureQuery")[0] == "procedures_msgs/srv/ProcedureQuery"
-    assert (
-        registry.closest("robot_local_control_msgs/GoToPetitio")[0]
-        == "robot_local_control_msgs/srv/GoToPetition"
-    )
+    assert registry.closest("robot_local_control_msgs/GoToPetitio")[0] == "robot_local_control_msgs/srv/GoToPetition"
     assert len(registry.closest("std_msgs/msg/Strin", n=2)) == 2
     assert registry.closest("zzzzzzzz/msg/Qqqqqqq") == []
 
 
 def test_overriding_a_typestore_type_warns(tmp_path: Path) -> None:
-    path = write(
-        tmp_path, "std_msgs/msg/Header.msg", "time stamp\nstring frame_id\n"
-    )  # ROS 2 Header in ROS 1
+    path = write(tmp_path, "std_msgs/msg/Header.msg", "time stamp\nstring frame_id\n")  # ROS 2 Header in ROS 1
     write(tmp_path, "std_msgs/msg/String.msg", "string data\n")  # identical: silent
     diags = Diagnostics()
     registry = TypeRegistry("ros1", [tmp_path], diags)

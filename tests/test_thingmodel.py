@@ -45,9 +45,7 @@ def load(rel: str | Path) -> JsonDocument:
     return doc
 
 
-def run(
-    rel: str | Path, values: dict[str, Any] | None = None, **kw: Any
-) -> tuple[dict[str, Any] | None, Diagnostics]:
+def run(rel: str | Path, values: dict[str, Any] | None = None, **kw: Any) -> tuple[dict[str, Any] | None, Diagnostics]:
     diags = Diagnostics()
     td = instantiate(load(rel), values or {}, diags, **kw)
     return td, diags
@@ -914,9 +912,7 @@ _json = st.recursive(
     | st.booleans()
     | st.integers()
     | st.floats(allow_nan=False, allow_infinity=False)
-    | st.sampled_from(
-        ["{{A}}", "x {{B}} y", "#/properties/a", "lib.tm.json#/x", "/properties/a", "tm:extends"]
-    )
+    | st.sampled_from(["{{A}}", "x {{B}} y", "#/properties/a", "lib.tm.json#/x", "/properties/a", "tm:extends"])
     | st.text(max_size=8),
     lambda children: (
         st.lists(children, max_size=4)

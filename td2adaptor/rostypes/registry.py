@@ -231,9 +231,7 @@ def _convert_scalar(typ: str, text: str, distro: Distro) -> Any:
 class _FileParser:
     """Parses the sections of one interface file, reporting problems with file:line:col."""
 
-    def __init__(
-        self, path: Path, package: str, distro: Distro, diags: Diagnostics, origin: str | None = None
-    ) -> None:
+    def __init__(self, path: Path, package: str, distro: Distro, diags: Diagnostics, origin: str | None = None) -> None:
         self.path = path
         self.file = str(path)
         self.origin = origin or self.file
@@ -324,9 +322,7 @@ class _FileParser:
                 raise ValueError(f"array default must be written [a, b, ...], got {text!r}")
             inner = text[1:-1].strip()
             items = [m[1] for m in _ARRAY_ITEM.finditer(inner) if m[0]] if inner else []
-            values = tuple(
-                self._bounded_string(ftype, _convert_scalar(ftype.base, it, "ros2")) for it in items
-            )
+            values = tuple(self._bounded_string(ftype, _convert_scalar(ftype.base, it, "ros2")) for it in items)
             if ftype.array is ArrayKind.FIXED and len(values) != ftype.length:
                 raise ValueError(f"{ftype} needs exactly {ftype.length} values, got {len(values)}")
             if ftype.length and len(values) > ftype.length:
@@ -369,9 +365,7 @@ class _FileParser:
                 continue
             decl = _CONSTANT_DECL.fullmatch(rest)
             if decl is not None:
-                self._constant(
-                    line, token, decl, lineno, indent + 1, rest_col, constants, texts, constant_names
-                )
+                self._constant(line, token, decl, lineno, indent + 1, rest_col, constants, texts, constant_names)
                 continue
             more = rest.split(None, 1)
             fname, default_text = more[0], more[1] if len(more) > 1 else ""
@@ -514,9 +508,7 @@ class TypeRegistry:
         if (root / "package.xml").is_file() or any((root / kind).is_dir() for kind in KINDS):
             packages = [root]
         else:
-            packages = sorted(
-                p for p in root.iterdir() if p.is_dir() and any((p / k).is_dir() for k in KINDS)
-            )
+            packages = sorted(p for p in root.iterdir() if p.is_dir() and any((p / k).is_dir() for k in KINDS))
         found = False
         for pkg_dir in packages:
             package = pkg_dir.resolve().name
@@ -567,9 +559,7 @@ class TypeRegistry:
             )
             self._broken.add(name)
             return
-        defs = [
-            parser.section(f"{name}{suffix}", lines) for suffix, lines in zip(suffixes, sections, strict=True)
-        ]
+        defs = [parser.section(f"{name}{suffix}", lines) for suffix, lines in zip(suffixes, sections, strict=True)]
         if not parser.ok:
             self._broken.update([name, *(d.msg.name for d in defs)])
             return
@@ -715,9 +705,7 @@ class TypeRegistry:
         query = parsed.canonical if parsed is not None else name.strip()
         known = self.known_names()
         short = re.split(r"[/.]", query)[-1].lower()
-        out = sorted(
-            (k for k in known if k.rsplit("/", 1)[-1].lower() == short), key=lambda k: (k != query, k)
-        )
+        out = sorted((k for k in known if k.rsplit("/", 1)[-1].lower() == short), key=lambda k: (k != query, k))
         lowered = {k.lower(): k for k in known}
         out += [lowered[m] for m in difflib.get_close_matches(query.lower(), list(lowered), n=n, cutoff=0.6)]
         return list(dict.fromkeys(out))[:n]
@@ -782,27 +770,17 @@ class TypeRegistry:
     def _own_text(self, name: str) -> str:
         """The ROS 1 text of one message without its dependencies (`time`, `pkg/Name` spellings)."""
         msg = self._require(name, name)
-        lines = [
-            f"{c.type} {c.name}={t}"
-            for c, t in zip(msg.constants, self._constant_texts(name, msg), strict=True)
-        ]
+        lines = [f"{c.type} {c.name}={t}" for c, t in zip(msg.constants, self._constant_texts(name, msg), strict=True)]
         for fld in msg.fields:
             ftype = fld.type
-            spelled = (
-                FieldType(ros1_name(ftype.base), False, ftype.array, ftype.length)
-                if ftype.is_message
-                else ftype
-            )
+            spelled = FieldType(ros1_name(ftype.base), False, ftype.array, ftype.length) if ftype.is_message else ftype
             lines.append(f"{spelled} {fld.name}")
         return "".join(f"{line}\n" for line in lines)
 
     def _md5_text(self, name: str) -> str:
         """genmsg's md5 text: constants as written, then fields, nested messages replaced by their md5."""
         msg = self._require(name, name)
-        lines = [
-            f"{c.type} {c.name}={t}"
-            for c, t in zip(msg.constants, self._constant_texts(name, msg), strict=True)
-        ]
+        lines = [f"{c.type} {c.name}={t}" for c, t in zip(msg.constants, self._constant_texts(name, msg), strict=True)]
         for fld in msg.fields:
             if fld.type.is_message:
                 self._require(fld.type.base, name)

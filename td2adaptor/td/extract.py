@@ -66,9 +66,7 @@ class RawEndpoint:
     component: Located | None = None
     qos: QoS = QoS()
     procedure: Located | None = None  # rosv:procedure object
-    declared: tuple[
-        Located, ...
-    ] = ()  # reference dialect: request/response/message class names to cross-check
+    declared: tuple[Located, ...] = ()  # reference dialect: request/response/message class names to cross-check
     text: Text = Text()
     input_schema: Any = None
     output_schema: Any = None
@@ -122,13 +120,9 @@ def _text(aff: Mapping[str, Any]) -> Text:
         return v if isinstance(v, str) else None
 
     def m(v: Any) -> Any:
-        return (
-            freeze({k: x for k, x in v.items() if isinstance(x, str)}) if isinstance(v, dict) else freeze({})
-        )
+        return freeze({k: x for k, x in v.items() if isinstance(x, str)}) if isinstance(v, dict) else freeze({})
 
-    return Text(
-        s(aff.get("title")), s(aff.get("description")), m(aff.get("titles")), m(aff.get("descriptions"))
-    )
+    return Text(s(aff.get("title")), s(aff.get("description")), m(aff.get("titles")), m(aff.get("descriptions")))
 
 
 def extract(td: Any, diags: Diagnostics) -> list[RawEndpoint]:
@@ -168,9 +162,7 @@ def _str_at(form: Mapping[str, Any], key: str, fptr: str, diags: Diagnostics, wh
     return Located(value, ptr)
 
 
-def _common(
-    kind: str, name: str, aff: Mapping[str, Any], form: Mapping[str, Any], fptr: str
-) -> dict[str, Any]:
+def _common(kind: str, name: str, aff: Mapping[str, Any], form: Mapping[str, Any], fptr: str) -> dict[str, Any]:
     href = form.get("href")
     return {
         "text": _text(aff),
@@ -314,17 +306,13 @@ def _binding_qos(form: Mapping[str, Any], fptr: str, what: str, diags: Diagnosti
                     values[key] = enum_type(raw[key])
                 except ValueError:
                     allowed = ", ".join(repr(e.value) for e in enum_type)
-                    diags.error(
-                        "ROS408", f"{what}: QoS {key} must be one of {allowed}", pointer_join(qptr, key)
-                    )
+                    diags.error("ROS408", f"{what}: QoS {key} must be one of {allowed}", pointer_join(qptr, key))
                     ok = False
         if "depth" in raw:
             if _positive_int(raw["depth"]):
                 values["depth"] = raw["depth"]
             else:
-                diags.error(
-                    "ROS408", f"{what}: QoS depth must be a positive integer", pointer_join(qptr, "depth")
-                )
+                diags.error("ROS408", f"{what}: QoS depth must be a positive integer", pointer_join(qptr, "depth"))
                 ok = False
         for key in raw:
             if key not in ("reliability", "durability", "history", "depth"):
@@ -340,9 +328,7 @@ def _binding_qos(form: Mapping[str, Any], fptr: str, what: str, diags: Diagnosti
         if isinstance(form["rosv:latch"], bool):
             qos = QoS(**{**qos.__dict__, "latch": form["rosv:latch"]})
         else:
-            diags.error(
-                "ROS408", f"{what}: rosv:latch must be true or false", pointer_join(fptr, "rosv:latch")
-            )
+            diags.error("ROS408", f"{what}: rosv:latch must be true or false", pointer_join(fptr, "rosv:latch"))
             ok = False
     if "rosv:queueSize" in form:
         q = form["rosv:queueSize"]

@@ -164,8 +164,7 @@ def _report_refused(doc: JsonDocument, loader: OfflineLoader, diags: Diagnostics
         shown = repr(url) if written in (None, url) else f"{written!r} (resolved to {url!r})"
         diags.warning(
             "TD251",
-            f"JSON-LD context {shown} is not available offline and was not fetched; "
-            "the terms it defines are ignored",
+            f"JSON-LD context {shown} is not available offline and was not fetched; the terms it defines are ignored",
             pointer,
             hint,
         )
@@ -190,9 +189,7 @@ def _report_failure(doc: JsonDocument, exc: Exception, diags: Diagnostics) -> No
     message = str(error.args[0]) if error.args else "invalid JSON-LD"
     details = getattr(error, "details", None)
     if isinstance(details, dict):
-        shown = {
-            k: v for k, v in details.items() if isinstance(v, (str, int, float, bool)) and len(str(v)) < 200
-        }
+        shown = {k: v for k, v in details.items() if isinstance(v, (str, int, float, bool)) and len(str(v)) < 200}
         if shown:
             message += " (" + ", ".join(f"{k}: {v!r}" for k, v in shown.items()) + ")"
     pointer = "/@context" if str(code) in _CONTEXT_ERRORS or "context" in str(code) else ""
@@ -239,9 +236,7 @@ def _find_context_reference(data: Any, url: str) -> tuple[str, str | None]:
                     entries = child if isinstance(child, list) else [child]
                     for i, item in enumerate(entries):
                         if isinstance(item, str):
-                            candidates.append(
-                                (pointer_join(child_ptr, i) if child is entries else child_ptr, item)
-                            )
+                            candidates.append((pointer_join(child_ptr, i) if child is entries else child_ptr, item))
                 stack.append((child_ptr, child))
         elif isinstance(value, list):
             stack.extend((pointer_join(pointer, i), item) for i, item in enumerate(value))

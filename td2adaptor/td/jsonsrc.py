@@ -56,25 +56,34 @@ class SourceMap:
             ptr = ptr.rsplit("/", 1)[0]
 
 
+@dataclass
+class _Frame:
+    """An open object or array while scanning."""
+
+    is_object: bool
+    pointer: str
+    index: int = 0
+    seen: set[str] = field(default_factory=set)
+
+
 def _scan(text: str) -> tuple[dict[str, int], dict[str, int], list[tuple[str, str, int]]]:
     """Walk a JSON text already accepted by `json.loads`, recording where each value and key starts."""
     values: dict[str, int] = {}
     keys: dict[str, int] = {}
     dups: list[tuple[str, str, int]] = []
-    # frame: [is_object, pointer, array index, keys seen]
-    stack: list[list[Any]] = []
+    stack: list[_Frame] = []
     i = _WS.match(text, 1 if text.startswith("\ufeff") else 0).end()  # type: ignore[union-attr]
     pointer = ""
 
-    def read_key(frame: list[Any], i: int) -> tuple[str, int]:
+    def read_key(frame: _Frame, i: int) -> tuple[str, int]:
         m = _STR.match(text, i)
         assert m is not None
         name = json.loads(m.group())
-        ptr = pointer_join(frame[1], name)
-        if name in frame[3]:
-            dups.append((frame[1], name, i))
+        ptr = pointer_join(frame.pointer, name)
+        if name in frame.seen:
+            dups.append((frame.pointer, name, i))
         else:
-            frame[3].add(name)
+            frame.seen.add(name)
             keys[ptr] = i
         i = _WS.match(text, m.end()).end()  # type: ignore[union-attr]
         return ptr, _WS.match(text, i + 1).end()  # type: ignore[union-attr]  # skip ':'
@@ -88,12 +97,12 @@ def _scan(text: str) -> tuple[dict[str, int], dict[str, int], list[tuple[str, st
             if text[i] in "}]":
                 i = _WS.match(text, i + 1).end()  # type: ignore[union-attr]
             else:
-                frame = [is_obj, pointer, 0, set()]
+                frame = _Frame(is_obj, pointer)
                 stack.append(frame)
                 if is_obj:
                     pointer, i = read_key(frame, i)
                 else:
-                    pointer = pointer_join(frame[1], 0)
+                    pointer = pointer_join(frame.pointer, 0)
                 continue
         else:
             m = (_STR if c == '"' else _SCALAR).match(text, i)
@@ -104,11 +113,11 @@ def _scan(text: str) -> tuple[dict[str, int], dict[str, int], list[tuple[str, st
             frame = stack[-1]
             if i < len(text) and text[i] == ",":
                 i = _WS.match(text, i + 1).end()  # type: ignore[union-attr]
-                if frame[0]:
+                if frame.is_object:
                     pointer, i = read_key(frame, i)
                 else:
-                    frame[2] += 1
-                    pointer = pointer_join(frame[1], frame[2])
+                    frame.index += 1
+                    pointer = pointer_join(frame.pointer, frame.index)
                 break
             stack.pop()
             i = _WS.match(text, i + 1).end()  # type: ignore[union-attr]
@@ -237,15 +246,12 @@ def parse_json(
         data = json.loads(text, object_pairs_hook=_pairs_hook(flag), parse_constant=_reject_constant)
     except json.JSONDecodeError as exc:
         diags.append(
-            Diagnostic(
-                "TD004", Severity.ERROR, f"invalid JSON: {exc.msg}", "", None, name, exc.lineno, exc.colno
-            )
+            Diagnostic("TD004", Severity.ERROR, f"invalid JSON: {exc.msg}", "", None, name, exc.lineno, exc.colno)
         )
         return None
     except ValueError as exc:  # NaN / Infinity
         off = _find_constant(text)
-        doc = JsonDocument(name, text, None, path)
-        line, col = (None, None) if off is None else doc_line_col(text, off)
+        where = (None, None) if off is None else doc_line_col(text, off)
         diags.append(
             Diagnostic(
                 "TD005",
@@ -254,8 +260,7 @@ def parse_json(
                 "",
                 "use null or a finite number",
                 name,
-                line,
-                col,
+                *where,
             )
         )
         return None

@@ -72,17 +72,13 @@ def to_reference_td(docs: Sequence[JsonDocument], diags: Diagnostics) -> LegacyI
                 continue
             class_name = cls.get("ClassName")
             if not isinstance(class_name, str) or not class_name:
-                local.error(
-                    "MIG702", "'ClassName' is missing or not a string", pointer_join(cptr, "ClassName")
-                )
+                local.error("MIG702", "'ClassName' is missing or not a string", pointer_join(cptr, "ClassName"))
                 continue
             entries = [(k, "action", _SERVICE_KEYS, "serviceClientName") for k in _CLIENT_LISTS if k in cls]
             if "Topics" in cls:
                 entries.append(("Topics", "property", _TOPIC_KEYS, "ReferenceName"))
             if not entries:
-                local.warning(
-                    "MIG703", f"class {class_name!r} has neither 'ServceClients' nor 'Topics'", cptr
-                )
+                local.warning("MIG703", f"class {class_name!r} has neither 'ServceClients' nor 'Topics'", cptr)
             for list_key, kind, keys, name_key in entries:
                 items = cls[list_key]
                 lptr = pointer_join(cptr, list_key)
@@ -96,17 +92,13 @@ def to_reference_td(docs: Sequence[JsonDocument], diags: Diagnostics) -> LegacyI
                         continue
                     name = item.get(name_key)
                     if not isinstance(name, str) or not name:
-                        local.error(
-                            "MIG702", f"{name_key!r} is missing or not a string", pointer_join(iptr, name_key)
-                        )
+                        local.error("MIG702", f"{name_key!r} is missing or not a string", pointer_join(iptr, name_key))
                         continue
                     group = "actions" if kind == "action" else "properties"
                     target = groups.setdefault(group, {})
                     tptr = pointer_join("", group, name)
                     if name in target:
-                        local.error(
-                            "MIG704", f"{kind} name {name!r} is used twice", pointer_join(iptr, name_key)
-                        )
+                        local.error("MIG704", f"{kind} name {name!r} is used twice", pointer_join(iptr, name_key))
                         continue
                     form: dict[str, Any] = {"op": ["invokeaction"] if kind == "action" else ["readproperty"]}
                     form["subprotocol"] = "ros"

@@ -245,9 +245,7 @@ class _MapLoader(yaml.SafeLoader):  # type: ignore[misc, unused-ignore]  # Any w
             key = self.construct_object(key_node, deep=True)
             if isinstance(key, Hashable):
                 if key in seen:
-                    raise yaml.constructor.ConstructorError(
-                        None, None, f"duplicate key {key!r}", key_node.start_mark
-                    )
+                    raise yaml.constructor.ConstructorError(None, None, f"duplicate key {key!r}", key_node.start_mark)
                 seen.add(key)
         mapping: dict[Hashable, Any] = super().construct_mapping(node, deep)
         return mapping
@@ -306,9 +304,7 @@ def load_placeholder_map(path: Path, diags: Diagnostics) -> dict[str, Any] | Non
             mark = getattr(exc, "problem_mark", None)
             problem = getattr(exc, "problem", None) or str(exc)
             line, col = (mark.line + 1, mark.column + 1) if mark is not None else (None, None)
-            diags.append(
-                Diagnostic("TM307", Severity.ERROR, f"invalid YAML: {problem}", "", None, name, line, col)
-            )
+            diags.append(Diagnostic("TM307", Severity.ERROR, f"invalid YAML: {problem}", "", None, name, line, col))
             return None
         except RecursionError:
             diags.add("TM307", Severity.ERROR, "YAML nesting is too deep to process", file=name)
@@ -429,9 +425,7 @@ class _Resolver:
         try:
             raw = path.read_bytes()
         except OSError as exc:
-            self.report(
-                key, "TM310", Severity.ERROR, f"{what} {shown} cannot be read: {exc.strerror or exc}", pointer
-            )
+            self.report(key, "TM310", Severity.ERROR, f"{what} {shown} cannot be read: {exc.strerror or exc}", pointer)
             self.docs[target] = None
             return None
         self.docs[target] = parse_json(raw, shown, self.diags, path=path)
@@ -445,9 +439,7 @@ class _Resolver:
             return [self.expand_refs(v, key, pointer_join(pointer, i)) for i, v in enumerate(value)]
         if not isinstance(value, dict):
             return value
-        local = {
-            k: self.expand_refs(v, key, pointer_join(pointer, k)) for k, v in value.items() if k != "tm:ref"
-        }
+        local = {k: self.expand_refs(v, key, pointer_join(pointer, k)) for k, v in value.items() if k != "tm:ref"}
         if "tm:ref" not in value:
             return local
         imported = self.ref_target(value["tm:ref"], key, pointer_join(pointer, "tm:ref"))
@@ -558,9 +550,7 @@ class _Resolver:
         finally:
             self.extends_stack.pop()
         if isinstance(own.get("links"), list):
-            own["links"] = [
-                lk for lk in own["links"] if not (isinstance(lk, dict) and lk.get("rel") == "tm:extends")
-            ]
+            own["links"] = [lk for lk in own["links"] if not (isinstance(lk, dict) and lk.get("rel") == "tm:extends")]
         result = own if inherited is None else merge_extends(inherited, own)
         self.models[key] = result
         return copy.deepcopy(result)
@@ -604,9 +594,7 @@ class _Resolver:
             if target in self.extends_stack:
                 chain = self.extends_stack[self.extends_stack.index(target) :] + [target]
                 shown = " → ".join(self.display(k) for k in chain)
-                self.report(
-                    key, "TM312", Severity.ERROR, f"tm:extends cycle: {shown}", pointer_join(ptr, "href")
-                )
+                self.report(key, "TM312", Severity.ERROR, f"tm:extends cycle: {shown}", pointer_join(ptr, "href"))
                 continue
             loaded = self.load(path, key, pointer_join(ptr, "href"), "extended Thing Model")
             if loaded is None:
@@ -722,9 +710,7 @@ def _select_optional(
                 matches = [o for o in optional if o[1] == item]
             if not matches:
                 declared = _names([f"/{k}/{n}" for k, n in optional]) or "none"
-                error(
-                    "TM332", f"{item!r} is not an optional affordance of the model (optional: {declared})", ""
-                )
+                error("TM332", f"{item!r} is not an optional affordance of the model (optional: {declared})", "")
             selected.update(matches)
     dropped = [o for o in optional if o not in selected]
     for kind, name in dropped:
@@ -811,9 +797,7 @@ def _td_context(value: Any, info: Callable[[str], object]) -> Any:
     """An `@context` a TD 1.1 accepts: TD URIs first (v1 before v1.1), TM-only context URIs dropped."""
     td_uris = (TD_CONTEXT_V1, TD_CONTEXT_V11)
     items = _as_list(value) if value is not None else []
-    tm_only = [
-        c for c in items if isinstance(c, str) and c.startswith("https://www.w3.org/") and "/wot/tm" in c
-    ]
+    tm_only = [c for c in items if isinstance(c, str) and c.startswith("https://www.w3.org/") and "/wot/tm" in c]
     kept = [c for c in items if c not in tm_only]
     heads = [c for c in td_uris if c in kept] or [TD_CONTEXT_V11]
     result = heads + [c for c in kept if c not in td_uris]
@@ -890,9 +874,7 @@ def _finish_td(
         )
 
     if not isinstance(td.get("title"), str):
-        diags.warning(
-            "TM344", "the model has no title, which a TD requires", "", "add a title to the Thing Model"
-        )
+        diags.warning("TM344", "the model has no title, which a TD requires", "", "add a title to the Thing Model")
 
     has_defs = isinstance(td.get("securityDefinitions"), dict) and bool(td["securityDefinitions"])
     has_security = "security" in td
