@@ -8,6 +8,7 @@
 from __future__ import annotations
 
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -24,13 +25,17 @@ CLI = str(Path(PY).parent / "td2adaptor")
 EXAMPLE = REPO / "examples" / "robotnik_rb1"
 
 
-def cold(cmd: list[str], runs: int = 7) -> float:
-    """Median wall time of a fresh process (after one warm-up run for the file cache)."""
-    subprocess.run(cmd, capture_output=True, check=False)
+# byte-code caching as on a normal machine (this workplace sets PYTHONDONTWRITEBYTECODE)
+ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+
+
+def cold(cmd: list[str], runs: int = 7, env: dict[str, str] | None = None) -> float:
+    """Median wall time of a fresh process (after one warm-up run for the file and result caches)."""
+    subprocess.run(cmd, capture_output=True, check=False, env=env or ENV)
     times = []
     for _ in range(runs):
         t0 = time.perf_counter()
-        subprocess.run(cmd, capture_output=True, check=False)
+        subprocess.run(cmd, capture_output=True, check=False, env=env or ENV)
         times.append(time.perf_counter() - t0)
     return statistics.median(times)
 
@@ -48,8 +53,11 @@ def main() -> None:
     base_click = cold([PY, "-c", "import click"])
     version = cold([CLI, "--version"])
     row("td2adaptor --version", version, "python -c 'import click'", base_click, "<= 2x")
-    validate = cold([CLI, "validate", str(EXAMPLE / "td.json"), "-I", str(EXAMPLE / "interfaces")])
-    row("td2adaptor validate RB-1 (cold)", validate, "python -c pass", base_pass, "<= 200 ms")
+    cmd = [CLI, "validate", str(EXAMPLE / "td.json"), "-I", str(EXAMPLE / "interfaces")]
+    row(
+        "validate RB-1, cold CLI, no result cache", cold([*cmd, "--no-cache"]), "python -c pass", base_pass, "<= 200 ms"
+    )
+    row("validate RB-1, cold CLI, result cache hit", cold(cmd), "python -c pass", base_pass, "<= 200 ms")
 
     from td2adaptor import compile as td_compile
 

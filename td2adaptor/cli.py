@@ -56,6 +56,7 @@ def _input_options(f: Any) -> Any:
         help="Refuse inputs larger than this.",
     )(f)
     f = click.option("--strict", is_flag=True, help="Treat warnings as errors.")(f)
+    f = click.option("--no-cache", is_flag=True, help="Recompile even if the result cache has this input.")(f)
     f = click.option(
         "--values",
         "values_file",
@@ -111,6 +112,7 @@ def _compile(
     strict: bool,
     max_bytes: int,
     package: str | None = None,
+    no_cache: bool = False,
 ) -> Result:
     from td2adaptor.compiler import Result, compile
 
@@ -124,6 +126,7 @@ def _compile(
         strict=strict,
         package=package,
         max_bytes=max_bytes,
+        use_cache=not no_cache,
     )
     return Result(result.model, tuple(problems) + result.diagnostics, result.input)
 
@@ -167,12 +170,13 @@ def validate(
     sets: tuple[str, ...],
     values_file: Path | None,
     strict: bool,
+    no_cache: bool,
     max_bytes: int,
     fmt: str,
     package_name: str | None,
 ) -> None:
     """Validate a TD, Thing Model or legacy config ('-' reads stdin) and resolve its ROS types."""
-    result = _compile(sources, interfaces, sets, values_file, strict, max_bytes, package_name)
+    result = _compile(sources, interfaces, sets, values_file, strict, max_bytes, package_name, no_cache)
     ok = report(result.diagnostics, fmt, label=_label(sources))
     sys.exit(EXIT_OK if ok else EXIT_INVALID)
 
@@ -187,13 +191,14 @@ def types(
     sets: tuple[str, ...],
     values_file: Path | None,
     strict: bool,
+    no_cache: bool,
     max_bytes: int,
     fmt: str,
 ) -> None:
     """Show components, their services and topics, and the resolved ROS types."""
     from td2adaptor.typestable import types_json, types_text
 
-    result = _compile(sources, interfaces, sets, values_file, strict, max_bytes)
+    result = _compile(sources, interfaces, sets, values_file, strict, max_bytes, None, no_cache)
     if result.model is None:
         report(result.diagnostics, fmt, label=_label(sources))
         sys.exit(EXIT_INVALID)

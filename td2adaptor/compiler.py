@@ -156,11 +156,29 @@ def compile(  # noqa: A001 - the public name the docs promise
     package: str | None = None,
     stdin: BinaryIO | None = None,
     max_bytes: int = DEFAULT_MAX_BYTES,
+    use_cache: bool = False,
 ) -> Result:
     """Load, validate and lower `sources` into the canonical model.
 
     `model` is None when there are errors; `diagnostics` always lists every problem found, in input order.
+    With `use_cache`, an unchanged input is answered from the result cache (`Result.input` is then None).
     """
+    from td2adaptor import cache
+
+    if use_cache and cache.cache_dir() is not None and "-" not in _sources(sources):
+        from td2adaptor import resultcache
+
+        srcs = _sources(sources)
+        dirs = [Path(p) for p in interfaces]
+        options = (sorted((values or {}).items()), strict, package, max_bytes)
+        cache_key = resultcache.key(srcs, dirs, repr(options))
+
+        def fresh() -> tuple[Model | None, tuple[Diagnostic, ...]]:
+            r = compile(srcs, interfaces=dirs, values=values, strict=strict, package=package, max_bytes=max_bytes)
+            return r.model, r.diagnostics
+
+        model, diagnostics = resultcache.cached(cache_key, fresh)
+        return Result(model, diagnostics, None)
     from td2adaptor.lower import lower
     from td2adaptor.td.extract import extract
 

@@ -7,7 +7,6 @@ for diagnostics but excluded from equality, so a TD and its migrated form compil
 from __future__ import annotations
 
 import enum
-import types
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -17,10 +16,22 @@ from typing import Any
 # JSON values, frozen
 
 
+class FrozenMap(dict[str, Any]):
+    """A read-only dict that, unlike `types.MappingProxyType`, pickles (for the result cache)."""
+
+    def _readonly(self, *_args: Any, **_kwargs: Any) -> Any:
+        raise TypeError("the canonical model is immutable")
+
+    __setitem__ = __delitem__ = clear = pop = popitem = setdefault = update = __ior__ = _readonly
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (FrozenMap, (dict(self),))
+
+
 def freeze(value: Any) -> Any:
     """Deep-freeze JSON data: dicts become read-only mappings, lists become tuples."""
     if isinstance(value, Mapping):
-        return types.MappingProxyType({k: freeze(v) for k, v in value.items()})
+        return FrozenMap({k: freeze(v) for k, v in value.items()})
     if isinstance(value, (list, tuple)):
         return tuple(freeze(v) for v in value)
     return value
@@ -237,8 +248,8 @@ class Text:
 
     title: str | None = None
     description: str | None = None
-    titles: Mapping[str, str] = field(default_factory=lambda: types.MappingProxyType({}))
-    descriptions: Mapping[str, str] = field(default_factory=lambda: types.MappingProxyType({}))
+    titles: Mapping[str, str] = field(default_factory=FrozenMap)
+    descriptions: Mapping[str, str] = field(default_factory=FrozenMap)
 
 
 @dataclass(frozen=True)

@@ -116,6 +116,50 @@ def _base_store(distro: Distro) -> Typestore:
     return get_typestore(Stores[_STORE_NAMES[distro]])
 
 
+@cache
+def _base_fielddefs(distro: Distro) -> dict[str, Any]:
+    """The typestore's field definitions as plain data.
+
+    Building a rosbags typestore generates a dataclass per type (~80 ms a distro); the definitions alone are
+    cached on disk, keyed by the installed rosbags store module, so a CLI run needs the typestore only for
+    serialisation.
+    """
+    import importlib.util
+
+    from td2adaptor import cache
+
+    key = ""
+    spec = importlib.util.find_spec("rosbags")
+    if spec is not None and spec.submodule_search_locations:
+        module = Path(next(iter(spec.submodule_search_locations))) / "typesys" / "stores"
+        module = module / f"{_STORE_NAMES[distro].lower()}.py"
+        try:
+            st = module.stat()
+            key = f"rosbags-{_STORE_NAMES[distro].lower()}-{st.st_size}-{int(st.st_mtime)}.json"
+        except OSError:
+            key = ""
+    if key:
+        cached = cache.read_json(key)
+        if isinstance(cached, dict):
+            return cached
+    data = {
+        name: [[list(c) for c in consts], [[fname, _plain_desc(desc)] for fname, desc in fields]]
+        for name, (consts, fields) in _base_store(distro).fielddefs.items()
+    }
+    if key:
+        cache.write_json(key, data)
+    return data
+
+
+def _plain_desc(desc: Any) -> Any:
+    node, args = desc
+    if int(node) in (3, 4):
+        return [int(node), [_plain_desc(args[0]), int(args[1])]]
+    if int(node) == 2:
+        return [2, str(args)]
+    return [int(node), [str(args[0]), int(args[1])]]
+
+
 _BASE_DEFS: dict[tuple[Distro, str], MessageDef] = {}
 
 
@@ -144,7 +188,7 @@ def _base_message(distro: Distro, name: str) -> MessageDef | None:
         return found
     if distro == "ros1" and name in _TIME_MESSAGES:
         return None  # ROS 1 has `time`/`duration` primitives, no builtin_interfaces package
-    fielddefs = _base_store(distro).fielddefs.get(name)
+    fielddefs = _base_fielddefs(distro).get(name)
     if fielddefs is None:
         return None
     consts, fields = fielddefs
@@ -690,7 +734,7 @@ class TypeRegistry:
         if self._known is None:
             names: set[str] = set(self._services) | set(self._actions)
             names.update(n for n in self._defs if "/msg/" in n)
-            names.update(n for n in _base_store(self.distro).fielddefs if "/msg/" in n)
+            names.update(n for n in _base_fielddefs(self.distro) if "/msg/" in n)
             if self.distro == "ros1":
                 names.difference_update(_TIME_MESSAGES)
             names.difference_update(self._broken)

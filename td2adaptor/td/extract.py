@@ -10,9 +10,8 @@ every access is defensive, so malformed TDs give diagnostics, never exceptions.
 
 from __future__ import annotations
 
-import types
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from td2adaptor.diagnostics import Diagnostics, pointer_join
@@ -73,7 +72,6 @@ class RawEndpoint:
     schema: Any = None
     form_pointer: str = ""
     href: Located | None = None
-    extra: Mapping[str, Any] = field(default_factory=lambda: types.MappingProxyType({}))
 
 
 def obj(value: Any) -> dict[str, Any]:

@@ -177,6 +177,10 @@ def _reject_constant(name: str) -> Any:
     raise ValueError(f"{name} is not valid JSON")
 
 
+#: When a list, every file parsed appends (resolved path, sha256 of its bytes): the result cache's dependencies.
+READ_LOG: list[tuple[str, str]] | None = None
+
+
 def parse_json(
     raw: bytes | str,
     name: str,
@@ -189,6 +193,11 @@ def parse_json(
 
     Returns None when the text cannot be parsed at all (an error has then been reported).
     """
+    if READ_LOG is not None and path is not None:
+        import hashlib
+
+        data = raw if isinstance(raw, bytes) else raw.encode("utf-8")
+        READ_LOG.append((str(path), hashlib.sha256(data).hexdigest()))
     size = len(raw)
     if size > max_bytes:
         diags.add(
