@@ -41,6 +41,12 @@ fi
 .venv/bin/python -m pip install -q --upgrade pip >/dev/null 2>&1 || true
 if [ "$want_test" = 1 ]; then
   .venv/bin/python -m pip install -q -e '.[test]'
+  # what the real-middleware tests need (ROS 2 wheels, ROS 1 from Debian, cross compiler, broker, ...)
+  for part in .ci/setup-*.sh; do
+    [ -e "$part" ] || continue
+    echo "setup: $part"
+    SUDO="$SUDO" bash "$part"
+  done
 else
   .venv/bin/python -m pip install -q -e .
 fi

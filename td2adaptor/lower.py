@@ -19,6 +19,7 @@ from td2adaptor.model import (
     Procedure,
     ProcedureRole,
     Role,
+    Ros1Digest,
     ServiceDef,
     ServiceEndpoint,
     Thing,
@@ -505,6 +506,7 @@ def _resolve_types(
 ) -> dict[str, TypeTable]:
     names = list(dict.fromkeys(ep.type_name for ep in endpoints))
     tables = {d: regs[d].table(names) for d in DISTROS}
+    tables["ros1"] = _with_digests(tables["ros1"], regs["ros1"])
     reported: set[str] = set()
     for ep in endpoints:
         missing = [d for d in DISTROS if tables[d].get(ep.type_name) is None]
@@ -534,6 +536,20 @@ def _resolve_types(
             if name not in names:
                 diags.warning("ROS426", f"type {name!r} used by the interface definitions is not known for {d}")
     return tables
+
+
+def _with_digests(table: TypeTable, reg: TypeRegistry) -> TypeTable:
+    """Attach ROS 1 definitions and md5 sums (the rospy and mROS backends put them on the wire)."""
+    from dataclasses import replace
+
+    digests = []
+    for name in [m.name for m in table.messages] + [s.name for s in table.services]:
+        try:
+            text, md5 = reg.ros1_definition(name)
+        except (KeyError, ValueError):
+            continue
+        digests.append(Ros1Digest(name, text, md5))
+    return replace(table, ros1_digests=tuple(digests))
 
 
 def _crosscheck(endpoints: Sequence[_Endpoint], tables: Mapping[str, TypeTable], diags: Diagnostics) -> None:

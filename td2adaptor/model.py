@@ -134,6 +134,15 @@ class ActionDef:
 
 
 @dataclass(frozen=True)
+class Ros1Digest:
+    """ROS 1 wire identity of a message or service: full definition text (as in connection headers) and md5."""
+
+    name: str
+    definition: str
+    md5: str
+
+
+@dataclass(frozen=True)
 class TypeTable:
     """Every interface type a model uses, resolved for one ROS distribution, in first-use order."""
 
@@ -142,6 +151,10 @@ class TypeTable:
     services: tuple[ServiceDef, ...] = ()
     actions: tuple[ActionDef, ...] = ()
     missing: tuple[str, ...] = ()  # names that did not resolve for this distro
+    ros1_digests: tuple[Ros1Digest, ...] = ()  # ros1 tables: every message and service above
+
+    def ros1_digest(self, name: str) -> Ros1Digest:
+        return next(d for d in self.ros1_digests if d.name == name)
 
     @cached_property
     def _by_name(self) -> dict[str, Any]:

@@ -1,0 +1,70 @@
+"""Turning untrusted TD text into safe literals of the languages we generate.
+
+Every string that comes from a TD (names are validated separately; titles, descriptions, enum values,
+defaults) reaches generated code only through these functions, so no TD text can end a literal or a
+comment and become code.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+
+_CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f\u2028\u2029\u0085]")
+
+
+def py_docstring(text: str | None, indent: str = "    ", *, fallback: str = "") -> str:
+    """A triple-quoted Python docstring whose content cannot close it: `\\` and every `"` are escaped."""
+    body = (text if text else fallback).strip()
+    body = body.replace("\\", "\\\\").replace('"', '\\"')
+    body = _CONTROL.sub(
+        lambda m: f"\\x{ord(m.group()):02x}" if ord(m.group()) < 256 else f"\\u{ord(m.group()):04x}", body
+    )
+    lines = [line.rstrip() for line in body.replace("\r\n", "\n").replace("\r", "\n").split("\n")]
+    if len(lines) == 1:
+        return f'"""{lines[0]}"""'
+    return (
+        '"""'
+        + lines[0]
+        + "\n"
+        + "\n".join((indent + line) if line else "" for line in lines[1:])
+        + "\n"
+        + indent
+        + '"""'
+    )
+
+
+def py_str(text: str) -> str:
+    """A Python string literal (double-quoted, ASCII-only escapes for anything unusual)."""
+    return json.dumps(text, ensure_ascii=True)
+
+
+def py_comment(text: str) -> str:
+    """A single-line `#` comment body: newlines and control characters cannot start a new line of code."""
+    return _CONTROL.sub(" ", text.replace("\r", " ").replace("\n", " ")).strip()
+
+
+def c_str(text: str) -> str:
+    """A C/C++ string literal: only printable ASCII kept verbatim, everything else as octal escapes."""
+    out = []
+    for byte in text.encode("utf-8"):
+        ch = chr(byte)
+        if ch in '"\\':
+            out.append("\\" + ch)
+        elif 0x20 <= byte < 0x7F and ch != "?":  # '?' escaped: no trigraphs in C++98
+            out.append(ch)
+        else:
+            out.append(f"\\{byte:03o}")
+    return '"' + "".join(out) + '"'
+
+
+def c_comment(text: str) -> str:
+    """Text for inside a `/* ... */` or `//` comment: cannot close the comment nor continue a line."""
+    text = text.replace("*/", "* /").replace("/*", "/ *").replace("\\", "/")
+    return _CONTROL.sub(" ", text.replace("\r", " ").replace("\n", " ")).strip()
+
+
+def xml_text(text: str) -> str:
+    """Text content for XML (package.xml): escaped, control characters dropped."""
+    text = _CONTROL.sub(" ", text)
+    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;").replace('"', "&quot;")
