@@ -14,12 +14,13 @@ import hashlib
 import json
 import os
 import posixpath
+import shutil
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from td2adaptor.backends import GeneratedTree
 from td2adaptor.diagnostics import Diagnostics
-from td2adaptor.fsutil import write_atomic
 
 MANIFEST = ".td2adaptor-manifest.json"
 
@@ -101,20 +102,114 @@ def plan(tree: GeneratedTree, root: Path, diags: Diagnostics, *, force: bool = F
 
 
 def write(tree: GeneratedTree, root: Path, report: EmitReport) -> None:
-    """Carry out a plan made by `plan`."""
-    for rel in report.written:
-        target = root / rel
-        write_atomic(target, tree.files[rel])
-        mode = 0o755 if rel in tree.executable else 0o644
-        os.chmod(target, mode)
-    for rel in report.removed:
-        (root / rel).unlink(missing_ok=True)
-        parent = (root / rel).parent
-        while parent != root and parent.is_dir() and not any(parent.iterdir()):
-            parent.rmdir()
-            parent = parent.parent
-    manifest = {"generator": "td2adaptor", "files": {rel: _sha(data) for rel, data in tree}}
-    text = json.dumps(manifest, indent=1, sort_keys=True) + "\n"
-    if (root / MANIFEST).is_file() and (root / MANIFEST).read_text(encoding="utf-8") == text:
+    """Carry out a plan made by `plan`, replacing the whole directory at once.
+
+    The new tree is assembled beside the old one (unchanged and foreign files hard-linked, so they keep
+    their mtime) and swapped in with one atomic exchange: an interrupted run leaves the old tree or the
+    new one, never a mix.
+    """
+    if not report.written and not report.removed and _manifest_bytes(tree) == _read(root / MANIFEST):
         return
-    write_atomic(root / MANIFEST, text.encode("utf-8"))
+    _recover(root)
+    root.parent.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=f".{root.name}.td2a-new-", dir=root.parent))
+    try:
+        skip = set(report.written) | set(report.removed) | {MANIFEST}
+        if root.is_dir():
+            _replicate(root, stage, skip)
+        for rel in report.written:
+            target = stage / rel
+            target.parent.mkdir(parents=True, exist_ok=True)
+            target.write_bytes(tree.files[rel])
+            os.chmod(target, 0o755 if rel in tree.executable else 0o644)
+        for rel in report.removed:
+            parent = (stage / rel).parent
+            while parent != stage and parent.is_dir() and not any(parent.iterdir()):
+                parent.rmdir()
+                parent = parent.parent
+        (stage / MANIFEST).write_bytes(_manifest_bytes(tree))
+        _fsync_tree(stage)
+        if root.exists():
+            _exchange(stage, root)
+            shutil.rmtree(stage)  # now holds the old tree
+        else:
+            os.rename(stage, root)
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        raise
+
+
+def _manifest_bytes(tree: GeneratedTree) -> bytes:
+    manifest = {"generator": "td2adaptor", "files": {rel: _sha(data) for rel, data in tree}}
+    return (json.dumps(manifest, indent=1, sort_keys=True) + "\n").encode("utf-8")
+
+
+def _read(path: Path) -> bytes | None:
+    try:
+        return path.read_bytes()
+    except OSError:
+        return None
+
+
+def _replicate(src: Path, dst: Path, skip: set[str]) -> None:
+    """Hard-link every file of `src` into `dst` (same relative paths), except the `skip`ped ones."""
+    for dirpath, dirnames, filenames in os.walk(src):
+        rel_dir = Path(dirpath).relative_to(src)
+        (dst / rel_dir).mkdir(parents=True, exist_ok=True)
+        for name in dirnames:
+            full = Path(dirpath) / name
+            if full.is_symlink():
+                os.symlink(os.readlink(full), dst / rel_dir / name)
+        dirnames[:] = [d for d in dirnames if not (Path(dirpath) / d).is_symlink()]
+        for name in filenames:
+            rel = (rel_dir / name).as_posix()
+            if rel in skip:
+                continue
+            full = Path(dirpath) / name
+            if full.is_symlink():
+                os.symlink(os.readlink(full), dst / rel)
+            else:
+                try:
+                    os.link(full, dst / rel)
+                except OSError:
+                    shutil.copy2(full, dst / rel)
+
+
+def _fsync_tree(root: Path) -> None:
+    for dirpath, _dirs, files in os.walk(root):
+        for name in files:
+            path = Path(dirpath) / name
+            if path.is_symlink():
+                continue
+            fd = os.open(path, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+
+
+def _exchange(a: Path, b: Path) -> None:
+    """Swap two directories atomically (Linux renameat2 RENAME_EXCHANGE), else with two renames."""
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        renameat2 = libc.renameat2
+        at_fdcwd, rename_exchange = -100, 2
+        if renameat2(at_fdcwd, os.fsencode(a), at_fdcwd, os.fsencode(b), rename_exchange) == 0:
+            return
+    except (AttributeError, OSError):
+        pass
+    backup = b.with_name(f".{b.name}.td2a-old")
+    os.rename(b, backup)
+    os.rename(a, b)
+    os.rename(backup, a)
+
+
+def _recover(root: Path) -> None:
+    """Clean up after an interrupted run: restore a tree left aside by the fallback swap, drop stages."""
+    backup = root.with_name(f".{root.name}.td2a-old")
+    if backup.is_dir() and not root.exists():
+        os.rename(backup, root)
+    for leftover in root.parent.glob(f".{root.name}.td2a-*") if root.parent.is_dir() else ():
+        shutil.rmtree(leftover, ignore_errors=True)

@@ -1,0 +1,168 @@
+"""Project configuration: `[tool.td2adaptor]` in pyproject.toml, or a td2adaptor.toml, found upwards from cwd.
+
+    [tool.td2adaptor]
+    output = "generated"                      # default for every target
+
+    [[tool.td2adaptor.target]]
+    tds = ["examples/robotnik_rb1/*.json"]    # paths or globs, relative to the config file
+    backends = ["all"]
+    interfaces = ["examples/robotnik_rb1/interfaces"]
+    output = "generated"                      # optional, overrides the default
+    values = { robotName = "rb1_base_a" }     # Thing Model placeholder values (optional)
+    package-name = "my_adaptor"               # optional
+    partial = true                            # skip what a backend cannot express (e.g. services in mROS)
+    exclude = ["**/*.tm.json"]                # optional globs
+
+In td2adaptor.toml the same keys live at the top level (`output`, `[[target]]`).
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from td2adaptor.diagnostics import Diagnostics
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+
+@dataclass(frozen=True)
+class Target:
+    """One generation job: which TDs, which backends, where to."""
+
+    tds: tuple[Path, ...]
+    backends: tuple[str, ...] = ("all",)
+    output: Path = Path("generated")
+    interfaces: tuple[Path, ...] = ()
+    values: tuple[tuple[str, Any], ...] = ()
+    package_name: str | None = None
+    partial: bool = False
+    strict: bool = False
+
+
+@dataclass(frozen=True)
+class Config:
+    path: Path
+    targets: tuple[Target, ...] = field(default_factory=tuple)
+
+
+def find(start: Path | None = None) -> Path | None:
+    """The nearest td2adaptor.toml, or pyproject.toml with a [tool.td2adaptor] table, from `start` upwards."""
+    here = (start or Path.cwd()).resolve()
+    for folder in (here, *here.parents):
+        own = folder / "td2adaptor.toml"
+        if own.is_file():
+            return own
+        pyproject = folder / "pyproject.toml"
+        if pyproject.is_file():
+            try:
+                if "td2adaptor" in tomllib.loads(pyproject.read_text(encoding="utf-8")).get("tool", {}):
+                    return pyproject
+            except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError):
+                continue
+    return None
+
+
+def load(path: Path, diags: Diagnostics) -> Config | None:
+    """Parse and check a configuration file; every problem is a diagnostic (CFG90x), never an exception."""
+    name = str(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as exc:
+        diags.add("CFG900", _err(), f"cannot read {name}: {exc}", file=name)
+        return None
+    except tomllib.TOMLDecodeError as exc:
+        diags.add("CFG901", _err(), f"invalid TOML: {exc}", file=name)
+        return None
+    table = data.get("tool", {}).get("td2adaptor") if path.name == "pyproject.toml" else data
+    if not isinstance(table, dict):
+        diags.add("CFG902", _err(), "[tool.td2adaptor] must be a table", file=name)
+        return None
+    base = path.parent
+    default_output = table.get("output", "generated")
+    raw_targets = table.get("target", [])
+    if not isinstance(raw_targets, list) or not raw_targets:
+        diags.add("CFG903", _err(), "no [[tool.td2adaptor.target]] tables: nothing to generate", file=name)
+        return None
+    targets = []
+    for i, raw in enumerate(raw_targets):
+        where = f"target #{i + 1}"
+        if not isinstance(raw, dict):
+            diags.add("CFG904", _err(), f"{where} must be a table", file=name)
+            continue
+        known = {
+            "tds",
+            "td",
+            "backends",
+            "interfaces",
+            "output",
+            "values",
+            "package-name",
+            "partial",
+            "strict",
+            "exclude",
+        }
+        for key in raw:
+            if key not in known:
+                diags.add(
+                    "CFG905", _err(), f"{where}: unknown key {key!r} (known: {', '.join(sorted(known))})", file=name
+                )
+        patterns = _strings(raw.get("tds", raw.get("td")), f"{where}: tds", name, diags)
+        excludes = _strings(raw.get("exclude", []), f"{where}: exclude", name, diags)
+        tds = _expand(base, patterns, excludes)
+        if patterns and not tds:
+            diags.add("CFG906", _err(), f"{where}: no file matches {patterns}", file=name)
+        values = raw.get("values", {})
+        if not isinstance(values, dict):
+            diags.add("CFG904", _err(), f"{where}: values must be a table", file=name)
+            values = {}
+        output = raw.get("output", default_output)
+        package = raw.get("package-name")
+        targets.append(
+            Target(
+                tds=tuple(tds),
+                backends=tuple(_strings(raw.get("backends", ["all"]), f"{where}: backends", name, diags)),
+                output=base / str(output),
+                interfaces=tuple(
+                    base / p for p in _strings(raw.get("interfaces", []), f"{where}: interfaces", name, diags)
+                ),
+                values=tuple(sorted(values.items())),
+                package_name=package if isinstance(package, str) else None,
+                partial=bool(raw.get("partial", False)),
+                strict=bool(raw.get("strict", False)),
+            )
+        )
+    return Config(path, tuple(targets))
+
+
+def _err() -> Any:
+    from td2adaptor.diagnostics import Severity
+
+    return Severity.ERROR
+
+
+def _strings(value: Any, what: str, name: str, diags: Diagnostics) -> list[str]:
+    if isinstance(value, str):
+        return [value]
+    if isinstance(value, list) and all(isinstance(v, str) for v in value):
+        return list(value)
+    if value is not None:
+        diags.add("CFG904", _err(), f"{what} must be a string or a list of strings", file=name)
+    return []
+
+
+def _expand(base: Path, patterns: Sequence[str], excludes: Sequence[str]) -> list[Path]:
+    """Glob patterns relative to the config file, sorted (directory listing order never matters)."""
+    found: dict[Path, None] = {}
+    for pattern in patterns:
+        matches = sorted(base.glob(pattern)) if any(c in pattern for c in "*?[") else [base / pattern]
+        for m in matches:
+            if m.is_file() and not any(m.match(x) or m.relative_to(base).match(x) for x in excludes):
+                found[m] = None
+    return list(found)
