@@ -51,9 +51,16 @@ def _input_options(f: Any) -> Any:
     f = click.option(
         "--max-bytes",
         type=click.IntRange(min=1),
-        default=64 * 1024 * 1024,
+        default=16 * 1024 * 1024,
         show_default=True,
         help="Refuse inputs larger than this.",
+    )(f)
+    f = click.option(
+        "--max-affordances",
+        type=click.IntRange(min=1),
+        default=20_000,
+        show_default=True,
+        help="Refuse TDs with more affordances than this.",
     )(f)
     f = click.option("--strict", is_flag=True, help="Treat warnings as errors.")(f)
     f = click.option("--no-cache", is_flag=True, help="Recompile even if the result cache has this input.")(f)
@@ -113,6 +120,7 @@ def _compile(
     max_bytes: int,
     package: str | None = None,
     no_cache: bool = False,
+    max_affordances: int = 20_000,
 ) -> Result:
     from td2adaptor.compiler import Result, compile
 
@@ -126,6 +134,7 @@ def _compile(
         strict=strict,
         package=package,
         max_bytes=max_bytes,
+        max_affordances=max_affordances,
         use_cache=not no_cache,
     )
     return Result(result.model, tuple(problems) + result.diagnostics, result.input)
@@ -172,11 +181,14 @@ def validate(
     strict: bool,
     no_cache: bool,
     max_bytes: int,
+    max_affordances: int,
     fmt: str,
     package_name: str | None,
 ) -> None:
     """Validate a TD, Thing Model or legacy config ('-' reads stdin) and resolve its ROS types."""
-    result = _compile(sources, interfaces, sets, values_file, strict, max_bytes, package_name, no_cache)
+    result = _compile(
+        sources, interfaces, sets, values_file, strict, max_bytes, package_name, no_cache, max_affordances
+    )
     ok = report(result.diagnostics, fmt, label=_label(sources))
     sys.exit(EXIT_OK if ok else EXIT_INVALID)
 
@@ -193,12 +205,13 @@ def types(
     strict: bool,
     no_cache: bool,
     max_bytes: int,
+    max_affordances: int,
     fmt: str,
 ) -> None:
     """Show components, their services and topics, and the resolved ROS types."""
     from td2adaptor.typestable import types_json, types_text
 
-    result = _compile(sources, interfaces, sets, values_file, strict, max_bytes, None, no_cache)
+    result = _compile(sources, interfaces, sets, values_file, strict, max_bytes, None, no_cache, max_affordances)
     if result.model is None:
         report(result.diagnostics, fmt, label=_label(sources))
         sys.exit(EXIT_INVALID)
@@ -389,6 +402,7 @@ def gen(
     strict: bool,
     no_cache: bool,
     max_bytes: int,
+    max_affordances: int,
     fmt: str,
 ) -> None:
     """Generate adaptor packages into OUT/<backend>/; with no TD, as configured for the project.
@@ -439,6 +453,7 @@ def check(
     strict: bool,
     no_cache: bool,
     max_bytes: int,
+    max_affordances: int,
     fmt: str,
 ) -> None:
     """Regenerate in memory and compare with disk; never writes. Exit 1 when something is stale."""

@@ -16,7 +16,9 @@ from typing import Any
 
 from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity, pointer_join
 
-DEFAULT_MAX_BYTES = 64 * 1024 * 1024
+#: Limits that keep time and memory bounded on hostile input; all configurable (CLI --max-bytes).
+DEFAULT_MAX_BYTES = 16 * 1024 * 1024
+DEFAULT_MAX_DEPTH = 100
 
 _WS = re.compile(r"[ \t\n\r]*")
 _STR = re.compile(r'"(?:[^"\\]|\\.)*"', re.S)
@@ -188,6 +190,7 @@ def parse_json(
     *,
     path: Path | None = None,
     max_bytes: int = DEFAULT_MAX_BYTES,
+    max_depth: int = DEFAULT_MAX_DEPTH,
 ) -> JsonDocument | None:
     """Decode and parse `raw`; report encoding, syntax and duplicate-key problems into `diags`.
 
@@ -276,6 +279,16 @@ def parse_json(
     except RecursionError:
         diags.add("TD007", Severity.ERROR, "JSON nesting is too deep to process", "", None, file=name)
         return None
+    deepest = _depth_over(data, max_depth)
+    if deepest:
+        diags.add(
+            "TD007",
+            Severity.ERROR,
+            f"JSON nesting deeper than {max_depth} levels at {deepest}",
+            hint="Thing Descriptions are rarely deeper than 30 levels; check the input",
+            file=name,
+        )
+        return None
     doc = JsonDocument(name, text, data, path)
     if flag[0]:
         for obj_ptr, key, off in doc.source_map.duplicates:
@@ -293,6 +306,22 @@ def parse_json(
                 )
             )
     return doc
+
+
+def _depth_over(data: Any, limit: int) -> str | None:
+    """The JSON pointer of a value nested deeper than `limit`, else None (iterative: no recursion limit)."""
+    stack: list[tuple[Any, int, str]] = [(data, 1, "")]
+    while stack:
+        value, depth, ptr = stack.pop()
+        if depth > limit:
+            return ptr or "/"
+        if isinstance(value, dict):
+            stack.extend((v, depth + 1, pointer_join(ptr, k)) for k, v in value.items() if isinstance(v, (dict, list)))
+        elif isinstance(value, list):
+            stack.extend(
+                (v, depth + 1, pointer_join(ptr, i)) for i, v in enumerate(value) if isinstance(v, (dict, list))
+            )
+    return None
 
 
 def doc_line_col(text: str, offset: int) -> tuple[int, int]:
