@@ -16,8 +16,8 @@ from td2adaptor.model import RosName
 BINDING_PLACEHOLDER = "{{robotName}}"
 REFERENCE_PLACEHOLDER = "#robotName"
 
-_ROS1 = re.compile(r"^[~/]?[A-Za-z][A-Za-z0-9_/]*$")
-_TOKEN = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_ROS1 = re.compile(r"[~/]?[A-Za-z][A-Za-z0-9_/]*\Z")
+_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 
 
 def split_namespace(raw: str) -> tuple[RosName, str | None]:
@@ -68,7 +68,7 @@ _CPP_KEYWORDS = frozenset(
     signed sizeof static static_assert static_cast struct switch template this thread_local throw true try
     typedef typeid typename union unsigned using virtual void volatile wchar_t while xor xor_eq""".split()
 )
-_IDENT = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+_IDENT = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 
 
 def identifier_problem(name: str) -> str | None:
@@ -90,6 +90,6 @@ def package_name(title: str) -> str:
 
 
 def package_name_problem(name: str) -> str | None:
-    if not re.match(r"^[a-z][a-z0-9]*(_[a-z0-9]+)*$", name):
+    if not re.fullmatch(r"[a-z][a-z0-9]*(_[a-z0-9]+)*", name):
         return "must be lower-case letters and digits separated by single '_', starting with a letter"
     return None

@@ -48,6 +48,7 @@ def test_resolve_with_and_without_namespace() -> None:
         ("/x/{{robotName}}/y", "placeholder"),
         ("/has space", "ROS 1"),
         ("", "empty"),
+        ("/door1/cmd\n", "ROS 1"),
     ],
 )
 def test_invalid_names(raw: str, fragment: str) -> None:
@@ -63,6 +64,7 @@ def test_identifiers() -> None:
     assert identifier_problem("9lives") is not None
     assert identifier_problem("bad-name") is not None
     assert identifier_problem("a__b") is not None
+    assert identifier_problem("name\n") is not None  # `$` would match before a trailing newline
 
 
 def test_package_names() -> None:

@@ -69,7 +69,7 @@ _SIZE = frozenset({"minItems", "maxItems", "minProperties", "maxProperties", "un
 
 
 _DATE_TIME = re.compile(
-    r"^(\d{4})-(\d{2})-(\d{2})[Tt](\d{2}):(\d{2}):(\d{2})(?:\.\d+)?(?:[Zz]|[+-](\d{2}):(\d{2}))$", re.ASCII
+    r"^(\d{4})-(\d{2})-(\d{2})[Tt](\d{2}):(\d{2}):(\d{2})(?:\.\d+)?(?:[Zz]|[+-](\d{2}):(\d{2}))\Z", re.ASCII
 )
 
 
@@ -91,7 +91,7 @@ def is_date_time(value: object) -> bool:
 
 _TEMPLATE_EXPR = re.compile(r"\{([^{}]*)\}")
 _VARSPEC = re.compile(
-    r"^(?:[A-Za-z0-9_]|%[0-9A-Fa-f]{2})(?:\.?(?:[A-Za-z0-9_]|%[0-9A-Fa-f]{2}))*(?::[1-9][0-9]{0,3}|\*)?$"
+    r"^(?:[A-Za-z0-9_]|%[0-9A-Fa-f]{2})(?:\.?(?:[A-Za-z0-9_]|%[0-9A-Fa-f]{2}))*(?::[1-9][0-9]{0,3}|\*)?\Z"
 )
 _BAD_LITERAL = re.compile(r"[\x00-\x20\"<>\\^`|{}\x7f]|%(?![0-9A-Fa-f]{2})")
 
