@@ -80,6 +80,14 @@ class FieldView:
     default: str
     value: str  # expression turning the parameter into the field's value
 
+    @property
+    def kwarg_lines(self) -> list[str]:
+        """`field=value,` in a call indented by 12, as ruff's formatter lays it out (parenthesised when long)."""
+        line = f"{self.field}={self.value},"
+        if 12 + len(line) <= 120:
+            return [line]
+        return [f"{self.field}=(", f"    {self.value}", "),"]
+
 
 def field_view(field: MessageField, param: str, local: dict[str, str]) -> FieldView:
     """`local` maps canonical message names to the class names the generated module uses."""
@@ -87,9 +95,8 @@ def field_view(field: MessageField, param: str, local: dict[str, str]) -> FieldV
     if ftype.is_message:
         cls = local[ftype.base]
         if ftype.array is ArrayKind.NONE:
-            return FieldView(
-                field.name, param, f"{cls} | Mapping[str, Any] | None", "None", f"to_msg({cls}, {param})"
-            )
+            value = f"{param} if isinstance({param}, {cls}) else to_msg({cls}, {param})"  # no call when given a message
+            return FieldView(field.name, param, f"{cls} | Mapping[str, Any] | None", "None", value)
         if ftype.array is ArrayKind.FIXED:
             value = f"to_msgs({cls}, {param}) if {param} is not None else [{cls}() for _ in range({ftype.length})]"
         else:

@@ -1,0 +1,1 @@
+"""Helpers and helper nodes for the real ROS 1 (rospy) tests."""
