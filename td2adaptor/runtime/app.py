@@ -1,0 +1,88 @@
+"""Putting a runtime together: the bus a configuration names, and an engine serving one robot on it."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+
+from td2adaptor.model import Model
+from td2adaptor.runtime.bus import Bus
+from td2adaptor.runtime.config import RuntimeConfig
+from td2adaptor.runtime.engine import Engine, status_event
+from td2adaptor.runtime.localbus import LocalBroker, LocalBus
+from td2adaptor.runtime.port import RobotPort
+from td2adaptor.runtime.security import TlsOptions, parse_broker_url, plan_security
+
+
+def open_bus(
+    config: RuntimeConfig,
+    model: Model,
+    *,
+    broker: LocalBroker | None = None,
+    env: Mapping[str, str] | None = None,
+) -> Bus:
+    """`local` (the process-wide in-process broker, or `broker`) or MQTT, secured as the TD says.
+
+    Raises `SecurityError` when the configuration does not satisfy the TD's security definitions.
+    """
+    will = status_event(config, model, "offline")
+    birth = status_event(config, model, "online")
+    if config.bus == "local":
+        return LocalBus(broker, config.mqtt_client_id, will=will, birth=birth)
+    from td2adaptor.runtime.mqttbus import MqttBus  # paho only when it is used
+
+    address = parse_broker_url(config.bus)
+    tls = None
+    if config.tls_ca_file or config.tls_cert_file or config.tls_key_file:
+        tls = TlsOptions(config.tls_ca_file, config.tls_cert_file, config.tls_key_file)
+    security = plan_security(
+        model.thing.security,
+        address,
+        username=config.username,
+        password=config.password,
+        tls=tls,
+        allow_insecure=config.allow_insecure,
+        env=env,
+    )
+    return MqttBus(
+        address,
+        security,
+        client_id=config.mqtt_client_id,
+        will=will,
+        birth=birth,
+        session_expiry=config.session_expiry,
+        keepalive=config.keepalive,
+    )
+
+
+def serve(
+    model: Model,
+    port: RobotPort,
+    config: RuntimeConfig,
+    *,
+    broker: LocalBroker | None = None,
+    env: Mapping[str, str] | None = None,
+) -> Engine:
+    """Connect and start serving; `Engine.stop()` ends it."""
+    engine = Engine(model, port, open_bus(config, model, broker=broker, env=env), config)
+    engine.start()
+    return engine
+
+
+def serve_fleet(
+    model: Model,
+    make_port: Callable[[RuntimeConfig], RobotPort],
+    configs: Sequence[RuntimeConfig],
+    *,
+    broker: LocalBroker | None = None,
+    env: Mapping[str, str] | None = None,
+) -> list[Engine]:
+    """One engine per robot in one process (each with its own bus client and port); all or none start."""
+    engines: list[Engine] = []
+    try:
+        for config in configs:
+            engines.append(serve(model, make_port(config), config, broker=broker, env=env))
+    except BaseException:
+        for engine in engines:
+            engine.stop()
+        raise
+    return engines

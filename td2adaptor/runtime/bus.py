@@ -1,0 +1,82 @@
+"""The event bus as the engine sees it: publish, subscribe with MQTT wildcards, retained messages, a will.
+
+Two implementations share these semantics: `localbus.LocalBus` (in-process) and `mqttbus.MqttBus` (paho-mqtt
+against a real broker). Delivery is at least once (QoS 1) and ordered per topic; handlers run on the bus's
+own thread and must return quickly (the engine only queues the message).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
+
+
+class BusError(Exception):
+    """The bus could not connect or was refused; the message says why in terms a user can act on."""
+
+
+@dataclass(frozen=True)
+class Message:
+    topic: str
+    payload: bytes
+    retain: bool = False
+
+
+Handler = Callable[[Message], None]
+
+
+class Bus(Protocol):
+    def connect(self) -> None:
+        """Connect (or attach to the local broker); raises `BusError` with a clear message on failure."""
+        ...
+
+    def subscribe(self, pattern: str, handler: Handler) -> None:
+        """Receive messages on `pattern` (`+` one level, `#` the rest), also after reconnects."""
+        ...
+
+    def publish(self, topic: str, payload: bytes, *, retain: bool = False) -> None:
+        """Send with QoS 1; queued while disconnected and sent after reconnecting."""
+        ...
+
+    def flush(self, timeout: float) -> bool:
+        """Wait until everything published so far is acknowledged; False on timeout."""
+        ...
+
+    def close(self) -> None:
+        """Disconnect cleanly (the will is not published)."""
+        ...
+
+
+def topic_matches(pattern: str, topic: str) -> bool:
+    """MQTT topic filter matching; `$`-topics only match filters that start with `$` too."""
+    if topic.startswith("$") and not pattern.startswith("$"):
+        return False
+    p_levels = pattern.split("/")
+    t_levels = topic.split("/")
+    for i, p in enumerate(p_levels):
+        if p == "#":
+            return True
+        if i >= len(t_levels):
+            return False
+        if p != "+" and p != t_levels[i]:
+            return False
+    return len(p_levels) == len(t_levels)
+
+
+def valid_filter(pattern: str) -> bool:
+    """Whether `pattern` is a well-formed MQTT topic filter."""
+    if not pattern or "\x00" in pattern:
+        return False
+    levels = pattern.split("/")
+    for i, level in enumerate(levels):
+        if "#" in level and (level != "#" or i != len(levels) - 1):
+            return False
+        if "+" in level and level != "+":
+            return False
+    return True
+
+
+def valid_topic(topic: str) -> bool:
+    """Whether `topic` can be published to (no wildcards)."""
+    return bool(topic) and "\x00" not in topic and "+" not in topic and "#" not in topic

@@ -1,0 +1,178 @@
+"""Runtime configuration: one robot (id, ROS namespace, bus, timings, credentials), from code, env or YAML.
+
+Precedence: explicit overrides (the CLI) > environment (`TD2ADAPTOR_*`) > YAML file > defaults. A YAML file
+may describe a fleet: top-level keys are shared defaults, `robots:` a list of per-robot overrides.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from td2adaptor.backends.events_catalog import ALL_ROBOTS, ROBOT_ID, TOPIC_ROOT
+
+
+class ConfigError(Exception):
+    """A configuration value is missing or wrong; the message names it."""
+
+
+@dataclass(frozen=True)
+class RuntimeConfig:
+    robot: str
+    namespace: str | None = None  # ROS namespace ({{robotName}}); default: the robot id
+    bus: str = "local"  # "local" or mqtt://host:port / mqtts://host:port
+    client_id: str | None = None  # default td2adaptor-<robot>
+    source: str | None = None  # `source` of emitted events; default td2adaptor/<robot>
+    topic_root: str = TOPIC_ROOT
+    poll_period: float = 0.5  # seconds between queries of a running procedure
+    mission_timeout: float = 600.0  # overall limit of one mission
+    call_timeout: float = 10.0  # one robot call
+    max_query_failures: int = 3  # consecutive failed queries before a mission is given up
+    property_period: float = 1.0  # property events: at most one per property and period (0: off)
+    max_event_bytes: int = 65536
+    username: str | None = None
+    password: str | None = field(default=None, repr=False)
+    tls_ca_file: str | None = None
+    tls_cert_file: str | None = None
+    tls_key_file: str | None = None
+    allow_insecure: bool = False
+    session_expiry: int = 3600
+    keepalive: int = 30
+    ros_master_uri: str | None = None  # for the ROS 1 adapter
+    ros_domain_id: int | None = None  # for the ROS 2 adapter
+
+    def __post_init__(self) -> None:
+        if not ROBOT_ID.match(self.robot) or self.robot == ALL_ROBOTS:
+            raise ConfigError(
+                f"robot id {self.robot!r} must be 1-128 letters, digits, '_', '.', '-' (and not {ALL_ROBOTS!r})"
+            )
+        for name in ("poll_period", "call_timeout", "mission_timeout"):
+            if not getattr(self, name) > 0:
+                raise ConfigError(f"{name} must be positive")
+        if self.property_period < 0 or self.max_query_failures < 1 or self.max_event_bytes < 256:
+            raise ConfigError("property_period >= 0, max_query_failures >= 1 and max_event_bytes >= 256 required")
+        if not self.topic_root or any(c in self.topic_root for c in "+#\x00") or self.topic_root.startswith("/"):
+            raise ConfigError(f"topic_root {self.topic_root!r} is not a valid MQTT topic prefix")
+
+    @property
+    def ros_namespace(self) -> str:
+        return self.namespace if self.namespace is not None else self.robot
+
+    @property
+    def mqtt_client_id(self) -> str:
+        return self.client_id or f"td2adaptor-{self.robot}"
+
+    @property
+    def event_source(self) -> str:
+        return self.source or f"td2adaptor/{self.robot}"
+
+
+_FIELDS = {f.name: f for f in dataclasses.fields(RuntimeConfig)}
+_ENV_PREFIX = "TD2ADAPTOR_"
+_ENV_ALIASES = {"TD2ADAPTOR_MQTT_USERNAME": "username", "TD2ADAPTOR_MQTT_PASSWORD": "password"}
+
+
+def _coerce(name: str, value: Any) -> Any:
+    """A YAML/env value as the field's type (env values are strings)."""
+    kind = str(_FIELDS[name].type)
+    if value is None:
+        return None
+    try:
+        if kind.startswith("bool"):
+            if isinstance(value, str):
+                if value.lower() in ("1", "true", "yes", "on"):
+                    return True
+                if value.lower() in ("0", "false", "no", "off", ""):
+                    return False
+                raise ValueError(value)
+            return bool(value)
+        if kind.startswith("int"):
+            if isinstance(value, bool):
+                raise ValueError(value)
+            return int(value)
+        if kind.startswith("float"):
+            return float(value)
+    except ValueError:
+        raise ConfigError(f"{name}: {value!r} is not a valid {kind.split(' ')[0]}") from None
+    return str(value)
+
+
+def _section(data: Any, where: str) -> dict[str, Any]:
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{where}: expected a mapping")
+    unknown = sorted(k for k in data if k not in _FIELDS and k != "robots")
+    if unknown:
+        raise ConfigError(f"{where}: unknown key {unknown[0]!r} (known: {', '.join(_FIELDS)})")
+    return {k: _coerce(k, v) for k, v in data.items() if k != "robots"}
+
+
+def from_env(env: Mapping[str, str]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in env.items():
+        name = _ENV_ALIASES.get(key) or (key[len(_ENV_PREFIX) :].lower() if key.startswith(_ENV_PREFIX) else "")
+        if name in _FIELDS:
+            out[name] = _coerce(name, value)
+    return out
+
+
+def load_fleet(
+    path: str | Path | None = None,
+    *,
+    env: Mapping[str, str] | None = None,
+    overrides: Mapping[str, Any] | None = None,
+) -> list[RuntimeConfig]:
+    """Every robot a YAML file (and env, and overrides) describes: one process can serve them all."""
+    env = os.environ if env is None else env
+    base: dict[str, Any] = {}
+    robots: list[dict[str, Any]] = [{}]
+    if path is not None:
+        try:
+            data = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
+        except (OSError, yaml.YAMLError) as exc:
+            raise ConfigError(f"{path}: {exc}") from None
+        base = _section(data, str(path))
+        if isinstance(data, Mapping) and "robots" in data:
+            items = data["robots"]
+            if not isinstance(items, list) or not items:
+                raise ConfigError(f"{path}: robots must be a non-empty list")
+            robots = [_section(item, f"{path}: robots[{i}]") for i, item in enumerate(items)]
+    env_values = from_env(env)
+    given = {k: v for k, v in (overrides or {}).items() if v is not None}
+    if len(robots) > 1 and given.get("robot"):  # one robot of a fleet file
+        robots = [r for r in robots if r.get("robot") == given["robot"]]
+        if not robots:
+            raise ConfigError(f"{path} has no robot {given['robot']!r}")
+    configs = []
+    for robot in robots:
+        values = {**base, **robot, **env_values, **given}
+        if len(robots) > 1:  # a fleet: each robot keeps its own id and namespace
+            values.update({k: robot[k] for k in ("robot", "namespace", "client_id", "source") if k in robot})
+        if not values.get("robot"):
+            raise ConfigError("no robot id: give --robot, TD2ADAPTOR_ROBOT or 'robot:' in the YAML file")
+        try:
+            configs.append(RuntimeConfig(**values))
+        except TypeError as exc:
+            raise ConfigError(str(exc)) from None
+    ids = [c.robot for c in configs]
+    if len(set(ids)) != len(ids):
+        raise ConfigError(f"robot ids must be unique: {ids}")
+    return configs
+
+
+def load_config(
+    path: str | Path | None = None,
+    *,
+    env: Mapping[str, str] | None = None,
+    overrides: Mapping[str, Any] | None = None,
+) -> RuntimeConfig:
+    """One robot's configuration (a fleet file must then describe exactly one robot)."""
+    configs = load_fleet(path, env=env, overrides=overrides)
+    if len(configs) != 1:
+        raise ConfigError(f"{path} describes {len(configs)} robots; pick one with --robot or run the fleet")
+    return configs[0]

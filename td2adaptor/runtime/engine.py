@@ -1,0 +1,565 @@
+"""The edge-node engine: events from the bus → robot calls → feedback on the bus.
+
+Threads: the bus's own thread only queues messages; one dispatcher thread validates and routes them in
+arrival order; each procedure mission runs in its own thread (start, then poll the linked query every
+`poll_period`, a feedback event on every state change, exactly one terminal event, an overall
+`mission_timeout`); queries, cancels of missions we do not follow, writes and plain calls run on a small
+pool; a property thread publishes subscribed values, at most one per property and `property_period`.
+
+Policies (documented in README of the generated events):
+* one mission per component at a time: a second invoke is refused with an error event (`busy`) and a
+  terminal `failed` feedback (`reason: busy`) for its correlation — never queued, never silently dropped;
+* query and cancel use the mission id the robot returned; -1 (the robot's "last one") only when it gave none;
+* every failure of a robot call becomes failure feedback or an error event; nothing ends the process;
+* inbound events with an `id` already seen (QoS 1 redeliveries) are handled once;
+* feedback carries `correlation` (the requester's, else the invoke event's id) and `payload.seq` 1, 2, ...
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import queue
+import threading
+import time
+from collections import OrderedDict
+from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from typing import Any
+
+from td2adaptor.backends.events_catalog import ALL_ROBOTS, EventCatalog, EventSpec, Kind, build_catalog
+from td2adaptor.model import Model, Procedure
+from td2adaptor.runtime.bus import Bus, BusError, Message
+from td2adaptor.runtime.config import RuntimeConfig
+from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope, excerpt, salvage
+from td2adaptor.runtime.port import NoValue, PortError, RobotPort, StartResult
+from td2adaptor.runtime.procedures import ProcedureStatus, interpret
+
+log = logging.getLogger("td2adaptor.runtime")
+
+_SEEN_IDS = 10_000
+_DEFAULT_MISSION_PATH = ("state", "header", "id")
+
+
+@dataclass
+class Mission:
+    component: str
+    action: str
+    procedure: Procedure
+    correlation: str | None
+    payload: Mapping[str, Any]
+    started: float
+    mission_id: int | None = None
+    state: str | None = None
+    seq: int = 0
+    done: bool = False
+    cancels: list[str | None] = field(default_factory=list)
+    wake: threading.Event = field(default_factory=threading.Event)
+
+
+def status_event(config: RuntimeConfig, model: Model, state: str) -> Message:
+    """The retained online/offline status message (the offline one is the bus's will)."""
+    event = envelope(
+        Kind.STATUS,
+        robot=config.robot,
+        source=config.event_source,
+        payload={"state": state, "thing": model.thing.title},
+    )
+    return Message(f"{config.topic_root}/{config.robot}/status", encode(event), retain=True)
+
+
+class Engine:
+    """Serves one robot: subscribe to its inbound topics and the all-robots ones, answer on its own."""
+
+    def __init__(
+        self,
+        model: Model,
+        port: RobotPort,
+        bus: Bus,
+        config: RuntimeConfig,
+        *,
+        catalog: EventCatalog | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.model = model
+        self.port = port
+        self.bus = bus
+        self.config = config
+        self.catalog = catalog or build_catalog(model)
+        self.validator = EventValidator(self.catalog)
+        self.clock = clock
+        self.stats: dict[str, int] = {}
+        self._lock = threading.Lock()
+        self._inbox: queue.Queue[Message | None] = queue.Queue()
+        self._active: dict[str, Mission] = {}
+        self._last_mission: dict[str, int] = {}
+        self._seen: OrderedDict[str, None] = OrderedDict()
+        self._stopping = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._missions: set[threading.Thread] = set()
+        self._pool = ThreadPoolExecutor(max_workers=4, thread_name_prefix=f"td2adaptor-{config.robot}-call")
+
+    # -- life cycle ----------------------------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Subscribe, connect and start the worker threads."""
+        root = self.config.topic_root
+        for spec in self.catalog.inbound():
+            for robot in (self.config.robot, ALL_ROBOTS):
+                self.bus.subscribe(spec.topic(robot, root), self._inbox.put)
+        self.bus.connect()
+        self._spawn(self._dispatch, "dispatch")
+        if self.config.property_period > 0 and any(s.kind is Kind.PROPERTY for s in self.catalog.specs):
+            self._spawn(self._properties, "properties")
+        log.info("serving robot %s (namespace %s)", self.config.robot, self.config.ros_namespace)
+
+    def _spawn(self, target: Callable[[], None], name: str) -> None:
+        thread = threading.Thread(target=target, name=f"td2adaptor-{self.config.robot}-{name}", daemon=True)
+        thread.start()
+        self._threads.append(thread)
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Stop taking events, publish the offline status and disconnect. Missions go on on the robot."""
+        if self._stopping.is_set():
+            return
+        self._stopping.set()
+        self._inbox.put(None)
+        with self._lock:
+            missions = list(self._active.values())
+        for m in missions:
+            m.wake.set()
+        for thread in self._threads:
+            thread.join(timeout)
+        self._pool.shutdown(wait=True, cancel_futures=True)
+        with self._lock:
+            runners = list(self._missions)
+        for thread in runners:
+            thread.join(timeout)
+        try:
+            offline = status_event(self.config, self.model, "offline")
+            self.bus.publish(offline.topic, offline.payload, retain=True)
+            self.bus.flush(timeout)
+        except BusError as exc:
+            log.warning("could not publish the offline status: %s", exc)
+        self.bus.close()
+
+    def idle(self) -> bool:
+        """No queued event and no mission in progress (tests, benchmarks)."""
+        with self._lock:
+            return self._inbox.empty() and not self._active
+
+    def _count(self, key: str, n: int = 1) -> None:
+        with self._lock:
+            self.stats[key] = self.stats.get(key, 0) + n
+
+    # -- publishing ----------------------------------------------------------------------------------------
+
+    def _publish(self, spec: EventSpec, event: Mapping[str, Any], *, retain: bool = False) -> None:
+        try:
+            self.bus.publish(spec.topic(self.config.robot, self.config.topic_root), encode(event), retain=retain)
+            self._count(f"out.{spec.kind.value}")
+        except (BusError, TypeError, ValueError) as exc:
+            log.error("could not publish a %s event: %s", spec.kind.value, exc)
+
+    def _event(self, kind: Kind, payload: Any, **kw: Any) -> dict[str, Any]:
+        return envelope(kind, robot=self.config.robot, source=self.config.event_source, payload=payload, **kw)
+
+    def _error(
+        self,
+        code: str,
+        message: str,
+        *,
+        topic: str,
+        raw: bytes | None = None,
+        affordance: str | None = None,
+        correlation: str | None = None,
+        mission: int | None = None,
+        errors: tuple[tuple[str, str], ...] = (),
+    ) -> None:
+        log.warning("%s on %s: %s", code, topic, message)
+        payload: dict[str, Any] = {"code": code, "message": message, "topic": topic}
+        if raw is not None:
+            payload["event"] = excerpt(raw)
+        if errors:
+            payload["errors"] = [{"path": p, "message": m} for p, m in errors]
+        event = self._event(Kind.ERROR, payload, affordance=affordance, correlation=correlation, mission=mission)
+        self._publish(self.catalog.find(Kind.ERROR), event)
+
+    def _state(self, run: str, status: ProcedureStatus, correlation: str | None, mission: int | None) -> None:
+        payload = {**status.payload(), "terminal": status.terminal}
+        event = self._event(Kind.STATE, payload, affordance=run, correlation=correlation, mission=mission)
+        self._publish(self.catalog.find(Kind.STATE, run), event)
+
+    def _feedback(self, m: Mission, status: ProcedureStatus, *, terminal: bool, output: Any = None) -> None:
+        m.seq += 1
+        m.state = status.state
+        payload: dict[str, Any] = {**status.payload(), "terminal": terminal, "seq": m.seq}
+        if output is not None:
+            payload["output"] = output
+        event = self._event(
+            Kind.FEEDBACK, payload, affordance=m.action, correlation=m.correlation, mission=m.mission_id
+        )
+        self._publish(self.catalog.find(Kind.FEEDBACK, m.action), event)
+
+    # -- inbound -------------------------------------------------------------------------------------------
+
+    def _dispatch(self) -> None:
+        while True:
+            msg = self._inbox.get()
+            if msg is None:
+                return
+            try:
+                self._handle(msg)
+            except Exception as exc:  # a bug here must cost one event, not the process
+                log.exception("internal error on %s", msg.topic)
+                self._error("internal", f"internal error: {type(exc).__name__}", topic=msg.topic, raw=msg.payload)
+
+    def _handle(self, msg: Message) -> None:
+        self._count("in")
+        routed = self.catalog.route(msg.topic, self.config.topic_root)
+        if routed is None:
+            self._error("unknown-topic", "no event is defined for this topic", topic=msg.topic, raw=msg.payload)
+            return
+        spec, robot = routed
+        if robot not in (self.config.robot, ALL_ROBOTS):
+            return
+        problem: Problem | None
+        event: dict[str, Any] | None
+        if len(msg.payload) > self.config.max_event_bytes:
+            event, problem = None, Problem("too-large", f"events are limited to {self.config.max_event_bytes} bytes")
+        else:
+            event, problem = self.validator.parse(spec, robot, msg.payload)
+        if problem is not None or event is None:
+            assert problem is not None
+            self._count("invalid")
+            corr, mission = salvage(msg.payload) if problem.code != "too-large" else (None, None)
+            self._error(
+                problem.code,
+                problem.message,
+                topic=msg.topic,
+                raw=msg.payload,
+                affordance=spec.affordance,
+                correlation=corr,
+                mission=mission,
+                errors=problem.errors,
+            )
+            return
+        event_id = event.get("id")
+        if isinstance(event_id, str):
+            with self._lock:
+                if event_id in self._seen:
+                    self.stats["duplicates"] = self.stats.get("duplicates", 0) + 1
+                    log.info("duplicate event %s on %s ignored", event_id, msg.topic)
+                    return
+                self._seen[event_id] = None
+                if len(self._seen) > _SEEN_IDS:
+                    self._seen.popitem(last=False)
+        component = self.model.component(spec.component or "")
+        assert spec.affordance is not None
+        procedure = component.procedure_of(spec.affordance)
+        if spec.kind is Kind.INVOKE and procedure is not None and procedure.run == spec.affordance:
+            self._invoke(spec, procedure, event, msg.topic)
+        elif spec.kind is Kind.INVOKE:
+            self._pool.submit(self._plain_call, spec, event)
+        elif spec.kind is Kind.QUERY and procedure is not None:
+            self._pool.submit(self._query, spec, procedure, event)
+        elif spec.kind is Kind.CANCEL and procedure is not None:
+            self._cancel(spec, procedure, event)
+        elif spec.kind is Kind.WRITE:
+            self._pool.submit(self._write, spec, event)
+
+    # -- missions ------------------------------------------------------------------------------------------
+
+    def _invoke(self, spec: EventSpec, procedure: Procedure, event: dict[str, Any], topic: str) -> None:
+        component = spec.component or ""
+        correlation = event.get("correlation") or event.get("id")
+        mission = Mission(component, procedure.run, procedure, correlation, event.get("payload") or {}, self.clock())
+        thread = threading.Thread(
+            target=self._run_mission, args=(mission,), name=f"mission-{procedure.run}", daemon=True
+        )
+        with self._lock:
+            busy = self._active.get(component)
+            if busy is None:
+                self._active[component] = mission
+                self._missions.add(thread)
+        if busy is not None and correlation is not None and busy.correlation == correlation:
+            self._count("duplicates")  # a redelivery of the invoke we are following (sent without an id)
+            log.info("invoke %s for mission %s already in progress: ignored", correlation, busy.mission_id)
+            return
+        if busy is not None:
+            what = f"{busy.action} mission {busy.mission_id}" if busy.mission_id is not None else busy.action
+            message = f"{component} is busy with {what}; send a cancel event or wait for its terminal feedback"
+            self._error("busy", message, topic=topic, affordance=procedure.run, correlation=correlation)
+            mission.done = True
+            status = ProcedureStatus("failed", message=message, reason="busy")
+            self._feedback(mission, status, terminal=True)
+            return
+        self._count("missions")
+        thread.start()
+
+    def _finish(self, m: Mission, status: ProcedureStatus) -> None:
+        """The one terminal feedback; the component is free again before it is published."""
+        with self._lock:
+            if m.done:
+                return
+            m.done = True
+            if self._active.get(m.component) is m:
+                del self._active[m.component]
+            if m.mission_id is not None:
+                self._last_mission[m.action] = m.mission_id
+            late, m.cancels = m.cancels, []
+        self._feedback(m, status, terminal=True)
+        for correlation in late:  # cancels that came as the mission ended: its end is their answer
+            self._state(m.action, status, correlation, m.mission_id)
+
+    def _path(self, procedure: Procedure) -> tuple[str, ...]:
+        return procedure.mission_id or _DEFAULT_MISSION_PATH
+
+    def _run_mission(self, m: Mission) -> None:
+        try:
+            self._follow(m)
+        except Exception as exc:  # the last line of defence: report, never crash
+            log.exception("mission %s failed internally", m.action)
+            self._finish(m, ProcedureStatus("failed", message=f"internal error: {exc!r}", reason="call-failed"))
+        finally:
+            with self._lock:
+                self._missions.discard(threading.current_thread())
+
+    def _follow(self, m: Mission) -> None:
+        cfg, port, proc = self.config, self.port, m.procedure
+        deadline = m.started + cfg.mission_timeout
+        try:
+            started = port.start(m.component, m.action, m.payload, cfg.call_timeout)
+        except PortError as exc:
+            if exc.response is None:
+                self._finish(m, ProcedureStatus("failed", message=_describe(exc), reason=exc.reason))
+                return
+            started = StartResult(exc.response, None)  # the robot answered, and refused: read its answer
+        except Exception as exc:
+            self._finish(m, ProcedureStatus("failed", message=_describe(exc), reason="call-failed"))
+            return
+        status = interpret(started.response, self._path(proc))
+        if status.state != "failed" and _says_error(started.response):
+            status = ProcedureStatus("failed", status.result, status.message, status.last_event, "rejected")
+        if status.state == "failed":  # refused by the robot: the id in its answer is not ours
+            self._finish(m, ProcedureStatus("failed", status.result, status.message, status.last_event, "rejected"))
+            return
+        m.mission_id = started.mission_id if started.mission_id is not None else status.mission_id
+        if m.mission_id is None:
+            log.warning("%s returned no mission id; following mission -1 (the robot's last one)", m.action)
+        if status.terminal:
+            self._finish(m, status)
+            return
+        self._feedback(m, status, terminal=False)
+        if proc.query is None:
+            self._finish(m, ProcedureStatus("finished", message="started; no query action links to this procedure"))
+            return
+        failures = 0
+        while True:
+            remaining = deadline - self.clock()
+            m.wake.wait(max(0.0, min(cfg.poll_period, remaining)))
+            m.wake.clear()
+            if self._stopping.is_set():
+                log.info("stopping: no longer following %s mission %s", m.action, m.mission_id)
+                return
+            if self._pending_cancels(m):
+                return
+            if self.clock() >= deadline:
+                self._give_up(m)
+                return
+            mid = m.mission_id if m.mission_id is not None else -1
+            try:
+                response = _answer(port.query, m.component, proc.query, mid, cfg.call_timeout)
+                status = interpret(response, self._path(proc))
+            except Exception as exc:
+                failures += 1
+                log.warning("query %d of %s mission %s failed: %s", failures, m.action, mid, _describe(exc))
+                if failures >= cfg.max_query_failures:
+                    message = f"the robot did not answer {failures} queries: {_describe(exc)}"
+                    self._finish(m, ProcedureStatus("failed", message=message, reason="unreachable"))
+                    return
+                continue
+            failures = 0
+            if status.terminal:
+                self._finish(m, status)
+                return
+            if status.state != m.state:
+                self._feedback(m, status, terminal=False)
+
+    def _pending_cancels(self, m: Mission) -> bool:
+        """Carry out cancel events for this mission; True when the mission ended."""
+        with self._lock:
+            requests, m.cancels = m.cancels, []
+        proc = m.procedure
+        for correlation in requests:
+            mid = m.mission_id if m.mission_id is not None else -1
+            if proc.cancel is None:
+                self._error(
+                    "unsupported",
+                    f"{m.action} has no cancel action",
+                    topic=self.catalog.find(Kind.INVOKE, m.action).topic(self.config.robot, self.config.topic_root),
+                    affordance=m.action,
+                    correlation=correlation,
+                    mission=m.mission_id,
+                )
+                continue
+            try:
+                response = _answer(self.port.cancel, m.component, proc.cancel, mid, self.config.call_timeout)
+                status = interpret(response, self._path(proc))
+            except Exception as exc:
+                self._error(
+                    "call-failed",
+                    f"cancelling {m.action} mission {mid} failed: {_describe(exc)}",
+                    topic=self.catalog.find(Kind.CANCEL, proc.cancel).topic(self.config.robot, self.config.topic_root),
+                    affordance=proc.cancel,
+                    correlation=correlation,
+                    mission=m.mission_id,
+                )
+                continue
+            self._state(m.action, status, correlation, m.mission_id)
+            if status.terminal:
+                self._finish(m, status)
+                return True
+            if status.state != m.state:
+                self._feedback(m, status, terminal=False)
+        return False
+
+    def _give_up(self, m: Mission) -> None:
+        proc = m.procedure
+        if proc.cancel is not None and m.mission_id is not None:
+            try:
+                self.port.cancel(m.component, proc.cancel, m.mission_id, self.config.call_timeout)
+            except Exception as exc:
+                log.warning("could not cancel timed-out %s mission %s: %s", m.action, m.mission_id, _describe(exc))
+        message = f"no terminal state within the mission timeout of {self.config.mission_timeout:g} s"
+        last = f" (last state: {m.state})" if m.state else ""
+        self._finish(m, ProcedureStatus("failed", message=message + last, reason="timeout"))
+
+    def _cancel(self, spec: EventSpec, procedure: Procedure, event: dict[str, Any]) -> None:
+        wanted = event.get("mission")
+        correlation = event.get("correlation") or event.get("id")
+        with self._lock:
+            m = self._active.get(spec.component or "")
+            if m is not None and m.action == procedure.run and wanted in (None, m.mission_id) and not m.done:
+                m.cancels.append(correlation)
+                m.wake.set()
+                return
+        self._pool.submit(self._cancel_direct, spec, procedure, event)
+
+    def _mission_for(self, procedure: Procedure, wanted: Any) -> int:
+        if isinstance(wanted, int):
+            return wanted
+        with self._lock:
+            for m in self._active.values():
+                if m.action == procedure.run and m.mission_id is not None:
+                    return m.mission_id
+            return self._last_mission.get(procedure.run, -1)
+
+    def _cancel_direct(self, spec: EventSpec, procedure: Procedure, event: dict[str, Any]) -> None:
+        self._ask(spec, procedure, event, cancel=True)
+
+    def _query(self, spec: EventSpec, procedure: Procedure, event: dict[str, Any]) -> None:
+        self._ask(spec, procedure, event, cancel=False)
+
+    def _ask(self, spec: EventSpec, procedure: Procedure, event: dict[str, Any], *, cancel: bool) -> None:
+        """Answer a query (or a cancel of a mission we do not follow) with one state event."""
+        correlation = event.get("correlation") or event.get("id")
+        mid = self._mission_for(procedure, event.get("mission"))
+        action = spec.affordance or ""
+        try:
+            call = self.port.cancel if cancel else self.port.query
+            response = _answer(call, spec.component or "", action, mid, self.config.call_timeout)
+        except Exception as exc:
+            self._error(
+                "call-failed",
+                f"{action} of mission {mid} failed: {_describe(exc)}",
+                topic=spec.topic(self.config.robot, self.config.topic_root),
+                affordance=action,
+                correlation=correlation,
+                mission=mid if mid != -1 else None,
+            )
+            return
+        status = interpret(response, self._path(procedure))
+        mission = status.mission_id if status.mission_id is not None else (mid if mid != -1 else None)
+        self._state(procedure.run, status, correlation, mission)
+
+    def _plain_call(self, spec: EventSpec, event: dict[str, Any]) -> None:
+        """A non-procedure action: one call, one terminal feedback with its output."""
+        action = spec.affordance or ""
+        m = Mission(
+            spec.component or "",
+            action,
+            Procedure(action),
+            event.get("correlation") or event.get("id"),
+            event.get("payload") or {},
+            self.clock(),
+            done=True,
+        )
+        try:
+            output = dict(self.port.call(m.component, action, m.payload, self.config.call_timeout))
+        except Exception as exc:
+            reason = exc.reason if isinstance(exc, PortError) else "call-failed"
+            self._feedback(m, ProcedureStatus("failed", message=_describe(exc), reason=reason), terminal=True)
+            return
+        self._feedback(m, ProcedureStatus("finished"), terminal=True, output=output)
+
+    def _write(self, spec: EventSpec, event: dict[str, Any]) -> None:
+        name = spec.affordance or ""
+        try:
+            self.port.write_property(spec.component or "", name, event.get("payload"))
+        except Exception as exc:
+            self._error(
+                "call-failed",
+                f"writing {name} failed: {_describe(exc)}",
+                topic=spec.topic(self.config.robot, self.config.topic_root),
+                affordance=name,
+                correlation=event.get("correlation") or event.get("id"),
+            )
+
+    # -- properties ----------------------------------------------------------------------------------------
+
+    def _properties(self) -> None:
+        specs = [s for s in self.catalog.specs if s.kind is Kind.PROPERTY]
+        last: dict[str, str] = {}
+        complained: dict[str, float] = {}
+        period = self.config.property_period
+        while not self._stopping.wait(period):
+            for spec in specs:
+                name = spec.affordance or ""
+                try:
+                    value = self.port.read_property(spec.component or "", name, min(period, self.config.call_timeout))
+                    text = json.dumps(value, sort_keys=True, allow_nan=False)
+                except NoValue:
+                    continue
+                except Exception as exc:
+                    if self.clock() - complained.get(name, -1e9) > 60:
+                        complained[name] = self.clock()
+                        log.warning("reading property %s failed: %s", name, _describe(exc))
+                    continue
+                if last.get(name) == text:
+                    continue
+                last[name] = text
+                self._publish(spec, self._event(Kind.PROPERTY, value, affordance=name), retain=True)
+
+
+def _answer(
+    call: Callable[[str, str, int, float], Mapping[str, Any]], component: str, action: str, mission: int, timeout: float
+) -> Mapping[str, Any]:
+    """The robot's response to a query or cancel, also when the port raised because it says `error`."""
+    try:
+        return call(component, action, mission, timeout)
+    except PortError as exc:
+        if exc.response is None:
+            raise
+        return exc.response
+
+
+def _says_error(response: Mapping[str, Any]) -> bool:
+    result = response.get("result")
+    return isinstance(result, Mapping) and str(result.get("result", "")).lower() == "error"
+
+
+def _describe(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__

@@ -1,0 +1,287 @@
+"""The bus on a real MQTT broker, with paho-mqtt 2.x.
+
+MQTT 5, QoS 1 both ways, a persistent session (`clean_start=False` with a session expiry) so that neither
+side loses messages while the other is away; paho reconnects by itself with back-off, keeps unacknowledged
+QoS 1 publishes and resends them; we resubscribe and republish the birth message on every (re)connect.
+The will (the retained `offline` status) is published by the broker when the connection drops uncleanly.
+"""
+
+from __future__ import annotations
+
+import logging
+import socket
+import ssl
+import threading
+from typing import Any
+
+import paho.mqtt.client as mqtt
+from paho.mqtt.enums import CallbackAPIVersion, MQTTErrorCode, MQTTProtocolVersion
+from paho.mqtt.packettypes import PacketTypes
+from paho.mqtt.properties import Properties
+from paho.mqtt.reasoncodes import ReasonCode
+
+from td2adaptor.runtime.bus import BusError, Handler, Message, topic_matches, valid_filter, valid_topic
+from td2adaptor.runtime.security import ENV_PASSWORD, ENV_USERNAME, BrokerAddress, ConnectionSecurity, TlsOptions
+
+log = logging.getLogger("td2adaptor.runtime.bus")
+
+_AUTH_REFUSALS = {134, 135}  # Bad user name or password, Not authorized
+
+
+def _no_delay(_client: mqtt.Client, _userdata: Any, sock: Any) -> None:
+    """Small events must not wait for Nagle's algorithm (40 ms stalls against delayed ACKs)."""
+    try:
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    except (OSError, AttributeError):
+        pass  # not a TCP socket (e.g. unix or a websocket wrapper)
+
+
+class _ClosingSSLSocket(ssl.SSLSocket):
+    """paho leaves the socket of a failed TLS handshake open; this one closes itself."""
+
+    def do_handshake(self, block: bool = False) -> None:
+        try:
+            super().do_handshake(block)
+        except BaseException:
+            self.close()
+            raise
+
+
+def tls_context(options: TlsOptions) -> ssl.SSLContext:
+    """Verify the broker (its CA, else the system's; host name checked); present a client certificate if given."""
+    try:
+        context = ssl.create_default_context(ssl.Purpose.SERVER_AUTH, cafile=options.ca_file)
+        if options.cert_file:
+            context.load_cert_chain(options.cert_file, options.key_file)
+    except (OSError, ssl.SSLError) as exc:
+        raise BusError(f"cannot load the TLS files: {exc}") from None
+    context.sslsocket_class = _ClosingSSLSocket
+    return context
+
+
+class MqttBus:
+    """One MQTT client; `connect()` returns once the broker has accepted it (or raises `BusError`)."""
+
+    def __init__(
+        self,
+        address: BrokerAddress,
+        security: ConnectionSecurity | None = None,
+        *,
+        client_id: str,
+        will: Message | None = None,
+        birth: Message | None = None,
+        clean_start: bool = False,
+        session_expiry: int = 3600,
+        keepalive: int = 30,
+        connect_timeout: float = 10.0,
+        reconnect_delay: tuple[int, int] = (1, 4),
+    ) -> None:
+        self.address = address
+        self.security = security or ConnectionSecurity()
+        self.client_id = client_id
+        self.will = will
+        self.birth = birth
+        self.clean_start = clean_start
+        self.session_expiry = session_expiry
+        self.keepalive = keepalive
+        self.connect_timeout = connect_timeout
+        self.reconnect_delay = reconnect_delay
+        self.connects = 0  # successful CONNACKs, for tests and logs
+        self._handlers: list[tuple[str, Handler]] = []
+        self._lock = threading.Condition()
+        self._pending: set[int] = set()
+        self._acked_early: set[int] = set()
+        self._subacked: set[int] = set()
+        self._connack = threading.Event()
+        self._refusal: ReasonCode | None = None
+        self._dropped: str | None = None
+        self._connected = False
+        self._client: mqtt.Client | None = None
+
+    @property
+    def connected(self) -> bool:
+        return self._connected
+
+    # -- connection ----------------------------------------------------------------------------------------
+
+    def _make_client(self) -> mqtt.Client:
+        client = mqtt.Client(
+            CallbackAPIVersion.VERSION2,
+            client_id=self.client_id,
+            protocol=MQTTProtocolVersion.MQTTv5,
+            reconnect_on_failure=True,
+        )
+        client.max_queued_messages_set(0)  # unlimited: nothing published while offline is dropped
+        client.max_inflight_messages_set(200)
+        client.reconnect_delay_set(*self.reconnect_delay)
+        sec = self.security
+        if sec.username:
+            client.username_pw_set(sec.username, sec.password)
+        if sec.tls is not None or self.address.tls:
+            client.tls_set_context(tls_context(sec.tls or TlsOptions()))
+        if self.will is not None:
+            client.will_set(self.will.topic, self.will.payload, qos=1, retain=self.will.retain)
+        client.on_connect = self._on_connect
+        client.on_disconnect = self._on_disconnect
+        client.on_message = self._on_message
+        client.on_publish = self._on_publish
+        client.on_subscribe = self._on_subscribe
+        client.on_socket_open = _no_delay
+        return client
+
+    def connect(self) -> None:
+        if self._client is not None:
+            return
+        client = self._make_client()
+        props = Properties(PacketTypes.CONNECT)  # type: ignore[no-untyped-call]
+        props.SessionExpiryInterval = self.session_expiry
+        self._connack.clear()
+        self._refusal = None
+        self._dropped = None
+        try:
+            client.connect(
+                self.address.host,
+                self.address.port,
+                self.keepalive,
+                clean_start=self.clean_start,
+                properties=props,
+            )
+        except ssl.SSLError as exc:
+            raise BusError(f"TLS handshake with the MQTT broker at {self.address} failed: {exc}") from None
+        except OSError as exc:
+            raise BusError(f"cannot reach the MQTT broker at {self.address}: {exc.strerror or exc}") from None
+        client.loop_start()
+        self._client = client
+        if not self._connack.wait(self.connect_timeout):
+            self._abort()
+            raise BusError(f"the MQTT broker at {self.address} did not answer within {self.connect_timeout:g} s")
+        if self._dropped is not None and self._refusal is None and self.connects == 0:
+            self._abort()
+            raise BusError(
+                f"the MQTT broker at {self.address} closed the connection before accepting it ({self._dropped}); "
+                "with TLS, check that the broker accepts this client's certificate"
+            )
+        refusal = self._refusal
+        if refusal is not None:
+            self._abort()
+            if refusal.value in _AUTH_REFUSALS:
+                who = f"user {self.security.username!r}" if self.security.username else "an anonymous client"
+                raise BusError(
+                    f"the MQTT broker at {self.address} refused {who}: {refusal.getName()} (check the MQTT "
+                    f"username and password in the configuration or in {ENV_USERNAME} / {ENV_PASSWORD})"
+                )
+            raise BusError(f"the MQTT broker at {self.address} refused the connection: {refusal.getName()}")
+
+    def _abort(self) -> None:
+        client, self._client = self._client, None
+        if client is not None:
+            client.disconnect()
+            client.loop_stop()
+
+    def _on_connect(
+        self, client: mqtt.Client, _userdata: Any, flags: Any, reason: ReasonCode, _props: Properties | None
+    ) -> None:
+        if reason.is_failure:
+            self._refusal = reason
+            self._connack.set()
+            log.error("MQTT broker %s refused the connection: %s", self.address, reason.getName())
+            return
+        self.connects += 1
+        self._connected = True
+        with self._lock:
+            patterns = list(dict.fromkeys(p for p, _ in self._handlers))
+        if patterns:
+            client.subscribe([(p, 1) for p in patterns])
+        if self.birth is not None:
+            self._send(client, self.birth.topic, self.birth.payload, self.birth.retain)
+        if self.connects > 1:
+            log.info("reconnected to %s (session present: %s)", self.address, flags.session_present)
+        self._connack.set()
+
+    def _on_disconnect(
+        self, _client: mqtt.Client, _userdata: Any, _flags: Any, reason: ReasonCode, _props: Properties | None
+    ) -> None:
+        self._connected = False
+        if self.connects == 0 and not self._connack.is_set():  # dropped before any CONNACK: fail fast
+            self._dropped = reason.getName()
+            self._connack.set()
+        if self._client is not None and reason.value != 0:
+            log.warning("lost the MQTT broker %s (%s); reconnecting", self.address, reason.getName())
+
+    def _on_message(self, _client: mqtt.Client, _userdata: Any, msg: mqtt.MQTTMessage) -> None:
+        message = Message(msg.topic, bytes(msg.payload), bool(msg.retain))
+        with self._lock:
+            handlers = [h for p, h in self._handlers if topic_matches(p, msg.topic)]
+        for handler in handlers:
+            try:
+                handler(message)
+            except Exception:
+                # never let a handler bug kill paho's network thread
+                log.exception("bus handler failed on %s", msg.topic)
+
+    def _on_publish(
+        self, _client: mqtt.Client, _userdata: Any, mid: int, _reason: ReasonCode, _props: Properties
+    ) -> None:
+        with self._lock:
+            if mid in self._pending:
+                self._pending.discard(mid)
+            else:
+                self._acked_early.add(mid)
+            self._lock.notify_all()
+
+    def _on_subscribe(
+        self, _client: mqtt.Client, _userdata: Any, mid: int, _reasons: list[ReasonCode], _props: Properties
+    ) -> None:
+        with self._lock:
+            self._subacked.add(mid)
+            self._lock.notify_all()
+
+    # -- bus API -------------------------------------------------------------------------------------------
+
+    def subscribe(self, pattern: str, handler: Handler) -> None:
+        if not valid_filter(pattern):
+            raise BusError(f"invalid topic filter {pattern!r}")
+        with self._lock:
+            known = any(p == pattern for p, _ in self._handlers)
+            self._handlers.append((pattern, handler))
+        client = self._client
+        if client is None or known or not self._connected:
+            return  # subscribed on (re)connect
+        rc, mid = client.subscribe(pattern, qos=1)  # never under self._lock: paho calls back holding its own
+        if rc is not MQTTErrorCode.MQTT_ERR_SUCCESS or mid is None:
+            return  # not connected after all: subscribed on reconnect
+        with self._lock:
+            if not self._lock.wait_for(lambda: mid in self._subacked, self.connect_timeout):
+                log.warning("no SUBACK for %s within %g s", pattern, self.connect_timeout)
+            self._subacked.discard(mid)
+
+    def publish(self, topic: str, payload: bytes, *, retain: bool = False) -> None:
+        if not valid_topic(topic):
+            raise BusError(f"invalid topic {topic!r}")
+        client = self._client
+        if client is None:
+            raise BusError("publish before connect")
+        self._send(client, topic, payload, retain)
+
+    def _send(self, client: mqtt.Client, topic: str, payload: bytes, retain: bool) -> None:
+        """Publish with QoS 1 and track the message id until its PUBACK (for `flush`)."""
+        info = client.publish(topic, payload, qos=1, retain=retain)  # not under self._lock (see subscribe)
+        if info.rc not in (MQTTErrorCode.MQTT_ERR_SUCCESS, MQTTErrorCode.MQTT_ERR_NO_CONN):
+            raise BusError(f"publishing on {topic} failed: {mqtt.error_string(info.rc)}")
+        with self._lock:
+            if info.mid in self._acked_early:
+                self._acked_early.discard(info.mid)
+            else:
+                self._pending.add(info.mid)
+
+    def flush(self, timeout: float) -> bool:
+        with self._lock:
+            return self._lock.wait_for(lambda: not self._pending, timeout)
+
+    def close(self) -> None:
+        client, self._client = self._client, None
+        if client is None:
+            return
+        client.disconnect()  # a normal disconnect: the broker drops the will
+        client.loop_stop()
+        self._connected = False

@@ -1,0 +1,150 @@
+"""How the TD's `securityDefinitions` decide the bus connection.
+
+* `basic`: MQTT username and password, from the configuration or the environment
+  (`TD2ADAPTOR_MQTT_USERNAME`, `TD2ADAPTOR_MQTT_PASSWORD`); missing credentials are an error, not a silent
+  anonymous connection. Over plain TCP to another host the password would travel in clear: refused unless
+  TLS is on or `allow_insecure` is set.
+* `nosec` (or no definitions): only to a loopback broker unless `allow_insecure` is set.
+* TLS (`mqtts://` or a CA file in the configuration) with an optional client certificate.
+* Other schemes (apikey, bearer, oauth2, ...) have no MQTT meaning here and are refused.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import os
+import socket
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+from urllib.parse import urlsplit
+
+ENV_USERNAME = "TD2ADAPTOR_MQTT_USERNAME"
+ENV_PASSWORD = "TD2ADAPTOR_MQTT_PASSWORD"
+
+
+class SecurityError(Exception):
+    """The configuration does not satisfy the TD's security (or would be unsafe); says what to change."""
+
+
+@dataclass(frozen=True)
+class BrokerAddress:
+    host: str
+    port: int
+    tls: bool
+
+    def __str__(self) -> str:
+        return f"{'mqtts' if self.tls else 'mqtt'}://{self.host}:{self.port}"
+
+
+@dataclass(frozen=True)
+class TlsOptions:
+    ca_file: str | None = None
+    cert_file: str | None = None
+    key_file: str | None = None
+
+
+@dataclass(frozen=True)
+class ConnectionSecurity:
+    """What the MQTT client must do: credentials and TLS (None: plain TCP)."""
+
+    username: str | None = None
+    password: str | None = None
+    tls: TlsOptions | None = None
+    schemes: tuple[str, ...] = ()
+
+
+def parse_broker_url(url: str) -> BrokerAddress:
+    """`mqtt://host[:port]` or `mqtts://host[:port]` (default ports 1883 / 8883); no credentials in URLs."""
+    parts = urlsplit(url)
+    if parts.scheme not in ("mqtt", "mqtts", "tcp", "ssl"):
+        raise SecurityError(f"bus URL {url!r}: use mqtt://host:port, mqtts://host:port or 'local'")
+    if parts.username or parts.password:
+        raise SecurityError(
+            f"bus URL {url!r} carries credentials: give them in the configuration or in {ENV_USERNAME} / "
+            f"{ENV_PASSWORD} instead, so they do not show up in process lists and logs"
+        )
+    if not parts.hostname:
+        raise SecurityError(f"bus URL {url!r} has no host")
+    if parts.path not in ("", "/") or parts.query or parts.fragment:
+        raise SecurityError(f"bus URL {url!r}: only scheme, host and port are meaningful")
+    tls = parts.scheme in ("mqtts", "ssl")
+    try:
+        port = parts.port or (8883 if tls else 1883)
+    except ValueError as exc:
+        raise SecurityError(f"bus URL {url!r}: {exc}") from None
+    return BrokerAddress(parts.hostname, port, tls)
+
+
+def is_loopback(host: str) -> bool:
+    """Whether every address `host` names is a loopback address (names are resolved, not guessed)."""
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        pass
+    try:
+        infos = socket.getaddrinfo(host, None)
+    except OSError:
+        return False
+    addresses = {info[4][0] for info in infos}
+    return bool(addresses) and all(ipaddress.ip_address(str(a).split("%")[0]).is_loopback for a in addresses)
+
+
+def schemes_of(security_definitions: Any) -> tuple[str, ...]:
+    """The schemes of a TD's securityDefinitions, combos expanded, in order, without duplicates."""
+    if not isinstance(security_definitions, Mapping):
+        return ()
+    out: list[str] = []
+    for definition in security_definitions.values():
+        scheme = definition.get("scheme") if isinstance(definition, Mapping) else None
+        if isinstance(scheme, str) and scheme != "combo" and scheme not in out:
+            out.append(scheme)
+    return tuple(out)
+
+
+def plan_security(
+    security_definitions: Any,
+    address: BrokerAddress,
+    *,
+    username: str | None = None,
+    password: str | None = None,
+    tls: TlsOptions | None = None,
+    allow_insecure: bool = False,
+    env: Mapping[str, str] | None = None,
+) -> ConnectionSecurity:
+    """Decide credentials and TLS for `address`, or raise `SecurityError` saying what is missing."""
+    env = os.environ if env is None else env
+    schemes = schemes_of(security_definitions) or ("nosec",)
+    unsupported = [s for s in schemes if s not in ("nosec", "basic", "auto")]
+    if unsupported:
+        raise SecurityError(
+            f"security scheme {unsupported[0]!r} of the Thing Description cannot be used on an MQTT bus "
+            "(supported: basic, nosec, auto)"
+        )
+    username = username or env.get(ENV_USERNAME) or None
+    password = password if password is not None else env.get(ENV_PASSWORD)
+    use_tls = tls if tls is not None else (TlsOptions() if address.tls else None)
+    for label, path in (
+        ("CA file", use_tls.ca_file if use_tls else None),
+        ("client certificate", use_tls.cert_file if use_tls else None),
+        ("client key", use_tls.key_file if use_tls else None),
+    ):
+        if path and not os.path.isfile(path):
+            raise SecurityError(f"TLS {label} {path!r} does not exist")
+    if "basic" in schemes and (not username or password is None):
+        raise SecurityError(
+            "the Thing Description requires basic security: set the MQTT username and password in the "
+            f"configuration or in {ENV_USERNAME} and {ENV_PASSWORD}"
+        )
+    loopback = is_loopback(address.host)
+    if username:
+        if use_tls is None and not loopback and not allow_insecure:
+            raise SecurityError(
+                f"refusing to send a password in clear to {address}: use mqtts:// (TLS), or allow_insecure"
+            )
+    elif not loopback and not allow_insecure:
+        raise SecurityError(
+            f"the Thing Description declares no credentials (nosec), so the bus may only be a broker on this "
+            f"machine; {address} is not a loopback address (allow_insecure / --allow-insecure connects anyway)"
+        )
+    return ConnectionSecurity(username, password if username else None, use_tls, schemes)

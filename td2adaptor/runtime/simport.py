@@ -1,0 +1,149 @@
+"""A `RobotPort` onto the middleware-independent simulated robot (`examples/robotnik_rb1/sim/core.py`).
+
+For tests, benchmarks and the in-process demo: the same procedure semantics as the ROS simulations, without
+ROS. It also shows what an adapter does: pick the component, turn the payload into the call's arguments,
+turn the answer into plain data, and raise `PortError` subclasses. `down` and `delay` inject faults.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Mapping
+from typing import Any, Protocol
+
+from td2adaptor.model import Model
+from td2adaptor.runtime.port import NoValue, PortCallFailed, PortUnavailable, StartResult
+from td2adaptor.runtime.procedures import mission_id_of
+
+
+class SimComponent(Protocol):
+    def add(self, params: dict[str, Any]) -> dict[str, Any]: ...
+    def query(self, mission_id: int) -> dict[str, Any]: ...
+    def cancel(self, mission_id: int) -> dict[str, Any]: ...
+
+
+class SimRobot(Protocol):
+    """What `examples/robotnik_rb1/sim/core.RobotSim` offers."""
+
+    robot_id: str
+
+    @property
+    def components(self) -> Mapping[str, SimComponent]: ...
+
+    def status(self) -> dict[str, Any]: ...
+    def visible_markers(self) -> list[int]: ...
+    def set_door(self, value: float) -> None: ...
+
+
+def rb1_readers(sim: SimRobot) -> dict[str, Callable[[], Any]]:
+    """The RB-1's subscribed properties, in the shape of their ROS messages (the fields the sim knows)."""
+
+    def availability() -> Any:
+        status = sim.status()
+        x, y, theta = status["pose"]
+        return {
+            "robot_id": status["robot_id"],
+            "robot_state": status["robot_state"],
+            "control_state": status["control_state"],
+            "operation_state": status["operation_state"],
+            "mission_status": {"current": status["mission_status"]["current"]},
+            "robot_status": {"pose": {"pose": {"x": x, "y": y, "theta": theta}}},
+        }
+
+    def pose_marker() -> Any:
+        return {"markers": [{"id": marker} for marker in sim.visible_markers()]}
+
+    return {"availability": availability, "poseMarker": pose_marker}
+
+
+def rb1_writers(sim: SimRobot) -> dict[str, Callable[[Any], None]]:
+    def door(value: Any) -> None:
+        data = value.get("data") if isinstance(value, Mapping) else None
+        if not isinstance(data, (int, float)) or isinstance(data, bool):
+            raise PortCallFailed("door: expected {'data': <number>}")
+        sim.set_door(float(data))
+
+    return {"door": door}
+
+
+def _as_ros(response: dict[str, Any]) -> dict[str, Any]:
+    """The sim's answer as the ROS response dict (std_msgs/String last_message)."""
+    out = dict(response)
+    if isinstance(out.get("last_message"), str):
+        out["last_message"] = {"data": out["last_message"]}
+    return out
+
+
+class SimPort:
+    """Drives a simulated robot through the `RobotPort` protocol."""
+
+    def __init__(
+        self,
+        model: Model,
+        sim: SimRobot,
+        *,
+        readers: Mapping[str, Callable[[], Any]] | None = None,
+        writers: Mapping[str, Callable[[Any], None]] | None = None,
+        request_field: str = "procedure",
+    ) -> None:
+        self.model = model
+        self.sim = sim
+        self.readers = dict(rb1_readers(sim) if readers is None else readers)
+        self.writers = dict(rb1_writers(sim) if writers is None else writers)
+        self.request_field = request_field
+        self.down = False  # fault injection: every call fails as if the robot were gone
+        self.delay = 0.0  # fault injection: seconds each call takes
+        self.calls: list[tuple[str, str]] = []  # (component, action) in call order
+        self._lock = threading.Lock()
+
+    def _enter(self, component: str, action: str, timeout: float) -> SimComponent:
+        with self._lock:
+            self.calls.append((component, action))
+        if self.down:
+            raise PortUnavailable(f"service {action} of {component} is not available")
+        if self.delay:
+            if self.delay > timeout:
+                time.sleep(timeout)
+                raise PortUnavailable(f"{action} did not answer within {timeout:g} s")
+            time.sleep(self.delay)
+        try:
+            return self.sim.components[component]
+        except KeyError:
+            raise PortCallFailed(f"the robot has no component {component!r}") from None
+
+    def start(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> StartResult:
+        comp = self._enter(component, action, timeout)
+        params = payload.get(self.request_field, payload)
+        if not isinstance(params, Mapping):
+            raise PortCallFailed(f"{action}: {self.request_field} must be an object")
+        response = _as_ros(comp.add(dict(params)))
+        procedure = self.model.component(component).procedure_of(action)
+        path = procedure.mission_id if procedure is not None and procedure.mission_id else ("state", "header", "id")
+        return StartResult(response, mission_id_of(response, path))
+
+    def query(self, component: str, action: str, mission_id: int, timeout: float) -> Mapping[str, Any]:
+        return _as_ros(self._enter(component, action, timeout).query(mission_id))
+
+    def cancel(self, component: str, action: str, mission_id: int, timeout: float) -> Mapping[str, Any]:
+        return _as_ros(self._enter(component, action, timeout).cancel(mission_id))
+
+    def call(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> Mapping[str, Any]:
+        self._enter(component, action, timeout)
+        raise PortCallFailed(f"the simulation has no plain action {action!r}")
+
+    def read_property(self, component: str, name: str, timeout: float) -> Any:
+        if self.down:
+            raise PortUnavailable(f"topic of {name} is silent")
+        reader = self.readers.get(name)
+        if reader is None:
+            raise NoValue(f"no message on {name} yet")
+        return reader()
+
+    def write_property(self, component: str, name: str, value: Any) -> None:
+        if self.down:
+            raise PortUnavailable(f"publisher of {name} is gone")
+        writer = self.writers.get(name)
+        if writer is None:
+            raise PortCallFailed(f"the simulation does not publish {name!r}")
+        writer(value)

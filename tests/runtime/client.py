@@ -1,0 +1,82 @@
+"""A plain paho client standing in for an application on the bus (independent of the runtime's MqttBus)."""
+
+from __future__ import annotations
+
+import json
+import threading
+import uuid
+from collections.abc import Callable
+from typing import Any
+
+import paho.mqtt.client as mqtt
+from paho.mqtt.enums import CallbackAPIVersion, MQTTProtocolVersion
+from paho.mqtt.packettypes import PacketTypes
+from paho.mqtt.properties import Properties
+
+Event = tuple[str, dict[str, Any]]
+
+
+class AppClient:
+    """Subscribes to `patterns` (QoS 1, persistent session) and records every event it receives."""
+
+    def __init__(
+        self,
+        url: str,
+        patterns: list[str],
+        *,
+        client_id: str | None = None,
+        username: str | None = None,
+        password: str | None = None,
+    ) -> None:
+        host, port = url.removeprefix("mqtt://").rsplit(":", 1)
+        self.events: list[Event] = []
+        self.cond = threading.Condition()
+        self.connected = threading.Event()
+        self.patterns = patterns
+        self.client = mqtt.Client(
+            CallbackAPIVersion.VERSION2,
+            client_id=client_id or f"app-{uuid.uuid4().hex[:8]}",
+            protocol=MQTTProtocolVersion.MQTTv5,
+        )
+        self.client.reconnect_delay_set(1, 2)
+        if username:
+            self.client.username_pw_set(username, password)
+        self.client.on_connect = self._on_connect
+        self.client.on_message = self._on_message
+        self.client.on_subscribe = self._on_subscribe
+        self.client.on_disconnect = lambda *_: self.connected.clear()
+        props = Properties(PacketTypes.CONNECT)  # type: ignore[no-untyped-call]
+        props.SessionExpiryInterval = 600
+        self.client.connect(host, int(port), 30, clean_start=False, properties=props)
+        self.client.loop_start()
+        assert self.connected.wait(10), "test client could not connect"
+
+    def _on_connect(self, client: mqtt.Client, _u: Any, _f: Any, reason: Any, _p: Any) -> None:
+        if not reason.is_failure:
+            client.subscribe([(p, 1) for p in self.patterns])  # connected once the SUBACK is in
+
+    def _on_subscribe(self, *_args: Any) -> None:
+        self.connected.set()
+
+    def _on_message(self, _c: mqtt.Client, _u: Any, msg: mqtt.MQTTMessage) -> None:
+        try:
+            data = json.loads(msg.payload)
+        except ValueError:
+            data = {"raw": msg.payload.decode(errors="replace")}
+        with self.cond:
+            self.events.append((msg.topic, data))
+            self.cond.notify_all()
+
+    def send(self, topic: str, event: Any) -> None:
+        payload = event if isinstance(event, bytes) else json.dumps(event).encode()
+        self.client.publish(topic, payload, qos=1).wait_for_publish(10)
+
+    def wait(self, predicate: Callable[[list[Event]], bool], timeout: float = 10.0) -> list[Event]:
+        with self.cond:
+            ok = self.cond.wait_for(lambda: predicate(self.events), timeout)
+            assert ok, f"timed out; received {[(t, e.get('payload')) for t, e in self.events][-10:]}"
+            return list(self.events)
+
+    def close(self) -> None:
+        self.client.disconnect()
+        self.client.loop_stop()

@@ -1,0 +1,24 @@
+"""An adaptor in its own process (so a test can kill it): `python -m tests.runtime.engine_proc URL ROBOT`."""
+
+from __future__ import annotations
+
+import sys
+import time
+
+from td2adaptor.runtime import RuntimeConfig, serve
+from td2adaptor.runtime.simport import SimPort
+
+from .rb1 import rb1_model, sim
+
+
+def main() -> None:
+    url, robot = sys.argv[1], sys.argv[2]
+    model = rb1_model()
+    serve(model, SimPort(model, sim()), RuntimeConfig(robot=robot, bus=url, property_period=0))
+    print("ready", flush=True)
+    while True:
+        time.sleep(60)
+
+
+if __name__ == "__main__":
+    main()
