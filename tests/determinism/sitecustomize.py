@@ -25,7 +25,12 @@ class _Scandir:
         self._entries = _shuffled(self._it)
 
     def __iter__(self):  # type: ignore[no-untyped-def]
-        return iter(self._entries)
+        return self
+
+    def __next__(self):  # type: ignore[no-untyped-def]
+        if not self._entries:
+            raise StopIteration
+        return self._entries.pop()
 
     def __enter__(self):  # type: ignore[no-untyped-def]
         return self
