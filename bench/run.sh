@@ -1,5 +1,21 @@
 #!/usr/bin/env bash
-# All benchmarks, one command. Each figure is printed with a baseline measured in the same run.
-set -euo pipefail
+# All benchmarks, one command: bash bench/run.sh
+# Each script prints its figures next to a baseline measured in the same run. Benchmarks whose middleware
+# is not installed (ROS 1, ROS 2, mosquitto, arm-none-eabi) say so and are skipped; the rest still run.
+set -uo pipefail
 cd "$(dirname "$0")/.."
-exec .venv/bin/python bench/frontend.py "$@"
+PY=.venv/bin/python
+status=0
+run() {
+  echo
+  echo "== $1"
+  shift
+  "$@" || { echo "(failed: exit $?)"; status=1; }
+}
+run "front end (issue 2)" "$PY" bench/frontend.py
+[ -f bench/workflow.py ] && run "workflow: check and gen (issue 6)" "$PY" bench/workflow.py
+[ -f bench/backend_rclpy.py ] && run "rclpy backend (issue 3)" "$PY" bench/backend_rclpy.py
+[ -f bench/backend_rospy.py ] && run "rospy backend (issue 3)" "$PY" bench/backend_rospy.py
+[ -f bench/backend_mros.py ] && run "mROS backend (issue 4)" "$PY" bench/backend_mros.py
+[ -f bench/runtime_bus.py ] && run "edge-node runtime over MQTT (issue 5)" "$PY" bench/runtime_bus.py
+exit $status

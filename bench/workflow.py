@@ -1,0 +1,63 @@
+"""Workflow benchmarks (issue 6), each against a baseline measured in the same run.
+
+* `td2adaptor check` on the RB-1 example with nothing stale, cold CLI (target <= 0.25 s; floor python -c pass);
+* `td2adaptor gen` of a 1,000-affordance TD, cold CLI, all backends (target <= 1 s), first run and re-run.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "bench"))
+from synth import synthetic_td  # noqa: E402
+
+PY = sys.executable
+CLI = str(Path(PY).parent / "td2adaptor")
+ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+
+
+def timed(cmd: list[str], cwd: Path, runs: int = 5, env: dict[str, str] | None = None) -> tuple[float, int]:
+    rc = subprocess.run(cmd, cwd=cwd, capture_output=True, env=env or ENV, check=False).returncode
+    times = []
+    for _ in range(runs):
+        t0 = time.perf_counter()
+        subprocess.run(cmd, cwd=cwd, capture_output=True, env=env or ENV, check=False)
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), rc
+
+
+def main() -> None:
+    floor, _ = timed([PY, "-c", "pass"], REPO)
+    check, rc = timed([CLI, "check"], REPO)
+    print(
+        f"td2adaptor check, RB-1, nothing stale   {check * 1000:8.1f} ms  (exit {rc})   python -c pass "
+        f"{floor * 1000:6.1f} ms   ratio {check / floor:5.1f}   target <= 250 ms"
+    )
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        (work / "synth.json").write_text(json.dumps(synthetic_td(1000)))
+        cache = {**ENV, "TD2ADAPTOR_CACHE_DIR": str(work / "cache")}
+        cmd = [CLI, "gen", "synth.json", "-o", "out", "--partial"]
+        t0 = time.perf_counter()
+        rc = subprocess.run(cmd, cwd=work, capture_output=True, env=cache, check=False).returncode
+        first = time.perf_counter() - t0
+        files = sum(1 for p in (work / "out").rglob("*") if p.is_file()) if (work / "out").is_dir() else 0
+        again, _ = timed(cmd, work, runs=3, env=cache)
+        shutil.rmtree(work / "out", ignore_errors=True)
+        print(
+            f"td2adaptor gen, 1,000 affordances, first {first * 1000:8.1f} ms  (exit {rc}, {files} files)   "
+            f"re-run, nothing changed {again * 1000:8.1f} ms   target <= 1000 ms"
+        )
+
+
+if __name__ == "__main__":
+    main()
