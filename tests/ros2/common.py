@@ -1,0 +1,162 @@
+"""Helpers shared by the ROS 2 tests and their fixtures (no fixtures here, so test modules may import it)."""
+
+from __future__ import annotations
+
+import json
+import os
+import queue
+import subprocess
+import tempfile
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import td2adaptor
+from td2adaptor.backends import GenOptions
+from td2adaptor.backends import load as load_backend
+from td2adaptor.diagnostics import Diagnostics, Severity
+from tests.ros2 import env
+
+EXAMPLE = env.REPO / "examples" / "robotnik_rb1"
+PACKAGE = "robotnik_rb_1_adaptor"
+SIM_NAMESPACES = ("rb1_base_a", "rb1_base_b", "rb1_base_c", "rb1_base_d", "rb1_base_e")
+SIM_DURATION = 1.0
+
+
+def require_ros2() -> None:
+    """Skip without the `ros2` extra; in CI (which installs it) a missing ROS 2 is a failure, not a skip."""
+    if env.ros2_available():
+        return
+    message = "ROS 2 Jazzy wheels not installed (bash .ci/setup-ros2.sh, or pip install -e '.[ros2]')"
+    if os.environ.get("CI"):
+        pytest.fail(message)
+    pytest.skip(message)
+
+
+def generate_rclpy(td: Path, out: Path, *, package_name: str | None = None) -> Path:
+    """Run the rclpy backend on `td` (RB-1 interfaces) and write the tree; the package directory."""
+    result = td2adaptor.compile(td, interfaces=[EXAMPLE / "interfaces"])
+    assert result.model is not None, [d.message for d in result.diagnostics]
+    diags = Diagnostics()
+    tree = load_backend("rclpy").generate(result.model, GenOptions(package_name=package_name), diags)
+    assert not [d for d in diags if d.severity is Severity.ERROR], [d.message for d in diags]
+    for rel, data in tree:
+        path = out / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(data)
+    return out / (package_name or result.model.package_name)
+
+
+class Process:
+    """A child process whose stdout is JSON event lines (the simulated robot, the silent server)."""
+
+    def __init__(self, args: list[str], environ: dict[str, str]) -> None:
+        # stderr goes to a file: a pipe nobody reads could fill up and stall the child
+        self.stderr = tempfile.TemporaryFile(mode="w+", encoding="utf-8")
+        self.proc = subprocess.Popen(
+            args, env=environ, stdout=subprocess.PIPE, stderr=self.stderr, text=True, cwd=env.REPO
+        )
+        self.events: queue.Queue[dict[str, Any]] = queue.Queue()
+        self.seen: list[dict[str, Any]] = []
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            try:
+                self.events.put(json.loads(line))
+            except ValueError:
+                continue
+
+    def wait_for(self, match: Callable[[dict[str, Any]], bool], timeout: float) -> dict[str, Any]:
+        """The first event (seen before or arriving within `timeout`) that `match` accepts."""
+        for event in self.seen:
+            if match(event):
+                return event
+        deadline = time.monotonic() + timeout
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                break
+            try:
+                event = self.events.get(timeout=min(remaining, 0.1))
+            except queue.Empty:
+                if self.proc.poll() is not None and self.events.empty():
+                    break
+                continue
+            self.seen.append(event)
+            if match(event):
+                return event
+        self.stderr.seek(0)
+        stderr = self.stderr.read()
+        raise AssertionError(f"no matching event within {timeout} s (exit {self.proc.poll()}): {stderr[-2000:]}")
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.terminate()
+            try:
+                self.proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(timeout=10)
+        if self.proc.stdout is not None:
+            self.proc.stdout.close()
+        self.stderr.close()
+
+
+def std_td(*, sensors: bool = True) -> dict[str, Any]:
+    """A small TD on standard interfaces only (std_srvs, geometry_msgs, sensor_msgs): other shapes than RB-1's.
+
+    `StdComponent` runs with the PyPI wheels (std_srvs, geometry_msgs); `SensorComponent` uses sensor_msgs
+    (fixed-size and numeric arrays), which is only type-checked here.
+    """
+
+    def form(name: str, rtype: str, op: str | list[str], **extra: Any) -> list[dict[str, Any]]:
+        href = "ros:" + name.removeprefix("/{{robotName}}/")
+        return [{"href": href, "op": op, "rosv:name": name, "rosv:type": rtype, **extra}]
+
+    read = ["readproperty", "observeproperty"]
+    write = ["writeproperty"]
+    actions = {
+        "trigger": ("StdComponent", "/{{robotName}}/trigger", "std_srvs/srv/Trigger"),
+        "enable": ("StdComponent", "/{{robotName}}/enable", "std_srvs/srv/SetBool"),
+        "reset": ("SensorComponent", "/reset", "std_srvs/srv/Empty"),
+    }
+    properties = {
+        "cmd": ("StdComponent", "/{{robotName}}/cmd_vel", "geometry_msgs/msg/Twist", write),
+        "initialPose": (
+            "StdComponent",
+            "/{{robotName}}/initialpose",
+            "geometry_msgs/msg/PoseWithCovarianceStamped",
+            write,
+        ),
+        "scan": ("SensorComponent", "/{{robotName}}/scan", "sensor_msgs/msg/LaserScan", read),
+        "imu": ("SensorComponent", "/{{robotName}}/imu", "sensor_msgs/msg/Imu", read),
+        "image": ("SensorComponent", "/{{robotName}}/image", "sensor_msgs/msg/Image", write),
+    }
+    td: dict[str, Any] = {
+        "@context": ["https://www.w3.org/2022/wot/td/v1.1", "https://td2adaptor.dev/ns/rosv/v1"],
+        "@type": "Thing",
+        "title": "Std Bot",
+        "description": "Standard interfaces only.",
+        "securityDefinitions": {"nosec_sc": {"scheme": "nosec"}},
+        "security": ["nosec_sc"],
+        "actions": {
+            key: {"rosv:component": comp, "forms": form(name, rtype, "invokeaction")}
+            for key, (comp, name, rtype) in actions.items()
+        },
+        "properties": {},
+    }
+    for key, (comp, name, rtype, op) in properties.items():
+        flags = {"observable": True, "readOnly": True} if op is read else {"writeOnly": True}
+        td["properties"][key] = {"rosv:component": comp, **flags, "forms": form(name, rtype, op)}
+    td["properties"]["scan"]["forms"][0]["rosv:qos"] = {"reliability": "best_effort", "depth": 5}
+    if not sensors:
+        for group in ("actions", "properties"):
+            td[group] = {k: v for k, v in td[group].items() if v["rosv:component"] != "SensorComponent"}
+    return td

@@ -1,0 +1,300 @@
+"""The generated rclpy adaptor against real ROS 2 Jazzy (PyPI wheels): no mocks anywhere.
+
+The RB-1 interfaces are built with CMake, the adaptor with colcon; the simulated RB-1
+(examples/robotnik_rb1/sim/ros2.py) runs in its own process and serves four robots, one per scenario, so the
+tests do not disturb each other. The tests of one worker share one node (see tests.ros2.fixtures.ros_node).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Coroutine
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import pytest
+
+from tests.ros2.common import PACKAGE, SIM_DURATION, Process
+
+pytest_plugins = ["tests.ros2.fixtures"]  # the fixtures: ros_node, adaptor, sim, silent_robot, ...
+
+
+def until(predicate: Callable[[], bool], timeout: float, period: float = 0.05) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(period)
+    return predicate()
+
+
+def query_until_finished(component: Any, query: str, mission_id: int, timeout: float = 10.0) -> Any:
+    """Poll a procedure by its mission id until the robot reports it finished (never longer than `timeout`)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        response = getattr(component, query)(mission_id=mission_id)
+        assert response.state.header.id == mission_id
+        if response.state.current_state == "finished":
+            return response
+        time.sleep(0.1)
+    raise AssertionError(f"mission {mission_id} did not finish within {timeout} s")
+
+
+def run_in_executor(node: Any, coro: Coroutine[Any, Any, Any], timeout: float = 10.0) -> Any:
+    """Run a coroutine as a task of the node's executor (as a coroutine callback would) and return its result.
+
+    The coroutine's exception is caught inside the task: rclpy re-raises a task's exception out of spin().
+    """
+    outcome: list[tuple[bool, Any]] = []
+    done = threading.Event()
+
+    async def task() -> None:
+        try:
+            outcome.append((True, await coro))
+        except Exception as exc:  # handed to the test thread
+            outcome.append((False, exc))
+        done.set()
+
+    node.executor.create_task(task)
+    assert done.wait(timeout), "the task did not finish"
+    ok, value = outcome[0]
+    if not ok:
+        raise value
+    return value
+
+
+def test_colcon_built_package_is_installed_and_imports(adaptor: ModuleType, adaptor_build: tuple[Path, Path]) -> None:
+    _src, install = adaptor_build
+    assert (install / "share" / "ament_index" / "resource_index" / "packages" / PACKAGE).is_file()
+    assert (install / "share" / PACKAGE / "package.xml").is_file()
+    assert (install / "share" / PACKAGE / "stubs" / "procedures_msgs" / "srv" / "__init__.pyi").is_file()
+    assert (Path(adaptor.__file__ or "").parent / "py.typed").is_file()
+    names = ["GoToComponent", "PickComponent", "PlaceComponent", "AvailabilityComponent", "PoseMarkerComponent"]
+    assert all(hasattr(adaptor, n) for n in [*names, "DoorComponent", "spin_in_background", "Started"])
+    assert issubclass(adaptor.CallFailed, adaptor.AdaptorError) and issubclass(adaptor.NoMessage, adaptor.AdaptorError)
+
+
+def test_goto_query_by_mission_id_until_finished_then_status_and_markers(
+    adaptor: ModuleType, ros_node: Any, sim: Process
+) -> None:
+    goto = adaptor.GoToComponent(ros_node, "rb1_base_a", timeout=5.0, wait_timeout=10.0)
+    before = len(list(ros_node.clients))
+    goto.register()
+    goto.register()  # idempotent: no second set of clients
+    assert len(list(ros_node.clients)) == before + 3
+    request = goto.construct_gotoRun_Msg(
+        procedure={"goals": [{"header": {"frame_id": "map"}, "pose": {"x": 1.5, "y": 3, "theta": 0}}]}
+    )
+    assert request.procedure.goals[0].pose.y == 3.0 and isinstance(request.procedure.goals[0].pose.y, float)
+    started = goto.call_gotoRun(request)
+    assert isinstance(started, adaptor.Started)
+    assert started.mission_id > 0 and started.response.state.current_state == "queued"
+    assert started.response.state.last_event == "added" and started.response.result.result == "ok"
+    # the query uses the mission id the run returned, also when not given explicitly
+    implicit = goto.call_gotoQuery()
+    assert implicit.state.header.id == started.mission_id
+    done = query_until_finished(goto, "call_gotoQuery", started.mission_id)
+    assert (done.state.last_event, done.result.message) == ("finish", "Perfect")
+    # the robot now stands at cart 3: Status and AlvarMarkers say so
+    status_comp = adaptor.AvailabilityComponent(ros_node, "rb1_base_a", timeout=5.0)
+    assert until(lambda: status_comp.get_value().robot_status.pose.pose.x == 1.5, 5.0)
+    status = status_comp.get_availability_value()
+    assert (status.robot_id, status.operation_state) == ("rb1_base_a", "idle")
+    markers = adaptor.PoseMarkerComponent(ros_node, "rb1_base_a", timeout=5.0)
+    assert until(lambda: [m.id for m in markers.get_poseMarker_value().markers] == [3], 5.0)
+
+
+def test_pick_then_place_and_status_follows_the_procedure(adaptor: ModuleType, ros_node: Any, sim: Process) -> None:
+    pick = adaptor.PickComponent(ros_node, "rb1_base_b", wait_timeout=10.0)
+    place = adaptor.PlaceComponent(ros_node, "rb1_base_b", wait_timeout=10.0)
+    availability = adaptor.AvailabilityComponent(ros_node, "rb1_base_b", timeout=5.0)
+    seen: list[str] = []
+    remove = availability.on_availability(lambda msg: seen.append(msg.operation_state))
+    started = pick.call_pickRun(pick.construct_pickRun_Msg(procedure={"pick_frame_id": "rb1_base_b_cart3_contact"}))
+    assert until(lambda: "raising_elevator" in seen, 5.0), seen
+    done = query_until_finished(pick, "call_pickQuery", started.mission_id)
+    assert done.state.last_event == "finish"
+    assert until(lambda: availability.get_value().robot_status.elevator.position == "up", 5.0)
+    placed = place.call_placeRun()
+    assert placed.mission_id == started.mission_id + 1
+    query_until_finished(place, "call_placeQuery", placed.mission_id)
+    assert until(lambda: availability.get_value().robot_status.elevator.position == "down", 5.0)
+    remove()
+    count = len(seen)
+    time.sleep(0.3)
+    assert len(seen) == count  # the callback was removed
+
+
+def test_cancel_a_running_procedure(adaptor: ModuleType, ros_node: Any, sim: Process) -> None:
+    goto = adaptor.GoToComponent(ros_node, "rb1_base_c", wait_timeout=10.0)
+    started = goto.call_gotoRun(goto.construct_gotoRun_Msg(procedure={"goals": [{"pose": {"x": 5.0}}]}))
+    assert until(lambda: goto.call_gotoQuery(mission_id=started.mission_id).state.current_state == "running", 5.0)
+    cancelled = goto.call_gotoCancel(mission_id=started.mission_id)
+    assert (cancelled.state.header.id, cancelled.state.current_state) == (started.mission_id, "finished")
+    assert cancelled.state.last_event == "cancel" and cancelled.last_message.data == "Cancelled"
+    assert goto.call_gotoQuery().state.last_event == "cancel"
+    sim.wait_for(
+        lambda e: e.get("op") == "cancel" and e.get("robot") == "rb1_base_c" and e.get("id") == started.mission_id,
+        timeout=5.0,
+    )
+
+
+def test_busy_robot_raises_call_failed_with_the_robots_message(
+    adaptor: ModuleType, ros_node: Any, sim: Process
+) -> None:
+    goto = adaptor.GoToComponent(ros_node, "rb1_base_d", wait_timeout=10.0)
+    first = goto.call_gotoRun()
+    with pytest.raises(adaptor.CallFailed) as info:
+        goto.call_gotoRun()
+    error = info.value
+    assert error.service == "/rb1_base_d/robot_local_control/NavigationComponent/GoToComponent/add"
+    assert error.message == (
+        'Could not add procedure to "GoToComponent" because component: "GoToComponent" is already running a procedure'
+    )
+    assert error.response.state.current_state == "unknown"
+    # an unknown mission id is an error the robot reports, too
+    with pytest.raises(adaptor.CallFailed, match="no procedure with id 999"):
+        goto.call_gotoQuery(mission_id=999)
+    goto.call_gotoCancel(mission_id=first.mission_id)
+
+
+def test_door_command_reaches_the_robot(adaptor: ModuleType, ros_node: Any, sim: Process) -> None:
+    door = adaptor.DoorComponent(ros_node)
+    door.publish_door_Msg(door.construct_door_Msg(data=1))
+    assert sim.wait_for(lambda e: e.get("event") == "door", timeout=10.0)["value"] == 1.0
+
+
+def test_async_calls_in_coroutine_callbacks(adaptor: ModuleType, ros_node: Any, sim: Process) -> None:
+    pick = adaptor.PickComponent(ros_node, "rb1_base_e", wait_timeout=10.0)
+    started = run_in_executor(ros_node, pick.call_pickRun_async(pick.construct_pickRun_Msg()))
+    assert isinstance(started, adaptor.Started) and started.response.state.current_state == "queued"
+    response = run_in_executor(ros_node, pick.call_pickQuery_async())
+    assert response.state.header.id == started.mission_id and response.state.header.name == "PickComponent"
+    cancelled = run_in_executor(ros_node, pick.call_pickCancel_async(mission_id=started.mission_id))
+    assert cancelled.state.last_event == "cancel"
+    nobody = adaptor.PickComponent(ros_node, "nobody_async", wait_timeout=0.3)
+    begin = time.monotonic()
+    with pytest.raises(adaptor.ServiceUnavailable):
+        run_in_executor(ros_node, nobody.call_pickQuery_async())
+    assert time.monotonic() - begin < 3.0
+
+
+def test_no_robot_running_raises_service_unavailable_within_the_timeout(adaptor: ModuleType, ros_node: Any) -> None:
+    goto = adaptor.GoToComponent(ros_node, "no_robot_here", wait_timeout=0.5)
+    started = time.monotonic()
+    with pytest.raises(adaptor.ServiceUnavailable) as info:
+        goto.call_gotoRun()
+    elapsed = time.monotonic() - started
+    assert 0.45 <= elapsed < 2.0, elapsed
+    assert info.value.service == "/no_robot_here/robot_local_control/NavigationComponent/GoToComponent/add"
+
+
+def test_a_server_that_never_answers_raises_call_timeout(
+    adaptor: ModuleType, ros_node: Any, silent_robot: Process
+) -> None:
+    goto = adaptor.GoToComponent(ros_node, "silent_robot", wait_timeout=10.0)
+    started = time.monotonic()
+    with pytest.raises(adaptor.CallTimeout) as info:
+        goto.call_gotoQuery(timeout=0.5)
+    elapsed = time.monotonic() - started
+    silent_robot.wait_for(lambda e: e.get("event") == "request", timeout=5.0)  # it did get the request
+    assert info.value.timeout == 0.5 and elapsed < 10.0
+    # the awaitable variant has the same deadline
+    with pytest.raises(adaptor.CallTimeout):
+        run_in_executor(ros_node, goto.call_gotoQuery_async(timeout=0.3))
+
+
+def test_nothing_published_raises_no_message(adaptor: ModuleType, ros_node: Any) -> None:
+    markers = adaptor.PoseMarkerComponent(ros_node, "silent_cameras")
+    started = time.monotonic()
+    with pytest.raises(adaptor.NoMessage) as info:
+        markers.get_value(timeout=0.3)
+    assert 0.25 <= time.monotonic() - started < 2.0
+    assert info.value.topic == "/silent_cameras/ar_pose_marker"
+
+
+def test_blocking_call_from_an_executor_callback_fails_fast(adaptor: ModuleType, ros_node: Any) -> None:
+    goto = adaptor.GoToComponent(ros_node, "in_callback", wait_timeout=5.0)
+    outcome: list[BaseException | None] = []
+
+    def callback() -> None:
+        timer.cancel()
+        try:
+            goto.call_gotoQuery()
+            outcome.append(None)
+        except adaptor.AdaptorError as exc:
+            outcome.append(exc)
+
+    timer = ros_node.create_timer(0.01, callback)
+    assert until(lambda: bool(outcome), 2.0)
+    ros_node.destroy_timer(timer)
+    assert isinstance(outcome[0], adaptor.ExecutorError)
+    assert "deadlock" in str(outcome[0])
+
+
+def test_robot_name_is_validated_at_run_time(adaptor: ModuleType, ros_node: Any) -> None:
+    for bad in ("bad name", "1robot", "a__b", "a//b", "robot-1"):
+        with pytest.raises(adaptor.InvalidNamespace):
+            adaptor.GoToComponent(ros_node, bad)
+    assert adaptor.GoToComponent(ros_node, "/rb1_base_a/").robot_name == "rb1_base_a"
+    with pytest.raises(ValueError):
+        adaptor.GoToComponent(ros_node, "rb1_base_a", timeout=0)
+    # without an executor spinning the node, a blocking call says so at once instead of waiting
+    import rclpy
+    from rclpy.context import Context
+
+    context = Context()
+    rclpy.init(context=context)
+    lonely: Any = rclpy.create_node("lonely", context=context)
+    try:
+        with pytest.raises(adaptor.ExecutorError, match="spin_in_background"):
+            adaptor.GoToComponent(lonely, "rb1_base_a").call_gotoQuery()
+    finally:
+        lonely.destroy_node()
+        rclpy.shutdown(context=context)
+
+
+def test_query_before_any_run_asks_for_the_last_procedure(adaptor: ModuleType, ros_node: Any, sim: Process) -> None:
+    place = adaptor.PlaceComponent(ros_node, "rb1_base_c", wait_timeout=10.0)
+    with pytest.raises(adaptor.CallFailed):  # the robot never ran a place: -1 finds nothing
+        place.call_placeQuery()
+    sim.wait_for(lambda e: e.get("op") == "query_state" and e.get("robot") == "rb1_base_c" and e.get("id") == -1, 5.0)
+    assert SIM_DURATION > 0
+
+
+def test_spinner_keeps_spinning_after_a_callback_raises(adaptor: ModuleType, ros_node: Any, sim: Process) -> None:
+    fired: list[bool] = []
+
+    def fail() -> None:
+        timer.cancel()
+        fired.append(True)
+        raise RuntimeError("a user callback failed")
+
+    timer = ros_node.create_timer(0.01, fail)
+    assert until(lambda: bool(fired), 2.0)
+    ros_node.destroy_timer(timer)
+    status = adaptor.AvailabilityComponent(ros_node, "rb1_base_d", timeout=5.0)
+    assert status.get_value().robot_id == "rb1_base_d"  # still delivered: the executor still spins
+
+
+def test_std_srvs_style_responses_and_standard_messages(
+    std_adaptor: ModuleType, ros_node: Any, std_server: Process
+) -> None:
+    std = std_adaptor.StdComponent(ros_node, "std_robot", wait_timeout=10.0)
+    with pytest.raises(std_adaptor.CallFailed, match="motor fault") as info:
+        std.call_trigger()
+    assert info.value.service == "/std_robot/trigger" and info.value.response.success is False
+    enabled = std.call_enable(std.construct_enable_Msg(data=True))
+    assert (enabled.success, enabled.message) == (True, "enabled: True")
+    std_server.wait_for(lambda e: e.get("data") is True, timeout=5.0)
+    twist = std.construct_cmd_Msg(linear={"x": 1}, angular={"z": -0.5})
+    assert (twist.linear.x, twist.angular.z) == (1.0, -0.5)
+    std.publish_cmd_Msg(twist)
+    pose = std.construct_initialPose_Msg(
+        header={"frame_id": "map"}, pose={"pose": {"position": {"x": 2}}, "covariance": [0.1] * 36}
+    )
+    assert pose.header.frame_id == "map" and pose.pose.pose.position.x == 2.0 and pose.pose.covariance[35] == 0.1
+    with pytest.raises(TypeError, match="no field"):
+        std.construct_cmd_Msg(linear={"u": 1})
