@@ -31,12 +31,18 @@ from .hostile.corpus import MARK, name_variants, variants
 INTERFACES = [EXAMPLE / "interfaces"]
 
 
+CLEAN_PACKAGE = "robotnik_rb_1_adaptor"
+
+
 def _trees(td: dict[str, Any]) -> dict[str, GeneratedTree] | None:
     result = td2adaptor.compile("-", stdin=io.BytesIO(json.dumps(td).encode()), interfaces=INTERFACES)
     if result.model is None:
         return None
+    # a hostile title yields a different, but always safe, package name (REP 144 characters only);
+    # the structural comparison below pins the name so that file paths and imports line up
+    assert re.fullmatch(r"[a-z][a-z0-9_]*_adaptor", result.model.package_name), result.model.package_name
     diags = Diagnostics()
-    trees = generate_trees(result.model, available(), diags, partial=True)
+    trees = generate_trees(result.model, available(), diags, partial=True, package_name=CLEAN_PACKAGE)
     assert trees is not None, [d.message for d in diags if d.severity is Severity.ERROR]
     return trees
 
