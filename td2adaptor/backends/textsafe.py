@@ -59,8 +59,14 @@ def c_str(text: str) -> str:
 
 
 def c_comment(text: str) -> str:
-    """Text for inside a `/* ... */` or `//` comment: cannot close the comment nor continue a line."""
-    text = text.replace("*/", "* /").replace("/*", "/ *").replace("\\", "/")
+    """Text for inside a `/* ... */` or `//` comment: cannot close the comment nor continue a line.
+
+    Backslashes go first (so `*\\` cannot turn into `*/`), then comment delimiters, then `??` (trigraphs,
+    of which `??/` is a backslash in C++98).
+    """
+    text = text.replace("\\", "/")
+    while "*/" in text or "/*" in text or "??" in text:
+        text = text.replace("*/", "* /").replace("/*", "/ *").replace("??", "? ?")
     return _CONTROL.sub(" ", text.replace("\r", " ").replace("\n", " ")).strip()
 
 
