@@ -84,7 +84,7 @@ def load(path: Path, diags: Diagnostics) -> Config | None:
     if not isinstance(table, dict):
         diags.add("CFG902", _err(), "[tool.td2adaptor] must be a table", file=name)
         return None
-    base = path.parent
+    base = _display_base(path.parent)
     default_output = table.get("output", "generated")
     raw_targets = table.get("target", [])
     if not isinstance(raw_targets, list) or not raw_targets:
@@ -139,6 +139,15 @@ def load(path: Path, diags: Diagnostics) -> Config | None:
             )
         )
     return Config(path, tuple(targets))
+
+
+def _display_base(folder: Path) -> Path:
+    """The config's folder relative to the working directory when it is inside it (shorter messages)."""
+    try:
+        rel = folder.resolve().relative_to(Path.cwd().resolve())
+    except ValueError:
+        return folder
+    return rel if str(rel) != "." else Path()
 
 
 def _err() -> Any:

@@ -106,14 +106,16 @@ def build(targets: Sequence[Target], diags: Diagnostics, *, use_cache: bool = Tr
             if result.model is None:
                 ok = False
                 continue
+            local = Diagnostics()
             trees = generate_trees(
                 result.model,
                 names,
-                diags,
+                local,
                 partial=target.partial,
                 package_name=target.package_name,
                 strict=target.strict,
             )
+            diags.extend(_locate(local, td))
             if trees is None:
                 ok = False
                 continue
@@ -131,6 +133,16 @@ def build(targets: Sequence[Target], diags: Diagnostics, *, use_cache: bool = Tr
                     into.files[rel] = data
                 into.executable |= tree.executable
     return merged if ok else None
+
+
+def _locate(diags: Diagnostics, td: Path) -> list[Diagnostic]:
+    """Backends point into the TD; give their diagnostics the TD's file:line:col."""
+    if all(d.file for d in diags):
+        return list(diags)
+    from td2adaptor.td.jsonsrc import load_path
+
+    doc = load_path(str(td), Diagnostics())
+    return [d if d.file or doc is None else doc.locate(d) for d in diags]
 
 
 def generate(targets: Sequence[Target], *, force: bool = False, use_cache: bool = True) -> Outcome:

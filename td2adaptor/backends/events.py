@@ -20,8 +20,6 @@ import json
 from collections.abc import Mapping
 from typing import Any
 
-import jinja2
-
 from td2adaptor.backends import GeneratedTree, GenOptions
 from td2adaptor.backends.events_catalog import (
     ALL_ROBOTS,
@@ -31,9 +29,9 @@ from td2adaptor.backends.events_catalog import (
     Kind,
     build_catalog,
 )
+from td2adaptor.backends.templating import environment
 from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.model import Model, thaw
-from td2adaptor.resources import data_dir
 from td2adaptor.td.terms import DATA_SCHEMA
 
 NAME = "events"
@@ -312,12 +310,7 @@ def _md(text: str) -> str:
 
 
 def _readme(model: Model, catalog: EventCatalog) -> str:
-    env = jinja2.Environment(
-        loader=jinja2.FileSystemLoader(str(data_dir("templates") / "events")),
-        autoescape=False,
-        keep_trailing_newline=True,
-        undefined=jinja2.StrictUndefined,
-    )
+    env = environment("events", trim=False)
     rows = [
         {
             "topic": spec.topic("<robot>"),

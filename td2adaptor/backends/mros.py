@@ -40,7 +40,6 @@ member functions live in `app.cpp`, so message copies are compiled once (footpri
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cache
 from typing import Any
 
 import jinja2
@@ -59,9 +58,9 @@ from td2adaptor.backends.mros_types import (
     macro_like,
     unsupported_fields,
 )
+from td2adaptor.backends.templating import environment
 from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.model import Component, Model, Role, TopicEndpoint
-from td2adaptor.resources import data_dir
 
 NAME = "mros"
 DISTRO = "ros1"
@@ -281,16 +280,8 @@ def _pool(prefix: str, name: str, label: str, largest: int) -> PoolView:
     return PoolView(prefix, name, name.replace("_mempool", "_config"), label, tuple(classes))
 
 
-@cache
 def _env() -> jinja2.Environment:
-    return jinja2.Environment(
-        loader=jinja2.FileSystemLoader(str(data_dir("templates") / "mros")),
-        autoescape=False,
-        keep_trailing_newline=True,
-        trim_blocks=True,
-        lstrip_blocks=True,
-        undefined=jinja2.StrictUndefined,
-    )
+    return environment("mros")
 
 
 def _render(template: str, **context: Any) -> str:

@@ -13,15 +13,13 @@ import keyword
 import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from functools import cache
 
 import jinja2
-import jinja2.bccache
 
 from td2adaptor.backends import GeneratedTree, GenOptions
 from td2adaptor.backends import rclpy_types as rt
 from td2adaptor.backends import textsafe as ts
-from td2adaptor.cache import cache_dir
+from td2adaptor.backends.templating import environment
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.model import (
     ArrayKind,
@@ -38,7 +36,6 @@ from td2adaptor.model import (
     TopicEndpoint,
     TypeTable,
 )
-from td2adaptor.resources import data_dir
 
 NAME = "rclpy"
 DISTRO = "ros2"
@@ -858,44 +855,8 @@ class Builder:
 # rendering
 
 
-class _QuietBytecodeCache(jinja2.FileSystemBytecodeCache):
-    """Compiled templates in the user cache (a third of a cold `gen`); any failure just means no cache."""
-
-    def load_bytecode(self, bucket: jinja2.bccache.Bucket) -> None:
-        try:
-            super().load_bytecode(bucket)
-        except OSError:
-            pass
-
-    def dump_bytecode(self, bucket: jinja2.bccache.Bucket) -> None:
-        try:
-            super().dump_bytecode(bucket)
-        except OSError:
-            pass
-
-
-def _bytecode_cache() -> jinja2.BytecodeCache | None:
-    directory = cache_dir()
-    if directory is None:
-        return None
-    try:
-        (directory / "jinja").mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return None
-    return _QuietBytecodeCache(str(directory / "jinja"), "rclpy-%s.cache")
-
-
-@cache
 def _env() -> jinja2.Environment:
-    return jinja2.Environment(
-        loader=jinja2.FileSystemLoader(str(data_dir("templates") / "rclpy")),
-        autoescape=False,
-        keep_trailing_newline=True,
-        trim_blocks=True,
-        lstrip_blocks=True,
-        undefined=jinja2.StrictUndefined,
-        bytecode_cache=_bytecode_cache(),
-    )
+    return environment("rclpy")
 
 
 def _render(template: str, **context: object) -> str:

@@ -11,7 +11,6 @@ import builtins
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from functools import cache
 
 import jinja2
 
@@ -25,6 +24,7 @@ from td2adaptor.backends.rospy_types import (
     field_view,
     stub_annotation,
 )
+from td2adaptor.backends.templating import environment
 from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.model import (
     Component,
@@ -38,7 +38,6 @@ from td2adaptor.model import (
     TopicEndpoint,
     TypeTable,
 )
-from td2adaptor.resources import data_dir
 
 NAME = "rospy"
 DISTRO = "ros1"
@@ -652,16 +651,8 @@ def interface_packages(types: TypeTable) -> list[str]:
     return sorted(names)
 
 
-@cache
 def _env() -> jinja2.Environment:
-    return jinja2.Environment(
-        loader=jinja2.FileSystemLoader(str(data_dir("templates") / "rospy")),
-        autoescape=False,
-        keep_trailing_newline=True,
-        trim_blocks=True,
-        lstrip_blocks=True,
-        undefined=jinja2.StrictUndefined,
-    )
+    return environment("rospy")
 
 
 def _render(template: str, **context: object) -> str:
