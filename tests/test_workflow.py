@@ -64,7 +64,7 @@ def test_check_reports_stale_files_and_never_writes(project: Path) -> None:
     code, out = _run(project, "check")
     assert code == 1 and "stale (3 files)" in out
     lines = {
-        line.strip().split("/")[0] + line.strip().rsplit("/", 1)[-1]
+        line.split()[0] + " " + line.rsplit("/", 1)[-1]
         for line in out.splitlines()
         if line.startswith("  ")
     }
