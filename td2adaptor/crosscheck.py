@@ -40,6 +40,7 @@ from typing import Any, TypeGuard
 
 from td2adaptor.diagnostics import Diagnostics, pointer_join
 from td2adaptor.model import ArrayKind, FieldType, MessageDef, MessageField, TypeTable
+from td2adaptor.rostypes.primitives import INT_RANGES as _INT_RANGES
 
 CODES: dict[str, str] = {
     "XC601": "schema property is not a field of the message",
@@ -54,17 +55,6 @@ CODES: dict[str, str] = {
     "XC611": "schema bounds exceed the range of the ROS type",
 }
 
-_INT_RANGES: dict[str, tuple[int, int]] = {
-    "int8": (-(2**7), 2**7 - 1),
-    "uint8": (0, 2**8 - 1),
-    "int16": (-(2**15), 2**15 - 1),
-    "uint16": (0, 2**16 - 1),
-    "int32": (-(2**31), 2**31 - 1),
-    "uint32": (0, 2**32 - 1),
-    "int64": (-(2**63), 2**63 - 1),
-    "uint64": (0, 2**64 - 1),
-    "char": (0, 2**8 - 1),
-}
 _FLOATS = {"float32", "float64"}
 _STRINGS = {"string", "wstring"}
 _BYTES = {"uint8", "byte", "char"}

@@ -10,19 +10,8 @@ from __future__ import annotations
 from typing import Any
 
 from td2adaptor.model import ArrayKind, FieldType, MessageDef, TypeTable
+from td2adaptor.rostypes.primitives import int_range
 
-_INT_RANGES = {
-    "int8": (-(2**7), 2**7 - 1),
-    "uint8": (0, 2**8 - 1),
-    "byte": (0, 2**8 - 1),
-    "char": (0, 2**8 - 1),
-    "int16": (-(2**15), 2**15 - 1),
-    "uint16": (0, 2**16 - 1),
-    "int32": (-(2**31), 2**31 - 1),
-    "uint32": (0, 2**32 - 1),
-    "int64": (-(2**63), 2**63 - 1),
-    "uint64": (0, 2**64 - 1),
-}
 _TIME_TYPES = {"time", "duration", "builtin_interfaces/msg/Time", "builtin_interfaces/msg/Duration"}
 
 
@@ -35,11 +24,12 @@ def time_schema(distro: str, *, signed: bool = False) -> dict[str, Any]:
     }
 
 
-def _scalar(base: str) -> dict[str, Any]:
+def _scalar(base: str, distro: str = "ros2") -> dict[str, Any]:
     if base == "bool":
         return {"type": "boolean"}
-    if base in _INT_RANGES:
-        lo, hi = _INT_RANGES[base]
+    rng = int_range(base, distro)
+    if rng is not None:
+        lo, hi = rng
         return {"type": "integer", "minimum": lo, "maximum": hi}
     if base in ("float32", "float64"):
         return {"type": "number"}
@@ -55,7 +45,7 @@ def field_schema(ftype: FieldType, table: TypeTable) -> dict[str, Any]:
         found = table.get(ftype.base)
         item = message_schema(found, table) if isinstance(found, MessageDef) else {"type": "object"}
     else:
-        item = _scalar(ftype.base)
+        item = _scalar(ftype.base, table.distro)
         if ftype.string_bound:
             item["maxLength"] = ftype.string_bound
     if ftype.array is ArrayKind.NONE:

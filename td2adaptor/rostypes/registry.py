@@ -43,6 +43,8 @@ from td2adaptor.rostypes.names import (
     parse_type_name,
     ros1_name,
 )
+from td2adaptor.rostypes.primitives import FLOATS, STRINGS
+from td2adaptor.rostypes.primitives import INT_RANGES as _INT_RANGES
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
@@ -73,19 +75,8 @@ BUNDLED_DIR = Path(__file__).resolve().parent / "interfaces"
 
 _STORE_NAMES: dict[Distro, str] = {"ros1": "ROS1_NOETIC", "ros2": "ROS2_JAZZY"}
 
-_INT_RANGES: dict[str, tuple[int, int]] = {
-    "int8": (-(2**7), 2**7 - 1),
-    "uint8": (0, 2**8 - 1),
-    "int16": (-(2**15), 2**15 - 1),
-    "uint16": (0, 2**16 - 1),
-    "int32": (-(2**31), 2**31 - 1),
-    "uint32": (0, 2**32 - 1),
-    "int64": (-(2**63), 2**63 - 1),
-    "uint64": (0, 2**64 - 1),
-    "char": (0, 2**8 - 1),
-}
-_FLOATS = frozenset({"float32", "float64"})
-_STRINGS = frozenset({"string", "wstring"})
+_FLOATS = FLOATS
+_STRINGS = STRINGS
 PRIMITIVES = frozenset({"bool", "byte", *_INT_RANGES, *_FLOATS, *_STRINGS})
 _TIME_TYPES = {"time": "builtin_interfaces/msg/Time", "duration": "builtin_interfaces/msg/Duration"}
 _TIME_MESSAGES = {v: k for k, v in _TIME_TYPES.items()}
