@@ -1,0 +1,49 @@
+"""Hostile sizes: bounded time and memory, a clear diagnostic, no traceback (issue 6)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+CLI = str(Path(sys.executable).parent / "td2adaptor")
+ENV = {**os.environ, "TD2ADAPTOR_NO_CACHE": "1"}
+
+
+def _validate(path: Path, *extra: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([CLI, "validate", str(path), *extra], capture_output=True, text=True, timeout=120, env=ENV)
+
+
+def test_50_megabyte_td_is_refused_quickly(tmp_path: Path) -> None:
+    big = tmp_path / "big.json"
+    with big.open("w") as fh:
+        fh.write('{"title": "big", "description": "')
+        chunk = "x" * (1 << 20)
+        for _ in range(50):
+            fh.write(chunk)
+        fh.write('"}')
+    proc = _validate(big)
+    assert proc.returncode == 1 and "TD006" in proc.stderr and "Traceback" not in proc.stderr
+    assert "--max-bytes" in proc.stderr
+
+
+def test_deep_nesting_is_refused(tmp_path: Path) -> None:
+    for depth in (150, 10_000):
+        deep = tmp_path / f"deep{depth}.json"
+        deep.write_text('{"title": "d", "x": ' + "[" * depth + "]" * depth + "}")
+        proc = _validate(deep)
+        assert proc.returncode == 1 and "TD007" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_100000_affordances_are_refused_with_a_limit(tmp_path: Path) -> None:
+    props = {f"p{i}": {"type": "number", "forms": [{"href": f"ros:p{i}"}]} for i in range(100_000)}
+    many = tmp_path / "many.json"
+    many.write_text(json.dumps({"title": "many", "properties": props}))
+    proc = _validate(many)
+    assert proc.returncode == 1 and "TD010" in proc.stderr and "--max-affordances" in proc.stderr
+    small = tmp_path / "small.json"
+    small.write_text(json.dumps({"title": "small", "properties": dict(list(props.items())[:50])}))
+    proc = _validate(small, "--max-affordances", "10")
+    assert proc.returncode == 1 and "more than the limit of 10" in proc.stderr
