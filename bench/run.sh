@@ -6,6 +6,8 @@ set -uo pipefail
 cd "$(dirname "$0")/.."
 PY=.venv/bin/python
 status=0
+# the peer generator the issue-3 comparison needs
+[ -x .venv/bin/datamodel-codegen ] || "$PY" -m pip install -q -e '.[bench]' >/dev/null 2>&1 || true
 run() {
   echo
   echo "== $1"
@@ -16,6 +18,7 @@ run "front end (issue 2)" "$PY" bench/frontend.py
 [ -f bench/workflow.py ] && run "workflow: check and gen (issue 6)" "$PY" bench/workflow.py
 [ -f bench/backend_rclpy.py ] && run "rclpy backend (issue 3)" "$PY" bench/backend_rclpy.py
 [ -f bench/backend_rospy.py ] && run "rospy backend (issue 3)" "$PY" bench/backend_rospy.py
+run "gen next to a peer generator (issue 3)" "$PY" bench/peer.py
 [ -f bench/backend_mros.py ] && run "mROS backend (issue 4)" "$PY" bench/backend_mros.py
 [ -f bench/runtime_bus.py ] && run "edge-node runtime over MQTT (issue 5)" "$PY" bench/runtime_bus.py
 exit $status
