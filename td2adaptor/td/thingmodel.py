@@ -31,12 +31,10 @@ import math
 import os
 import re
 from collections.abc import Callable, Collection, Hashable, Mapping, Sequence
+from functools import cache
 from pathlib import Path
 from typing import Any
 from urllib.parse import unquote, urlsplit
-from urllib.request import url2pathname
-
-import yaml  # type: ignore[import-untyped, unused-ignore]  # types-PyYAML is a test extra
 
 from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity, pointer_join, pointer_tokens
 from td2adaptor.td.jsonsrc import JsonDocument, load_path, parse_json
@@ -234,27 +232,35 @@ def parse_set_options(items: Sequence[str], diags: Diagnostics) -> dict[str, Any
     return values
 
 
-class _MapLoader(yaml.SafeLoader):  # type: ignore[misc, unused-ignore]  # Any without types-PyYAML
-    """Safe YAML that keeps dates as strings (they reach the TD as written) and rejects duplicate keys."""
+@cache
+def _map_loader() -> Any:
+    """Safe YAML that keeps dates as strings (they reach the TD as written) and rejects duplicate keys.
 
-    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Hashable, Any]:
-        seen: set[Any] = set()
-        for key_node, _ in node.value:
-            if key_node.tag == "tag:yaml.org,2002:merge":
-                continue
-            key = self.construct_object(key_node, deep=True)
-            if isinstance(key, Hashable):
-                if key in seen:
-                    raise yaml.constructor.ConstructorError(None, None, f"duplicate key {key!r}", key_node.start_mark)
-                seen.add(key)
-        mapping: dict[Hashable, Any] = super().construct_mapping(node, deep)
-        return mapping
+    Built on first use: PyYAML is only imported when a YAML value map is read.
+    """
+    import yaml  # type: ignore[import-untyped, unused-ignore]  # types-PyYAML is a test extra
 
+    class MapLoader(yaml.SafeLoader):  # type: ignore[misc, unused-ignore]  # Any without types-PyYAML
+        def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Hashable, Any]:
+            seen: set[Any] = set()
+            for key_node, _ in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    continue
+                key = self.construct_object(key_node, deep=True)
+                if isinstance(key, Hashable):
+                    if key in seen:
+                        raise yaml.constructor.ConstructorError(
+                            None, None, f"duplicate key {key!r}", key_node.start_mark
+                        )
+                    seen.add(key)
+            mapping: dict[Hashable, Any] = super().construct_mapping(node, deep)
+            return mapping
 
-_MapLoader.yaml_implicit_resolvers = {
-    first: [(tag, rx) for tag, rx in resolvers if tag != "tag:yaml.org,2002:timestamp"]
-    for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
-}
+    MapLoader.yaml_implicit_resolvers = {
+        first: [(tag, rx) for tag, rx in resolvers if tag != "tag:yaml.org,2002:timestamp"]
+        for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
+    }
+    return MapLoader
 
 
 def _json_problem(value: Any, pointer: str) -> tuple[str, str] | None:
@@ -298,8 +304,10 @@ def load_placeholder_map(path: Path, diags: Diagnostics) -> dict[str, Any] | Non
             reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
             diags.add("TM307", Severity.ERROR, f"cannot read {name}: {reason}", file=name)
             return None
+        import yaml  # type: ignore[import-untyped, unused-ignore]  # types-PyYAML is a test extra
+
         try:
-            data = yaml.load(text, Loader=_MapLoader)
+            data = yaml.load(text, Loader=_map_loader())
         except (yaml.YAMLError, ValueError, TypeError) as exc:  # bad !!int/!!float raise ValueError
             mark = getattr(exc, "problem_mark", None)
             problem = getattr(exc, "problem", None) or str(exc)
@@ -405,6 +413,8 @@ class _Resolver:
             if scheme in ("http", "https"):
                 return "remote", None
             if scheme == "file":
+                from urllib.request import url2pathname
+
                 return "local", Path(url2pathname(parts.path)).resolve()
             if len(scheme) > 1:
                 return "unsupported", None
