@@ -79,25 +79,9 @@ RESERVED = frozenset(
 # small helpers
 
 
-def _escaped_len(word: str) -> int:
-    """Length of `word` once textsafe has escaped it inside a docstring."""
-    return len(ts.py_docstring(word, "")) - 6
-
-
 def wrap(text: str, width: int) -> list[str]:
-    """Greedy word wrap measured in escaped characters; a word longer than `width` stays whole on its line."""
-    lines: list[str] = []
-    current = ""
-    for word in text.split():
-        candidate = f"{current} {word}" if current else word
-        if current and _escaped_len(candidate) > width:
-            lines.append(current)
-            current = word
-        else:
-            current = candidate
-    if current:
-        lines.append(current)
-    return lines
+    """Greedy word wrap measured in escaped characters (whitespace, line breaks included, collapses)."""
+    return ts.wrap_lines(" ".join(text.split()), width)
 
 
 def docstring(paragraphs: Iterable[str | None], indent: str) -> str:

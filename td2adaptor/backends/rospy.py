@@ -88,49 +88,9 @@ _RESERVED = frozenset(
 # docstrings
 
 
-_BREAKS = re.compile(r"\r\n|\r|\n|\u2028|\u2029|\u0085")
-_JUNK = re.compile(r"[\x00-\x1f\x7f]")
-
-
-def _cost(text: str) -> int:
-    """Columns `text` takes once escaped by `textsafe.py_docstring` (non-ASCII counted wide, to be safe)."""
-    return sum(2 if ch in '"\\' or not ch.isascii() else 1 for ch in text)
-
-
-def _wrap_line(line: str, width: int) -> list[str]:
-    words = [w for w in _JUNK.sub(" ", line).split(" ") if w]
-    out: list[str] = []
-    current = ""
-    for word in words:
-        while _cost(word) > width:  # a very long word: split it between characters (before escaping: safe)
-            cut = 0
-            while _cost(word[: cut + 1]) <= width:
-                cut += 1
-            if current:
-                out.append(current)
-                current = ""
-            out.append(word[:cut])
-            word = word[cut:]
-        if current and _cost(current) + 1 + _cost(word) > width:
-            out.append(current)
-            current = word
-        else:
-            current = f"{current} {word}" if current else word
-    if current:
-        out.append(current)
-    return out
-
-
 def wrap(text: str, width: int) -> str:
     """Text wrapped so that, escaped and indented, no docstring line exceeds the line length."""
-    lines: list[str] = []
-    for raw in _BREAKS.split(text.strip()):
-        wrapped = _wrap_line(raw, width)
-        if wrapped:
-            lines.extend(wrapped)
-        elif lines and lines[-1]:
-            lines.append("")
-    return "\n".join(lines).strip()
+    return "\n".join(ts.wrap_lines(text, width))
 
 
 def docstring(td_parts: Iterable[str | None], fixed: Iterable[str], indent: str) -> str:

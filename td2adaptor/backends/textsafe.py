@@ -74,3 +74,58 @@ def xml_text(text: str) -> str:
     """Text content for XML (package.xml): escaped, control characters dropped."""
     text = _CONTROL.sub(" ", text)
     return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;").replace('"', "&quot;")
+
+
+# ---------------------------------------------------------------------------------------------------------
+# wrapping docstring text (measured as it will be written, escapes included)
+
+_BREAKS = re.compile(r"\r\n|\r|\n|\u2028|\u2029|\u0085")
+_JUNK = re.compile(r"[\x00-\x1f\x7f]")
+
+
+def _cost(text: str) -> int:
+    """Columns `text` takes once escaped by `py_docstring` (non-ASCII counted wide, to be safe)."""
+    return sum(2 if ch in '"\\' or not ch.isascii() else 1 for ch in text)
+
+
+def _wrap_line(line: str, width: int) -> list[str]:
+    words = [w for w in _JUNK.sub(" ", line).split(" ") if w]
+    out: list[str] = []
+    current = ""
+    used = 0  # _cost(current), kept incrementally: wrapping stays linear in the text's length
+    for word in words:
+        cost = _cost(word)
+        while cost > width:  # a very long word: split it between characters (before escaping: safe)
+            cut = taken = 0
+            while taken + _cost(word[cut]) <= width:
+                taken += _cost(word[cut])
+                cut += 1
+            if current:
+                out.append(current)
+                current, used = "", 0
+            out.append(word[:cut])
+            word = word[cut:]
+            cost -= taken
+        if current and used + 1 + cost > width:
+            out.append(current)
+            current, used = word, cost
+        else:
+            current, used = (f"{current} {word}", used + 1 + cost) if current else (word, cost)
+    if current:
+        out.append(current)
+    return out
+
+
+def wrap_lines(text: str, width: int) -> list[str]:
+    """Greedy word wrap for docstrings: no line, once escaped, is wider than `width`; line breaks in `text`
+    are kept (blank lines collapse to one), control characters become spaces."""
+    lines: list[str] = []
+    for raw in _BREAKS.split(text.strip()):
+        wrapped = _wrap_line(raw, width)
+        if wrapped:
+            lines.extend(wrapped)
+        elif lines and lines[-1]:
+            lines.append("")
+    while lines and not lines[-1]:
+        lines.pop()
+    return lines
