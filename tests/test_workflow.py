@@ -63,11 +63,7 @@ def test_check_reports_stale_files_and_never_writes(project: Path) -> None:
     before = {p: p.read_bytes() for p in (project / "out").rglob("*") if p.is_file()}
     code, out = _run(project, "check")
     assert code == 1 and "stale (3 files)" in out
-    lines = {
-        line.split()[0] + " " + line.rsplit("/", 1)[-1]
-        for line in out.splitlines()
-        if line.startswith("  ")
-    }
+    lines = {line.split()[0] + " " + line.rsplit("/", 1)[-1] for line in out.splitlines() if line.startswith("  ")}
     assert lines == {"A gatecomponent.txt", "M index.txt", "D doorcomponent.txt"}
     assert {p: p.read_bytes() for p in (project / "out").rglob("*") if p.is_file()} == before
 

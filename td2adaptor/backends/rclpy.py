@@ -864,7 +864,7 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     for name in ("package.xml", "setup.py", "setup.cfg", "ruff.toml", "README.md"):
         tree.add(f"{root}/{name}", _render(f"{name}.j2", **ctx))
     tree.add(f"{root}/resource/{root}", "")
-    for name in ("__init__.py", "errors.py", "runtime.py", "convert.py", "components.py"):
+    for name in ("__init__.py", "errors.py", "runtime.py", "convert.py", "components.py", "edge_node.py"):
         tree.add(f"{src}/{name}", _render(f"package/{name}.j2", **ctx))
     tree.add(f"{src}/py.typed", "")
     for module in view.stubs:

@@ -10,7 +10,36 @@ from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.engine import Engine, status_event
 from td2adaptor.runtime.localbus import LocalBroker, LocalBus
 from td2adaptor.runtime.port import RobotPort
-from td2adaptor.runtime.security import TlsOptions, parse_broker_url, plan_security
+from td2adaptor.runtime.security import (
+    BrokerAddress,
+    ConnectionSecurity,
+    TlsOptions,
+    parse_broker_url,
+    plan_security,
+)
+
+
+def bus_security(
+    config: RuntimeConfig, model: Model, *, env: Mapping[str, str] | None = None
+) -> tuple[BrokerAddress, ConnectionSecurity]:
+    """The broker of an MQTT `config.bus` and how to connect to it as the TD's security says.
+
+    Raises `SecurityError` when the URL or the configuration does not satisfy the TD's security definitions.
+    """
+    address = parse_broker_url(config.bus)
+    tls = None
+    if config.tls_ca_file or config.tls_cert_file or config.tls_key_file:
+        tls = TlsOptions(config.tls_ca_file, config.tls_cert_file, config.tls_key_file)
+    security = plan_security(
+        model.thing.security,
+        address,
+        username=config.username,
+        password=config.password,
+        tls=tls,
+        allow_insecure=config.allow_insecure,
+        env=env,
+    )
+    return address, security
 
 
 def open_bus(
@@ -30,19 +59,7 @@ def open_bus(
         return LocalBus(broker, config.mqtt_client_id, will=will, birth=birth)
     from td2adaptor.runtime.mqttbus import MqttBus  # paho only when it is used
 
-    address = parse_broker_url(config.bus)
-    tls = None
-    if config.tls_ca_file or config.tls_cert_file or config.tls_key_file:
-        tls = TlsOptions(config.tls_ca_file, config.tls_cert_file, config.tls_key_file)
-    security = plan_security(
-        model.thing.security,
-        address,
-        username=config.username,
-        password=config.password,
-        tls=tls,
-        allow_insecure=config.allow_insecure,
-        env=env,
-    )
+    address, security = bus_security(config, model, env=env)
     return MqttBus(
         address,
         security,

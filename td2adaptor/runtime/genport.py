@@ -6,13 +6,20 @@ cancels accept `mission_id=`), `get_<property>_value(timeout=)`, `construct_<pro
 `publish_<property>_Msg`, and raise `ServiceUnavailable` / `CallTimeout` / `CallFailed` / `NoMessage`.
 This adapter turns dicts into those calls and messages back into dicts, and maps the errors onto
 `PortError`s. One lock per component: the generated clients are used from the engine's mission threads.
+
+Values use the TD's (ROS 2) field names on both middlewares: a ROS 1 time or duration becomes
+`{"sec": ..., "nanosec": ...}` like ROS 2's (the generated rospy constructors accept either spelling).
+Only the standard library and `td2adaptor.model` are imported: the ROS 1 bridge runs this module under a
+ROS 1 interpreter.
 """
 
 from __future__ import annotations
 
 import importlib
+import math
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
 from types import ModuleType
 from typing import Any
 
@@ -28,18 +35,28 @@ from td2adaptor.runtime.port import (
 
 
 def to_plain(value: Any) -> Any:
-    """A ROS 1 (genpy) or ROS 2 (rosidl) message, or a value inside one, as JSON-compatible data."""
-    if value is None or isinstance(value, (bool, int, float, str)):
+    """A ROS 1 (genpy) or ROS 2 (rosidl) message, or a value inside one, as JSON-compatible data.
+
+    NaN and infinities (a sensor's "no reading") become None: JSON has no such numbers, and one of them must
+    not keep a whole message off the bus.
+    """
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if value is None or isinstance(value, (bool, int, str)):
         return value
     if isinstance(value, (bytes, bytearray)):
         return list(value)
+    if isinstance(value, Mapping):
+        return {str(k): to_plain(v) for k, v in value.items()}
     fields = getattr(value, "get_fields_and_field_types", None)
     if callable(fields):  # rosidl message
         return {name: to_plain(getattr(value, name)) for name in fields()}
     slots = getattr(type(value), "__slots__", None)
+    if isinstance(slots, (list, tuple)) and list(slots) == ["secs", "nsecs"]:  # genpy Time / Duration
+        return {"sec": int(value.secs), "nanosec": int(value.nsecs)}
     if isinstance(slots, (list, tuple)) and slots and all(isinstance(s, str) for s in slots):
-        return {s: to_plain(getattr(value, s)) for s in slots if not s.startswith("_")}  # genpy message / Time
-    if hasattr(value, "tolist"):  # numpy arrays of primitives
+        return {s: to_plain(getattr(value, s)) for s in slots if not s.startswith("_")}  # genpy message
+    if hasattr(value, "tolist"):  # numpy arrays and scalars
         return to_plain(value.tolist())
     if isinstance(value, (list, tuple)) or type(value).__name__ == "array":
         return [to_plain(v) for v in value]
@@ -61,15 +78,37 @@ def _port_error(exc: BaseException) -> PortError:
     return PortCallFailed(message, response=plain if isinstance(plain, Mapping) else None)
 
 
+@dataclass(frozen=True)
+class Layout:
+    """What the port needs to know of a model: its component classes and its procedure run actions."""
+
+    components: tuple[str, ...]
+    runs: frozenset[tuple[str, str]] = frozenset()
+
+    @classmethod
+    def of(cls, model: Model) -> Layout:
+        runs = {(c.name, s.name) for c in model.components for s in c.services if s.procedure_role is ProcedureRole.RUN}
+        return cls(tuple(c.name for c in model.components), frozenset(runs))
+
+    def to_json(self) -> dict[str, Any]:
+        return {"components": list(self.components), "runs": sorted([c, a] for c, a in self.runs)}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Layout:
+        runs: Iterable[Any] = data.get("runs") or ()
+        return cls(tuple(str(c) for c in data["components"]), frozenset((str(c), str(a)) for c, a in runs))
+
+
 class GeneratedPort:
     """Drive one robot through a generated adaptor package (`package` is the imported module or its name).
 
-    `distro` "ros2" builds components as `Cls(node, robot_name, ...)`, "ros1" as `Cls(robot_name, ...)`.
+    `model` is the compiled model (or just its `Layout`). `distro` "ros2" builds components as
+    `Cls(node, robot_name, ...)`, "ros1" as `Cls(robot_name, ...)`.
     """
 
     def __init__(
         self,
-        model: Model,
+        model: Model | Layout,
         package: ModuleType | str,
         robot_name: str,
         *,
@@ -78,17 +117,27 @@ class GeneratedPort:
         timeout: float = 10.0,
         wait_timeout: float = 5.0,
     ) -> None:
-        self.model = model
+        if distro not in ("ros1", "ros2"):
+            raise ValueError(f"distro must be 'ros1' or 'ros2', not {distro!r}")
+        if distro == "ros2" and node is None:
+            raise ValueError("a ROS 2 port needs the rclpy node that owns its clients (node=...)")
+        self.layout = model if isinstance(model, Layout) else Layout.of(model)
+        self.robot_name = robot_name
         module = importlib.import_module(package) if isinstance(package, str) else package
         self.components: dict[str, Any] = {}
         self._locks: dict[str, threading.Lock] = {}
-        for comp in model.components:
-            cls = getattr(module, comp.name)
+        for name in self.layout.components:
+            cls = getattr(module, name, None)
+            if cls is None:
+                raise PortCallFailed(
+                    f"{getattr(module, '__name__', module)} has no component class {name}: "
+                    "was it generated from another Thing Description?"
+                )
             args: tuple[Any, ...] = (node, robot_name) if distro == "ros2" else (robot_name,)
             instance = cls(*args, timeout=timeout, wait_timeout=wait_timeout)
             instance.register()
-            self.components[comp.name] = instance
-            self._locks[comp.name] = threading.Lock()
+            self.components[name] = instance
+            self._locks[name] = threading.Lock()
 
     def _method(self, component: str, name: str) -> Callable[..., Any]:
         try:
@@ -130,8 +179,7 @@ class GeneratedPort:
     def call(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> Mapping[str, Any]:
         construct = self._method(component, f"construct_{action}_Msg")
         call = self._method(component, f"call_{action}")
-        ep = self.model.component(component).service(action)
-        if ep.procedure_role is ProcedureRole.RUN:
+        if (component, action) in self.layout.runs:
             return self.start(component, action, payload, timeout).response
 
         def run() -> Any:

@@ -35,6 +35,7 @@ setup(
         *[(os.path.join("share", package_name, os.path.dirname(stub)), [stub]) for stub in stubs],
     ],
     install_requires=["setuptools"],
+    entry_points={"console_scripts": ["edge_node = " + package_name + ".edge_node:main"]},
     zip_safe=True,
     maintainer="td2adaptor (generated)",
     maintainer_email="maintainer@example.org",

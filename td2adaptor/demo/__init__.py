@@ -1,0 +1,1 @@
+"""Demonstrations of td2adaptor on simulated robots: `td2adaptor demo warehouse` (warehouse.py)."""

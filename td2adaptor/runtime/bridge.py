@@ -1,0 +1,453 @@
+"""The ROS 1 side of an edge node in ROS 1's own interpreter: `GeneratedPort`s behind a pipe.
+
+rospy lives in the ROS 1 distribution's Python (Debian's /usr/bin/python3, /opt/ros/noetic's), which
+usually has none of td2adaptor's dependencies; the edge node's engine and bus run where td2adaptor is
+installed. `Ros1Bridge` starts `python -m td2adaptor.runtime.bridge` under the ROS 1 interpreter with only
+the td2adaptor package (through a symlink, never the rest of our environment) and the given paths on
+PYTHONPATH; the child initialises one rospy node and serves every robot's `GeneratedPort` over stdin/stdout,
+one JSON object per line, requests handled concurrently:
+
+    parent → child   {"id": 0, "op": "init", "package": ..., "layout": ..., "robots": [[id, ns], ...], ...}
+                     {"id": n, "robot": id, "op": "start" | "query" | ..., "args": [...]}
+    child → parent   {"id": n, "ok": <result>}  or  {"id": n, "error": {"kind", "message", "response"}}
+
+`BridgePort` is the `RobotPort` of one robot on a bridge. A bridge that dies fails its calls as
+`PortUnavailable` and is restarted by the next call (at most every `restart_period` seconds).
+The child side imports only the standard library, `td2adaptor.runtime.genport` and `.port`.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections import deque
+from collections.abc import Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import IO, Any
+
+from td2adaptor.runtime.genport import GeneratedPort, Layout
+from td2adaptor.runtime.port import (
+    NoValue,
+    PortCallFailed,
+    PortError,
+    PortTimeout,
+    PortUnavailable,
+    StartResult,
+)
+
+ENV_PYTHON = "TD2ADAPTOR_ROS1_PYTHON"
+_ERRORS: dict[str, type[PortError]] = {
+    "PortUnavailable": PortUnavailable,
+    "PortTimeout": PortTimeout,
+    "PortCallFailed": PortCallFailed,
+    "NoValue": NoValue,
+}
+#: ROS 2 variables (and the ROS 2 wheels' loader state) a ROS 1 child must not inherit
+_ROS2_ONLY = (
+    "ROS_DOMAIN_ID",
+    "ROS_AUTOMATIC_DISCOVERY_RANGE",
+    "ROS_STATIC_PEERS",
+    "ROS_LOCALHOST_ONLY",
+    "ROS_VERSION",
+    "ROS_DISTRO",
+    "ROS_PYTHON_VERSION",
+    "RMW_IMPLEMENTATION",
+    "AMENT_PREFIX_PATH",
+    "COLCON_PREFIX_PATH",
+    "FASTRTPS_DEFAULT_PROFILES_FILE",
+    "FASTDDS_DEFAULT_PROFILES_FILE",
+    "_ROS_WHEELS_BOOTSTRAP_COMPLETE",
+    "PYTHONHOME",
+    "PYTHONSTARTUP",
+    "VIRTUAL_ENV",
+)
+
+
+def default_python(environ: Mapping[str, str] | None = None) -> str | None:
+    """The ROS 1 interpreter: $TD2ADAPTOR_ROS1_PYTHON, else /usr/bin/python3 when it exists."""
+    environ = os.environ if environ is None else environ
+    if environ.get(ENV_PYTHON):
+        return environ[ENV_PYTHON]
+    return "/usr/bin/python3" if os.access("/usr/bin/python3", os.X_OK) else None
+
+
+def _inside(path: str, root: str) -> bool:
+    try:
+        return os.path.commonpath([os.path.abspath(path), root]) == root
+    except ValueError:
+        return False
+
+
+def child_environment(environ: Mapping[str, str], pythonpath: Sequence[str], master_uri: str | None) -> dict[str, str]:
+    """The ROS 1 child's environment: ours without ROS 2 and this interpreter's paths, plus `pythonpath`."""
+    prefix = os.path.abspath(sys.prefix)
+    env = {k: v for k, v in environ.items() if k not in _ROS2_ONLY}
+    inherited = [p for p in environ.get("PYTHONPATH", "").split(os.pathsep) if p and not _inside(p, prefix)]
+    env["PYTHONPATH"] = os.pathsep.join([*pythonpath, *inherited])
+    libs = [p for p in environ.get("LD_LIBRARY_PATH", "").split(os.pathsep) if p and not _inside(p, prefix)]
+    if "_ROS_WHEELS_BOOTSTRAP_COMPLETE" in environ:  # the ROS 2 wheels set it for this process only
+        libs = [p for p in libs if "ros_" not in os.path.basename(p)]
+    if libs:
+        env["LD_LIBRARY_PATH"] = os.pathsep.join(libs)
+    else:
+        env.pop("LD_LIBRARY_PATH", None)
+    if master_uri:
+        env["ROS_MASTER_URI"] = master_uri
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
+
+
+# ---------------------------------------------------------------------------------------------------------
+# parent side
+
+
+class Ros1Bridge:
+    """A ROS 1 interpreter serving the `GeneratedPort`s of `robots` ((robot id, namespace) pairs)."""
+
+    def __init__(
+        self,
+        layout: Layout,
+        package: str,
+        robots: Sequence[tuple[str, str]],
+        *,
+        python: str,
+        pythonpath: Sequence[Path] = (),
+        master_uri: str | None = None,
+        node_name: str = "td2adaptor_edge",
+        timeout: float = 10.0,
+        wait_timeout: float | None = None,
+        environ: Mapping[str, str] | None = None,
+        start_timeout: float = 30.0,
+        restart_period: float = 5.0,
+    ) -> None:
+        self.layout = layout
+        self.package = package
+        self.robots = list(robots)
+        self.python = python
+        self.pythonpath = [str(Path(p).resolve()) for p in pythonpath]
+        self.master_uri = master_uri
+        self.node_name = node_name
+        self.timeout = timeout
+        self.wait_timeout = timeout if wait_timeout is None else wait_timeout
+        self.environ = dict(os.environ if environ is None else environ)
+        self.start_timeout = start_timeout
+        self.restart_period = restart_period
+        self.starts = 0
+        self._lock = threading.Lock()
+        self._proc: subprocess.Popen[bytes] | None = None
+        self._pending: dict[int, tuple[threading.Event, list[Any]]] = {}
+        self._next_id = 1
+        self._stderr: deque[str] = deque(maxlen=20)
+        self._shim: str | None = None
+        self._last_start = -1e9
+        self._closed = False
+        self._readers: list[threading.Thread] = []
+
+    # -- life cycle ----------------------------------------------------------------------------------------
+
+    def _shim_dir(self) -> str:
+        """A directory holding only a link to the td2adaptor package (our site-packages would shadow ROS 1's)."""
+        if self._shim is None:
+            import td2adaptor
+
+            self._shim = tempfile.mkdtemp(prefix="td2adaptor-bridge-")
+            os.symlink(Path(td2adaptor.__file__).resolve().parent, os.path.join(self._shim, "td2adaptor"))
+        return self._shim
+
+    def start(self) -> None:
+        """Start the child and wait until its node and ports are up; raises `PortUnavailable` on failure."""
+        from td2adaptor.runtime.ros import RosSetupError
+
+        with self._lock:
+            if self._closed:
+                raise PortUnavailable("the ROS 1 bridge is closed")
+            if self._proc is not None and self._proc.poll() is None:
+                return
+            self._last_start = time.monotonic()
+            self.starts += 1
+            if self._proc is not None:  # a dead predecessor: its readers close its output streams
+                self._close_input(self._proc)
+            env = child_environment(self.environ, [self._shim_dir(), *self.pythonpath], self.master_uri)
+            try:
+                proc = subprocess.Popen(
+                    [self.python, "-m", "td2adaptor.runtime.bridge"],
+                    stdin=subprocess.PIPE,
+                    stdout=subprocess.PIPE,
+                    stderr=subprocess.PIPE,
+                    env=env,
+                )
+            except OSError as exc:
+                raise RosSetupError(
+                    f"cannot start the ROS 1 interpreter {self.python}: {exc.strerror or exc}"
+                ) from None
+            self._proc = proc
+            self._stderr.clear()
+            self._readers = [
+                threading.Thread(target=self._read, args=(proc,), name="ros1-bridge-reader", daemon=True),
+                threading.Thread(target=self._relay, args=(proc,), name="ros1-bridge-stderr", daemon=True),
+            ]
+        for reader in self._readers:
+            reader.start()
+        init = {
+            "package": self.package,
+            "layout": self.layout.to_json(),
+            "robots": [list(r) for r in self.robots],
+            "node": self.node_name,
+            "timeout": self.timeout,
+            "wait_timeout": self.wait_timeout,
+        }
+        try:
+            self._request(None, "init", [init], self.start_timeout)
+        except PortError as exc:
+            self._kill()
+            raise RosSetupError(f"the ROS 1 bridge under {self.python} did not start: {exc}") from None
+
+    def close(self) -> None:
+        """Stop the child (it leaves the ROS graph) and remove the package link."""
+        with self._lock:
+            self._closed = True
+            proc = self._proc
+        if proc is not None and proc.poll() is None:
+            try:
+                assert proc.stdin is not None
+                proc.stdin.close()  # EOF: the child shuts its node down and exits
+                proc.wait(5)
+            except (OSError, subprocess.TimeoutExpired):
+                pass
+        self._kill()
+        for reader in self._readers:
+            reader.join(5)
+        if self._shim is not None:
+            shutil.rmtree(self._shim, ignore_errors=True)
+            self._shim = None
+
+    def _kill(self) -> None:
+        proc = self._proc
+        if proc is None:
+            return
+        if proc.poll() is None:
+            proc.terminate()
+            try:
+                proc.wait(5)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait(5)
+        self._close_input(proc)
+
+    @staticmethod
+    def _close_input(proc: subprocess.Popen[bytes]) -> None:
+        if proc.stdin is not None:
+            try:
+                proc.stdin.close()
+            except OSError:
+                pass
+
+    @property
+    def pid(self) -> int | None:
+        return self._proc.pid if self._proc is not None else None
+
+    # -- traffic -------------------------------------------------------------------------------------------
+
+    def _relay(self, proc: subprocess.Popen[bytes]) -> None:
+        assert proc.stderr is not None
+        with proc.stderr:
+            for raw in proc.stderr:
+                line = raw.decode("utf-8", "replace").rstrip()
+                if line:
+                    self._stderr.append(line)
+                    print(f"[ros1 bridge] {line}", file=sys.stderr, flush=True)
+
+    def _read(self, proc: subprocess.Popen[bytes]) -> None:
+        assert proc.stdout is not None
+        with proc.stdout:
+            for raw in proc.stdout:
+                try:
+                    reply = json.loads(raw)
+                    waiter = self._pending.pop(int(reply["id"]), None)
+                except (ValueError, KeyError, TypeError):
+                    continue
+                if waiter is not None:
+                    waiter[1].append(reply)
+                    waiter[0].set()
+        code = proc.wait()
+        time.sleep(0.05)  # let the stderr relay catch the last words
+        why = f"the ROS 1 bridge exited with code {code}" + (f": {self._stderr[-1]}" if self._stderr else "")
+        with self._lock:
+            if self._proc is proc:
+                pending, self._pending = self._pending, {}
+            else:
+                pending = {}
+        for event, box in pending.values():
+            box.append({"error": {"kind": "PortUnavailable", "message": why}})
+            event.set()
+
+    def _request(self, robot: str | None, op: str, args: list[Any], timeout: float) -> Any:
+        with self._lock:
+            proc = self._proc
+            if proc is None or proc.poll() is not None or proc.stdin is None:
+                raise PortUnavailable("the ROS 1 bridge is not running")
+            rid = 0 if op == "init" else self._next_id
+            self._next_id += 1
+            event = threading.Event()
+            box: list[Any] = []
+            self._pending[rid] = (event, box)
+            line = json.dumps({"id": rid, "robot": robot, "op": op, "args": args}) + "\n"
+            try:
+                proc.stdin.write(line.encode("utf-8"))
+                proc.stdin.flush()
+            except (OSError, ValueError):
+                self._pending.pop(rid, None)
+                raise PortUnavailable("the ROS 1 bridge is not running (its input is closed)") from None
+        if not event.wait(timeout):
+            self._pending.pop(rid, None)
+            raise PortTimeout(f"the ROS 1 bridge did not answer {op} within {timeout:g} s")
+        reply = box[0]
+        if "error" in reply:
+            error = reply["error"]
+            cls = _ERRORS.get(str(error.get("kind")), PortCallFailed)
+            response = error.get("response")
+            raise cls(str(error.get("message", "")), response=response if isinstance(response, Mapping) else None)
+        return reply.get("ok")
+
+    def call(self, robot: str, op: str, args: list[Any], timeout: float) -> Any:
+        """Run `op` on `robot`'s port in the child (restarting a dead child first, if it is time to)."""
+        proc = self._proc
+        if (proc is None or proc.poll() is not None) and not self._closed:
+            if time.monotonic() - self._last_start >= self.restart_period:
+                try:
+                    self.start()
+                except Exception as exc:  # noqa: BLE001 - reported as the call's failure
+                    raise PortUnavailable(f"restarting the ROS 1 bridge failed: {exc}") from None
+        # the child bounds each call by wait_timeout + timeout; the margin covers the pipe and the scheduler
+        return self._request(robot, op, args, timeout + self.wait_timeout + 5.0)
+
+    def port(self, robot: str) -> BridgePort:
+        return BridgePort(self, robot)
+
+
+class BridgePort:
+    """The `RobotPort` of one robot served by a `Ros1Bridge`."""
+
+    def __init__(self, bridge: Ros1Bridge, robot: str) -> None:
+        self.bridge = bridge
+        self.robot = robot
+
+    def start(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> StartResult:
+        out = self.bridge.call(self.robot, "start", [component, action, dict(payload), timeout], timeout)
+        mission = out.get("mission_id")
+        return StartResult(out["response"], int(mission) if mission is not None else None)
+
+    def query(self, component: str, action: str, mission_id: int, timeout: float) -> Mapping[str, Any]:
+        return self.bridge.call(self.robot, "query", [component, action, mission_id, timeout], timeout)  # type: ignore[no-any-return]
+
+    def cancel(self, component: str, action: str, mission_id: int, timeout: float) -> Mapping[str, Any]:
+        return self.bridge.call(self.robot, "cancel", [component, action, mission_id, timeout], timeout)  # type: ignore[no-any-return]
+
+    def call(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> Mapping[str, Any]:
+        return self.bridge.call(self.robot, "call", [component, action, dict(payload), timeout], timeout)  # type: ignore[no-any-return]
+
+    def read_property(self, component: str, name: str, timeout: float) -> Any:
+        return self.bridge.call(self.robot, "read_property", [component, name, timeout], timeout)
+
+    def write_property(self, component: str, name: str, value: Any) -> None:
+        self.bridge.call(self.robot, "write_property", [component, name, value], self.bridge.timeout)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# child side
+
+
+def _serve(requests: IO[str], replies: IO[str]) -> int:
+    """The child's loop: init, then requests until EOF or a close request."""
+    write_lock = threading.Lock()
+
+    def reply(message: dict[str, Any]) -> None:
+        text = json.dumps(message, default=str)
+        with write_lock:
+            replies.write(text + "\n")
+            replies.flush()
+
+    def error(rid: Any, exc: BaseException) -> None:
+        kind = type(exc).__name__ if isinstance(exc, PortError) else "PortCallFailed"
+        response = exc.response if isinstance(exc, PortError) else None
+        reply({"id": rid, "error": {"kind": kind, "message": str(exc) or type(exc).__name__, "response": response}})
+
+    first = requests.readline()
+    if not first:
+        return 0
+    request = json.loads(first)
+    ports: dict[str, GeneratedPort] = {}
+    try:
+        init = request["args"][0]
+        rospy: Any = importlib.import_module("rospy")
+        rospy.init_node(init["node"], anonymous=True, disable_signals=True)
+        layout = Layout.from_json(init["layout"])
+        for robot, namespace in init["robots"]:
+            ports[robot] = GeneratedPort(
+                layout,
+                init["package"],
+                namespace,
+                distro="ros1",
+                timeout=float(init["timeout"]),
+                wait_timeout=float(init["wait_timeout"]),
+            )
+    except Exception as exc:  # noqa: BLE001 - reported to the parent, which explains it
+        error(
+            request.get("id", 0), exc if isinstance(exc, PortError) else PortCallFailed(f"{type(exc).__name__}: {exc}")
+        )
+        return 1
+    reply({"id": request.get("id", 0), "ok": {"pid": os.getpid(), "python": sys.version.split()[0]}})
+
+    def run(message: dict[str, Any]) -> None:
+        rid = message.get("id")
+        try:
+            port = ports[message["robot"]]
+            op, args = message["op"], message["args"]
+            if op == "start":
+                started = port.start(*args)
+                reply({"id": rid, "ok": {"response": started.response, "mission_id": started.mission_id}})
+            elif op in ("query", "cancel", "call", "read_property", "write_property"):
+                reply({"id": rid, "ok": getattr(port, op)(*args)})
+            else:
+                raise PortCallFailed(f"unknown bridge operation {op!r}")
+        except Exception as exc:  # noqa: BLE001 - every failure is an answer
+            error(rid, exc)
+
+    pool = ThreadPoolExecutor(max_workers=32, thread_name_prefix="bridge")
+    try:
+        for line in requests:
+            if not line.strip():
+                continue
+            message = json.loads(line)
+            if message.get("op") == "close":
+                break
+            pool.submit(run, message)
+    finally:
+        pool.shutdown(wait=False, cancel_futures=True)
+        for port in ports.values():
+            try:
+                port.close()
+            except Exception:  # noqa: BLE001 - leaving anyway
+                pass
+        importlib.import_module("rospy").signal_shutdown("td2adaptor bridge closed")
+    return 0
+
+
+def main() -> int:
+    """`python -m td2adaptor.runtime.bridge`: requests on stdin, replies on the original stdout."""
+    replies = os.fdopen(os.dup(1), "w", encoding="utf-8")
+    os.dup2(2, 1)  # anything else that prints (rospy, user code) goes to stderr, not into the protocol
+    sys.stdout = sys.stderr
+    return _serve(sys.stdin, replies)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

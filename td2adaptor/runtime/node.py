@@ -1,0 +1,126 @@
+"""`td2adaptor run`: one edge node process serving one robot, or a whole fleet, on ROS and an event bus.
+
+The command line compiles the TD and loads the configuration; `EdgeNode` connects the generated package
+to ROS (`ros.connect`), serves every robot (`app.serve_fleet`) and, on `stop()`, stops the engines (each
+publishes its retained `offline` status and flushes the bus) before it leaves the ROS graph. The MQTT will
+publishes the same `offline` status when the process dies without stopping.
+"""
+
+from __future__ import annotations
+
+import logging
+import signal
+import threading
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from types import FrameType
+
+from td2adaptor.model import Model
+from td2adaptor.runtime.app import bus_security, serve_fleet
+from td2adaptor.runtime.config import RuntimeConfig
+from td2adaptor.runtime.engine import Engine
+from td2adaptor.runtime.localbus import LocalBroker
+from td2adaptor.runtime.port import RobotPort
+from td2adaptor.runtime.ros import RosLink, connect
+
+log = logging.getLogger("td2adaptor.runtime")
+
+
+@dataclass(frozen=True)
+class RosOptions:
+    """How to reach ROS: version, the generated package and where it (and its interfaces) can be found."""
+
+    ros: int = 2
+    package: str | None = None  # default: the model's package name
+    package_paths: tuple[Path, ...] = ()
+    prefixes: tuple[Path, ...] = ()
+    ros1_python: str | None = None
+    node_name: str | None = None
+
+
+class EdgeNode:
+    """The robots of `configs` on ROS (through the generated package) and on their bus; `stop()` ends it."""
+
+    def __init__(
+        self,
+        model: Model,
+        configs: Sequence[RuntimeConfig],
+        options: RosOptions,
+        *,
+        broker: LocalBroker | None = None,
+    ) -> None:
+        self.model = model
+        self.configs = list(configs)
+        self.options = options
+        self.broker = broker
+        self.package = options.package or model.package_name
+        self.link: RosLink | None = None
+        self.engines: list[Engine] = []
+        self._stopped = threading.Event()
+
+    def check_bus(self) -> None:
+        """Refuse a bus the TD's security does not allow before anything connects (raises `SecurityError`)."""
+        for config in self.configs:
+            if config.bus != "local":
+                bus_security(config, self.model)
+
+    def start(self) -> None:
+        """Check the bus settings, connect to ROS, then to the bus; a failure closes what was opened."""
+        self.check_bus()
+        o = self.options
+        self.link = connect(
+            self.model,
+            self.package,
+            self.configs,
+            ros=o.ros,
+            package_paths=o.package_paths,
+            prefixes=o.prefixes,
+            ros1_python=o.ros1_python,
+            name=o.node_name,
+        )
+        ports = self.link.ports
+
+        def port_of(config: RuntimeConfig) -> RobotPort:
+            return ports[config.robot]
+
+        try:
+            self.engines = serve_fleet(self.model, port_of, self.configs, broker=self.broker)
+        except BaseException:
+            self.link.close()
+            raise
+
+    def stop(self) -> None:
+        """Stop serving (offline status published by each engine), then leave the ROS graph. Idempotent."""
+        if self._stopped.is_set():
+            return
+        self._stopped.set()
+        for engine in self.engines:
+            engine.stop()
+        if self.link is not None:
+            self.link.close()
+
+    def describe(self) -> str:
+        robots = ", ".join(f"{c.robot} (namespace {c.ros_namespace or '/'})" for c in self.configs)
+        bus = self.configs[0].bus
+        how = self.link.description if self.link is not None else f"ROS {self.options.ros}"
+        return f"serving {robots} on {bus} via {how}"
+
+
+def wait_for_signal(stop: threading.Event | None = None) -> int:
+    """Block until SIGINT or SIGTERM (or `stop` is set); the signal number (0 for `stop`)."""
+    stop = stop or threading.Event()
+    got: list[int] = []
+
+    def handler(signum: int, _frame: FrameType | None) -> None:
+        got.append(signum)
+        stop.set()
+
+    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        while not stop.wait(0.5):
+            pass
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+    return got[0] if got else 0

@@ -1,0 +1,117 @@
+"""Shared by the edge-node tests: waiting, feedback bookkeeping, a `td2adaptor run` child process."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from tests.conftest import REPO
+
+Event = tuple[str, dict[str, Any]]
+
+
+def until(predicate: Callable[[], bool], timeout: float, period: float = 0.02) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(period)
+    return predicate()
+
+
+def feedback(events: Sequence[Event], correlation: str) -> list[dict[str, Any]]:
+    return [e for _, e in events if e.get("type") == "feedback" and e.get("correlation") == correlation]
+
+
+def check_mission(events: Sequence[Event], correlation: str, states: Sequence[str]) -> list[dict[str, Any]]:
+    """The mission's feedback: exactly `states`, numbered 1.., one terminal event (the last), one mission id."""
+    fb = feedback(events, correlation)
+    unique = {e["id"]: e for e in fb}  # a QoS 1 redelivery repeats an event, never adds one
+    fb = sorted(unique.values(), key=lambda e: e["payload"]["seq"])
+    assert [e["payload"]["state"] for e in fb] == list(states), [e["payload"] for e in fb]
+    assert [e["payload"]["seq"] for e in fb] == list(range(1, len(states) + 1))
+    assert [e["payload"]["terminal"] for e in fb] == [False] * (len(states) - 1) + [True]
+    assert len({e.get("mission") for e in fb}) == 1
+    return fb
+
+
+class RunProcess:
+    """`td2adaptor run ...` in a child process; its stderr in a file (read on failure)."""
+
+    def __init__(
+        self, args: Sequence[str], env: dict[str, str] | None = None, command: Sequence[str] | None = None
+    ) -> None:
+        self.log = tempfile.NamedTemporaryFile(prefix="td2adaptor-run-", suffix=".log", delete=False)
+        self.proc = subprocess.Popen(
+            [*(command or [sys.executable, "-m", "td2adaptor", "run"]), *args],
+            cwd=REPO,
+            env=env if env is not None else dict(os.environ),
+            stdout=subprocess.DEVNULL,
+            stderr=self.log,
+        )
+
+    def output(self) -> str:
+        return Path(self.log.name).read_text(encoding="utf-8", errors="replace")
+
+    def wait_ready(self, timeout: float = 60.0) -> None:
+        ok = until(lambda: "SIGINT/SIGTERM stops" in self.output() or self.proc.poll() is not None, timeout, 0.05)
+        assert ok and self.proc.poll() is None, f"td2adaptor run did not start:\n{self.output()}"
+
+    def terminate(self, sig: int = signal.SIGTERM, timeout: float = 20.0) -> int:
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+        try:
+            return self.proc.wait(timeout)
+        finally:
+            if self.proc.poll() is None:
+                self.proc.kill()
+                self.proc.wait(5)
+
+    def close(self) -> None:
+        self.terminate()
+        self.log.close()
+        os.unlink(self.log.name)
+
+
+class Recorder:
+    """An application on a local bus that records (topic, event) under its patterns and sends raw bytes."""
+
+    def __init__(self, broker: Any, patterns: Sequence[str], client_id: str = "recorder") -> None:
+        from td2adaptor.runtime import LocalBus
+
+        self.events: list[Event] = []
+        self.cond = threading.Condition()
+        self.bus = LocalBus(broker, client_id)
+        for pattern in patterns:
+            self.bus.subscribe(pattern, self._on)
+        self.bus.connect()
+
+    def _on(self, msg: Any) -> None:
+        data = json.loads(msg.payload)
+        with self.cond:
+            self.events.append((msg.topic, data))
+            self.cond.notify_all()
+
+    def send(self, topic: str, payload: bytes) -> None:
+        self.bus.publish(topic, payload)
+
+    def wait(self, predicate: Callable[[list[Event]], bool], timeout: float = 10.0) -> list[Event]:
+        with self.cond:
+            assert self.cond.wait_for(lambda: predicate(self.events), timeout), f"timed out: {self.events[-3:]}"
+            return list(self.events)
+
+    def of(self, kind: str) -> list[dict[str, Any]]:
+        with self.cond:
+            return [e for _, e in self.events if e.get("type") == kind]
+
+    def close(self) -> None:
+        self.bus.close()

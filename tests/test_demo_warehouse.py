@@ -1,0 +1,63 @@
+"""`td2adaptor demo warehouse` as a user runs it (a subprocess), on ROS 2 Jazzy from PyPI with the simulated
+RB-1: on the in-process bus, and across processes on a real mosquitto. Three carts must end up stored.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import REPO
+from tests.runtime.broker import Mosquitto
+
+pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain (private domain id), rb1_prefix (built interfaces)
+
+
+@pytest.fixture
+def broker(tmp_path: Path) -> Iterator[Mosquitto]:
+    b = Mosquitto(tmp_path / "broker")
+    b.start()
+    yield b
+    b.stop()
+
+
+def demo(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "td2adaptor", "demo", "warehouse", "--duration", "0.2", *args],
+        cwd=REPO,
+        env=dict(os.environ),  # the private ROS_DOMAIN_ID and localhost discovery of this worker
+        capture_output=True,
+        text=True,
+        timeout=90,
+    )
+
+
+def check_summary(out: subprocess.CompletedProcess[str], bus: str) -> None:
+    assert out.returncode == 0, out.stdout + out.stderr
+    lines = out.stdout.splitlines()
+    assert "carts moved: 3/3" in lines, out.stdout
+    assert f"bus {bus}" in lines[0]
+    for cart, zone in (("cart2", "A"), ("cart3", "B"), ("cart4", "C")):
+        assert re.search(rf"{cart} \(marker \d\): rb1_base_[abc] .* storage {zone} .* moved in", out.stdout), cart
+    per_action = next(line for line in lines if line.startswith("bus messages per action: "))
+    # one invoke and one feedback event per state change (queued, running, finished: a loaded machine may poll
+    # too late to see `running`) per mission: no polling over the bus
+    for action, count in (("gotoRun", 9), ("pickRun", 3), ("placeRun", 3)):
+        found = re.search(rf"{action} \d\.\d \(x{count}: {count} sent, (\d+) received\)", per_action)
+        assert found and 2 * count <= int(found[1]) <= 3 * count, per_action
+    assert "door open" in per_action and "poseMarker check" in per_action
+    assert re.search(r"^total time: \d+\.\d s \(start-up", out.stdout, re.MULTILINE)
+
+
+def test_demo_warehouse_on_the_local_bus(ros2_domain: int, rb1_prefix: Path) -> None:
+    check_summary(demo(), "local")
+
+
+def test_demo_warehouse_across_processes_over_mqtt(ros2_domain: int, rb1_prefix: Path, broker: Mosquitto) -> None:
+    check_summary(demo("--bus", broker.url), broker.url)

@@ -1,0 +1,82 @@
+"""Units of the edge node that need no middleware: message conversion, the port's layout, error mapping,
+the ROS 1 bridge's child environment."""
+
+from __future__ import annotations
+
+import array
+import json
+import os
+import sys
+from typing import Any
+
+from td2adaptor.runtime import NoValue, PortCallFailed, PortTimeout, PortUnavailable
+from td2adaptor.runtime.bridge import child_environment
+from td2adaptor.runtime.genport import Layout, _port_error, to_plain
+from tests.runtime.rb1 import rb1_model
+
+
+class Time:  # the shape of genpy.Time
+    __slots__ = ["secs", "nsecs"]
+
+    def __init__(self, secs: int, nsecs: int) -> None:
+        self.secs, self.nsecs = secs, nsecs
+
+
+class Header:  # the shape of a genpy message
+    __slots__ = ["seq", "stamp", "frame_id"]
+
+    def __init__(self) -> None:
+        self.seq, self.stamp, self.frame_id = 7, Time(3, 4), "map"
+
+
+def test_to_plain_gives_json_with_the_tds_field_names() -> None:
+    value = to_plain({"h": Header(), "a": array.array("d", [1.0, float("nan")]), "b": b"\x01\x02", "t": (1, 2)})
+    assert value == {
+        "h": {"seq": 7, "stamp": {"sec": 3, "nanosec": 4}, "frame_id": "map"},
+        "a": [1.0, None],  # NaN is no JSON number: null, and the rest of the message still goes out
+        "b": [1, 2],
+        "t": [1, 2],
+    }
+    assert to_plain(float("inf")) is None and to_plain(True) is True and to_plain(3) == 3
+    json.dumps(value, allow_nan=False)
+
+
+def test_layout_of_the_rb1_and_its_json_round_trip() -> None:
+    layout = Layout.of(rb1_model())
+    assert layout.components[:3] == ("GoToComponent", "PickComponent", "PlaceComponent")
+    assert layout.runs == {("GoToComponent", "gotoRun"), ("PickComponent", "pickRun"), ("PlaceComponent", "placeRun")}
+    assert Layout.from_json(json.loads(json.dumps(layout.to_json()))) == layout
+
+
+def test_generated_errors_map_onto_port_errors_by_name() -> None:
+    def error(name: str, **attrs: Any) -> Exception:
+        exc: Exception = type(name, (Exception,), {})("what happened")
+        for key, value in attrs.items():
+            setattr(exc, key, value)
+        return exc
+
+    assert isinstance(_port_error(error("ServiceUnavailable")), PortUnavailable)
+    assert isinstance(_port_error(error("CallTimeout")), PortTimeout)
+    assert isinstance(_port_error(error("NoMessage")), NoValue)
+    failed = _port_error(error("CallFailed", response={"result": {"result": "error"}}))
+    assert isinstance(failed, PortCallFailed) and failed.response == {"result": {"result": "error"}}
+    assert str(failed) == "what happened"
+
+
+def test_the_ros1_bridge_child_gets_no_ros2_and_none_of_our_site_packages() -> None:
+    venv_site = os.path.join(sys.prefix, "lib", "site-packages")
+    environ = {
+        "PATH": "/usr/bin",
+        "ROS_DOMAIN_ID": "42",
+        "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp",
+        "_ROS_WHEELS_BOOTSTRAP_COMPLETE": "1",
+        "LD_LIBRARY_PATH": os.pathsep.join([os.path.join(sys.prefix, "lib"), "/opt/ros/noetic/lib"]),
+        "PYTHONPATH": os.pathsep.join([venv_site, "/opt/ros/noetic/lib/python3/dist-packages"]),
+        "ROS_HOSTNAME": "127.0.0.1",
+        "ROS_MASTER_URI": "http://127.0.0.1:11311",
+    }
+    env = child_environment(environ, ["/tmp/shim", "/tmp/pkg"], "http://127.0.0.1:12345")
+    assert env["PYTHONPATH"].split(os.pathsep) == ["/tmp/shim", "/tmp/pkg", "/opt/ros/noetic/lib/python3/dist-packages"]
+    assert env["LD_LIBRARY_PATH"] == "/opt/ros/noetic/lib"
+    assert env["ROS_MASTER_URI"] == "http://127.0.0.1:12345" and env["ROS_HOSTNAME"] == "127.0.0.1"
+    assert not {"ROS_DOMAIN_ID", "RMW_IMPLEMENTATION", "_ROS_WHEELS_BOOTSTRAP_COMPLETE"} & set(env)
