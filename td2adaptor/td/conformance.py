@@ -120,12 +120,16 @@ def is_uri_template(value: object) -> bool:
 
 
 def _rfc3987(rule: str) -> Callable[[object], bool]:
+    """An RFC 3987 check. For ASCII text the IRI and URI grammars coincide (IRIs only add non-ASCII
+    characters), and rfc3987's URI regexes compile ten times faster than its IRI ones (~40 ms per process)."""
+    ascii_rule = rule.replace("IRI", "URI")
+
     def check(value: object) -> bool:
         if not isinstance(value, str):
             return True
         import rfc3987
 
-        return rfc3987.match(value, rule=rule) is not None
+        return rfc3987.match(value, rule=ascii_rule if value.isascii() else rule) is not None
 
     return check
 
