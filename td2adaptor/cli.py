@@ -136,6 +136,7 @@ def _compile(
         max_bytes=max_bytes,
         max_affordances=max_affordances,
         use_cache=not no_cache,
+        parallel=True,
     )
     return Result(result.model, tuple(problems) + result.diagnostics, result.input)
 
@@ -425,7 +426,7 @@ def gen(
     if targets is None:
         report(list(diags), fmt, label=_label(sources) or "configuration")
         sys.exit(EXIT_INVALID)
-    outcome = generate(targets, force=force, use_cache=not no_cache)
+    outcome = generate(targets, force=force, use_cache=not no_cache, parallel=True)
     label = _label(sources) or "configuration"
     ok = report([*diags, *outcome.diagnostics], fmt, label=label) and outcome.ok
     if fmt == "human":
@@ -473,7 +474,7 @@ def check(
     if targets is None:
         report(list(diags), fmt, label=_label(sources) or "configuration")
         sys.exit(EXIT_INVALID)
-    outcome = do_check(targets, use_cache=not no_cache)
+    outcome = do_check(targets, use_cache=not no_cache, parallel=True)
     # warnings belong to validate and gen; check reports only what makes it fail
     problems = [d for d in [*diags, *outcome.diagnostics] if d.severity.value == "error"]
     if fmt == "json":

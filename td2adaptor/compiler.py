@@ -121,19 +121,30 @@ def load(
     return Input("td", docs, doc.data)
 
 
-def _td_checks(inp: Input, diags: Diagnostics) -> None:
-    """TD 1.1 conformance, unknown terms, JSON-LD and linked-TM checks on the (instantiated) TD."""
+def _td_checks(inp: Input, diags: Diagnostics, *, reference: bool, parallel: bool = False) -> None:
+    """TD 1.1 conformance, unknown terms, JSON-LD and linked-TM checks on the (instantiated) TD.
+
+    With `parallel`, the JSON-LD stage runs in a forked child meanwhile (see `background`); its
+    diagnostics are the same either way and are only used when the TD passed the schema.
+    """
+    from td2adaptor.background import Background
     from td2adaptor.td.conformance import check_td
-    from td2adaptor.td.extract import REFERENCE, extract
-    from td2adaptor.td.jsonld import expand
     from td2adaptor.td.terms import check_terms
     from td2adaptor.td.thingmodel import check_against_model
 
     assert inp.td is not None
     doc = inp.doc if inp.kind == "td" else JsonDocument(inp.doc.name, inp.doc.text, inp.td, inp.doc.path)
+
+    def jsonld() -> list[Diagnostic]:
+        from td2adaptor.td.jsonld import expand
+
+        found = Diagnostics()
+        expand(doc, found)
+        return list(found)
+
+    background = Background(jsonld, enabled=parallel)
     local = Diagnostics()
     check_td(doc, local)
-    reference = any(r.dialect == REFERENCE for r in extract(inp.td, Diagnostics()))
     for d in local:
         if reference and d.severity is Severity.ERROR and _REFERENCE_TOLERATED.match(d.pointer):
             d = replace(
@@ -144,8 +155,10 @@ def _td_checks(inp: Input, diags: Diagnostics) -> None:
             )
         diags.append(d)
     check_terms(doc, diags)
-    if not local.has_errors:
-        expand(doc, diags)
+    if local.has_errors:
+        background.cancel()
+    else:
+        diags.extend(background.result())
     if inp.kind == "td":
         check_against_model(doc, diags)
 
@@ -161,11 +174,13 @@ def compile(  # noqa: A001 - the public name the docs promise
     max_bytes: int = DEFAULT_MAX_BYTES,
     max_affordances: int = DEFAULT_MAX_AFFORDANCES,
     use_cache: bool = False,
+    parallel: bool = False,
 ) -> Result:
     """Load, validate and lower `sources` into the canonical model.
 
     `model` is None when there are errors; `diagnostics` always lists every problem found, in input order.
     With `use_cache`, an unchanged input is answered from the result cache (`Result.input` is then None).
+    `parallel` lets the CLI run the JSON-LD stage in a forked child (same diagnostics, less wall time).
     """
     from td2adaptor import cache
 
@@ -186,13 +201,14 @@ def compile(  # noqa: A001 - the public name the docs promise
                 package=package,
                 max_bytes=max_bytes,
                 max_affordances=max_affordances,
+                parallel=parallel,
             )
             return r.model, r.diagnostics
 
         model, diagnostics = resultcache.cached(cache_key, fresh)
         return Result(model, diagnostics, None)
     from td2adaptor.lower import lower
-    from td2adaptor.td.extract import extract
+    from td2adaptor.td.extract import REFERENCE, extract
 
     diags = Diagnostics()
     inp = load(sources, diags, values=values, stdin=stdin, max_bytes=max_bytes)
@@ -201,9 +217,10 @@ def compile(  # noqa: A001 - the public name the docs promise
     if inp is not None and inp.td is not None and _too_many_affordances(inp, td_diags, max_affordances):
         inp.td = None
     if inp is not None and inp.td is not None:
-        if inp.kind != "legacy":
-            _td_checks(inp, td_diags)
         raws = extract(inp.td, td_diags)
+        if inp.kind != "legacy":
+            reference = any(r.dialect == REFERENCE for r in raws)
+            _td_checks(inp, td_diags, reference=reference, parallel=parallel)
         fallback = Path(inp.doc.name).stem if inp.doc.path else "thing"
         model = lower(
             inp.td,

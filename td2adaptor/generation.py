@@ -81,7 +81,9 @@ class Outcome:
         return out
 
 
-def build(targets: Sequence[Target], diags: Diagnostics, *, use_cache: bool = True) -> dict[Path, GeneratedTree] | None:
+def build(
+    targets: Sequence[Target], diags: Diagnostics, *, use_cache: bool = True, parallel: bool = False
+) -> dict[Path, GeneratedTree] | None:
     """Compile every TD of every target and generate; trees merged per output directory `OUT/<backend>`."""
     from td2adaptor.compiler import compile
 
@@ -101,6 +103,7 @@ def build(targets: Sequence[Target], diags: Diagnostics, *, use_cache: bool = Tr
                 strict=target.strict,
                 package=target.package_name,
                 use_cache=use_cache,
+                parallel=parallel,
             )
             diags.extend(result.diagnostics)
             if result.model is None:
@@ -145,11 +148,13 @@ def _locate(diags: Diagnostics, td: Path) -> list[Diagnostic]:
     return [d if d.file or doc is None else doc.locate(d) for d in diags]
 
 
-def generate(targets: Sequence[Target], *, force: bool = False, use_cache: bool = True) -> Outcome:
+def generate(
+    targets: Sequence[Target], *, force: bool = False, use_cache: bool = True, parallel: bool = False
+) -> Outcome:
     """Generate and write; nothing is written when any input is invalid or any write would be refused."""
     diags = Diagnostics()
     outcome = Outcome()
-    trees = build(targets, diags, use_cache=use_cache)
+    trees = build(targets, diags, use_cache=use_cache, parallel=parallel)
     if trees is not None:
         plans = {root: plan(tree, root, diags, force=force) for root, tree in trees.items()}
         if all(p is not None for p in plans.values()):
@@ -162,11 +167,11 @@ def generate(targets: Sequence[Target], *, force: bool = False, use_cache: bool 
     return outcome
 
 
-def check(targets: Sequence[Target], *, use_cache: bool = True) -> Outcome:
+def check(targets: Sequence[Target], *, use_cache: bool = True, parallel: bool = False) -> Outcome:
     """Regenerate in memory and compare with disk; never writes. `ok` is True when everything is current."""
     diags = Diagnostics()
     outcome = Outcome()
-    trees = build(targets, diags, use_cache=use_cache)
+    trees = build(targets, diags, use_cache=use_cache, parallel=parallel)
     current = trees is not None
     if trees is not None:
         for root, tree in trees.items():
