@@ -45,18 +45,22 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         (work / "synth.json").write_text(json.dumps(synthetic_td(1000)))
-        cache = {**ENV, "TD2ADAPTOR_CACHE_DIR": str(work / "cache")}
         cmd = [CLI, "gen", "synth.json", "-o", "out", "--partial"]
-        t0 = time.perf_counter()
-        rc = subprocess.run(cmd, cwd=work, capture_output=True, env=cache, check=False).returncode
-        first = time.perf_counter() - t0
+        # a TD never seen before, on a machine that has run td2adaptor (its tool caches are warm)
+        subprocess.run([CLI, "validate", str(REPO / "examples/robotnik_rb1/td.json")], capture_output=True, env=ENV)
+        new_td, rc = timed([*cmd, "--no-cache"], work, runs=3)
         files = sum(1 for p in (work / "out").rglob("*") if p.is_file()) if (work / "out").is_dir() else 0
-        again, _ = timed(cmd, work, runs=3, env=cache)
         shutil.rmtree(work / "out", ignore_errors=True)
-        print(
-            f"td2adaptor gen, 1,000 affordances, first {first * 1000:8.1f} ms  (exit {rc}, {files} files)   "
-            f"re-run, nothing changed {again * 1000:8.1f} ms   target <= 1000 ms"
-        )
+        # the very first run of td2adaptor on a machine: empty cache directory
+        empty = {**ENV, "TD2ADAPTOR_CACHE_DIR": str(work / "cache")}
+        t0 = time.perf_counter()
+        subprocess.run(cmd, cwd=work, capture_output=True, env=empty, check=False)
+        first = time.perf_counter() - t0
+        again, _ = timed(cmd, work, runs=3, env=empty)
+        print(f"td2adaptor gen, 1,000 affordances, all backends ({files} files, exit {rc}):")
+        print(f"  new TD (no result cache), output unchanged   {new_td * 1000:8.1f} ms   target <= 1000 ms")
+        print(f"  re-run, nothing changed                      {again * 1000:8.1f} ms   target <= 1000 ms")
+        print(f"  first run on a machine (all caches empty)    {first * 1000:8.1f} ms")
 
 
 if __name__ == "__main__":
