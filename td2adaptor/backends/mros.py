@@ -42,8 +42,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-import jinja2
-
 from td2adaptor.backends import GeneratedTree, GenOptions, mros_lint
 from td2adaptor.backends import textsafe as ts
 from td2adaptor.backends.mros_types import (
@@ -58,7 +56,7 @@ from td2adaptor.backends.mros_types import (
     macro_like,
     unsupported_fields,
 )
-from td2adaptor.backends.templating import environment
+from td2adaptor.backends.templating import render
 from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.model import Component, Model, Role, TopicEndpoint
 
@@ -280,12 +278,8 @@ def _pool(prefix: str, name: str, label: str, largest: int) -> PoolView:
     return PoolView(prefix, name, name.replace("_mempool", "_config"), label, tuple(classes))
 
 
-def _env() -> jinja2.Environment:
-    return environment("mros")
-
-
-def _render(template: str, **context: Any) -> str:
-    return _env().get_template(template).render(**context)
+def _render(template: str, **context: object) -> str:
+    return render("mros", template, **context)
 
 
 def _skip_actions(model: Model, partial: bool, diags: Diagnostics) -> list[SkippedAction]:

@@ -14,12 +14,10 @@ import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
-import jinja2
-
 from td2adaptor.backends import GeneratedTree, GenOptions
 from td2adaptor.backends import rclpy_types as rt
 from td2adaptor.backends import textsafe as ts
-from td2adaptor.backends.templating import environment
+from td2adaptor.backends.templating import render
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.model import (
     ArrayKind,
@@ -839,12 +837,8 @@ class Builder:
 # rendering
 
 
-def _env() -> jinja2.Environment:
-    return environment("rclpy")
-
-
 def _render(template: str, **context: object) -> str:
-    return _env().get_template(template).render(**context)
+    return render("rclpy", template, **context)
 
 
 def generate(model: Model, options: GenOptions, diags: Diagnostics) -> GeneratedTree:

@@ -12,8 +12,6 @@ import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
-import jinja2
-
 from td2adaptor.backends import GeneratedTree, GenOptions
 from td2adaptor.backends import textsafe as ts
 from td2adaptor.backends.rospy_types import (
@@ -24,7 +22,7 @@ from td2adaptor.backends.rospy_types import (
     field_view,
     stub_annotation,
 )
-from td2adaptor.backends.templating import environment
+from td2adaptor.backends.templating import render
 from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.model import (
     Component,
@@ -611,12 +609,8 @@ def interface_packages(types: TypeTable) -> list[str]:
     return sorted(names)
 
 
-def _env() -> jinja2.Environment:
-    return environment("rospy")
-
-
 def _render(template: str, **context: object) -> str:
-    return _env().get_template(template).render(**context)
+    return render("rospy", template, **context)
 
 
 def generate(model: Model, options: GenOptions, diags: Diagnostics) -> GeneratedTree:

@@ -53,3 +53,8 @@ def environment(backend: str, *, trim: bool = True) -> jinja2.Environment:
         undefined=jinja2.StrictUndefined,
         bytecode_cache=_bytecode_cache(backend),
     )
+
+
+def render(backend: str, template: str, **context: object) -> str:
+    """`templates/<backend>/<template>` rendered with `context`."""
+    return environment(backend).get_template(template).render(**context)
