@@ -7,7 +7,7 @@ document it is about and sorted into input order. Nothing here prints or exits: 
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, BinaryIO, Literal
@@ -121,11 +121,13 @@ def load(
     return Input("td", docs, doc.data)
 
 
-def _td_checks(inp: Input, diags: Diagnostics, *, reference: bool, parallel: bool = False) -> None:
+def _td_checks(inp: Input, diags: Diagnostics, *, reference: bool, parallel: bool = False) -> Callable[[], None]:
     """TD 1.1 conformance, unknown terms, JSON-LD and linked-TM checks on the (instantiated) TD.
 
     With `parallel`, the JSON-LD stage runs in a forked child meanwhile (see `background`); its
-    diagnostics are the same either way and are only used when the TD passed the schema.
+    diagnostics are the same either way and are only used when the TD passed the schema. The returned
+    `finish` adds them (and the linked-TM checks) to `diags`: the caller lowers the TD before calling it,
+    so the child's work overlaps with lowering too.
     """
     from td2adaptor.background import Background
     from td2adaptor.td.conformance import check_td
@@ -157,10 +159,14 @@ def _td_checks(inp: Input, diags: Diagnostics, *, reference: bool, parallel: boo
     check_terms(doc, diags)
     if local.has_errors:
         background.cancel()
-    else:
-        diags.extend(background.result())
-    if inp.kind == "td":
-        check_against_model(doc, diags)
+
+    def finish() -> None:
+        if not local.has_errors:
+            diags.extend(background.result())
+        if inp.kind == "td":
+            check_against_model(doc, diags)
+
+    return finish
 
 
 def compile(  # noqa: A001 - the public name the docs promise
@@ -218,18 +224,23 @@ def compile(  # noqa: A001 - the public name the docs promise
         inp.td = None
     if inp is not None and inp.td is not None:
         raws = extract(inp.td, td_diags)
+        finish = None
         if inp.kind != "legacy":
             reference = any(r.dialect == REFERENCE for r in raws)
-            _td_checks(inp, td_diags, reference=reference, parallel=parallel)
+            finish = _td_checks(inp, td_diags, reference=reference, parallel=parallel)
         fallback = Path(inp.doc.name).stem if inp.doc.path else "thing"
+        lowered = Diagnostics()
         model = lower(
             inp.td,
             raws,
-            td_diags,
+            lowered,
             interface_dirs=[Path(p) for p in interfaces],
             package=package,
             fallback_title=fallback,
         )
+        if finish is not None:
+            finish()
+        td_diags.extend(lowered)
     located = list(diags) + [_locate(inp, d) for d in td_diags]
     if strict:
         located = escalate(located)

@@ -58,25 +58,60 @@ def read_manifest(root: Path) -> dict[str, str]:
     )
 
 
+def _scan(root: Path) -> dict[str, str]:
+    """Every entry under `root` by relative POSIX path: "file", "dir", "link" or "other". One directory read
+    per folder instead of several syscalls per file; symbolic links are listed, not followed."""
+    kinds: dict[str, str] = {}
+    stack = [(str(root), "")]
+    while stack:
+        folder, prefix = stack.pop()
+        try:
+            entries = list(os.scandir(folder))
+        except OSError:
+            continue
+        for entry in entries:
+            rel = prefix + entry.name
+            if entry.is_symlink():
+                kinds[rel] = "link"
+            elif entry.is_dir():
+                kinds[rel] = "dir"
+                stack.append((entry.path, rel + "/"))
+            else:
+                kinds[rel] = "file" if entry.is_file() else "other"
+    return kinds
+
+
+def _behind_link(rel: str, kinds: dict[str, str]) -> bool:
+    """Whether `rel` or one of its folders is a symbolic link (then only a full `resolve` can tell where
+    it leads)."""
+    parts = rel.split("/")
+    return any(kinds.get("/".join(parts[:i])) == "link" for i in range(1, len(parts) + 1))
+
+
 def plan(tree: GeneratedTree, root: Path, diags: Diagnostics, *, force: bool = False) -> EmitReport | None:
     """Check `tree` against what is on disk; the report of what `write` would do, or None if refused."""
     report = EmitReport()
     manifest = read_manifest(root)
     ok = True
     resolved_root = root.resolve()
+    kinds = _scan(root) if root.is_dir() else {}
     for rel, data in tree:
         problem = path_problem(rel)
-        if problem is None and not (resolved_root / rel).resolve().is_relative_to(resolved_root):
+        linked = problem is None and _behind_link(rel, kinds)
+        if linked and not (resolved_root / rel).resolve().is_relative_to(resolved_root):
             problem = "leaves the output directory through a symbolic link"
         if problem:
             diags.error("GEN801", f"generated path {rel!r} {problem}", hint="this is a backend bug or a hostile TD")
             ok = False
             continue
         target = root / rel
-        if not target.exists():
+        kind = kinds.get(rel)
+        if linked:  # the scan did not follow the link: ask the file system
+            kind = None if not target.exists() else "file" if target.is_file() else "other"
+        if kind is None:
             report.written.append(rel)
             continue
-        current = target.read_bytes() if target.is_file() else None
+        current = target.read_bytes() if kind == "file" else None
         if current == data:
             report.unchanged.append(rel)
             continue
@@ -117,9 +152,12 @@ def write(tree: GeneratedTree, root: Path, report: EmitReport) -> None:
         skip = set(report.written) | set(report.removed) | {MANIFEST}
         if root.is_dir():
             _replicate(root, stage, skip)
+        made: set[Path] = set()
         for rel in report.written:
             target = stage / rel
-            target.parent.mkdir(parents=True, exist_ok=True)
+            if target.parent not in made:  # one mkdir per folder, not per file
+                target.parent.mkdir(parents=True, exist_ok=True)
+                made.add(target.parent)
             target.write_bytes(tree.files[rel])
             os.chmod(target, 0o755 if rel in tree.executable else 0o644)
         for rel in report.removed:

@@ -10,6 +10,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from jsonschema import Draft202012Validator  # type: ignore[import-untyped, unused-ignore]
 
 import td2adaptor
@@ -40,8 +42,14 @@ def doc(files: dict[str, bytes], path: str) -> Any:
 
 
 def test_every_schema_is_a_valid_2020_12_schema(files: dict[str, bytes]) -> None:
-    schemas = [p for p in files if p.endswith(".schema.json")]
-    assert len(schemas) == len(rb1_catalog().specs) + 1  # + envelope
+    schemas = sorted(p for p in files if p.endswith(".schema.json"))
+    specs = rb1_catalog().specs
+    # one file per component (its events in $defs), one per robot-level event, the envelope
+    components = {s.component for s in specs if s.component}
+    assert schemas == sorted(
+        [f"schemas/{c}.events.schema.json" for c in components]
+        + ["schemas/error.schema.json", "schemas/status.schema.json", "schemas/envelope.schema.json"]
+    )
     ids = set()
     for path in schemas:
         schema = doc(files, path)
@@ -50,6 +58,11 @@ def test_every_schema_is_a_valid_2020_12_schema(files: dict[str, bytes]) -> None
         assert schema["$id"].endswith("/" + path)  # the file layout mirrors the ids: relative refs resolve
         ids.add(schema["$id"])
     assert len(ids) == len(schemas)
+    # every event's schema is where its reference says, once
+    found = [_resolve(files, "README.md", None, s.schema_ref) for s in specs]
+    assert all(isinstance(f, dict) and f["title"] == s.title for f, s in zip(found, specs, strict=True))
+    defs = sum(len(doc(files, f"schemas/{c}.events.schema.json")["$defs"]) for c in components)
+    assert defs == sum(1 for s in specs if s.component)
 
 
 def test_one_event_per_affordance_role(files: dict[str, bytes]) -> None:
@@ -153,9 +166,16 @@ def test_generated_schema_files_validate_like_the_runtime(files: dict[str, bytes
     schemas = {p: doc(files, p) for p in files if p.endswith(".schema.json")}
     registry = Registry().with_resources((s["$id"], Resource.from_contents(s)) for s in schemas.values())
     spec = next(s for s in rb1_catalog().specs if s.key == "GoToComponent.gotoRun.feedback")
-    validator = Draft202012Validator(schemas[spec.schema_file], registry=registry)
+    # a consumer refers to the event by the file's id and the pointer into it, as the AsyncAPI document does
+    uri = doc(files, spec.schema_file)["$id"] + "#" + spec.schema_ref.partition("#")[2]
+    validator = Draft202012Validator({"$ref": uri}, registry=registry)
     assert validator.is_valid(FEEDBACK)
     assert not validator.is_valid({**FEEDBACK, "payload": {"state": "running"}})
+    assert not validator.is_valid({**FEEDBACK, "robot": ALL_ROBOTS})  # from the embedded schema
+    assert not validator.is_valid({**FEEDBACK, "time": "yesterday"})  # from the envelope, via its relative $ref
+    status = Draft202012Validator(schemas["schemas/status.schema.json"], registry=registry)
+    assert status.is_valid({"type": "status", **ENVELOPE, "payload": {"state": "online"}})
+    assert not status.is_valid({"type": "status", **ENVELOPE, "time": "now", "payload": {"state": "online"}})
 
 
 def _resolve(files: dict[str, bytes], base: str, root: Any, ref: str) -> Any:
@@ -325,3 +345,48 @@ def test_models_without_ros_types_still_get_schemas() -> None:
     payload = invoke.schema["properties"]["payload"]
     assert payload["properties"]["procedure"]["properties"]["goals"]["type"] == "array"  # from GoToPetition
     Draft202012Validator.check_schema(invoke.schema)
+
+
+def test_components_named_like_robot_level_files_do_not_collide() -> None:
+    model = rb1_model()
+    renamed = tuple(replace(c, name=n) for c, n in zip(model.components, ("envelope", "error", "status"), strict=False))
+    model = replace(model, components=(*renamed, *model.components[3:]))
+    files = tree_of(model)
+    assert {"schemas/envelope.schema.json", "schemas/error.schema.json", "schemas/status.schema.json"} <= set(files)
+    assert {"schemas/envelope.events.schema.json", "schemas/error.events.schema.json"} <= set(files)
+    envelope = doc(files, "schemas/envelope.schema.json")
+    assert envelope["properties"]["payload"]["description"] == "Event-specific content."
+    validator = EventValidator(build_catalog(model))
+    spec = build_catalog(model).find(Kind.INVOKE, "gotoRun")
+    assert validator.errors(spec, {"payload": GOAL}) == []
+
+
+_json_data = st.recursive(
+    st.none()
+    | st.booleans()
+    | st.integers(-(2**70), 2**70)
+    | st.floats(allow_nan=False, allow_infinity=False)
+    | st.text(max_size=8),
+    lambda children: st.lists(children, max_size=3) | st.dictionaries(st.text(max_size=6), children, max_size=3),
+    max_leaves=12,
+)
+
+
+def _floats(value: Any) -> bool:
+    if isinstance(value, float):
+        return True
+    if isinstance(value, dict):
+        return any(_floats(v) for v in value.values())
+    return isinstance(value, list) and any(_floats(v) for v in value)
+
+
+@settings(max_examples=300, deadline=None)
+@given(_json_data)
+def test_dump_is_the_standard_library_layout(value: Any) -> None:
+    # orjson (fast path) and json.dumps (what it refuses, e.g. integers beyond 64 bits) must agree on layout;
+    # floats only differ in how an exponent is spelled (1e-05 / 0.00001), both exact
+    text = backend.dump(value)
+    assert json.loads(text) == value
+    if not _floats(value):
+        assert text == json.dumps(value, indent=2, ensure_ascii=False) + "\n"
+    assert backend.dump(value) == text

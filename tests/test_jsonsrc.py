@@ -57,6 +57,19 @@ def test_nan_and_infinity_are_rejected() -> None:
         assert diags.codes() == ["TD005"] and diags.items[0].line == 1
 
 
+def test_unpaired_surrogate_escapes_are_errors_at_each_string() -> None:
+    # a pair is one character outside the BMP and fine; a lone half cannot be written as UTF-8 by any backend
+    diags = Diagnostics()
+    doc = parse_json(b'{"t": "\\ud83d\\ude00", "a": "\\\\ud800"}', "ok.json", diags)
+    assert doc is not None and doc.data["t"] == "\U0001f600" and not diags.items
+    diags = Diagnostics()
+    text = b'{"title": "x\\ud800",\n "p": {"\\uDFFFk": 1, "d": ["y\\udc00z"]}}'
+    assert parse_json(text, "s.json", diags) is None
+    assert diags.codes() == ["TD011"] * 3
+    assert [(d.pointer, d.line) for d in diags] == [("/title", 1), ("/p/\udfffk", 2), ("/p/d/0", 2)]
+    assert "member name" in diags.items[1].message and "string" in diags.items[0].message
+
+
 def test_size_limit_and_deep_nesting() -> None:
     diags = Diagnostics()
     assert parse_json(b"[" * 20 + b"]" * 20, "big.json", diags, max_bytes=10) is None

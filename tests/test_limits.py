@@ -47,3 +47,21 @@ def test_100000_affordances_are_refused_with_a_limit(tmp_path: Path) -> None:
     small.write_text(json.dumps({"title": "small", "properties": dict(list(props.items())[:50])}))
     proc = _validate(small, "--max-affordances", "10")
     assert proc.returncode == 1 and "more than the limit of 10" in proc.stderr
+
+
+def test_unpaired_surrogates_in_rb1_text_are_refused_by_gen(tmp_path: Path) -> None:
+    # `\ud800` in a title used to reach the backends and crash the UTF-8 write (exit 3, internal error)
+    td = json.loads((Path(__file__).parents[1] / "examples/robotnik_rb1/td.json").read_text())
+    td["title"] = "RB-1 \ud800"
+    td["actions"]["gotoRun"]["description"] = "go \udfff there"
+    (tmp_path / "td.json").write_text(json.dumps(td))  # ensure_ascii: written as \ud800 escapes
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "keep.txt").write_text("mine")
+    interfaces = str(Path(__file__).parents[1] / "examples/robotnik_rb1/interfaces")
+    proc = subprocess.run(
+        [CLI, "gen", "td.json", "-o", "out", "-I", interfaces, "--partial"],
+        capture_output=True, text=True, timeout=120, env=ENV, cwd=tmp_path,
+    )  # fmt: skip
+    assert proc.returncode == 1, proc.stderr
+    assert proc.stderr.count("TD011") == 2 and "/title" in proc.stderr and "Traceback" not in proc.stderr
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["keep.txt"]

@@ -50,3 +50,17 @@ def test_xml_text_has_no_markup(text: str) -> None:
     out = xml_text(text)
     assert "<" not in out and ">" not in out and '"' not in out
     assert "&" not in out.replace("&amp;", "").replace("&lt;", "").replace("&gt;", "").replace("&quot;", "")
+
+
+@given(st.text(alphabet=st.sampled_from('ab "\\\u00e9\u4e2d\n\t\x01'), max_size=200), st.integers(4, 30))
+def test_wrap_lines_keeps_every_word_within_the_width(text: str, width: int) -> None:
+    from td2adaptor.backends.textsafe import _BREAKS, _JUNK, wrap_lines
+
+    lines = wrap_lines(text, width)
+    for line in lines:
+        wide = line.count("\u00e9") + line.count("\u4e2d")  # counted two columns, to be safe
+        assert len(py_docstring(line)) - len('""""""') + wide <= width and line == line.strip()
+    # nothing lost or reordered: the same characters, only spaces and line breaks moved
+    squeeze = "".join(_JUNK.sub(" ", "".join(_BREAKS.split(text))).split())
+    assert "".join("".join(lines).split()) == squeeze
+    assert not lines or (lines[0] and lines[-1])

@@ -139,6 +139,29 @@ def test_symlink_escape_is_refused(tmp_path: Path) -> None:
     assert "symbolic link" in diags.items[0].message
 
 
+def test_links_and_folders_in_the_way_are_seen(tmp_path: Path) -> None:
+    # the planner lists the output once; what it cannot see through (links) it asks the file system about
+    root = tmp_path / "out"
+    (root / "real").mkdir(parents=True)
+    (root / "real" / "same.txt").write_bytes(b"x")
+    (root / "real" / "other.txt").write_bytes(b"mine")
+    (root / "inside").symlink_to(root / "real")
+    (root / "file_link").symlink_to(tmp_path / "secret.txt")
+    (tmp_path / "secret.txt").write_bytes(b"s")
+    (root / "a_dir").mkdir()
+    rep = plan(GeneratedTree({"inside/same.txt": b"x", "inside/new.txt": b"n"}), root, Diagnostics())
+    assert rep is not None and rep.unchanged == ["inside/same.txt"] and rep.written == ["inside/new.txt"]
+    diags = Diagnostics()
+    assert plan(GeneratedTree({"inside/other.txt": b"x"}), root, diags) is None
+    assert diags.codes() == ["GEN802"]
+    diags = Diagnostics()
+    assert plan(GeneratedTree({"file_link": b"x"}), root, diags) is None
+    assert diags.codes() == ["GEN801"]
+    diags = Diagnostics()
+    assert plan(GeneratedTree({"a_dir": b"x"}), root, diags) is None
+    assert diags.codes() == ["GEN802"] and "not generated" in diags.items[0].message
+
+
 def test_swap_is_atomic_and_leftovers_are_cleaned(tmp_path: Path) -> None:
     root = tmp_path / "out" / "b"
     tree = GeneratedTree({"a.txt": b"1", "d/b.txt": b"2"})

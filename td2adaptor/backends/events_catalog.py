@@ -92,10 +92,19 @@ class EventSpec:
 
     @property
     def schema_file(self) -> str:
-        """Path of the schema file, relative to the events output directory."""
+        """Path of the file holding the schema, relative to the events output directory: one file per
+        component (its events in `$defs`), one per robot-level event. Component names have no `.`, so a
+        component called `error` or `envelope` cannot collide with the robot-level files."""
         if self.component is None:
             return f"schemas/{self.kind.value}.schema.json"
-        return f"schemas/{self.component}/{self.affordance}.{self.kind.value}.schema.json"
+        return f"schemas/{self.component}.events.schema.json"
+
+    @property
+    def schema_ref(self) -> str:
+        """`schema_file` with the JSON pointer to the schema inside it (what `$ref`s and links use)."""
+        if self.component is None:
+            return self.schema_file
+        return f"{self.schema_file}#/$defs/{self.affordance}.{self.kind.value}"
 
     def topic(self, robot: str, root: str = TOPIC_ROOT) -> str:
         if self.component is None:
@@ -124,11 +133,40 @@ class EventCatalog:
     def find(self, kind: Kind, affordance: str | None = None) -> EventSpec:
         return next(s for s in self.specs if s.kind is kind and s.affordance == affordance)
 
+    def uri(self, spec: EventSpec) -> str:
+        """The absolute URI of `spec`'s schema (a `$ref` to it validates an event)."""
+        return self.base + spec.schema_ref
+
+    @cached_property
+    def files(self) -> tuple[tuple[str, Mapping[str, Any]], ...]:
+        """(path, schema document) of every schema file, envelope first, then in TD order.
+
+        A component's events share one file, each under `$defs/<affordance>.<kind>`: a large Thing gets one
+        file per component instead of one per event (1,000 affordances: 250 files, not 1,500).
+        """
+        out: list[tuple[str, Mapping[str, Any]]] = [("schemas/envelope.schema.json", self.envelope)]
+        bundles: dict[str, dict[str, Any]] = {}
+        for spec in self.specs:
+            if spec.component is None:
+                out.append((spec.schema_file, spec.schema))
+                continue
+            bundle = bundles.get(spec.schema_file)
+            if bundle is None:
+                bundle = {
+                    "$schema": DRAFT,
+                    "$id": self.base + spec.schema_file,
+                    "title": f"{spec.component} events",
+                    "description": f"The events of {spec.component}, each in $defs as <affordance>.<kind>.",
+                    "$defs": {},
+                }
+                bundles[spec.schema_file] = bundle
+                out.append((spec.schema_file, bundle))
+            bundle["$defs"][f"{spec.affordance}.{spec.kind.value}"] = spec.schema
+        return tuple(out)
+
     def resources(self) -> list[tuple[str, Mapping[str, Any]]]:
-        """(`$id`, schema) of every schema, envelope first: what a JSON Schema registry needs."""
-        out: list[tuple[str, Mapping[str, Any]]] = [(str(self.envelope["$id"]), self.envelope)]
-        out.extend((str(s.schema["$id"]), s.schema) for s in self.specs)
-        return out
+        """(`$id`, document) of every schema file: what a JSON Schema registry needs."""
+        return [(str(doc["$id"]), doc) for _, doc in self.files]
 
     @cached_property
     def _routes(self) -> dict[tuple[str, ...], EventSpec]:
@@ -267,7 +305,7 @@ _OUT_REQUIRED = ["type", "robot", "id", "time", "source", "payload"]
 
 def _event_schema(
     base: str,
-    path: str,
+    path: str | None,
     title: str,
     description: str,
     kind: Kind,
@@ -286,15 +324,15 @@ def _event_schema(
         props["robot"] = {"not": {"const": ALL_ROBOTS}}
     props.update(extra or {})
     props["payload"] = payload
-    depth = path.count("/")
-    envelope_ref = "../" * (depth - 1) + "envelope.schema.json"
+    # robot-level events are files of their own; a component's events sit in its file's $defs, where the
+    # file's $id is the base the (same) relative reference to the envelope resolves against
+    head: dict[str, Any] = {} if path is None else {"$schema": DRAFT, "$id": f"{base}{path}"}
     return {
-        "$schema": DRAFT,
-        "$id": f"{base}{path}",
+        **head,
         "title": title,
         "description": description,
         "type": "object",
-        "allOf": [{"$ref": envelope_ref}],
+        "allOf": [{"$ref": "envelope.schema.json"}],
         "properties": props,
         "required": required,
         "unevaluatedProperties": False,
@@ -389,7 +427,8 @@ def build_catalog(model: Model) -> EventCatalog:
     def add(kind: Kind, component: str | None, affordance: str | None, title: str, description: str, **kw: Any) -> None:
         run = kw.pop("run", None)
         probe = EventSpec(kind, component, affordance, {}, title, description, run)
-        schema = _event_schema(base, probe.schema_file, title, description, kind, affordance, **kw)
+        path = probe.schema_file if component is None else None  # None: embedded in the component's file
+        schema = _event_schema(base, path, title, description, kind, affordance, **kw)
         specs.append(EventSpec(kind, component, affordance, schema, title, description, run))
 
     for comp in model.components:

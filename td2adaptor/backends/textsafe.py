@@ -85,20 +85,24 @@ _JUNK = re.compile(r"[\x00-\x1f\x7f]")
 
 def _cost(text: str) -> int:
     """Columns `text` takes once escaped by `py_docstring` (non-ASCII counted wide, to be safe)."""
-    return sum(2 if ch in '"\\' or not ch.isascii() else 1 for ch in text)
+    wide = 0 if text.isascii() else sum(1 for ch in text if not ch.isascii())
+    return len(text) + text.count('"') + text.count("\\") + wide
 
 
 def _wrap_line(line: str, width: int) -> list[str]:
-    words = [w for w in _JUNK.sub(" ", line).split(" ") if w]
+    line = _JUNK.sub(" ", line)
+    words = [w for w in line.split(" ") if w]
+    # most text is plain ASCII without quotes or backslashes: there a word's cost is its length
+    cost_of = len if line.isascii() and '"' not in line and "\\" not in line else _cost
     out: list[str] = []
     current = ""
-    used = 0  # _cost(current), kept incrementally: wrapping stays linear in the text's length
+    used = 0  # cost_of(current), kept incrementally: wrapping stays linear in the text's length
     for word in words:
-        cost = _cost(word)
+        cost = cost_of(word)
         while cost > width:  # a very long word: split it between characters (before escaping: safe)
             cut = taken = 0
-            while taken + _cost(word[cut]) <= width:
-                taken += _cost(word[cut])
+            while taken + cost_of(word[cut]) <= width:
+                taken += cost_of(word[cut])
                 cut += 1
             if current:
                 out.append(current)

@@ -66,7 +66,8 @@ class EventValidator:
         resources = [(uri, Resource.from_contents(dict(schema), DRAFT202012)) for uri, schema in catalog.resources()]
         self.registry: Registry[Any] = Registry().with_resources(resources)
         self._validators = {
-            spec.key: Draft202012Validator(dict(spec.schema), registry=self.registry) for spec in catalog.specs
+            spec.key: Draft202012Validator({"$ref": catalog.uri(spec)}, registry=self.registry)
+            for spec in catalog.specs
         }
 
     def errors(self, spec: EventSpec, event: Any) -> list[tuple[str, str]]:

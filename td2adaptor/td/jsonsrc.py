@@ -23,6 +23,9 @@ DEFAULT_MAX_DEPTH = 100
 _WS = re.compile(r"[ \t\n\r]*")
 _STR = re.compile(r'"(?:[^"\\]|\\.)*"', re.S)
 _SCALAR = re.compile(r"[^\s,\]}:]+")
+# `\ud800`-style escapes that may decode to a lone surrogate (a valid pair decodes to one character)
+_SURROGATE_ESCAPE = re.compile(r"\\u[dD][89a-fA-F]")
+_SURROGATE = re.compile("[\ud800-\udfff]")
 
 
 @dataclass
@@ -290,6 +293,22 @@ def parse_json(
         )
         return None
     doc = JsonDocument(name, text, data, path)
+    if _SURROGATE_ESCAPE.search(text) and (bad := _lone_surrogates(data)):
+        for ptr, is_key in bad:
+            what = "a member name" if is_key else "a string"
+            diags.append(
+                doc.locate(
+                    Diagnostic(
+                        "TD011",
+                        Severity.ERROR,
+                        f"{what} contains an unpaired surrogate escape (\\ud800-\\udfff), which is not Unicode text",
+                        ptr,
+                        "escape characters outside the BMP as a surrogate pair, or write them as UTF-8",
+                        name,
+                    )
+                )
+            )
+        return None
     if flag[0]:
         for obj_ptr, key, off in doc.source_map.duplicates:
             line, col = doc.source_map.line_col(off)
@@ -322,6 +341,25 @@ def _depth_over(data: Any, limit: int) -> str | None:
                 (v, depth + 1, pointer_join(ptr, i)) for i, v in enumerate(value) if isinstance(v, (dict, list))
             )
     return None
+
+
+def _lone_surrogates(data: Any) -> list[tuple[str, bool]]:
+    """(pointer, is a key) of every string holding a lone surrogate, in document order (iterative)."""
+    found: list[tuple[str, bool]] = []
+    stack: list[tuple[Any, str]] = [(data, "")]
+    while stack:
+        value, ptr = stack.pop()
+        if isinstance(value, str):
+            if _SURROGATE.search(value):
+                found.append((ptr, False))
+        elif isinstance(value, dict):
+            for k in value:
+                if _SURROGATE.search(k):
+                    found.append((pointer_join(ptr, k), True))
+            stack.extend((v, pointer_join(ptr, k)) for k, v in reversed(value.items()))
+        elif isinstance(value, list):
+            stack.extend((v, pointer_join(ptr, i)) for i, v in reversed(list(enumerate(value))))
+    return found
 
 
 def doc_line_col(text: str, offset: int) -> tuple[int, int]:
