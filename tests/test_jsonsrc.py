@@ -85,3 +85,16 @@ def test_stdin_and_missing_file(tmp_path: object) -> None:
     assert doc is not None and doc.name == "<stdin>" and doc.data["title"] == "from stdin"
     assert load_path("/nonexistent/td.json", diags) is None
     assert diags.codes() == ["TD000"] and "cannot read" in diags.items[0].message
+
+
+def test_root_position_without_and_with_the_source_map() -> None:
+    # the root is located without mapping the whole text (a refused 100,000-affordance TD stays cheap)
+    for raw in (b'\n\n   {"a": {"b\\"c": 1}}', '\ufeff {"x": 1}'.encode(), b"[1]"):
+        doc = parse_json(raw, "r.json", Diagnostics())
+        assert doc is not None
+        quick = doc.position("")
+        assert doc._map is None
+        _ = doc.source_map
+        assert doc.position("") == quick
+    doc = parse_json(b'{"k\\"ey": {"x\\u0041": [1, {"y": 2}]}}', "e.json", Diagnostics())
+    assert doc is not None and doc.position('/k"ey/xA/1/y') == (1, 33)

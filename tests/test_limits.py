@@ -6,14 +6,34 @@ import json
 import os
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 CLI = str(Path(sys.executable).parent / "td2adaptor")
 ENV = {**os.environ, "TD2ADAPTOR_NO_CACHE": "1"}
 
 
+#: peak resident memory any hostile input may cost the CLI (the 100,000-affordance TD needs ~115 MB)
+MAX_RSS_MB = 400
+
+
 def _validate(path: Path, *extra: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([CLI, "validate", str(path), *extra], capture_output=True, text=True, timeout=120, env=ENV)
+    """Run `validate` and check its peak memory (from the child's own rusage, via wait4)."""
+    with open(path.with_suffix(".stderr"), "w+") as err:
+        child = subprocess.Popen(  # noqa: S603 - our own CLI
+            [CLI, "validate", str(path), *extra], stdout=subprocess.DEVNULL, stderr=err, text=True, env=ENV
+        )
+        watchdog = threading.Timer(120, child.kill)  # bounded time: a hang fails the test, it does not stall CI
+        watchdog.start()
+        try:
+            _, status, usage = os.wait4(child.pid, 0)
+        finally:
+            watchdog.cancel()
+        child.returncode = os.waitstatus_to_exitcode(status)
+        err.seek(0)
+        stderr = err.read()
+    assert usage.ru_maxrss / 1024 < MAX_RSS_MB, f"{path.name}: {usage.ru_maxrss // 1024} MB"
+    return subprocess.CompletedProcess(child.args, child.returncode, "", stderr)
 
 
 def test_50_megabyte_td_is_refused_quickly(tmp_path: Path) -> None:

@@ -83,7 +83,8 @@ def _scan(text: str) -> tuple[dict[str, int], dict[str, int], list[tuple[str, st
     def read_key(frame: _Frame, i: int) -> tuple[str, int]:
         m = _STR.match(text, i)
         assert m is not None
-        name = json.loads(m.group())
+        raw = m.group()
+        name = json.loads(raw) if "\\" in raw else raw[1:-1]  # only escapes need decoding
         ptr = pointer_join(frame.pointer, name)
         if name in frame.seen:
             dups.append((frame.pointer, name, i))
@@ -147,6 +148,9 @@ class JsonDocument:
         return self._map
 
     def position(self, pointer: str, *, key: bool = False) -> tuple[int, int] | None:
+        if not pointer and self._map is None:  # the whole document: no need to map a large text for it
+            start = 1 if self.text.startswith("\ufeff") else 0
+            return doc_line_col(self.text, _WS.match(self.text, start).end())  # type: ignore[union-attr]
         off = self.source_map.offset(pointer, key=key)
         return None if off is None else self.source_map.line_col(off)
 
