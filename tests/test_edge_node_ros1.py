@@ -7,7 +7,10 @@ serves a robot over a real mosquitto.
 from __future__ import annotations
 
 import os
+import shutil
 import signal
+import subprocess
+import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -148,13 +151,30 @@ def _alive(port: Any) -> bool:
     return True
 
 
-def test_run_with_ros1_serves_a_robot_over_mosquitto(
-    master: Master, sim: Sim, interfaces: Path, package_src: Path, tmp_path: Path
+@pytest.fixture(scope="module")
+def workspace(tmp_path_factory: pytest.TempPathFactory, package_src: Path) -> Path:
+    """A catkin workspace with the generated package, built by Debian's catkin_make (as a ROS 1 user would)."""
+    ws = tmp_path_factory.mktemp("catkin_ws")
+    shutil.copytree(package_src.parent, ws / "src" / PKG, symlinks=True)
+    build = subprocess.run(
+        ["catkin_make", "-C", str(ws), f"-DPYTHON_EXECUTABLE={harness.SYSTEM_PYTHON}"],
+        cwd=ws, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert build.returncode == 0, build.stdout[-3000:] + build.stderr[-3000:]
+    assert os.access(ws / "devel" / "lib" / PKG / "edge_node", os.X_OK)
+    return ws
+
+
+def test_rosrun_edge_node_serves_a_robot_over_mosquitto(
+    master: Master, sim: Sim, interfaces: Path, package_src: Path, workspace: Path, tmp_path: Path
 ) -> None:
+    # `rosrun PKG edge_node ...` in the built workspace becomes `td2adaptor run --ros 1 --package PKG ...`
     broker = Mosquitto(tmp_path / "broker")
     broker.start()
     app = AppClient(broker.url, [f"td2adaptor/{ROBOT}/#"], client_id="edge-ros1-app")
     environ = {**os.environ, "ROS_HOME": str(master.home), "ROS_IP": "127.0.0.1", "ROS_HOSTNAME": "127.0.0.1"}
+    environ["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{environ.get('PATH', '')}"  # td2adaptor
+    rosrun = f'source {workspace}/devel/setup.bash && exec rosrun {PKG} edge_node "$@"'
     run = RunProcess(
         [
             str(EXAMPLE / "td.json"),
@@ -178,8 +198,10 @@ def test_run_with_ros1_serves_a_robot_over_mosquitto(
             "0.05",
             "--property-period",
             "0",
+            "__name:=edge_node",  # what roslaunch adds: dropped by the script
         ],
         env=environ,
+        command=["bash", "-c", rosrun, "edge_node"],
     )
     try:
         run.wait_ready()

@@ -2,7 +2,7 @@
 
 Everything a template prints is computed here (the view model); templates only loop and print. Every TD
 string reaches the output through `textsafe`. Output: `<package>/` with package.xml, CMakeLists.txt,
-setup.py, README.md, mypy.ini, ruff.toml, `src/<package>/` and `stubs/`.
+setup.py, README.md, mypy.ini, ruff.toml, `src/<package>/`, `scripts/edge_node` (rosrun) and `stubs/`.
 """
 
 from __future__ import annotations
@@ -681,6 +681,7 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     tree.add(src + "_runtime.py", _render("src/_runtime.py.j2", **context))
     tree.add(src + "components.py", _render("src/components.py.j2", **context))
     tree.add(src + "edge_node.py", _render("src/edge_node.py.j2", **context))
+    tree.add(root + "scripts/edge_node", _render("scripts/edge_node.j2", **context), executable=True)
     for name in ("genpy/__init__.pyi", "rospy/__init__.pyi", "rospy/core.pyi", "rospy/exceptions.pyi"):
         tree.add(f"{root}stubs/{name}", _render(f"stubs/{name}.j2", **context))
     packages_done: set[str] = set()

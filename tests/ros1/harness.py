@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import os
 import select
+import shutil
 import socket
 import subprocess
 import sys
@@ -35,6 +36,9 @@ def ros1_problem() -> str | None:
     )
     if probe.returncode != 0:
         return "Debian's rospy is not installed: run `SUDO= bash .ci/setup-ros1.sh` (or sudo)"
+    missing = [tool for tool in ("catkin_make", "rosrun") if shutil.which(tool) is None]
+    if missing:
+        return f"{', '.join(missing)} not on PATH: run `SUDO= bash .ci/setup-ros1.sh` (or sudo)"
     return None
 
 

@@ -1,6 +1,7 @@
 """The td2adaptor edge node of robotnik_rb_1_adaptor: bus events in, ROS 1 calls out, feedback back.
 
-    python3 -m robotnik_rb_1_adaptor.edge_node TD --robot ID --bus mqtt://HOST:PORT [options of td2adaptor run]
+    rosrun robotnik_rb_1_adaptor edge_node TD --robot ID --bus mqtt://HOST:PORT [options of td2adaptor run]
+    python3 -m robotnik_rb_1_adaptor.edge_node ...      (the same, without a catkin workspace)
 
 It becomes `td2adaptor run --ros 1 --package robotnik_rb_1_adaptor ...`: the `td2adaptor` command (not a dependency of
 this package) must be on PATH, in an environment that can import this package (or that drives it from
