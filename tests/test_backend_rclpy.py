@@ -342,3 +342,23 @@ def test_standard_interfaces_are_lint_and_type_clean(tmp_path: Path) -> None:
         [str(VENV_BIN / "mypy"), "--cache-dir", str(tmp_path / "mypy-cache")], cwd=pkg, capture_output=True, text=True
     )
     assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+def test_edge_node_entry_point_drops_ros_arguments() -> None:
+    # the generated module itself (stdlib only): `ros2 launch` appends --ros-args; users' options stay
+    import importlib.util
+
+    path = env.REPO / "generated" / "rclpy" / "robotnik_rb_1_adaptor" / "robotnik_rb_1_adaptor" / "edge_node.py"
+    spec = importlib.util.spec_from_file_location("rb1_edge_node", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    user_args = module.user_args
+    assert user_args(["td.json", "--robot", "a"]) == ["td.json", "--robot", "a"]
+    assert user_args(["td.json", "--ros-args", "-r", "__node:=x"]) == ["td.json"]
+    assert user_args(["--ros-args", "-r", "__ns:=/n", "--", "td.json", "--bus", "local"]) == [
+        "td.json",
+        "--bus",
+        "local",
+    ]
+    assert user_args(["a", "--ros-args", "--", "b", "--ros-args", "-p", "x:=1"]) == ["a", "b"]

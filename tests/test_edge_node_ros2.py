@@ -232,6 +232,7 @@ def test_the_generated_entry_point_serves_a_fleet_from_the_thing_model_and_stops
     environ = env.child_env([rb1_prefix, adaptor_build[1]])
     environ["PATH"] = os.pathsep.join([str(Path(sys.executable).parent), environ["PATH"]])
     args = [str(EXAMPLE / "rb1.tm.json"), "-I", str(EXAMPLE / "interfaces"), "--config", str(fleet)]
+    args += ["--ros-args", "-r", "__node:=edge_node"]  # what `ros2 launch` appends: dropped by the entry point
     run = RunProcess(args, env=environ, command=[str(entry_point)])
     try:
         run.wait_ready()
