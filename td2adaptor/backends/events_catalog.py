@@ -100,11 +100,16 @@ class EventSpec:
         return f"schemas/{self.component}.events.schema.json"
 
     @property
+    def def_name(self) -> str:
+        """The schema's name in its component file's `$defs`: `<affordance>.<kind>`."""
+        return f"{self.affordance}.{self.kind.value}"
+
+    @property
     def schema_ref(self) -> str:
         """`schema_file` with the JSON pointer to the schema inside it (what `$ref`s and links use)."""
         if self.component is None:
             return self.schema_file
-        return f"{self.schema_file}#/$defs/{self.affordance}.{self.kind.value}"
+        return f"{self.schema_file}#/$defs/{self.def_name}"
 
     def topic(self, robot: str, root: str = TOPIC_ROOT) -> str:
         if self.component is None:
@@ -161,7 +166,7 @@ class EventCatalog:
                 }
                 bundles[spec.schema_file] = bundle
                 out.append((spec.schema_file, bundle))
-            bundle["$defs"][f"{spec.affordance}.{spec.kind.value}"] = spec.schema
+            bundle["$defs"][spec.def_name] = spec.schema
         return tuple(out)
 
     def resources(self) -> list[tuple[str, Mapping[str, Any]]]:

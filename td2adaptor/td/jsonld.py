@@ -116,12 +116,10 @@ def _resolver(loader: OfflineLoader) -> Any:
                 context = context["@context"]
             resolved = []
             for ctx in context if isinstance(context, list) else [context]:
-                key = None
-                if type(ctx) is dict:
-                    try:
-                        key = json.dumps(ctx, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
-                    except (TypeError, ValueError, RecursionError):
-                        key = None
+                try:
+                    key = json.dumps(ctx, sort_keys=True, separators=(",", ":")) if type(ctx) is dict else None
+                except (TypeError, ValueError, RecursionError):
+                    key = None
                 if key is None:  # URLs, null, anything unusual: pyld's own way
                     resolved.extend(super().resolve(active_ctx, ctx, base, cycles))
                     continue
