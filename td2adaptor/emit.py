@@ -190,27 +190,21 @@ def _read(path: Path) -> bytes | None:
 
 
 def _replicate(src: Path, dst: Path, skip: set[str]) -> None:
-    """Hard-link every file of `src` into `dst` (same relative paths), except the `skip`ped ones."""
-    for dirpath, dirnames, filenames in os.walk(src):
-        rel_dir = Path(dirpath).relative_to(src)
-        (dst / rel_dir).mkdir(parents=True, exist_ok=True)
-        for name in dirnames:
-            full = Path(dirpath) / name
-            if full.is_symlink():
-                os.symlink(os.readlink(full), dst / rel_dir / name)
-        dirnames[:] = [d for d in dirnames if not (Path(dirpath) / d).is_symlink()]
-        for name in filenames:
-            rel = (rel_dir / name).as_posix()
-            if rel in skip:
-                continue
-            full = Path(dirpath) / name
-            if full.is_symlink():
-                os.symlink(os.readlink(full), dst / rel)
-            else:
-                try:
-                    os.link(full, dst / rel)
-                except OSError:
-                    shutil.copy2(full, dst / rel)
+    """Hard-link every file of `src` into `dst` (same relative paths), except the `skip`ped ones; folders are
+    made, symbolic links copied as links (`_scan` lists folders before what they hold)."""
+    for rel, kind in _scan(src).items():
+        target = dst / rel
+        if kind == "dir":
+            target.mkdir(exist_ok=True)
+        elif rel in skip:
+            continue
+        elif kind == "link":
+            os.symlink(os.readlink(src / rel), target)
+        else:
+            try:
+                os.link(src / rel, target)
+            except OSError:
+                shutil.copy2(src / rel, target)
 
 
 def _flush(root: Path, written: list[str]) -> None:

@@ -162,6 +162,25 @@ def test_links_and_folders_in_the_way_are_seen(tmp_path: Path) -> None:
     assert diags.codes() == ["GEN802"] and "not generated" in diags.items[0].message
 
 
+def test_a_rewrite_keeps_foreign_folders_links_and_files(tmp_path: Path) -> None:
+    root = tmp_path / "out"
+    tree = GeneratedTree({"a.txt": b"1", "d/b.txt": b"2"})
+    rep = plan(tree, root, Diagnostics())
+    assert rep is not None
+    write(tree, root, rep)
+    (root / "empty" / "deeper").mkdir(parents=True)
+    (root / "d" / "notes.md").write_text("mine")
+    (root / "to_a").symlink_to("a.txt")
+    (root / "to_d").symlink_to("d")
+    tree2 = GeneratedTree({"a.txt": b"1", "d/b.txt": b"3"})
+    rep2 = plan(tree2, root, Diagnostics())
+    assert rep2 is not None and rep2.written == ["d/b.txt"]
+    write(tree2, root, rep2)
+    assert (root / "empty" / "deeper").is_dir() and (root / "d" / "notes.md").read_text() == "mine"
+    assert os.readlink(root / "to_a") == "a.txt" and os.readlink(root / "to_d") == "d"
+    assert (root / "to_d" / "b.txt").read_bytes() == b"3"
+
+
 def test_swap_is_atomic_and_leftovers_are_cleaned(tmp_path: Path) -> None:
     root = tmp_path / "out" / "b"
     tree = GeneratedTree({"a.txt": b"1", "d/b.txt": b"2"})
