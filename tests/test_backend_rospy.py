@@ -6,7 +6,10 @@ from __future__ import annotations
 
 import ast
 import copy
+import importlib.machinery
+import importlib.util
 import json
+import os
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -228,3 +231,22 @@ def test_docstring_wrapping_keeps_escapes_whole() -> None:
     assert all(len(line) <= backend.LINE for line in ["        " + lines[0], *lines[1:]])
     value = ast.literal_eval(doc)
     assert value.replace("\n", "").replace(" ", "").startswith('"' * 500 + "\\" * 77)
+
+
+def test_edge_node_module_and_rosrun_script_drop_remapping_arguments() -> None:
+    # one template renders both; the script is the module plus a shebang (rosrun runs it without the package)
+    pkg = REPO / "generated" / "rospy" / PKG
+    script = (pkg / "scripts" / "edge_node").read_text()
+    assert script.startswith("#!/usr/bin/env python3\n") and os.access(pkg / "scripts" / "edge_node", os.X_OK)
+    assert f"from {PKG}" not in script and f"import {PKG}" not in script
+    for path in (pkg / "src" / PKG / "edge_node.py", pkg / "scripts" / "edge_node"):
+        loader = importlib.machinery.SourceFileLoader("rb1_edge_node", str(path))
+        spec = importlib.util.spec_from_loader("rb1_edge_node", loader)
+        assert spec is not None
+        module = importlib.util.module_from_spec(spec)
+        loader.exec_module(module)
+        assert module.user_args(["td.json", "--robot", "a", "__name:=edge", "__log:=/tmp/x.log"]) == [
+            "td.json",
+            "--robot",
+            "a",
+        ]

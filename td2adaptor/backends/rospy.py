@@ -680,8 +680,9 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     tree.add(src + "errors.py", _render("src/errors.py.j2", **context))
     tree.add(src + "_runtime.py", _render("src/_runtime.py.j2", **context))
     tree.add(src + "components.py", _render("src/components.py.j2", **context))
-    tree.add(src + "edge_node.py", _render("src/edge_node.py.j2", **context))
-    tree.add(root + "scripts/edge_node", _render("scripts/edge_node.j2", **context), executable=True)
+    tree.add(src + "edge_node.py", _render("src/edge_node.py.j2", **context, script=False))
+    # the same code as the rosrun script (catkin_install_python in CMakeLists.txt)
+    tree.add(root + "scripts/edge_node", _render("src/edge_node.py.j2", **context, script=True), executable=True)
     for name in ("genpy/__init__.pyi", "rospy/__init__.pyi", "rospy/core.pyi", "rospy/exceptions.pyi"):
         tree.add(f"{root}stubs/{name}", _render(f"stubs/{name}.j2", **context))
     packages_done: set[str] = set()
