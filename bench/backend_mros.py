@@ -26,8 +26,10 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 import td2adaptor  # noqa: E402
-from td2adaptor.backends import GenOptions, mros, mros_lint  # noqa: E402
+from td2adaptor.backends.mros import generator as mros  # noqa: E402
+from td2adaptor.backends.mros import lint as mros_lint  # noqa: E402
 from td2adaptor.diagnostics import Diagnostics  # noqa: E402
+from td2adaptor.generation.backend import GenOptions  # noqa: E402
 from td2adaptor.model import ArrayKind, FieldType, TypeTable  # noqa: E402
 from td2adaptor.rostypes.registry import TypeRegistry  # noqa: E402
 

@@ -19,9 +19,9 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 import td2adaptor  # noqa: E402
-from td2adaptor.backends import GenOptions  # noqa: E402
-from td2adaptor.backends import rospy as backend  # noqa: E402
+from td2adaptor.backends.rospy import generator as backend  # noqa: E402
 from td2adaptor.diagnostics import Diagnostics  # noqa: E402
+from td2adaptor.generation.backend import GenOptions  # noqa: E402
 from tests.ros1 import harness  # noqa: E402
 
 EXAMPLE = REPO / "examples" / "robotnik_rb1"

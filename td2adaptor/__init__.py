@@ -13,7 +13,7 @@ __all__ = ["__version__", "check", "compile", "generate", "load", "validate"]
 
 if TYPE_CHECKING:
     from td2adaptor.api import check, generate
-    from td2adaptor.compiler import compile, load, validate
+    from td2adaptor.compiler.pipeline import compile, load, validate
 
 
 def __getattr__(name: str) -> Any:

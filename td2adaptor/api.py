@@ -1,4 +1,4 @@
-"""`td2adaptor.generation` and `td2adaptor.check` for build scripts: the CLI's semantics, no click needed."""
+"""`td2adaptor.generation.build` and `td2adaptor.check` for build scripts: the CLI's semantics, no click needed."""
 
 from __future__ import annotations
 
@@ -6,12 +6,12 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from td2adaptor.config import Target, find, load
 from td2adaptor.diagnostics import Diagnostics
-from td2adaptor.generation import Outcome
-from td2adaptor.generation import check as _check
-from td2adaptor.generation import generate as _generate
-from td2adaptor.generation import target as _target
+from td2adaptor.generation.build import Outcome
+from td2adaptor.generation.build import check as _check
+from td2adaptor.generation.build import generate as _generate
+from td2adaptor.generation.build import target as _target
+from td2adaptor.generation.targets import Target, find, load
 
 PathLike = str | Path
 

@@ -15,10 +15,12 @@ from typing import Any
 
 import pytest
 
-from td2adaptor.backends import GenOptions, mros, mros_lint
-from td2adaptor.backends.mros_types import comment, macro_like
+from td2adaptor.backends.mros import generator as mros
+from td2adaptor.backends.mros import lint as mros_lint
+from td2adaptor.backends.mros.types import comment, macro_like
 from td2adaptor.diagnostics import Diagnostics, Severity
-from td2adaptor.emit import MANIFEST
+from td2adaptor.generation.backend import GenOptions
+from td2adaptor.generation.emit import MANIFEST
 from td2adaptor.model import FieldType, MessageField
 
 from .conftest import EXAMPLE, REPO
@@ -273,6 +275,6 @@ def test_constants_that_cpp_cannot_hold(tmp_path: Path) -> None:
 
 
 def test_every_reported_code_is_documented() -> None:
-    sources = "".join(p.read_text() for p in (REPO / "td2adaptor" / "backends").glob("mros*.py"))
+    sources = "".join(p.read_text() for p in (REPO / "td2adaptor" / "backends" / "mros").glob("*.py"))
     used = set(re.findall(r'"(MROS9\d\d)"', sources))
     assert used == set(mros.CODES)

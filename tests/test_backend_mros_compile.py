@@ -24,8 +24,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from td2adaptor.backends import GenOptions, mros
+from td2adaptor.backends.mros import generator as mros
 from td2adaptor.diagnostics import Diagnostics
+from td2adaptor.generation.backend import GenOptions
 
 from .conftest import EXAMPLE
 from .hostile.corpus import MARK, PAYLOADS

@@ -16,7 +16,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from td2adaptor.backends.mros_types import TypeViews
+from td2adaptor.backends.mros.types import TypeViews
 
 from .mros import fixtures, wire
 

@@ -19,9 +19,9 @@ from typing import Any
 import pytest
 
 import td2adaptor
-from td2adaptor.backends import GeneratedTree, GenOptions
-from td2adaptor.backends import rospy as backend
+from td2adaptor.backends.rospy import generator as backend
 from td2adaptor.diagnostics import Diagnostics, Severity
+from td2adaptor.generation.backend import GeneratedTree, GenOptions
 from td2adaptor.model import Model
 
 from .conftest import EXAMPLE, REPO
@@ -82,7 +82,10 @@ def rb1_tree() -> GeneratedTree:
 
 
 def test_backend_metadata() -> None:
-    assert (backend.NAME, backend.DISTRO) == ("rospy", "ros1")
+    from td2adaptor.generation.registry import load
+
+    plugin = load("rospy")
+    assert (plugin.NAME, plugin.DISTRO) == ("rospy", "ros1")
 
 
 def test_layout_and_determinism(rb1_tree: GeneratedTree) -> None:

@@ -14,9 +14,9 @@ from pathlib import Path
 import pytest
 
 import td2adaptor
-from td2adaptor.backends import GenOptions
-from td2adaptor.backends import rospy as backend
+from td2adaptor.backends.rospy import generator as backend
 from td2adaptor.diagnostics import Diagnostics
+from td2adaptor.generation.backend import GenOptions
 
 from .conftest import EXAMPLE
 from .ros1 import harness

@@ -26,7 +26,7 @@ def test_runs_in_a_child_and_falls_back_on_failure() -> None:
     out = _py(
         """
         import os
-        from td2adaptor.background import Background
+        from td2adaptor.compiler.background import Background
         parent = os.getpid()
         print(Background(os.getpid).result() != parent)            # computed in a forked child
         print(Background(os.getpid, enabled=False).result() == parent)

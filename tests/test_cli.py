@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from td2adaptor.cli import cli, main
+from td2adaptor.cli.main import cli, main
 
 from .conftest import EXAMPLE, REPO
 
@@ -161,12 +161,12 @@ def test_migrate_refuses_invalid_input(runner: CliRunner, tmp_path: Path) -> Non
 
 
 def test_internal_error_is_one_line_exit_3(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
-    import td2adaptor.compiler
+    import td2adaptor.compiler.pipeline
 
     def boom(*_a: object, **_k: object) -> None:
         raise RuntimeError("simulated bug")
 
-    monkeypatch.setattr(td2adaptor.compiler, "compile", boom)
+    monkeypatch.setattr(td2adaptor.compiler.pipeline, "compile", boom)
     with pytest.raises(SystemExit) as exc:
         main(["validate", TD])
     assert exc.value.code == 3

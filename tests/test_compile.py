@@ -10,9 +10,9 @@ from typing import Any
 import pytest
 
 import td2adaptor
-from td2adaptor.compiler import Result
+from td2adaptor.compiler.pipeline import Result
 from td2adaptor.diagnostics import Diagnostics, Severity
-from td2adaptor.migrate import migrate
+from td2adaptor.frontend.migrate import migrate
 from td2adaptor.model import (
     Durability,
     Model,

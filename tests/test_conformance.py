@@ -17,10 +17,10 @@ from typing import Any
 import pytest
 
 from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity
-from td2adaptor.resources import load_schema
-from td2adaptor.td import conformance
-from td2adaptor.td.conformance import CODES, TD_SCHEMA, TM_SCHEMA, check_td, check_tm
-from td2adaptor.td.jsonsrc import JsonDocument, load_path, parse_json
+from td2adaptor.frontend import conformance
+from td2adaptor.frontend.bundled import load_schema
+from td2adaptor.frontend.conformance import CODES, TD_SCHEMA, TM_SCHEMA, check_td, check_tm
+from td2adaptor.frontend.jsonsrc import JsonDocument, load_path, parse_json
 
 from .conftest import EXAMPLE, REPO, SHARED
 
@@ -692,7 +692,7 @@ def test_our_schemas_are_valid_2020_12_schemas_of_our_own() -> None:
         schema = load_schema(name)
         Draft202012Validator.check_schema(schema)
         assert schema["$id"].startswith("https://td2adaptor.dev/")
-        assert (REPO / "schemas" / name).is_file()
+        assert (REPO / "td2adaptor" / "frontend" / "schemas" / name).is_file()
 
 
 def test_validators_are_compiled_once() -> None:
@@ -701,6 +701,6 @@ def test_validators_are_compiled_once() -> None:
 
 
 def test_importing_does_not_import_jsonschema() -> None:
-    code = "import sys, td2adaptor.td.conformance, td2adaptor.td.terms; print('jsonschema' in sys.modules)"
+    code = "import sys, td2adaptor.frontend.conformance, td2adaptor.frontend.terms; print('jsonschema' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=REPO)
     assert out.stdout.strip() == "False"

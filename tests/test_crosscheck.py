@@ -12,8 +12,8 @@ from typing import Any
 
 import pytest
 
-from td2adaptor.crosscheck import CODES, crosscheck
 from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity
+from td2adaptor.lowering.crosscheck import CODES, crosscheck
 from td2adaptor.model import ArrayKind, Constant, FieldType, MessageDef, MessageField, TypeTable
 
 _ARRAY = re.compile(r"^(?P<base>[^\[]+)(\[(?P<bound><=)?(?P<n>\d*)\])?$")

@@ -7,7 +7,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
-from td2adaptor.demo.behaviour import Cart, TaskTable
+from examples.warehouse.behaviour import Cart, TaskTable
 
 
 def test_concurrent_takers_never_take_the_same_cart(tmp_path: Path) -> None:

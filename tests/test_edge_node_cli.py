@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from td2adaptor.cli import cli
+from td2adaptor.cli.main import cli
 
 from .conftest import EXAMPLE
 

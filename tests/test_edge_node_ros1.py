@@ -19,9 +19,9 @@ from typing import Any
 import pytest
 
 import td2adaptor
-from td2adaptor.backends import GenOptions
-from td2adaptor.backends import rospy as backend
+from td2adaptor.backends.rospy import generator as backend
 from td2adaptor.diagnostics import Diagnostics
+from td2adaptor.generation.backend import GenOptions
 from td2adaptor.runtime import LocalBroker, PortCallFailed, PortUnavailable, RuntimeConfig, serve
 from td2adaptor.runtime.bridge import Ros1Bridge
 from td2adaptor.runtime.genport import Layout

@@ -21,8 +21,8 @@ from typing import Any
 
 import pytest
 
-from td2adaptor.ros2build import file_lock
 from td2adaptor.runtime import RuntimeConfig, serve
+from td2adaptor.runtime.ros2build import file_lock
 from td2adaptor.runtime.simport import SimPort
 from tests.conftest import REPO
 from tests.runtime.broker import Mosquitto

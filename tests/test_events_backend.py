@@ -15,11 +15,11 @@ from hypothesis import strategies as st
 from jsonschema import Draft202012Validator  # type: ignore[import-untyped, unused-ignore]
 
 import td2adaptor
-from td2adaptor.backends import GenOptions
-from td2adaptor.backends import events as backend
-from td2adaptor.backends.events_catalog import ALL_ROBOTS, Kind, build_catalog, data_schema
+from td2adaptor.backends.events import generator as backend
 from td2adaptor.diagnostics import Diagnostics, Severity
+from td2adaptor.generation.backend import GenOptions
 from td2adaptor.model import Model
+from td2adaptor.model.events import ALL_ROBOTS, Kind, build_catalog, data_schema
 from td2adaptor.runtime.events import EventValidator
 
 from .conftest import EXAMPLE

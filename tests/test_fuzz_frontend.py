@@ -11,7 +11,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import td2adaptor
-from td2adaptor.compiler import Result
+from td2adaptor.compiler.pipeline import Result
 from td2adaptor.diagnostics import Severity, pointer_tokens
 
 from .conftest import EXAMPLE

@@ -21,9 +21,10 @@ import pytest
 import yaml
 
 import td2adaptor
-from td2adaptor.backends import GeneratedTree, available
 from td2adaptor.diagnostics import Diagnostics, Severity
-from td2adaptor.generation import generate_trees
+from td2adaptor.generation.backend import GeneratedTree
+from td2adaptor.generation.build import generate_trees
+from td2adaptor.generation.registry import available
 
 from .conftest import EXAMPLE
 from .hostile.corpus import MARK, name_variants, variants

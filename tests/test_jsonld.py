@@ -19,9 +19,9 @@ from typing import Any
 import pytest
 
 from td2adaptor.diagnostics import Diagnostics, Severity
-from td2adaptor.resources import load_schema
-from td2adaptor.td import jsonld
-from td2adaptor.td.jsonsrc import JsonDocument, parse_json
+from td2adaptor.frontend import jsonld
+from td2adaptor.frontend.bundled import load_schema
+from td2adaptor.frontend.jsonsrc import JsonDocument, parse_json
 
 from .conftest import REPO
 
@@ -135,7 +135,7 @@ def test_every_term_definition_means_the_same(official_context: Any) -> None:
 
 
 def test_our_context_is_not_a_copy(official_context: Any) -> None:
-    ours = (REPO / "schemas" / "td-context-1.1.jsonld").read_text(encoding="utf-8")
+    ours = (REPO / "td2adaptor" / "frontend" / "schemas" / "td-context-1.1.jsonld").read_text(encoding="utf-8")
     assert json.loads(ours) != official_context  # same meaning, our own spelling (compact IRIs)
     assert '"td:title"' in ours and "Copyright" not in ours
 
@@ -315,5 +315,5 @@ def test_canonical_output_is_stable_under_key_order() -> None:
 
 
 def test_pyld_is_imported_lazily() -> None:
-    code = "import sys, td2adaptor.td.jsonld; sys.exit('pyld' in sys.modules)"
+    code = "import sys, td2adaptor.frontend.jsonld; sys.exit('pyld' in sys.modules)"
     assert subprocess.run([sys.executable, "-c", code], cwd=REPO, check=False).returncode == 0

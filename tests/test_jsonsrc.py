@@ -5,7 +5,7 @@ from __future__ import annotations
 import io
 
 from td2adaptor.diagnostics import Diagnostics, Severity
-from td2adaptor.td.jsonsrc import load_path, parse_json
+from td2adaptor.frontend.jsonsrc import load_path, parse_json
 
 
 def test_positions_of_values_and_keys() -> None:

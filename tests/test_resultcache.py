@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 import td2adaptor
-from td2adaptor.compiler import Result
+from td2adaptor.compiler.pipeline import Result
 
 from .conftest import EXAMPLE
 

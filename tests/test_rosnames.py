@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import pytest
 
-from td2adaptor.model import RosName
-from td2adaptor.rosnames import (
+from td2adaptor.lowering.rosnames import (
     identifier_problem,
     name_problems,
     package_name,
     package_name_problem,
     split_namespace,
 )
+from td2adaptor.model import RosName
 
 
 @pytest.mark.parametrize(

@@ -10,8 +10,8 @@ from typing import Any
 import pytest
 
 from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity
-from td2adaptor.td.jsonsrc import JsonDocument, load_path, parse_json
-from td2adaptor.td.terms import CODES, check_terms
+from td2adaptor.frontend.jsonsrc import JsonDocument, load_path, parse_json
+from td2adaptor.frontend.terms import CODES, check_terms
 
 BASE: dict[str, Any] = {
     "@context": "https://www.w3.org/2022/wot/td/v1.1",

@@ -7,7 +7,7 @@ import ast
 from hypothesis import given
 from hypothesis import strategies as st
 
-from td2adaptor.backends.textsafe import c_comment, c_str, py_docstring, py_str, xml_text
+from td2adaptor.generation.textsafe import c_comment, c_str, py_docstring, py_str, xml_text
 
 nasty = st.text(alphabet=st.sampled_from(list("\"'\\*/?\n\r\x00<>&#{}%\u2028 abc")), max_size=30)
 
@@ -54,7 +54,7 @@ def test_xml_text_has_no_markup(text: str) -> None:
 
 @given(st.text(alphabet=st.sampled_from('ab "\\\u00e9\u4e2d\n\t\x01'), max_size=200), st.integers(4, 30))
 def test_wrap_lines_keeps_every_word_within_the_width(text: str, width: int) -> None:
-    from td2adaptor.backends.textsafe import _BREAKS, _JUNK, wrap_lines
+    from td2adaptor.generation.textsafe import _BREAKS, _JUNK, wrap_lines
 
     lines = wrap_lines(text, width)
     for line in lines:

@@ -14,8 +14,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from td2adaptor.diagnostics import Diagnostics, Severity
-from td2adaptor.td.jsonsrc import JsonDocument, load_path, parse_json
-from td2adaptor.td.thingmodel import (
+from td2adaptor.frontend.jsonsrc import JsonDocument, load_path, parse_json
+from td2adaptor.frontend.thingmodel import (
     CODES,
     check_against_model,
     instantiate,
@@ -711,7 +711,7 @@ def test_the_robot_td_validates_against_the_official_schema(shared_dir: Path) ->
 
 
 def test_the_robot_td_passes_check_td() -> None:
-    from td2adaptor.td.conformance import check_td  # written in parallel; present once integrated
+    from td2adaptor.frontend.conformance import check_td  # written in parallel; present once integrated
 
     td, _ = run("robot/rb1_base.tm.json", RB1_VALUES)
     diags = Diagnostics()
@@ -885,7 +885,7 @@ def test_playground_unavailable_parent_cannot_be_resolved(shared_dir: Path) -> N
 
 
 def test_playground_schema_and_resolution_together_reject_every_tm_invalid(shared_dir: Path) -> None:
-    from td2adaptor.td.conformance import check_tm  # written in parallel; present once integrated
+    from td2adaptor.frontend.conformance import check_tm  # written in parallel; present once integrated
 
     for path in playground(shared_dir, "tm_valid"):
         diags = Diagnostics()

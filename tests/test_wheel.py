@@ -1,4 +1,4 @@
-"""The wheel carries schemas/ and templates/: build it, install it outside the repo, validate there."""
+"""The wheel carries its schemas, templates and verbatim files: build it, install it outside the repo, use it there."""
 
 from __future__ import annotations
 
@@ -53,18 +53,24 @@ def test_wheel_installs_and_validates_outside_the_repo(tmp_path: Path) -> None:
     )
     assert proc.returncode == 0, proc.stderr
     assert '"valid": true' in proc.stdout
-    where = subprocess.run(
-        [
-            str(py),
-            "-c",
-            "import td2adaptor.resources as r; print(r.data_dir('schemas')); print(r.data_dir('templates'))",
-        ],
+    # every backend generates from the wheel's own templates and verbatim files
+    gen = subprocess.run(
+        [str(py), "-m", "td2adaptor", "gen", "rb1/td.json", "-I", "rb1/interfaces", "--partial", "-o", "out"],
         cwd=work,
         capture_output=True,
         text=True,
         env=env,
-        check=True,
-    ).stdout.split()
-    assert all(Path(p).is_relative_to(Path(target)) for p in where), where
-    assert (Path(where[0]) / "td-1.1.schema.json").is_file()
-    assert (Path(target) / "td2adaptor" / "rostypes" / "interfaces" / "std_srvs" / "srv" / "Trigger.srv").is_file()
+        timeout=300,
+    )
+    assert gen.returncode == 0, gen.stderr
+    for backend in ("rclpy", "rospy", "mros", "events"):
+        assert (work / "out" / backend).is_dir(), backend
+    installed = Path(target) / "td2adaptor"
+    assert (installed / "frontend" / "schemas" / "td-1.1.schema.json").is_file()
+    assert (installed / "rostypes" / "interfaces" / "std_srvs" / "srv" / "Trigger.srv").is_file()
+    assert (installed / "py.typed").is_file()
+    # the demo needs the source checkout, and says so in one line
+    demo = subprocess.run(
+        [str(py), "-m", "td2adaptor", "demo", "warehouse"], cwd=work, capture_output=True, text=True, env=env
+    )
+    assert demo.returncode == 1 and "source checkout" in demo.stderr and "Traceback" not in demo.stderr

@@ -11,18 +11,18 @@ import pytest
 from click.testing import CliRunner
 
 import td2adaptor
-from td2adaptor import backends
-from td2adaptor.backends import GeneratedTree
-from td2adaptor.cli import cli
+from td2adaptor.cli.main import cli
 from td2adaptor.diagnostics import Diagnostics
-from td2adaptor.emit import MANIFEST, path_problem, plan, write
+from td2adaptor.generation import registry as backends
+from td2adaptor.generation.backend import GeneratedTree
+from td2adaptor.generation.emit import MANIFEST, path_problem, plan, write
 
 from .conftest import EXAMPLE
 
 
 @pytest.fixture(autouse=True)
 def dummy_backend(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setitem(backends.BACKENDS, "dummy", "tests.workflow.dummy_backend")
+    monkeypatch.setitem(backends.modules(), "dummy", "tests.workflow.dummy_backend")
 
 
 @pytest.fixture

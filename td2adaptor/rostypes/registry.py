@@ -117,7 +117,7 @@ def _base_fielddefs(distro: Distro) -> dict[str, Any]:
     """
     import importlib.util
 
-    from td2adaptor import cache
+    from td2adaptor.support import cache
 
     key = ""
     spec = importlib.util.find_spec("rosbags")

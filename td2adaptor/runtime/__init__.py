@@ -2,7 +2,7 @@
 
 `RobotPort` (port.py) is the robot side, `Bus` (bus.py) the event side with a local and an MQTT
 implementation, `Engine` (engine.py) the loop between them, `serve` (app.py) puts them together from a
-`RuntimeConfig` (config.py). The event schemas come from `td2adaptor.backends.events_catalog`.
+`RuntimeConfig` (config.py). The event schemas come from `td2adaptor.model.events`.
 `genport.GeneratedPort` drives a robot through a generated rclpy/rospy package, `ros.py` connects it to a
 ROS graph, `bridge.py` runs the ROS 1 side in ROS 1's own interpreter, `node.py` is `td2adaptor run`.
 

@@ -15,7 +15,7 @@ from typing import Any
 
 import yaml
 
-from td2adaptor.backends.events_catalog import ALL_ROBOTS, ROBOT_ID, TOPIC_ROOT
+from td2adaptor.model.events import ALL_ROBOTS, ROBOT_ID, TOPIC_ROOT
 
 
 class ConfigError(Exception):

@@ -13,7 +13,7 @@ from jsonschema import Draft202012Validator  # type: ignore[import-untyped, unus
 from referencing import Registry, Resource
 from referencing.jsonschema import DRAFT202012
 
-from td2adaptor.backends.events_catalog import EventCatalog, EventSpec, Kind
+from td2adaptor.model.events import EventCatalog, EventSpec, Kind
 
 MAX_ERRORS = 10
 EXCERPT = 1024

@@ -10,7 +10,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from td2adaptor.backends.events_catalog import TERMINAL_STATES
+from td2adaptor.model.events import TERMINAL_STATES
 
 
 @dataclass(frozen=True)

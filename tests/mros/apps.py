@@ -9,9 +9,10 @@ from pathlib import Path
 from typing import Any
 
 import td2adaptor
-from td2adaptor.backends import GeneratedTree, GenOptions, mros_lint
-from td2adaptor.backends import mros as backend
+from td2adaptor.backends.mros import generator as backend
+from td2adaptor.backends.mros import lint as mros_lint
 from td2adaptor.diagnostics import Diagnostics, Severity
+from td2adaptor.generation.backend import GeneratedTree, GenOptions
 from td2adaptor.model import Model
 
 from ..conftest import EXAMPLE

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from td2adaptor.backends.mros_types import Capacities, TypeViews
+from td2adaptor.backends.mros.types import Capacities, TypeViews
 from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.rostypes.registry import TypeRegistry
 

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from hypothesis import strategies as st
 
-from td2adaptor.backends.mros_types import PRIMITIVES, MessageView, TypeViews
+from td2adaptor.backends.mros.types import PRIMITIVES, MessageView, TypeViews
 from td2adaptor.model import ArrayKind, FieldType, TypeTable
 
 INT_RANGES = {

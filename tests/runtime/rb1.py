@@ -11,8 +11,8 @@ from typing import Any
 
 import td2adaptor
 from examples.robotnik_rb1.sim.core import RobotSim
-from td2adaptor.backends.events_catalog import EventCatalog, Kind, build_catalog
 from td2adaptor.model import Model
+from td2adaptor.model.events import EventCatalog, Kind, build_catalog
 from td2adaptor.runtime.events import EventValidator
 from td2adaptor.runtime.localbus import LocalBroker, LocalBus
 

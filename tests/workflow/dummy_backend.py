@@ -6,8 +6,8 @@ exercise new, changed, unchanged and removed files.
 
 from __future__ import annotations
 
-from td2adaptor.backends import GeneratedTree, GenOptions
 from td2adaptor.diagnostics import Diagnostics
+from td2adaptor.generation.backend import GeneratedTree, GenOptions
 from td2adaptor.model import Model
 
 NAME = "dummy"

@@ -1,0 +1,350 @@
+"""`--backend events`: the event contract of an adaptor, for applications that talk to robots over a bus.
+
+Writes, under OUT/events/:
+
+* `schemas/<Component>.events.schema.json`: JSON Schema 2020-12 of every event of a component, each under
+  `$defs/<affordance>.<kind>` (see `events_catalog` for the topic scheme); `schemas/error.schema.json` and
+  `schemas/status.schema.json` for the robot-level events; all refer to `schemas/envelope.schema.json` for
+  the shared fields;
+* `asyncapi.json`: an AsyncAPI 3.0 document (MQTT channels, operations, messages referring to the schemas);
+* `td.mqtt.json`: the robot's exposed Thing Description, the same Thing with W3C MQTT binding forms (`mqv:`),
+  so a standard WoT consumer can invoke the actions, observe the properties and subscribe to the feedback;
+  `{{robotName}}` in its topics is the robot id the runtime fills in;
+* `README.md`: the topic table.
+
+Invoke payloads follow the TD's input schema (the contract the Thing publishes, cross-checked against the ROS
+request type at validation time); where a TD gives none, the ROS request type's schema (`msgschema`).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import orjson
+
+from td2adaptor.diagnostics import Diagnostics
+from td2adaptor.frontend.terms import DATA_SCHEMA
+from td2adaptor.generation.backend import GeneratedTree, GenOptions
+from td2adaptor.generation.templating import environment
+from td2adaptor.model import Model, thaw
+from td2adaptor.model.events import (
+    ALL_ROBOTS,
+    TOPIC_ROOT,
+    EventCatalog,
+    EventSpec,
+    Kind,
+    build_catalog,
+)
+
+TEMPLATES = Path(__file__).parent / "templates"
+
+
+TD_CONTEXT = "https://www.w3.org/2022/wot/td/v1.1"
+MQV_NAMESPACE = "http://www.example.org/mqtt-binding#"
+ROBOT_PLACEHOLDER = "{{robotName}}"
+DEFAULT_BROKER = "mqtt://localhost:1883"
+SCHEMA_FORMAT = "application/schema+json;version=draft-2020-12"
+MQTT_BINDING_VERSION = "0.2.0"
+
+
+def dump(data: Any) -> str:
+    """Deterministic JSON text: insertion order (TD order), two-space indent, final newline.
+
+    orjson writes the layout of `json.dumps(indent=2, ensure_ascii=False)` (a test holds them equal; only a
+    float's exponent may be spelled differently, both exact) ten times faster, which matters with one schema
+    file per event; what orjson refuses (integers beyond 64 bits, very deep nesting) goes through `json`.
+    """
+    try:
+        return orjson.dumps(data, option=orjson.OPT_INDENT_2 | orjson.OPT_APPEND_NEWLINE).decode("utf-8")
+    except (orjson.JSONEncodeError, RecursionError):
+        return json.dumps(data, indent=2, ensure_ascii=False) + "\n"
+
+
+# ---------------------------------------------------------------------------------------------------------
+# exposed TD
+
+
+def td_schema(schema: Any) -> Any:
+    """A JSON Schema reduced to TD data-schema terms (a TD has no `$ref`, `not`, `false` schemas, ...)."""
+    if not isinstance(schema, Mapping):
+        return {}
+    out: dict[str, Any] = {}
+    for key, value in schema.items():
+        if key not in DATA_SCHEMA:
+            continue
+        if key == "properties" and isinstance(value, Mapping):
+            out[key] = {n: td_schema(s) for n, s in value.items() if s is not False}
+        elif key == "items" and isinstance(value, Mapping):
+            out[key] = td_schema(value)
+        elif key in ("oneOf", "allOf", "anyOf") and isinstance(value, list):
+            out[key] = [td_schema(s) for s in value if isinstance(s, Mapping)]
+        else:
+            out[key] = value
+    if "required" in out and "properties" in out:
+        out["required"] = [r for r in out["required"] if r in out["properties"]]
+    return out
+
+
+def standalone(spec: EventSpec, catalog: EventCatalog) -> dict[str, Any]:
+    """The event schema with the envelope merged in, as a self-contained TD data schema."""
+    props: dict[str, Any] = {}
+    for name, sub in catalog.envelope["properties"].items():
+        own = spec.schema["properties"].get(name)
+        if own is False:
+            continue
+        merged = dict(sub)
+        if isinstance(own, Mapping):
+            merged.update({k: v for k, v in own.items() if k != "not"})
+            if "const" in own:
+                merged.pop("enum", None)
+        props[name] = merged
+    schema: dict[str, Any] = {
+        "title": spec.title,
+        "type": "object",
+        "properties": props,
+        "required": list(spec.schema["required"]),
+    }
+    if spec.description:
+        schema["description"] = spec.description
+    return dict(td_schema(schema))
+
+
+def _form(broker: str, topic: str, op: str | list[str], packet: str, **extra: Any) -> dict[str, Any]:
+    form: dict[str, Any] = {"href": broker, "op": op, "contentType": "application/json", "mqv:topic": topic}
+    form["mqv:controlPacket"] = packet
+    form.update(extra)
+    return form
+
+
+def exposed_td(
+    model: Model,
+    catalog: EventCatalog | None = None,
+    *,
+    robot: str = ROBOT_PLACEHOLDER,
+    broker: str = DEFAULT_BROKER,
+    root: str = TOPIC_ROOT,
+) -> dict[str, Any]:
+    """The robot's Thing Description with MQTT forms on the adaptor's topics."""
+    catalog = catalog or build_catalog(model)
+    thing = model.thing
+    td: dict[str, Any] = {"@context": [TD_CONTEXT, {"mqv": MQV_NAMESPACE}], "@type": "Thing"}
+    if thing.id:
+        td["id"] = f"{thing.id}:{robot}" if robot != ROBOT_PLACEHOLDER else thing.id
+    td["title"] = thing.title
+    description = f"{thing.title} ({robot}) through its td2adaptor event adaptor."
+    if thing.description:
+        description = f"{thing.description} {description}"
+    td["description"] = description
+    if thing.version:
+        td["version"] = {"instance": thing.version}
+    security = thaw(thing.security) if isinstance(thing.security, Mapping) and thing.security else None
+    if not security:
+        security = {"nosec_sc": {"scheme": "nosec"}}
+    td["securityDefinitions"] = security
+    td["security"] = list(security)
+    properties: dict[str, Any] = {}
+    actions: dict[str, Any] = {}
+    events: dict[str, Any] = {}
+    for spec in catalog.specs:
+        topic = spec.topic(robot, root)
+        data = standalone(spec, catalog)
+        assert spec.affordance is not None or spec.component is None
+        if spec.kind is Kind.PROPERTY and spec.affordance:
+            prop = {**data, "readOnly": True, "writeOnly": False, "observable": True}
+            prop["forms"] = [
+                _form(broker, topic, ["readproperty", "observeproperty"], "mqv:subscribe", **{"mqv:retain": True}),
+                _form(broker, topic, "unobserveproperty", "mqv:unsubscribe"),
+            ]
+            properties[spec.affordance] = prop
+        elif spec.kind is Kind.WRITE and spec.affordance:
+            prop = {**data, "readOnly": False, "writeOnly": True, "observable": False}
+            prop["forms"] = [_form(broker, topic, "writeproperty", "mqv:publish")]
+            properties[spec.affordance] = prop
+        elif spec.kind in (Kind.INVOKE, Kind.QUERY, Kind.CANCEL) and spec.affordance:
+            action: dict[str, Any] = {"title": data.pop("title")}
+            if "description" in data:
+                action["description"] = data.pop("description")
+            action["input"] = data
+            action["safe"] = spec.kind is Kind.QUERY
+            action["idempotent"] = spec.kind is not Kind.INVOKE
+            action["synchronous"] = False
+            action["forms"] = [_form(broker, topic, "invokeaction", "mqv:publish")]
+            actions[spec.affordance] = action
+        else:
+            name = {Kind.FEEDBACK: "Feedback", Kind.STATE: "State"}.get(spec.kind, "")
+            key = f"{spec.affordance}{name}" if spec.affordance else spec.kind.value
+            event: dict[str, Any] = {"title": data.pop("title")}
+            if "description" in data:
+                event["description"] = data.pop("description")
+            event["data"] = data
+            retain = {"mqv:retain": True} if spec.kind is Kind.STATUS else {}
+            event["forms"] = [
+                _form(broker, topic, "subscribeevent", "mqv:subscribe", **retain),
+                _form(broker, topic, "unsubscribeevent", "mqv:unsubscribe"),
+            ]
+            events[key] = event
+    for name, section in (("properties", properties), ("actions", actions), ("events", events)):
+        if section:
+            td[name] = section
+    return td
+
+
+# ---------------------------------------------------------------------------------------------------------
+# AsyncAPI 3.0
+
+
+def _security_schemes(model: Model) -> dict[str, Any]:
+    schemes: dict[str, Any] = {}
+    security = model.thing.security if isinstance(model.thing.security, Mapping) else {}
+    for name, definition in security.items():
+        scheme = definition.get("scheme") if isinstance(definition, Mapping) else None
+        if scheme == "basic":
+            schemes[name] = {"type": "userPassword", "description": "MQTT username and password."}
+        elif scheme == "psk":
+            schemes[name] = {"type": "symmetricEncryption", "description": "TLS pre-shared key."}
+    return schemes
+
+
+def asyncapi(model: Model, catalog: EventCatalog | None = None, *, root: str = TOPIC_ROOT) -> dict[str, Any]:
+    """An AsyncAPI 3.0 document of the adaptor (the application described is the adaptor)."""
+    catalog = catalog or build_catalog(model)
+    channels: dict[str, Any] = {}
+    operations: dict[str, Any] = {}
+    messages: dict[str, Any] = {}
+    replies = {
+        Kind.INVOKE: Kind.FEEDBACK,
+        Kind.QUERY: Kind.STATE,
+        Kind.CANCEL: Kind.STATE,
+    }
+    for spec in catalog.specs:
+        msg_ref = {"$ref": f"#/components/messages/{spec.key}"}
+        message: dict[str, Any] = {
+            "name": spec.key,
+            "title": spec.title,
+            "contentType": "application/json",
+            "correlationId": {"location": "$message.payload#/correlation"},
+            "payload": {"schemaFormat": SCHEMA_FORMAT, "schema": {"$ref": spec.schema_ref}},
+        }
+        if spec.description:
+            message["summary"] = spec.description
+        messages[spec.key] = message
+        robots = [("{robot}", spec.key)]
+        if spec.kind.inbound:
+            robots.append((ALL_ROBOTS, f"{spec.key}.{ALL_ROBOTS}"))
+        for robot, channel_key in robots:
+            channel: dict[str, Any] = {"address": spec.topic(robot, root), "title": spec.title}
+            if robot == ALL_ROBOTS:
+                channel["description"] = "The all-robots channel: every adaptor of this Thing receives it."
+            else:
+                channel["parameters"] = {"robot": {"$ref": "#/components/parameters/robot"}}
+            channel["messages"] = {spec.key: msg_ref}
+            channels[channel_key] = channel
+            retain = spec.kind in (Kind.PROPERTY, Kind.STATUS)
+            operation: dict[str, Any] = {
+                "action": "receive" if spec.kind.inbound else "send",
+                "channel": {"$ref": f"#/channels/{channel_key}"},
+                "title": spec.title,
+                "messages": [{"$ref": f"#/channels/{channel_key}/messages/{spec.key}"}],
+                "bindings": {"mqtt": {"qos": 1, "retain": retain, "bindingVersion": MQTT_BINDING_VERSION}},
+            }
+            reply_kind = replies.get(spec.kind)
+            if reply_kind is not None:
+                target = spec.run if spec.kind is not Kind.INVOKE else spec.affordance
+                reply = catalog.find(reply_kind, target)
+                operation["reply"] = {
+                    "channel": {"$ref": f"#/channels/{reply.key}"},
+                    "messages": [{"$ref": f"#/channels/{reply.key}/messages/{reply.key}"}],
+                }
+            prefix = "receive" if spec.kind.inbound else "send"
+            operations[f"{prefix}.{channel_key}"] = operation
+    schemes = _security_schemes(model)
+    server: dict[str, Any] = {
+        "host": "{host}",
+        "protocol": "mqtt",
+        "protocolVersion": "5",
+        "description": (
+            "The MQTT broker the adaptors and applications share. Adaptors connect with a persistent session "
+            f"(client id td2adaptor-<robot>) and QoS 1, and leave {root}/<robot>/status offline as their last will."
+        ),
+        "variables": {"host": {"default": "localhost:1883", "description": "Broker host and port."}},
+        "bindings": {
+            "mqtt": {
+                "cleanSession": False,
+                "keepAlive": 30,
+                "sessionExpiryInterval": 3600,
+                "bindingVersion": MQTT_BINDING_VERSION,
+            }
+        },
+    }
+    if schemes:
+        server["security"] = [{"$ref": f"#/components/securitySchemes/{n}"} for n in schemes]
+    thing = model.thing
+    info: dict[str, Any] = {"title": f"{thing.title} events", "version": thing.version or "1.0.0"}
+    info["description"] = (
+        f"Events of the td2adaptor adaptor of {thing.title}: applications publish invoke, query, cancel and "
+        "write events; the adaptor answers with feedback on every state change, state, property, error and "
+        "status events."
+    )
+    components: dict[str, Any] = {
+        "messages": messages,
+        "parameters": {
+            "robot": {
+                "description": f"Robot id (the reserved id {ALL_ROBOTS!r} is the all-robots channel).",
+                "examples": ["rb1_base_a"],
+            }
+        },
+    }
+    if schemes:
+        components["securitySchemes"] = schemes
+    return {
+        "asyncapi": "3.0.0",
+        "info": info,
+        "defaultContentType": "application/json",
+        "servers": {"broker": server},
+        "channels": channels,
+        "operations": operations,
+        "components": components,
+    }
+
+
+# ---------------------------------------------------------------------------------------------------------
+# README
+
+
+def _md(text: str) -> str:
+    """Markdown-safe inline text: no line breaks, no table or HTML syntax from the TD."""
+    text = " ".join(text.split())
+    for ch in "\\`*_[]<>|#":
+        text = text.replace(ch, "\\" + ch)
+    return text
+
+
+def _readme(model: Model, catalog: EventCatalog) -> str:
+    env = environment(TEMPLATES, trim=False)
+    rows = [
+        {
+            "topic": spec.topic("<robot>"),
+            "direction": "in" if spec.kind.inbound else "out",
+            "kind": spec.kind.value,
+            "schema": spec.schema_ref,
+            "file": spec.schema_file,
+        }
+        for spec in catalog.specs
+    ]
+    return env.get_template("README.md.j2").render(title=_md(model.thing.title), rows=rows, all_robots=ALL_ROBOTS)
+
+
+def generate(model: Model, options: GenOptions, diags: Diagnostics) -> GeneratedTree:
+    """Schemas, AsyncAPI document, exposed TD and README of `model`'s events."""
+    del options, diags  # nothing to choose, nothing that can fail: every model has an event contract
+    catalog = build_catalog(model)
+    tree = GeneratedTree()
+    tree.add("README.md", _readme(model, catalog))
+    tree.add("asyncapi.json", dump(asyncapi(model, catalog)))
+    tree.add("td.mqtt.json", dump(exposed_td(model, catalog)))
+    for path, document in catalog.files:
+        tree.add(path, dump(document))
+    return tree

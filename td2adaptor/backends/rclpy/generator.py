@@ -1,0 +1,867 @@
+"""The rclpy backend: an ament_python ROS 2 package of typed component classes, with stubs for its messages.
+
+Everything a template prints is computed here (the view model); the templates in `templates/rclpy/` only
+loop and print. Every TD string reaches the output through `textsafe`. Output, under `<package>/`:
+package.xml, setup.py, setup.cfg (also the mypy configuration), ruff.toml, README.md, resource/<package>,
+`<package>/` (components, convert, runtime, errors, py.typed) and `stubs/` (typed stubs of the interface
+packages used, because rosidl's Python messages carry no type information).
+"""
+
+from __future__ import annotations
+
+import keyword
+import re
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from td2adaptor.backends.rclpy import types as rt
+from td2adaptor.diagnostics import Diagnostics, Severity
+from td2adaptor.generation import textsafe as ts
+from td2adaptor.generation.backend import GeneratedTree, GenOptions
+from td2adaptor.generation.templating import render
+from td2adaptor.model import (
+    ArrayKind,
+    Component,
+    FieldType,
+    MessageDef,
+    Model,
+    ProcedureRole,
+    Role,
+    RosName,
+    ServiceDef,
+    ServiceEndpoint,
+    Text,
+    TopicEndpoint,
+    TypeTable,
+)
+
+TEMPLATES = Path(__file__).parent / "templates"
+
+
+DEFAULT_TIMEOUT = 10.0
+DEFAULT_WAIT_TIMEOUT = 5.0
+LINE = 120  # line length of the generated package (its ruff.toml)
+VERSION = re.compile(r"^[0-9]+\.[0-9]+\.[0-9]+$")
+
+#: names the components module defines or imports besides message classes (messages get aliases instead)
+RESERVED = frozenset(
+    {
+        "annotations",
+        "Any",
+        "Callable",
+        "Mapping",
+        "Sequence",
+        "Node",
+        "DEFAULT_TIMEOUT",
+        "DEFAULT_WAIT_TIMEOUT",
+        "LAST_MISSION",
+        "ServiceCaller",
+        "Started",
+        "TopicPublisher",
+        "TopicSubscriber",
+        "check_namespace",
+        "check_timeout",
+        "name_in",
+        "procedure_failure",
+        "qos_profile",
+        "success_failure",
+        "check_fields",
+        "NDArray",
+        "Final",
+        "array",
+    }
+)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# small helpers
+
+
+def wrap(text: str, width: int) -> list[str]:
+    """Greedy word wrap measured in escaped characters (whitespace, line breaks included, collapses)."""
+    return ts.wrap_lines(" ".join(text.split()), width)
+
+
+def docstring(paragraphs: Iterable[str | None], indent: str) -> str:
+    """A docstring literal of the non-empty paragraphs, wrapped to the package's line length, escaped."""
+    width = LINE - len(indent) - 8
+    blocks = ["\n".join(wrap(p, width)) for p in paragraphs if p and p.strip()]
+    return ts.py_docstring("\n\n".join(b for b in blocks if b), indent, fallback="(no description)")
+
+
+def text_paragraphs(text: Text, name: str) -> list[str]:
+    """Title and description of an affordance, as docstring paragraphs."""
+    first = text.title or name
+    out = [first if first.rstrip().endswith((".", "!", "?", ":")) else first + "."]
+    if text.description and text.description.strip() != (text.title or "").strip():
+        out.extend(p for p in re.split(r"\n\s*\n", text.description) if p.strip())
+    return out
+
+
+def pyname(name: str) -> str:
+    """A message field as a Python parameter name (keywords and `self` get a trailing `_`)."""
+    return name + "_" if keyword.iskeyword(name) or name == "self" else name
+
+
+def import_key(name: str) -> tuple[int, str, str]:
+    """isort's order-by-type within one `from` import: CONSTANTS, Classes, functions."""
+    bare = name.split(" as ")[0]
+    kind = 0 if bare.isupper() and len(bare) > 1 else 1 if bare[:1].isupper() else 2
+    return (kind, bare.lower(), bare)
+
+
+STDLIB = frozenset({"array", "collections.abc", "typing"})
+
+
+@dataclass(frozen=True)
+class Import:
+    module: str
+    names: tuple[str, ...] = ()  # "Name" or "Name as alias", isort order; () for `import module`
+
+    @property
+    def line(self) -> str:
+        return f"from {self.module} import {', '.join(self.names)}" if self.names else f"import {self.module}"
+
+    @property
+    def wrapped(self) -> list[str]:
+        """The names one per line when the single line would be too long (ruff's wrapping)."""
+        return list(self.names) if len(self.line) > LINE else []
+
+
+def import_sections(pairs: Iterable[tuple[str, str]], plain: Iterable[str] = ()) -> list[list[Import]]:
+    """Import blocks as ruff's isort writes them: stdlib, third party, local; `import x` before `from x`."""
+    grouped: dict[str, set[str]] = {}
+    for module, name in pairs:
+        grouped.setdefault(module, set()).add(name)
+    froms = [
+        Import(m, tuple(sorted(n, key=import_key))) for m, n in sorted(grouped.items(), key=lambda kv: kv[0].lower())
+    ]
+    plains = [Import(m) for m in sorted(set(plain))]
+    sections = [
+        [i for i in plains if i.module in STDLIB] + [i for i in froms if i.module in STDLIB],
+        [i for i in plains if i.module not in STDLIB]
+        + [i for i in froms if i.module not in STDLIB and not i.module.startswith(".")],
+        [i for i in froms if i.module.startswith(".")],
+    ]
+    return [s for s in sections if s]
+
+
+def module_of(type_name: str) -> tuple[str, str]:
+    """`pkg/msg/Name` → ("pkg.msg", "Name"); `pkg/srv/Name_Request` → ("pkg.srv", "Name_Request")."""
+    pkg, kind, short = type_name.split("/")
+    return f"{pkg}.{kind}", short
+
+
+class Namer:
+    """Local Python names for interface classes in one module: the short name unless it clashes."""
+
+    def __init__(self, wanted: Iterable[str], reserved: Iterable[str]) -> None:
+        wanted = sorted(set(wanted))
+        shorts: dict[str, list[str]] = {}
+        for full in wanted:
+            shorts.setdefault(module_of(full)[1], []).append(full)
+        taken = set(reserved)
+        self.local: dict[str, str] = {}
+        for full in wanted:
+            short = module_of(full)[1]
+            if len(shorts[short]) == 1 and short not in taken:
+                self.local[full] = short
+            else:
+                self.local[full] = full.split("/")[0] + "_" + short
+        self.reserved = frozenset(reserved)
+
+    def __getitem__(self, full: str) -> str:
+        return self.local[full]
+
+    def import_pairs(self) -> list[tuple[str, str]]:
+        out = []
+        for full, local in self.local.items():
+            module, short = module_of(full)
+            out.append((module, short if local == short else f"{short} as {local}"))
+        return out
+
+
+def converter_name(msg: str) -> str:
+    pkg, _, short = msg.split("/")
+    return f"to_{pkg}_{short}"
+
+
+# ---------------------------------------------------------------------------------------------------------
+# the view model
+
+
+@dataclass
+class ParamView:
+    name: str
+    key: str  # the field name as a str literal
+    annotation: str
+    default: str
+    field: str
+    convert: str  # expression, the parameter (or mapping item) already substituted
+    optional: bool
+
+
+@dataclass
+class ConstructView:
+    method: str
+    result: str  # local class name of the message or request it returns
+    params: list[ParamView]
+    doc: str
+    optional: bool  # some parameter may be None: the fields are collected in a dict
+
+
+@dataclass
+class CallView:
+    name: str
+    attr: str
+    srv: str
+    request: str
+    response: str
+    ros_name: str  # Python expression
+    failure: str  # "procedure_failure", "success_failure" or "None"
+    construct: ConstructView
+    returns: str
+    doc: str
+    async_doc: str
+    run_id: str | None = None  # `response.state.header.id` for procedure runs
+    last_attr: str | None = None  # `self._last_<run>_id`: runs set it, queries and cancels read it
+    mission_field: str | None = None  # `request.header.id` for queries and cancels
+
+
+@dataclass
+class TopicView:
+    name: str
+    attr: str
+    msg: str
+    ros_name: str
+    qos: str
+    subscriber: bool
+    doc: str
+    on_doc: str = ""
+    construct: ConstructView | None = None
+
+
+@dataclass
+class ComponentView:
+    name: str
+    doc: str
+    calls: list[CallView]
+    topics: list[TopicView]
+    last_ids: list[str]
+    value: TopicView | None  # the only subscribed property, for get_value()
+    value_doc: str
+
+
+@dataclass
+class ConverterView:
+    name: str
+    msg: str  # local class name
+    fields: list[ParamView]  # convert reads `value["field"]`
+    field_names: str  # tuple literal
+    type_name: str  # str literal
+    doc: str
+
+
+@dataclass
+class StubField:
+    name: str
+    getter: str
+    init: str
+
+
+@dataclass
+class StubClass:
+    name: str
+    constants: list[str]  # `NAME: Final = value`
+    fields: list[StubField]
+    request: str | None = None  # service classes: their Request and Response aliases
+    response: str | None = None
+
+
+@dataclass
+class StubModule:
+    path: str
+    doc: str
+    imports: list[list[Import]]
+    classes: list[StubClass]
+
+
+@dataclass
+class PackageView:
+    package: str
+    version: str
+    description_xml: str
+    readme_title: str
+    readme_description: str
+    module_doc: str
+    components_doc: str
+    exec_depends: list[str]
+    components: list[ComponentView]
+    component_imports: list[list[Import]]
+    converters: list[ConverterView]
+    convert_imports: list[list[Import]]
+    stubs: list[StubModule]
+    stub_files: list[str]
+    exports: list[str]
+    export_imports: list[list[Import]]
+    example: str  # first component, for the README
+    timeout: str
+    wait_timeout: str
+
+
+_ERRORS = (
+    "AdaptorError",
+    "CallFailed",
+    "CallTimeout",
+    "ExecutorError",
+    "InvalidNamespace",
+    "NoMessage",
+    "ServiceUnavailable",
+)
+_RUNTIME_EXPORTS = ("LAST_MISSION", "Spinner", "Started", "spin_in_background")
+
+
+# ---------------------------------------------------------------------------------------------------------
+# building it
+
+
+def _is(ftype: FieldType | None, base: str) -> bool:
+    return ftype is not None and ftype.base == base and ftype.array is ArrayKind.NONE and not ftype.is_message
+
+
+def _import_name(full: str, local: str) -> str:
+    short = module_of(full)[1]
+    return short if local == short else f"{short} as {local}"
+
+
+def _tuple_literal(items: Sequence[str]) -> str:
+    if len(items) == 1:
+        return f"({ts.py_str(items[0])},)"
+    return "(" + ", ".join(ts.py_str(i) for i in items) + ")"
+
+
+class Builder:
+    def __init__(self, model: Model, options: GenOptions, diags: Diagnostics) -> None:
+        self.model = model
+        self.types: TypeTable = model.ros2
+        self.diags = diags
+        self.partial = options.partial
+        self.package = options.package_name or model.package_name
+        # what components.py refers to, so that it imports exactly that
+        self.msg_used: set[str] = set()
+        self.conv_used: set[str] = set()
+        self.runtime_used: set[str] = {"DEFAULT_TIMEOUT", "DEFAULT_WAIT_TIMEOUT", "check_namespace", "check_timeout"}
+        self.std_used: set[tuple[str, str]] = set()
+
+    # -- what the model asks for, and whether rclpy can express it
+
+    def _skip(self, comp: Component, member: str, pointer: str, problem: str) -> None:
+        if self.partial:
+            self.diags.warning("GEN821", f"rclpy backend: skipped {comp.name}.{member}: {problem}", pointer)
+        else:
+            self.diags.error(
+                "GEN820", f"rclpy backend: {comp.name}.{member}: {problem}", pointer, hint="--partial skips it"
+            )
+
+    def usable_services(self, comp: Component) -> list[ServiceEndpoint]:
+        out = []
+        for svc in comp.services:
+            if "/action/" in svc.type_name:
+                self._skip(comp, svc.name, svc.pointer, "ROS 2 actions are not generated yet")
+            elif not isinstance(self.types.get(svc.type_name), ServiceDef):
+                self._skip(comp, svc.name, svc.pointer, f"type {svc.type_name} does not resolve for ROS 2 (Jazzy)")
+            else:
+                out.append(svc)
+        return out
+
+    def usable_topics(self, comp: Component) -> list[TopicEndpoint]:
+        out = []
+        for topic in comp.topics:
+            if isinstance(self.types.get(topic.type_name), MessageDef):
+                out.append(topic)
+            else:
+                self._skip(
+                    comp, topic.name, topic.pointer, f"type {topic.type_name} does not resolve for ROS 2 (Jazzy)"
+                )
+        return out
+
+    def check_names(self, comp: Component, services: list[ServiceEndpoint], topics: list[TopicEndpoint]) -> bool:
+        """Generated method names must not clash (e.g. an action and a property of the same name)."""
+        fixed = {"register", "robot_name", "node", "timeout", "wait_timeout"}
+        members: dict[str, str] = {}
+        ok = True
+        wanted: list[tuple[str, str]] = []
+        for s in services:
+            wanted += [(m, s.name) for m in (f"construct_{s.name}_Msg", f"call_{s.name}", f"call_{s.name}_async")]
+        subscribers = 0
+        for t in topics:
+            if t.role is Role.SUBSCRIBER:
+                subscribers += 1
+                wanted += [(f"get_{t.name}_value", t.name), (f"on_{t.name}", t.name)]
+            else:
+                wanted += [(f"construct_{t.name}_Msg", t.name), (f"publish_{t.name}_Msg", t.name)]
+        if subscribers == 1:
+            wanted.append(("get_value", "the only subscribed property"))
+        for member, owner in wanted:
+            if member in fixed or member in members:
+                other = members.get(member, "a member every component has")
+                self.diags.error(
+                    "GEN822",
+                    f"rclpy backend: {comp.name}: method {member} of {owner} clashes with {other}",
+                    hint="rename one of the affordances",
+                )
+                ok = False
+            members[member] = owner
+        return ok
+
+    # -- types
+
+    def message(self, name: str) -> MessageDef:
+        return self.types.message(name)
+
+    def reachable(self, roots: Iterable[str]) -> list[str]:
+        """Message types reachable from `roots` through message fields, sorted."""
+        seen: set[str] = set()
+        todo = list(roots)
+        while todo:
+            name = todo.pop()
+            if name not in seen:
+                seen.add(name)
+                todo.extend(f.type.base for f in self.message(name).fields if f.type.is_message)
+        return sorted(seen)
+
+    @staticmethod
+    def type_label(name: str) -> str:
+        for suffix in ("_Request", "_Response"):
+            if name.endswith(suffix):
+                return name[: -len(suffix)]
+        return name
+
+    def failure(self, response: MessageDef) -> str:
+        """How a response reports failure: procedures_msgs-style result, std_srvs-style success, or not at all."""
+        fields = {f.name: f.type for f in response.fields}
+        result = fields.get("result")
+        if result is not None and result.is_message and result.array is ArrayKind.NONE:
+            inner = {f.name: f.type for f in self.message(result.base).fields}
+            if _is(inner.get("result"), "string") and _is(inner.get("message"), "string"):
+                return "procedure_failure"
+        if _is(fields.get("success"), "bool") and _is(fields.get("message"), "string"):
+            return "success_failure"
+        return "None"
+
+    def mission_path(self, svc: ServiceDef, response_path: Sequence[str]) -> str | None:
+        """Where a query/cancel request carries the mission id: the longest suffix of the run response's
+        mission-id path that is an integer field of the request (`header/id` for `state/header/id`)."""
+        for start in range(len(response_path)):
+            path = response_path[start:]
+            msg: MessageDef | None = svc.request
+            for i, part in enumerate(path):
+                found = next((x for x in msg.fields if x.name == part), None) if msg is not None else None
+                if found is None or found.type.array is not ArrayKind.NONE:
+                    break
+                if i == len(path) - 1:
+                    if found.type.base in rt.INTS:
+                        return ".".join(path)
+                    break
+                msg = self.message(found.type.base) if found.type.is_message else None
+        return None
+
+    # -- names in the generated code
+
+    def ros_name_expr(self, name: RosName) -> str:
+        if name.namespaced:
+            self.runtime_used.add("name_in")
+            return f"name_in(self._namespace, {ts.py_str(name.path)})"
+        return ts.py_str(name.path)
+
+    @staticmethod
+    def ros_name_doc(name: RosName) -> str:
+        return f"/<robot_name>/{name.path}" if name.namespaced else name.path
+
+    # -- the parts
+
+    def params(self, msg: MessageDef, namer: Namer, *, mapping: bool) -> list[ParamView]:
+        """Parameters of a `construct_*` method (mapping=False) or the field conversions of a converter."""
+        out = []
+        for f in msg.fields:
+            local = namer[f.type.base] if f.type.is_message else ""
+            conv = converter_name(f.type.base) if f.type.is_message else None
+            name = pyname(f.name)
+            p = rt.param(f, local, conv, name)
+            value = f"value[{ts.py_str(f.name)}]" if mapping else name
+            if not mapping:
+                if f.type.is_message:
+                    self.msg_used.add(f.type.base)
+                    self.conv_used.add(converter_name(f.type.base))
+                    self.std_used |= {("collections.abc", "Mapping"), ("typing", "Any")}
+                if f.type.array is not ArrayKind.NONE:
+                    self.std_used.add(("collections.abc", "Sequence"))
+            out.append(
+                ParamView(
+                    p.name, ts.py_str(f.name), p.annotation, p.default, f.name, p.convert.format(v=value), p.optional
+                )
+            )
+        return out
+
+    def construct(self, method: str, msg: MessageDef, result: str, namer: Namer, what: str) -> ConstructView:
+        doc = docstring(
+            [
+                f"Build {what} ({self.type_label(msg.name)}).",
+                "Every field is a keyword argument with its ROS default. Messages may also be given as mappings "
+                "of their fields (nested too), arrays as any sequence; None keeps the field's ROS default.",
+            ],
+            "        ",
+        )
+        params = self.params(msg, namer, mapping=False)
+        # a dict of fields when some may be left out, or a field name is not usable as a keyword argument
+        optional = any(p.optional or p.name != p.field for p in params)
+        if optional:
+            self.std_used.add(("typing", "Any"))
+        return ConstructView(method, result, params, doc, optional)
+
+    def call_view(self, comp: Component, svc: ServiceEndpoint, namer: Namer) -> CallView:
+        sdef = self.types.service(svc.type_name)
+        self.msg_used |= {svc.type_name, sdef.request.name, sdef.response.name}
+        self.runtime_used.add("ServiceCaller")
+        srv, req, resp = namer[svc.type_name], namer[sdef.request.name], namer[sdef.response.name]
+        proc = comp.procedure_of(svc.name)
+        run_id = last_attr = mission_field = None
+        returns = resp
+        body = [*text_paragraphs(svc.text, svc.name), f"Service {self.ros_name_doc(svc.ros_name)} ({svc.type_name})."]
+        if proc is not None and proc.mission_id and svc.procedure_role is ProcedureRole.RUN:
+            run_id = "response." + ".".join(proc.mission_id)
+            last_attr = f"self._last_{svc.name}_id"
+            returns = f"Started[{resp}]"
+            self.runtime_used.add("Started")
+            body.append(
+                f"Returns Started(mission_id, response); the mission id is {'/'.join(proc.mission_id)} of the "
+                "response, and the procedure's query and cancel methods use it when given no mission_id."
+            )
+        elif proc is not None and proc.mission_id and svc.procedure_role in (ProcedureRole.QUERY, ProcedureRole.CANCEL):
+            path = self.mission_path(sdef, proc.mission_id)
+            if path is not None:
+                mission_field = "request." + path
+                last_attr = f"self._last_{proc.run}_id"
+                self.runtime_used.add("LAST_MISSION")
+                body.append(
+                    f"mission_id selects the procedure: it is written to {path.replace('.', '/')} of the request "
+                    f"(of an explicit request too). Default: the id this object's last call_{proc.run} returned; "
+                    "-1 (LAST_MISSION: the robot's last procedure) only when it made none yet."
+                )
+        body.append(f"request: None sends construct_{svc.name}_Msg() (all ROS defaults).")
+        failure = self.failure(sdef.response)
+        if failure != "None":
+            self.runtime_used.add(failure)
+        body.append(
+            "Raises ServiceUnavailable when no server appears within wait_timeout, CallTimeout when the response "
+            "takes longer than timeout (default: the component's), CallFailed "
+            + ("when the robot reports an error (with its message)." if failure != "None" else "if it is cancelled.")
+        )
+        construct = self.construct(f"construct_{svc.name}_Msg", sdef.request, req, namer, f"the request of {svc.name}")
+        async_doc = docstring(
+            [
+                f"call_{svc.name}, awaitable: await it in a coroutine callback of the node's executor (or in any "
+                "coroutine while an executor spins the node). No thread blocks; the errors are the same."
+            ],
+            "        ",
+        )
+        return CallView(
+            name=svc.name,
+            attr=f"self._{svc.name}",
+            srv=srv,
+            request=req,
+            response=resp,
+            ros_name=self.ros_name_expr(svc.ros_name),
+            failure=failure,
+            construct=construct,
+            returns=returns,
+            doc=docstring(body, "        "),
+            async_doc=async_doc,
+            run_id=run_id,
+            last_attr=last_attr,
+            mission_field=mission_field,
+        )
+
+    def topic_view(self, topic: TopicEndpoint, namer: Namer) -> TopicView:
+        self.msg_used.add(topic.type_name)
+        self.runtime_used.add("qos_profile")
+        q = topic.qos
+        qos = (
+            f"qos_profile({ts.py_str(q.reliability.value)}, {ts.py_str(q.durability.value)}, "
+            f"{ts.py_str(q.history.value)}, {int(q.depth)})"
+        )
+        body = [
+            *text_paragraphs(topic.text, topic.name),
+            f"Topic {self.ros_name_doc(topic.ros_name)} ({topic.type_name}).",
+        ]
+        msg = namer[topic.type_name]
+        ros_name = self.ros_name_expr(topic.ros_name)
+        if topic.role is Role.SUBSCRIBER:
+            self.runtime_used.add("TopicSubscriber")
+            self.std_used.add(("collections.abc", "Callable"))
+            body.append(
+                "Returns the latest message, waiting at most timeout seconds (default: the component's timeout) "
+                "for the first one; raises NoMessage when none arrived by then."
+            )
+            on_doc = docstring(
+                [
+                    f"Call callback with every {topic.name} message, in the executor's thread.",
+                    "Returns a function that removes the callback again.",
+                ],
+                "        ",
+            )
+            return TopicView(
+                topic.name, f"self._{topic.name}", msg, ros_name, qos, True, docstring(body, "        "), on_doc
+            )
+        self.runtime_used.add("TopicPublisher")
+        body.append(f"Publishes msg (build it with construct_{topic.name}_Msg).")
+        construct = self.construct(
+            f"construct_{topic.name}_Msg", self.message(topic.type_name), msg, namer, f"the message of {topic.name}"
+        )
+        return TopicView(
+            topic.name, f"self._{topic.name}", msg, ros_name, qos, False, docstring(body, "        "), "", construct
+        )
+
+    def component_view(
+        self, comp: Component, services: list[ServiceEndpoint], topics: list[TopicEndpoint], namer: Namer
+    ) -> ComponentView:
+        parts = []
+        if services:
+            parts.append(("actions " if len(services) > 1 else "action ") + ", ".join(s.name for s in services))
+        if topics:
+            parts.append(("properties " if len(topics) > 1 else "property ") + ", ".join(t.name for t in topics))
+        doc = docstring(
+            [
+                f"{comp.name}: the {' and the '.join(parts) or 'nothing'} of {self.model.thing.title}.",
+                "node is the rclpy node that owns the clients, publishers and subscriptions; robot_name the robot "
+                "namespace (it replaces {{robotName}} in the TD's names); timeout the default seconds to wait for "
+                "an answer, wait_timeout for a service to appear. The blocking methods need an executor that "
+                "spins the node in another thread (runtime.spin_in_background).",
+            ],
+            "    ",
+        )
+        calls = [self.call_view(comp, s, namer) for s in services]
+        tviews = [self.topic_view(t, namer) for t in topics]
+        last_ids = sorted({c.last_attr for c in calls if c.run_id and c.last_attr})
+        subs = [t for t in tviews if t.subscriber]
+        value = subs[0] if len(subs) == 1 else None
+        value_doc = (
+            docstring(
+                [f"The component's only subscribed property: get_{value.name}_value(timeout=timeout)."], "        "
+            )
+            if value is not None
+            else ""
+        )
+        return ComponentView(comp.name, doc, calls, tviews, last_ids, value, value_doc)
+
+    # -- stubs
+
+    def stubs(self, wanted: set[str]) -> list[StubModule]:
+        """One stub module per interface package and kind (msg, srv), with the types the package uses."""
+        by_module: dict[str, list[str]] = {}
+        for name in wanted:
+            by_module.setdefault(module_of(name)[0], []).append(name)
+        out = []
+        for module in sorted(by_module):
+            pkg, kind = module.split(".")
+            defs: list[MessageDef | ServiceDef] = []
+            for name in sorted(by_module[module]):
+                found = self.types.get(name)
+                assert isinstance(found, (MessageDef, ServiceDef))
+                defs.append(found)
+            own: set[str] = set()
+            refs: set[str] = set()
+            for d in defs:
+                parts = [d.request, d.response] if isinstance(d, ServiceDef) else [d]
+                own |= {d.name, *(m.name for m in parts)}
+                refs |= {f.type.base for m in parts for f in m.fields if f.type.is_message}
+            namer = Namer(sorted(refs - own), {module_of(n)[1] for n in own} | RESERVED)
+            local = {n: module_of(n)[1] for n in own} | namer.local
+            plain: set[str] = set()
+            extra: set[tuple[str, str]] = set()
+            classes: list[StubClass] = []
+            for d in defs:
+                if isinstance(d, ServiceDef):
+                    classes += [self.stub_class(m, local, plain, extra) for m in (d.request, d.response)]
+                    classes.append(
+                        StubClass(
+                            module_of(d.name)[1], [], [], module_of(d.request.name)[1], module_of(d.response.name)[1]
+                        )
+                    )
+                else:
+                    classes.append(self.stub_class(d, local, plain, extra))
+            what = "services" if kind == "srv" else "messages"
+            doc = ts.py_docstring(
+                f"The {pkg} {what} {self.package} uses, typed (generated by td2adaptor; partial).", ""
+            )
+            out.append(
+                StubModule(
+                    f"stubs/{pkg}/{kind}/__init__.pyi",
+                    doc,
+                    import_sections(namer.import_pairs() + sorted(extra), plain),
+                    classes,
+                )
+            )
+        for pkg in sorted({m.path.split("/")[1] for m in out}):
+            doc = ts.py_docstring(f"Stubs of the {pkg} interfaces {self.package} uses (partial).", "")
+            out.append(StubModule(f"stubs/{pkg}/__init__.pyi", doc, [], []))
+        return sorted(out, key=lambda m: m.path)
+
+    def stub_class(
+        self, msg: MessageDef, local: dict[str, str], plain: set[str], extra: set[tuple[str, str]]
+    ) -> StubClass:
+        consts = []
+        for c in msg.constants:
+            extra.add(("typing", "Final"))
+            value = rt.literal(FieldType(c.type), c.value) if c.type in rt.SCALAR else None
+            consts.append(f"{c.name}: Final = {value}" if value is not None else f"{c.name}: Final[object]")
+        fields = []
+        for f in msg.fields:
+            if rt.needs_array(f.type):
+                plain.add("array")
+            if rt.needs_numpy(f.type):
+                extra |= {("numpy.typing", "NDArray"), ("typing", "Any")}
+            if f.type.array is not ArrayKind.NONE:
+                extra.add(("collections.abc", "Sequence"))
+            name = local[f.type.base] if f.type.is_message else ""
+            fields.append(StubField(f.name, rt.getter(f.type, name), rt.init_param(f.type, name)))
+        return StubClass(module_of(msg.name)[1], consts, fields)
+
+    # -- the whole package
+
+    def build(self) -> PackageView | None:
+        selected: list[tuple[Component, list[ServiceEndpoint], list[TopicEndpoint]]] = []
+        ok = True
+        for comp in self.model.components:
+            services, topics = self.usable_services(comp), self.usable_topics(comp)
+            ok = self.check_names(comp, services, topics) and ok
+            selected.append((comp, services, topics))
+        if not ok or any(d.severity is Severity.ERROR for d in self.diags):
+            return None
+
+        # every interface type components.py may name, with clash-free local names
+        candidates: set[str] = set()
+        roots: set[str] = set()  # message types of constructor parameters
+        for _comp, services, topics in selected:
+            for s in services:
+                sdef = self.types.service(s.type_name)
+                candidates |= {s.type_name, sdef.request.name, sdef.response.name}
+                roots |= {f.type.base for f in sdef.request.fields if f.type.is_message}
+            for t in topics:
+                candidates.add(t.type_name)
+                if t.role is Role.PUBLISHER:
+                    roots |= {f.type.base for f in self.message(t.type_name).fields if f.type.is_message}
+        namer = Namer(candidates | roots, RESERVED | {c.name for c, _, _ in selected})
+        components = [self.component_view(c, s, t, namer) for c, s, t in selected]
+        pairs = [(module_of(f)[0], _import_name(f, namer[f])) for f in sorted(self.msg_used)]
+        pairs += [(".convert", c) for c in sorted(self.conv_used)]
+        pairs += [(".runtime", n) for n in sorted(self.runtime_used)]
+        pairs += sorted(self.std_used)
+        pairs.append(("rclpy.node", "Node"))
+
+        # converters for every message reachable from constructor parameters
+        conv_types = self.reachable(roots)
+        conv_namer = Namer(conv_types, RESERVED)
+        converters = []
+        for name in conv_types:
+            msg = self.message(name)
+            converters.append(
+                ConverterView(
+                    name=converter_name(name),
+                    msg=conv_namer[name],
+                    fields=self.params(msg, conv_namer, mapping=True),
+                    field_names=_tuple_literal([f.name for f in msg.fields]),
+                    type_name=ts.py_str(name),
+                    doc=docstring(
+                        [f"{name} from itself, or from a mapping of its fields (nested mappings too)."], "    "
+                    ),
+                )
+            )
+        convert_pairs = conv_namer.import_pairs() + [("collections.abc", "Mapping"), ("typing", "Any")]
+
+        # stubs: every type the package touches, with everything those refer to
+        stub_types: set[str] = set(conv_types)
+        for name in candidates:
+            found = self.types.get(name)
+            if isinstance(found, ServiceDef):
+                stub_types.add(name)
+                for m in (found.request, found.response):
+                    stub_types |= set(self.reachable(f.type.base for f in m.fields if f.type.is_message))
+            elif isinstance(found, MessageDef) and "/msg/" in name:
+                stub_types |= set(self.reachable([name]))
+        stubs = self.stubs(stub_types)
+
+        thing = self.model.thing
+        description = thing.description or ""
+        summary = f"ROS 2 (rclpy) adaptor for {thing.title}, generated by td2adaptor from its Thing Description."
+        exports = [c.name for c in components] + list(_ERRORS) + list(_RUNTIME_EXPORTS)
+        export_pairs = [(".components", c.name) for c in components]
+        export_pairs += [(".errors", n) for n in _ERRORS] + [(".runtime", n) for n in _RUNTIME_EXPORTS]
+        return PackageView(
+            package=self.package,
+            version=thing.version if thing.version and VERSION.match(thing.version) else "0.1.0",
+            description_xml=ts.xml_text(f"{summary} {description}".strip()),
+            readme_title=ts.xml_text(ts.py_comment(thing.title)),
+            readme_description=ts.xml_text(ts.py_comment(description)),
+            module_doc=docstring(
+                [
+                    f"ROS 2 (rclpy) adaptor for {thing.title}: one class per component of its Thing Description.",
+                    description,
+                    "Generated by td2adaptor; do not edit.",
+                ],
+                "",
+            ),
+            components_doc=docstring(
+                [
+                    f"The component classes of {self.package}, in Thing Description order.",
+                    "Generated by td2adaptor; do not edit.",
+                ],
+                "",
+            ),
+            exec_depends=sorted({n.split("/")[0] for n in stub_types} | {"rclpy"}),
+            components=components,
+            component_imports=import_sections(pairs),
+            converters=converters,
+            convert_imports=import_sections(convert_pairs),
+            stubs=stubs,
+            stub_files=[m.path for m in stubs],
+            exports=exports,
+            export_imports=import_sections(export_pairs),
+            example=components[0].name if components else "",
+            timeout=repr(DEFAULT_TIMEOUT),
+            wait_timeout=repr(DEFAULT_WAIT_TIMEOUT),
+        )
+
+
+# ---------------------------------------------------------------------------------------------------------
+# rendering
+
+
+def _render(template: str, **context: object) -> str:
+    return render(TEMPLATES, template, **context)
+
+
+def generate(model: Model, options: GenOptions, diags: Diagnostics) -> GeneratedTree:
+    """The ament_python package for `model`, under `<package>/`."""
+    tree = GeneratedTree()
+    view = Builder(model, options, diags).build()
+    if view is None:
+        return tree
+    root = view.package
+    src = f"{root}/{root}"
+    ctx: dict[str, object] = {
+        "v": view,
+        "package": view.package,
+        "timeout": view.timeout,
+        "wait_timeout": view.wait_timeout,
+    }
+    for name in ("package.xml", "setup.py", "setup.cfg", "ruff.toml", "README.md"):
+        tree.add(f"{root}/{name}", _render(f"{name}.j2", **ctx))
+    tree.add(f"{root}/resource/{root}", "")
+    for name in ("__init__.py", "errors.py", "runtime.py", "convert.py", "components.py", "edge_node.py"):
+        tree.add(f"{src}/{name}", _render(f"package/{name}.j2", **ctx))
+    tree.add(f"{src}/py.typed", "")
+    for module in view.stubs:
+        tree.add(f"{root}/{module.path}", _render("stubs/module.pyi.j2", m=module, **ctx))
+    return tree

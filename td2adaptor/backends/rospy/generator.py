@@ -1,0 +1,696 @@
+"""The rospy backend: a catkin package of typed component classes for ROS 1, with type stubs for its messages.
+
+Everything a template prints is computed here (the view model); templates only loop and print. Every TD
+string reaches the output through `textsafe`. Output: `<package>/` with package.xml, CMakeLists.txt,
+setup.py, README.md, mypy.ini, ruff.toml, `src/<package>/`, `scripts/edge_node` (rosrun) and `stubs/`.
+"""
+
+from __future__ import annotations
+
+import builtins
+import re
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from td2adaptor.backends.rospy.types import (
+    FieldView,
+    class_location,
+    constant_annotation,
+    field_problem,
+    field_view,
+    stub_annotation,
+)
+from td2adaptor.diagnostics import Diagnostics
+from td2adaptor.generation import textsafe as ts
+from td2adaptor.generation.backend import GeneratedTree, GenOptions
+from td2adaptor.generation.templating import render
+from td2adaptor.model import (
+    Component,
+    MessageDef,
+    Model,
+    ProcedureRole,
+    RosName,
+    ServiceDef,
+    ServiceEndpoint,
+    Text,
+    TopicEndpoint,
+    TypeTable,
+)
+
+TEMPLATES = Path(__file__).parent / "templates"
+
+
+DEFAULT_TIMEOUT = 10.0
+DEFAULT_WAIT_TIMEOUT = 5.0
+LINE = 120  # the generated package's line length (ruff.toml)
+
+#: names the generated components module defines or imports besides message classes
+_RESERVED = frozenset(
+    {
+        "annotations",
+        "Any",
+        "Callable",
+        "Mapping",
+        "Sequence",
+        "genpy",
+        "AdaptorError",
+        "CallFailed",
+        "CallTimeout",
+        "InvalidMessage",
+        "NoMessage",
+        "ServiceUnavailable",
+        "Started",
+        "ServiceClient",
+        "TopicPublisher",
+        "TopicSubscriber",
+        "check_robot_name",
+        "check_timeout",
+        "in_namespace",
+        "require_node",
+        "to_duration",
+        "to_list",
+        "to_msg",
+        "to_msgs",
+        "to_time",
+        "self",
+        "item",
+        "request",
+        "response",
+        "mission_id",
+        "timeout",
+        *dir(builtins),
+    }
+)
+
+# ---------------------------------------------------------------------------------------------------------
+# docstrings
+
+
+def wrap(text: str, width: int) -> str:
+    """Text wrapped so that, escaped and indented, no docstring line exceeds the line length."""
+    return "\n".join(ts.wrap_lines(text, width))
+
+
+def docstring(td_parts: Iterable[str | None], fixed: Iterable[str], indent: str) -> str:
+    """A docstring: TD text first (wrapped, escaped), then our own paragraphs, so it never ends in TD text."""
+    width = LINE - len(indent) - 4
+    paragraphs = [wrap(p, width) for p in td_parts if p and p.strip()]
+    paragraphs = [p for p in paragraphs if p]
+    paragraphs += [wrap(p, width) for p in fixed]
+    return ts.py_docstring("\n\n".join(paragraphs), indent)
+
+
+def _td_text(text: Text) -> list[str | None]:
+    if text.title and text.description:
+        return [f"{text.title}: {text.description}"]
+    return [text.title or text.description]
+
+
+# ---------------------------------------------------------------------------------------------------------
+# view model
+
+
+@dataclass(frozen=True)
+class ServiceView:
+    name: str
+    attr: str
+    ros_name: list[str]  # argument lines of the name expression (see `_name_expr`)
+    display_name: str
+    srv_class: str
+    req_class: str
+    resp_class: str
+    params: list[FieldView]
+    construct_doc: str
+    call_doc: str
+    returns: str
+    fail_condition: str | None
+    fail_message: str | None
+    mission_expr: str | None  # run: where the response holds the mission id
+    mission_attr: str | None  # run: where the last id is kept; query/cancel: where to read it
+    mission_target: str | None  # query/cancel: the request field taking the id
+
+
+@dataclass(frozen=True)
+class SubscriberView:
+    name: str
+    attr: str
+    ros_name: list[str]
+    msg_class: str
+    queue_size: int
+    get_doc: str
+    on_doc: str
+
+
+@dataclass(frozen=True)
+class PublisherView:
+    name: str
+    attr: str
+    ros_name: list[str]
+    msg_class: str
+    queue_size: int
+    latch: str
+    params: list[FieldView]
+    construct_doc: str
+    publish_doc: str
+
+
+@dataclass(frozen=True)
+class ComponentView:
+    name: str
+    doc: str
+    init_doc: str
+    services: list[ServiceView]
+    subscribers: list[SubscriberView]
+    publishers: list[PublisherView]
+    single: SubscriberView | None
+    mission_attrs: list[str]
+
+
+@dataclass
+class _Imports:
+    """Message and service classes the components module imports, each under a name unique in the module."""
+
+    taken: set[str]
+    local: dict[str, str] = field(default_factory=dict)  # canonical type (or pkg/srv/Name) → local name
+    modules: dict[str, list[tuple[str, str]]] = field(default_factory=dict)  # module → (class, alias)
+
+    def use(self, canonical: str) -> str:
+        if canonical in self.local:
+            return self.local[canonical]
+        module, cls = class_location(canonical)
+        name = cls
+        if name in self.taken:
+            name = f"{module.split('.')[0]}_{cls}"
+            while name in self.taken:
+                name += "_"
+        self.taken.add(name)
+        self.local[canonical] = name
+        self.modules.setdefault(module, []).append((cls, name))
+        return name
+
+    def lines(self) -> list[str]:
+        return [
+            import_line(module, [cls if cls == alias else f"{cls} as {alias}" for cls, alias in self.modules[module]])
+            for module in sorted(self.modules)
+        ]
+
+
+def _member_key(member: str) -> tuple[int, str, str]:
+    """isort's order-by-type, as ruff applies it: CONSTANTS, then Classes, then functions."""
+    name = member.split(" as ")[0]
+    kind = 0 if name.isupper() and len(name) > 1 else 1 if name[:1].isupper() else 2
+    return kind, name.lower(), member
+
+
+def import_line(module: str, members: Iterable[str]) -> str:
+    """`from module import ...` as ruff's isort and formatter write it (exploded when too long)."""
+    names = sorted(set(members), key=_member_key)
+    line = f"from {module} import {', '.join(names)}"
+    if len(line) <= LINE:
+        return line
+    return f"from {module} import (\n" + "".join(f"    {n},\n" for n in names) + ")"
+
+
+def module_imports(views: list[ComponentView], imports: _Imports) -> list[str]:
+    """The import block of components.py: only what the generated code uses, grouped and sorted like isort."""
+    text: list[str] = []
+    for v in views:
+        for s in v.services:
+            text += [p.annotation + " " + p.value for p in s.params] + s.ros_name
+            text += [s.returns, s.fail_condition or "", s.mission_expr or ""]
+        for sub in v.subscribers:
+            text += [*sub.ros_name, "Callable TopicSubscriber"]
+        for pub in v.publishers:
+            text += [p.annotation + " " + p.value for p in pub.params] + pub.ros_name + ["TopicPublisher"]
+        if v.services:
+            text.append("ServiceClient")
+    blob = " ".join(text)
+    if any(s.fail_condition for v in views for s in v.services):
+        blob += " CallFailed"
+
+    def used(*names: str) -> list[str]:
+        return [n for n in names if re.search(rf"\b{n}\b", blob)]
+
+    lines = []
+    abc = used("Callable", "Mapping", "Sequence")
+    if abc:
+        lines.append(import_line("collections.abc", abc))
+    if used("Any"):
+        lines.append("from typing import Any")
+    third = (["import genpy"] if used("genpy") else []) + imports.lines()
+    if third:
+        lines += [""] + third if lines else third
+    runtime = ["check_robot_name", "check_timeout", "require_node"] + used(
+        "ServiceClient",
+        "Started",
+        "TopicPublisher",
+        "TopicSubscriber",
+        "in_namespace",
+        "to_duration",
+        "to_list",
+        "to_msg",
+        "to_msgs",
+        "to_time",
+    )
+    local = [import_line("._runtime", runtime)]
+    if used("CallFailed"):
+        local.append(import_line(".errors", ["CallFailed"]))
+    return lines + [""] + local
+
+
+def _name_expr(name: RosName) -> list[str]:
+    """The arguments that build a graph name at run time: a literal, or the namespaced path and the robot name."""
+    if name.namespaced:
+        return [f"in_namespace({ts.py_str(name.path)}, self.robot_name)"]
+    return [ts.py_str(name.path)]
+
+
+def _params(msg: MessageDef, imports: _Imports, diags: Diagnostics, where: str) -> list[FieldView]:
+    out = []
+    for f in msg.fields:
+        problem = field_problem(f)
+        if problem:
+            diags.error("GEN840", f"rospy backend: {msg.name}: {problem}", where)
+            continue
+        if f.type.is_message:
+            imports.use(f.type.base)
+        param = f.name if f.name not in _RESERVED and f.name not in imports.taken else f.name + "_"
+        out.append(field_view(f, param, imports.local))
+    return out
+
+
+def _path(msg: MessageDef, types: TypeTable, path: tuple[str, ...], want: str) -> bool:
+    """Whether `path` leads through `msg` to a field of primitive kind `want` ("int", "str", "bool")."""
+    current: MessageDef | None = msg
+    for i, part in enumerate(path):
+        if current is None:
+            return False
+        found = next((f for f in current.fields if f.name == part), None)
+        if found is None or found.type.array.value != "none":
+            return False
+        if i == len(path) - 1:
+            base = found.type.base
+            kinds = {
+                "int": base in {"int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64"},
+                "str": base == "string",
+                "bool": base == "bool",
+            }
+            return not found.type.is_message and kinds[want]
+        current = types.message(found.type.base) if found.type.is_message else None
+    return False
+
+
+def _failure(resp: MessageDef, types: TypeTable) -> tuple[str | None, str | None]:
+    """How a response says it failed: procedures_msgs style (result.result == "error"), std_srvs style (success)."""
+    if _path(resp, types, ("result", "result"), "str") and _path(resp, types, ("result", "message"), "str"):
+        return 'response.result.result == "error"', "response.result.message"
+    if _path(resp, types, ("success",), "bool"):
+        message = "response.message" if _path(resp, types, ("message",), "str") else '"the robot reported failure"'
+        return "not response.success", message
+    return None, None
+
+
+def _mission_target(req: MessageDef, types: TypeTable) -> str | None:
+    """The request field of a query/cancel that takes a mission id."""
+    for path in (("header", "id"), ("id",), ("mission_id",)):
+        if _path(req, types, path, "int"):
+            return "request." + ".".join(path)
+    return None
+
+
+def _service_view(
+    comp: Component, svc: ServiceEndpoint, types: TypeTable, imports: _Imports, diags: Diagnostics
+) -> ServiceView:
+    sdef: ServiceDef = types.service(svc.type_name)
+    srv_class = imports.use(svc.type_name)
+    req_class = imports.use(sdef.request.name)
+    resp_class = imports.use(sdef.response.name)
+    params = _params(sdef.request, imports, diags, svc.pointer)
+    fail_condition, fail_message = _failure(sdef.response, types)
+    proc = comp.procedure_of(svc.name)
+    display = svc.ros_name.binding_form()
+    returns = resp_class
+    mission_expr = mission_attr = mission_target = None
+    notes = []
+    if proc is not None and svc.procedure_role is ProcedureRole.RUN and proc.mission_id:
+        if all(p.isidentifier() for p in proc.mission_id) and _path(sdef.response, types, proc.mission_id, "int"):
+            mission_expr = "response." + ".".join(proc.mission_id)
+            mission_attr = f"_mission_{svc.name}"
+            returns = f"Started[{resp_class}]"
+            notes.append(
+                f"Returns Started(mission_id, response): the mission id is the response's "
+                f"{'.'.join(proc.mission_id)}; query and cancel use it by default."
+            )
+    elif proc is not None and svc.procedure_role in (ProcedureRole.QUERY, ProcedureRole.CANCEL):
+        run = comp.service(proc.run)
+        if proc.mission_id and run.procedure_role is ProcedureRole.RUN:
+            mission_target = _mission_target(sdef.request, types)
+            if mission_target is not None:
+                mission_attr = f"_mission_{proc.run}"
+                notes.append(
+                    f"Without a request, asks about mission_id: by default the mission this object last started "
+                    f"with call_{proc.run}, or -1 (the robot's last procedure) when it has started none. Pass "
+                    f"mission_id explicitly when several callers share the robot."
+                )
+    raises = "Raises ServiceUnavailable (not reachable), CallTimeout (no answer within timeout, default self.timeout)"
+    if fail_condition:
+        raises += " or CallFailed (the robot reports failure; .message is its explanation)."
+    else:
+        raises += " or CallFailed (the call failed on the robot)."
+    call_doc = docstring(
+        _td_text(svc.text), [f"Call {display} ({sdef.name.replace('/srv/', '/')}).", *notes, raises], " " * 8
+    )
+    construct_doc = docstring(
+        [f"The request of {svc.name}."],
+        ["Keyword arguments are the request's fields; nested messages may also be mappings of their fields."],
+        " " * 8,
+    )
+    return ServiceView(
+        name=svc.name,
+        attr=f"_svc_{svc.name}",
+        ros_name=_name_expr(svc.ros_name),
+        display_name=display,
+        srv_class=srv_class,
+        req_class=req_class,
+        resp_class=resp_class,
+        params=params,
+        construct_doc=construct_doc,
+        call_doc=call_doc,
+        returns=returns,
+        fail_condition=fail_condition,
+        fail_message=fail_message,
+        mission_expr=mission_expr,
+        mission_attr=mission_attr,
+        mission_target=mission_target,
+    )
+
+
+def _subscriber_view(topic: TopicEndpoint, imports: _Imports) -> SubscriberView:
+    msg_class = imports.use(topic.type_name)
+    display = topic.ros_name.binding_form()
+    ros_type = topic.type_name.replace("/msg/", "/")
+    get_doc = docstring(
+        _td_text(topic.text),
+        [
+            f"The latest {ros_type} message on {display}, waiting at most timeout seconds (by default "
+            "self.wait_timeout) for the first one. Raises NoMessage when none arrives in time."
+        ],
+        " " * 8,
+    )
+    on_doc = docstring(
+        [f"Call callback with every {ros_type} message on {display}."],
+        ["Callbacks run in rospy's receive thread; returns a function that removes the callback."],
+        " " * 8,
+    )
+    return SubscriberView(
+        name=topic.name,
+        attr=f"_sub_{topic.name}",
+        ros_name=_name_expr(topic.ros_name),
+        msg_class=msg_class,
+        queue_size=max(1, topic.qos.queue_size),
+        get_doc=get_doc,
+        on_doc=on_doc,
+    )
+
+
+def _publisher_view(topic: TopicEndpoint, types: TypeTable, imports: _Imports, diags: Diagnostics) -> PublisherView:
+    msg_class = imports.use(topic.type_name)
+    params = _params(types.message(topic.type_name), imports, diags, topic.pointer)
+    display = topic.ros_name.binding_form()
+    ros_type = topic.type_name.replace("/msg/", "/")
+    latch = " (latched: late subscribers get the last message)" if topic.qos.latch else ""
+    publish_doc = docstring(_td_text(topic.text), [f"Publish msg on {display} ({ros_type}){latch}."], " " * 8)
+    construct_doc = docstring(
+        [f"A {ros_type} message for {topic.name}."],
+        ["Keyword arguments are the message's fields; nested messages may also be mappings of their fields."],
+        " " * 8,
+    )
+    return PublisherView(
+        name=topic.name,
+        attr=f"_pub_{topic.name}",
+        ros_name=_name_expr(topic.ros_name),
+        msg_class=msg_class,
+        queue_size=max(1, topic.qos.queue_size),
+        latch="True" if topic.qos.latch else "False",
+        params=params,
+        construct_doc=construct_doc,
+        publish_doc=publish_doc,
+    )
+
+
+def _method_names(view: ComponentView) -> list[str]:
+    names = ["register", "close"]
+    for s in view.services:
+        names += [f"construct_{s.name}_Msg", f"call_{s.name}"]
+    for sub in view.subscribers:
+        names += [f"get_{sub.name}_value", f"on_{sub.name}"]
+    for p in view.publishers:
+        names += [f"construct_{p.name}_Msg", f"publish_{p.name}_Msg"]
+    if view.single is not None:
+        names.append("get_value")
+    return names
+
+
+def component_views(model: Model, imports: _Imports, diags: Diagnostics) -> list[ComponentView]:
+    types = model.ros1
+    views = []
+    for comp in model.components:
+        services = [_service_view(comp, s, types, imports, diags) for s in comp.services]
+        subscribers = [_subscriber_view(t, imports) for t in comp.subscribers]
+        publishers = [_publisher_view(t, types, imports, diags) for t in comp.publishers]
+        members = [s.name for s in comp.services] + [t.name for t in comp.topics]
+        doc = docstring(
+            [],
+            [
+                f"The robot's {comp.name}: {', '.join(members) or 'nothing'}.",
+                "Call rospy.init_node() once in the process first (rospy has one node per process, and it is "
+                "the caller's), then register() (or just use the methods: they register what they need).",
+            ],
+            " " * 4,
+        )
+        init_doc = docstring(
+            [],
+            [
+                "Bind the component to one robot.",
+                "robot_name is the robot's namespace (e.g. rb1_base_a); it replaces {{robotName}} in the names "
+                "below and is checked here (InvalidRobotName). timeout bounds each service call by default; "
+                "wait_timeout bounds waiting for a service to appear and for a first message. Both in seconds.",
+            ],
+            " " * 8,
+        )
+        mission_attrs = sorted({s.mission_attr for s in services if s.mission_attr and s.mission_expr})
+        view = ComponentView(
+            name=comp.name,
+            doc=doc,
+            init_doc=init_doc,
+            services=services,
+            subscribers=subscribers,
+            publishers=publishers,
+            single=subscribers[0] if len(subscribers) == 1 else None,
+            mission_attrs=mission_attrs,
+        )
+        names = _method_names(view)
+        clashes = sorted({n for n in names if names.count(n) > 1})
+        if clashes:
+            diags.error(
+                "GEN841",
+                f"rospy backend: component {comp.name} would define {', '.join(clashes)} twice",
+                hint="give the affordances different names or put them in different components",
+            )
+        views.append(view)
+    return views
+
+
+# ---------------------------------------------------------------------------------------------------------
+# type stubs
+
+
+@dataclass(frozen=True)
+class StubField:
+    name: str
+    annotation: str
+
+
+@dataclass(frozen=True)
+class StubClass:
+    name: str
+    type_name: str
+    constants: list[StubField]
+    fields: list[StubField]
+
+
+@dataclass(frozen=True)
+class StubService:
+    name: str
+    request: str
+    response: str
+
+
+@dataclass(frozen=True)
+class StubModule:
+    name: str
+    path: str
+    imports: list[str]
+    classes: list[StubClass]
+    services: list[StubService]
+
+
+def _stub_class(msg: MessageDef, module: str, diags: Diagnostics) -> tuple[StubClass, set[str]]:
+    """A stub class; other modules it refers to."""
+    used: set[str] = set()
+    ref: dict[str, str] = {}
+    for f in msg.fields:
+        if f.type.is_message:
+            other, cls = class_location(f.type.base)
+            ref[f.type.base] = cls if other == module else f"{other}.{cls}"
+            if other != module:
+                used.add(other)
+    fields = []
+    for f in msg.fields:
+        problem = field_problem(f)
+        if problem:
+            diags.error("GEN840", f"rospy backend: {msg.name}: {problem}")
+            continue
+        fields.append(StubField(f.name, stub_annotation(f.type, ref)))
+    constants = [
+        StubField(c.name, f"ClassVar[{constant_annotation(c.type)}]")
+        for c in msg.constants
+        if c.name.isidentifier() and c.name.isascii()
+    ]
+    _, cls = class_location(msg.name)
+    return StubClass(cls, msg.name.replace("/msg/", "/").replace("/srv/", "/"), constants, fields), used
+
+
+def stub_modules(types: TypeTable, diags: Diagnostics) -> list[StubModule]:
+    by_module: dict[str, list[MessageDef]] = {}
+    services: dict[str, list[ServiceDef]] = {}
+    for msg in types.messages:
+        by_module.setdefault(class_location(msg.name)[0], []).append(msg)
+    for srv in types.services:
+        module = class_location(srv.name)[0]
+        services.setdefault(module, []).append(srv)
+        by_module.setdefault(module, []).extend([srv.request, srv.response])
+    out = []
+    for module in sorted(by_module):
+        classes = []
+        used: set[str] = set()
+        for msg in sorted(by_module[module], key=lambda m: class_location(m.name)[1]):
+            cls, refs = _stub_class(msg, module, diags)
+            classes.append(cls)
+            used |= refs
+        svcs = [
+            StubService(
+                class_location(s.name)[1], class_location(s.request.name)[1], class_location(s.response.name)[1]
+            )
+            for s in sorted(services.get(module, []), key=lambda s: s.name)
+        ]
+        annotations = " ".join(f.annotation for c in classes for f in (*c.fields, *c.constants))
+        imports = []
+        if "Sequence[" in annotations:
+            imports.append("from collections.abc import Sequence")
+        if "ClassVar[" in annotations or svcs:
+            imports.append("from typing import ClassVar")
+        imports += ([""] if imports else []) + ["import genpy"] + [f"import {m}" for m in sorted(used - {"genpy"})]
+        out.append(StubModule(module, module.replace(".", "/") + "/__init__.pyi", imports, classes, svcs))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------------
+# package metadata
+
+
+def _version(raw: str | None) -> str:
+    """package.xml wants X.Y.Z; a TD's version.instance often is one."""
+    return raw if raw and re.fullmatch(r"\d+\.\d+\.\d+", raw) else "0.0.0"
+
+
+def interface_packages(types: TypeTable) -> list[str]:
+    names = {m.package for m in types.messages} | {s.package for s in types.services}
+    return sorted(names)
+
+
+def _render(template: str, **context: object) -> str:
+    return render(TEMPLATES, template, **context)
+
+
+def generate(model: Model, options: GenOptions, diags: Diagnostics) -> GeneratedTree:
+    """The catkin package for `model` (see the module docstring)."""
+    tree = GeneratedTree()
+    types = model.ros1
+    if types.missing:
+        diags.error(
+            "GEN842",
+            f"rospy backend: ROS 1 types not found: {', '.join(types.missing)}",
+            hint="add their definitions with --interfaces, or pick another backend",
+        )
+        return tree
+    pkg = options.package_name or model.package_name
+    taken = set(_RESERVED) | {c.name for c in model.components}
+    imports = _Imports(taken=taken)
+    views = component_views(model, imports, diags)
+    stubs = stub_modules(types, diags)
+    packages = interface_packages(types)
+    thing = model.thing
+    title = ts.py_comment(thing.title)
+    description = thing.description or thing.title
+    context: dict[str, object] = {
+        "package": pkg,
+        "components": views,
+        "imports": module_imports(views, imports),
+        "timeout": repr(DEFAULT_TIMEOUT),
+        "wait_timeout": repr(DEFAULT_WAIT_TIMEOUT),
+        "module_doc": docstring(
+            [thing.title, thing.description],
+            ["Component classes generated by td2adaptor from the Thing Description; regenerate instead of editing."],
+            "",
+        ),
+        "init_doc": docstring([thing.title], [f"ROS 1 (rospy) adaptor package {pkg}, generated by td2adaptor."], ""),
+        "exports": sorted(
+            [v.name for v in views]
+            + [
+                "AdaptorError",
+                "CallFailed",
+                "CallTimeout",
+                "InvalidMessage",
+                "InvalidRobotName",
+                "NoMessage",
+                "NotInitialized",
+                "ServiceUnavailable",
+                "Started",
+            ]
+        ),
+        "interface_packages": packages,
+        "component_names": sorted(v.name for v in views),
+        "xml_description": ts.xml_text(" ".join(description.split())),
+        "version": _version(thing.version),
+        "readme_title": " ".join(title.split()),
+        "readme_description": ts.py_comment(description).replace("<", "&lt;").replace(">", "&gt;"),
+        "stub_packages": sorted({m.path.split("/")[0] for m in stubs}),
+    }
+    root = f"{pkg}/"
+    tree.add(root + "package.xml", _render("package.xml.j2", **context))
+    tree.add(root + "CMakeLists.txt", _render("CMakeLists.txt.j2", **context))
+    tree.add(root + "setup.py", _render("setup.py.j2", **context))
+    tree.add(root + "README.md", _render("README.md.j2", **context))
+    tree.add(root + "mypy.ini", _render("mypy.ini.j2", **context))
+    tree.add(root + "ruff.toml", _render("ruff.toml.j2", **context))
+    src = f"{root}src/{pkg}/"
+    tree.add(src + "__init__.py", _render("src/__init__.py.j2", **context))
+    tree.add(src + "py.typed", "")
+    tree.add(src + "errors.py", _render("src/errors.py.j2", **context))
+    tree.add(src + "_runtime.py", _render("src/_runtime.py.j2", **context))
+    tree.add(src + "components.py", _render("src/components.py.j2", **context))
+    tree.add(src + "edge_node.py", _render("src/edge_node.py.j2", **context, script=False))
+    # the same code as the rosrun script (catkin_install_python in CMakeLists.txt)
+    tree.add(root + "scripts/edge_node", _render("src/edge_node.py.j2", **context, script=True), executable=True)
+    for name in ("genpy/__init__.pyi", "rospy/__init__.pyi", "rospy/core.pyi", "rospy/exceptions.pyi"):
+        tree.add(f"{root}stubs/{name}", _render(f"stubs/{name}.j2", **context))
+    packages_done: set[str] = set()
+    for module in stubs:
+        top = module.path.split("/")[0]
+        if top not in packages_done:
+            packages_done.add(top)
+            tree.add(f"{root}stubs/{top}/__init__.pyi", "")
+        tree.add(f"{root}stubs/{module.path}", _render("stubs/messages.pyi.j2", module=module))
+    return tree

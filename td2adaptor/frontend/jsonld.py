@@ -1,0 +1,287 @@
+"""JSON-LD processing of a TD, strictly offline.
+
+A TD names its vocabulary by context URLs. Fetching them would make validation depend on the network (and
+leak what is being validated), so only the contexts td2adaptor bundles are served: its own rendition of the
+TD 1.1 context (`schemas/td-context-1.1.jsonld`, for both W3C URLs) and the ROS binding context. Any other
+context URL is never fetched: it is reported (TD251) and treated as an empty context, so expansion goes on
+and terms it would have defined are simply dropped, as the Thingweb Playground does.
+
+pyld is imported inside the functions: it is only needed when JSON-LD is asked for, and importing it costs
+CLI start-up time.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from typing import Any
+
+from td2adaptor.diagnostics import Diagnostics, pointer_join
+from td2adaptor.frontend.bundled import load_schema
+from td2adaptor.frontend.jsonsrc import JsonDocument
+
+CODES: dict[str, str] = {
+    "TD251": "remote JSON-LD context not available offline; not fetched, expansion continues without it",
+    "TD252": "JSON-LD syntax error",
+    "TD253": "JSON-LD processing failed unexpectedly",
+}
+
+TD_CONTEXT_V1 = "https://www.w3.org/2019/wot/td/v1"
+TD_CONTEXT_V11 = "https://www.w3.org/2022/wot/td/v1.1"
+ROSV_CONTEXT = "https://td2adaptor.dev/ns/rosv/v1"
+
+# context URL -> bundled file in schemas/; the 2019 URL serves the same (1.1) vocabulary as the 2022 one
+BUNDLED_CONTEXTS: dict[str, str] = {
+    TD_CONTEXT_V1: "td-context-1.1.jsonld",
+    TD_CONTEXT_V11: "td-context-1.1.jsonld",
+    ROSV_CONTEXT: "rosv-context-v1.jsonld",
+}
+
+# used as JSON-LD base when the TD has no absolute `id`: pyld 3.3 drops every affordance name without a base
+DEFAULT_BASE = "urn:td2adaptor:anonymous"
+
+_ABSOLUTE_IRI = re.compile(r"^[A-Za-z][A-Za-z0-9+.\-]*:[^\s]*$")
+# JSON-LD 1.1 API error codes raised while processing a context (the rest concern the document itself)
+_CONTEXT_ERRORS = frozenset(
+    {
+        "invalid @version value",
+        "invalid vocab mapping",
+        "invalid base IRI",
+        "invalid default language",
+        "invalid base direction",
+        "invalid @propagate value",
+        "invalid @import value",
+        "invalid @prefix value",
+        "invalid term definition",
+        "invalid IRI mapping",
+        "invalid keyword alias",
+        "invalid container mapping",
+        "invalid type mapping",
+        "invalid language mapping",
+        "invalid reverse property",
+        "invalid scoped context",
+        "invalid protected mode",
+        "protected term redefinition",
+        "keyword redefinition",
+        "cyclic IRI mapping",
+        "processing mode conflict",
+    }
+)
+_TD_LIKE = re.compile(r"^https?://(www\.)?w3\.org/(ns/td|20\d\d/wot/td)", re.I)
+
+
+class OfflineLoader:
+    """A pyld document loader that never touches the network.
+
+    Serves `documents` (URL -> parsed JSON-LD document); every other URL is recorded in `refused` and answered
+    with an empty context, which lets processing continue instead of failing on the first unknown URL.
+    """
+
+    def __init__(self, documents: Mapping[str, Any] | None = None) -> None:
+        if documents is None:
+            documents = {url: load_schema(name) for url, name in BUNDLED_CONTEXTS.items()}
+        self.documents: dict[str, Any] = dict(documents)
+        self.refused: list[str] = []
+
+    def __call__(self, url: str, options: Any = None) -> dict[str, Any]:
+        document = self.documents.get(url)
+        if document is None:
+            if url not in self.refused:
+                self.refused.append(url)
+            document = {"@context": {}}
+        return {
+            "contentType": "application/ld+json",
+            "contextUrl": None,
+            "documentUrl": url,
+            "document": document,
+        }
+
+
+def _resolver(loader: OfflineLoader) -> Any:
+    """A pyld context resolver that keys inline contexts by sorted-key JSON instead of JCS.
+
+    pyld looks every scoped context up again for each node it applies to, canonicalising the context object
+    (pure Python JCS) just to make a cache key: that was 40% of expanding a 1,000-affordance TD. Any
+    injective serialisation is as good a key; `json.dumps(sort_keys=True)` is C code. The cache is per
+    call, so documents served by one loader never leak into another's processing.
+    """
+    import json
+
+    from pyld.context_resolver import ContextResolver
+    from pyld.resolved_context import ResolvedContext
+
+    class Resolver(ContextResolver):  # type: ignore[misc]
+        def resolve(self, active_ctx: Any, context: Any, base: Any, cycles: Any = None) -> Any:
+            if isinstance(context, dict) and "@context" in context:
+                context = context["@context"]
+            resolved = []
+            for ctx in context if isinstance(context, list) else [context]:
+                try:
+                    key = json.dumps(ctx, sort_keys=True, separators=(",", ":")) if type(ctx) is dict else None
+                except (TypeError, ValueError, RecursionError):
+                    key = None
+                if key is None:  # URLs, null, anything unusual: pyld's own way
+                    resolved.extend(super().resolve(active_ctx, ctx, base, cycles))
+                    continue
+                found = self._get(key)
+                if not found:
+                    found = self._cache_resolved_context(key, ResolvedContext(ctx), "static")
+                resolved.append(found)
+            return resolved
+
+    return Resolver({}, loader)
+
+
+def base_iri(data: Any) -> str:
+    """The JSON-LD base for a TD: its `id` when that is an absolute IRI, else a fixed URN (never empty)."""
+    ident = data.get("id") if isinstance(data, dict) else None
+    if isinstance(ident, str) and _ABSOLUTE_IRI.match(ident):
+        return ident
+    return DEFAULT_BASE
+
+
+def expand(doc: JsonDocument, diags: Diagnostics, *, loader: OfflineLoader | None = None) -> list[Any] | None:
+    """Expanded JSON-LD of `doc`, or None after reporting why it cannot be processed."""
+    from pyld import jsonld
+
+    if not isinstance(doc.data, (dict, list)):
+        # pyld would take a string for the URL of a document to fetch
+        diags.error("TD252", f"a JSON-LD document is an object or an array, not {type(doc.data).__name__}")
+        return None
+    loader = loader if loader is not None else OfflineLoader()
+    options = {"documentLoader": loader, "base": base_iri(doc.data), "contextResolver": _resolver(loader)}
+    try:
+        expanded = jsonld.expand(doc.data, options)
+    except Exception as exc:  # any processor failure becomes a diagnostic, never a traceback
+        _report_refused(doc, loader, diags)
+        _report_failure(doc, exc, diags)
+        return None
+    _report_refused(doc, loader, diags)
+    result: list[Any] = expanded
+    return result
+
+
+def to_rdf(
+    doc: JsonDocument, diags: Diagnostics, *, canonical: bool = False, loader: OfflineLoader | None = None
+) -> str | None:
+    """The TD's RDF dataset as N-Quads; `canonical` relabels blank nodes (URDNA2015) and sorts the lines.
+
+    Canonical output is what two documents must share to say the same thing in RDF.
+    """
+    from pyld import jsonld
+
+    loader = loader if loader is not None else OfflineLoader()
+    expanded = expand(doc, diags, loader=loader)
+    if expanded is None:
+        return None
+    options: dict[str, Any] = {
+        "base": base_iri(doc.data),
+        "format": "application/n-quads",
+        "documentLoader": loader,
+        "contextResolver": _resolver(loader),
+    }
+    try:
+        if canonical:
+            nquads = jsonld.normalize(expanded, {**options, "algorithm": "URDNA2015"})
+        else:
+            nquads = jsonld.to_rdf(expanded, options)
+    except Exception as exc:  # see expand()
+        _report_failure(doc, exc, diags)
+        return None
+    return str(nquads)
+
+
+def _report_refused(doc: JsonDocument, loader: OfflineLoader, diags: Diagnostics) -> None:
+    for url in loader.refused:
+        hint = "td2adaptor never fetches contexts; put the terms you need in an inline context object"
+        if _TD_LIKE.match(url):
+            hint = f"use the TD 1.1 context {TD_CONTEXT_V11!r}"
+        pointer, written = _find_context_reference(doc.data, url)
+        shown = repr(url) if written in (None, url) else f"{written!r} (resolved to {url!r})"
+        diags.warning(
+            "TD251",
+            f"JSON-LD context {shown} is not available offline and was not fetched; the terms it defines are ignored",
+            pointer,
+            hint,
+        )
+
+
+def _report_failure(doc: JsonDocument, exc: Exception, diags: Diagnostics) -> None:
+    from pyld import jsonld
+
+    error = _innermost_jsonld_error(exc, jsonld.JsonLdError)
+    if error is None:
+        if isinstance(exc, RecursionError):
+            diags.error("TD253", "JSON-LD processing failed: the document is nested too deeply", "")
+        else:
+            diags.error(
+                "TD253",
+                f"JSON-LD processing failed: {type(exc).__name__}: {exc}",
+                "",
+                "please report this as a td2adaptor bug, with the document",
+            )
+        return
+    code = getattr(error, "code", None) or getattr(error, "type", "")
+    message = str(error.args[0]) if error.args else "invalid JSON-LD"
+    details = getattr(error, "details", None)
+    if isinstance(details, dict):
+        shown = {k: v for k, v in details.items() if isinstance(v, (str, int, float, bool)) and len(str(v)) < 200}
+        if shown:
+            message += " (" + ", ".join(f"{k}: {v!r}" for k, v in shown.items()) + ")"
+    pointer = "/@context" if str(code) in _CONTEXT_ERRORS or "context" in str(code) else ""
+    if pointer and not (isinstance(doc.data, dict) and "@context" in doc.data):
+        pointer = ""
+    diags.error("TD252", f"JSON-LD error [{code}]: {message}", pointer, _hint_for(str(code)))
+
+
+def _hint_for(code: str) -> str | None:
+    if "term definition" in code or "IRI mapping" in code:
+        return "every term in an inline @context must map to an absolute IRI, a compact IRI or a keyword"
+    if "context" in code:
+        return "@context must be a URL, an object or an array of those"
+    return None
+
+
+def _innermost_jsonld_error(exc: BaseException, error_type: type[BaseException]) -> Any:
+    """pyld wraps the error that explains a failure (e.g. to_rdf wraps expand's); find the deepest one."""
+    found: BaseException | None = None
+    seen: set[int] = set()
+    current: BaseException | None = exc
+    while current is not None and id(current) not in seen:
+        seen.add(id(current))
+        if isinstance(current, error_type):
+            found = current
+        current = current.__cause__
+    return found
+
+
+def _find_context_reference(data: Any, url: str) -> tuple[str, str | None]:
+    """Where the document names context `url`: (JSON pointer, the reference as written).
+
+    pyld hands the loader URLs already resolved against the base, so a relative reference is matched by
+    its ending. Without a match: the top-level `@context` (or the root), and None.
+    """
+    candidates: list[tuple[str, str]] = []
+    stack: list[tuple[str, Any]] = [("", data)]
+    while stack:
+        pointer, value = stack.pop()
+        if isinstance(value, dict):
+            for key, child in value.items():
+                child_ptr = pointer_join(pointer, key)
+                if key == "@context":
+                    entries = child if isinstance(child, list) else [child]
+                    for i, item in enumerate(entries):
+                        if isinstance(item, str):
+                            candidates.append((pointer_join(child_ptr, i) if child is entries else child_ptr, item))
+                stack.append((child_ptr, child))
+        elif isinstance(value, list):
+            stack.extend((pointer_join(pointer, i), item) for i, item in enumerate(value))
+    for pointer, item in candidates:
+        if item == url:
+            return pointer, item
+    for pointer, item in candidates:
+        if item and not _ABSOLUTE_IRI.match(item) and url.endswith(item.lstrip("./")):
+            return pointer, item
+    if isinstance(data, dict) and "@context" in data:
+        return "/@context", None
+    return "", None

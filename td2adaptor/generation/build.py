@@ -1,0 +1,212 @@
+"""Generation as a library: TDs → models → in-memory trees per backend → disk (via `emit`), or a comparison
+with disk (`check`). The CLI's `gen`/`check` and build scripts use the same functions.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity, escalate
+from td2adaptor.generation import registry as backend_registry
+from td2adaptor.generation.backend import GeneratedTree, GenOptions
+from td2adaptor.generation.emit import EmitReport, plan, write
+from td2adaptor.generation.targets import Target
+from td2adaptor.lowering.rosnames import package_name_problem
+from td2adaptor.model import Model
+
+
+def resolve_backends(requested: Sequence[str]) -> tuple[list[str], str | None]:
+    """Expand `all`, drop duplicates, keep the documented order; an error message for unknown names."""
+    available = backend_registry.available()
+    names: list[str] = []
+    for name in requested:
+        if name == "all":
+            names.extend(available)
+        elif name in available:
+            names.append(name)
+        else:
+            known = ", ".join([*available, "all"])
+            return [], f"unknown backend {name!r} (known: {known})"
+    order = {n: i for i, n in enumerate(available)}
+    return sorted(dict.fromkeys(names), key=order.__getitem__), None
+
+
+def generate_trees(
+    model: Model,
+    names: Sequence[str],
+    diags: Diagnostics,
+    *,
+    partial: bool = False,
+    package_name: str | None = None,
+    strict: bool = False,
+) -> dict[str, GeneratedTree] | None:
+    """Every requested backend's tree, or None when any backend reported an error."""
+    if package_name:
+        problem = package_name_problem(package_name)
+        if problem:
+            diags.error("GEN800", f"package name {package_name!r} {problem}")
+            return None
+        model = replace(model, package_name=package_name)
+    options = GenOptions(package_name=package_name, partial=partial)
+    trees: dict[str, GeneratedTree] = {}
+    local = Diagnostics()
+    for name in names:
+        trees[name] = backend_registry.load(name).generate(model, options, local)
+    found = escalate(local) if strict else list(local)
+    diags.extend(found)
+    if any(d.severity is Severity.ERROR for d in found):
+        return None
+    return trees
+
+
+@dataclass
+class Outcome:
+    """What `generate` or `check` did: diagnostics, and per output directory what changed (or would)."""
+
+    diagnostics: list[Diagnostic] = field(default_factory=list)
+    reports: dict[Path, EmitReport] = field(default_factory=dict)
+    ok: bool = False
+
+    @property
+    def stale(self) -> list[str]:
+        """`A path` (new), `M path` (changed), `D path` (removed), across all output directories."""
+        out = []
+        for root, rep in sorted(self.reports.items()):
+            out += [f"A {root / p}" for p in rep.written if not (root / p).exists()]
+            out += [f"M {root / p}" for p in rep.written if (root / p).exists()]
+            out += [f"D {root / p}" for p in rep.removed]
+        return out
+
+
+def build(
+    targets: Sequence[Target], diags: Diagnostics, *, use_cache: bool = True, parallel: bool = False
+) -> dict[Path, GeneratedTree] | None:
+    """Compile every TD of every target and generate; trees merged per output directory `OUT/<backend>`."""
+    from td2adaptor.compiler.pipeline import compile
+
+    merged: dict[Path, GeneratedTree] = {}
+    ok = True
+    for target in targets:
+        names, problem = resolve_backends(target.backends)
+        if problem:
+            diags.error("GEN804", problem)
+            ok = False
+            continue
+        for td in target.tds:
+            result = compile(
+                str(td),
+                interfaces=list(target.interfaces),
+                values=dict(target.values),
+                strict=target.strict,
+                package=target.package_name,
+                use_cache=use_cache,
+                parallel=parallel,
+            )
+            diags.extend(result.diagnostics)
+            if result.model is None:
+                ok = False
+                continue
+            local = Diagnostics()
+            trees = generate_trees(
+                result.model,
+                names,
+                local,
+                partial=target.partial,
+                package_name=target.package_name,
+                strict=target.strict,
+            )
+            diags.extend(_locate(local, td))
+            if trees is None:
+                ok = False
+                continue
+            for name, tree in trees.items():
+                root = target.output / name
+                into = merged.setdefault(root, GeneratedTree())
+                for rel, data in tree:
+                    if rel in into.files and into.files[rel] != data:
+                        diags.error(
+                            "GEN805",
+                            f"two TDs generate different {root / rel}",
+                            hint="give them different package names",
+                        )
+                        ok = False
+                    into.files[rel] = data
+                into.executable |= tree.executable
+    return merged if ok else None
+
+
+def _locate(diags: Diagnostics, td: Path) -> list[Diagnostic]:
+    """Backends point into the TD; give their diagnostics the TD's file:line:col."""
+    if all(d.file for d in diags):
+        return list(diags)
+    from td2adaptor.frontend.jsonsrc import load_path
+
+    doc = load_path(str(td), Diagnostics())
+    return [d if d.file or doc is None else doc.locate(d) for d in diags]
+
+
+def generate(
+    targets: Sequence[Target], *, force: bool = False, use_cache: bool = True, parallel: bool = False
+) -> Outcome:
+    """Generate and write; nothing is written when any input is invalid or any write would be refused."""
+    diags = Diagnostics()
+    outcome = Outcome()
+    trees = build(targets, diags, use_cache=use_cache, parallel=parallel)
+    if trees is not None:
+        plans = {root: plan(tree, root, diags, force=force) for root, tree in trees.items()}
+        if all(p is not None for p in plans.values()):
+            for root, rep in plans.items():
+                assert rep is not None
+                write(trees[root], root, rep)
+                outcome.reports[root] = rep
+            outcome.ok = not diags.has_errors
+    outcome.diagnostics = list(diags)
+    return outcome
+
+
+def check(targets: Sequence[Target], *, use_cache: bool = True, parallel: bool = False) -> Outcome:
+    """Regenerate in memory and compare with disk; never writes. `ok` is True when everything is current."""
+    diags = Diagnostics()
+    outcome = Outcome()
+    trees = build(targets, diags, use_cache=use_cache, parallel=parallel)
+    current = trees is not None
+    if trees is not None:
+        for root, tree in trees.items():
+            rep = plan(tree, root, Diagnostics(), force=True)
+            assert rep is not None
+            outcome.reports[root] = rep
+            from td2adaptor.generation.emit import MANIFEST, _manifest_bytes, _read
+
+            if rep.written or rep.removed or _read(root / MANIFEST) != _manifest_bytes(tree):
+                current = False
+    outcome.ok = current and not diags.has_errors
+    outcome.diagnostics = list(diags)
+    return outcome
+
+
+def target(
+    tds: str | Path | Sequence[str | Path],
+    *,
+    backends: Sequence[str] = ("all",),
+    output: str | Path = "generated",
+    interfaces: Sequence[str | Path] = (),
+    values: Mapping[str, Any] | None = None,
+    package_name: str | None = None,
+    partial: bool = False,
+    strict: bool = False,
+) -> Target:
+    """A Target from plain arguments (what the library functions and the CLI build)."""
+    paths = [tds] if isinstance(tds, (str, Path)) else list(tds)
+    return Target(
+        tds=tuple(Path(p) for p in paths),
+        backends=tuple(backends),
+        output=Path(output),
+        interfaces=tuple(Path(p) for p in interfaces),
+        values=tuple(sorted((values or {}).items())),
+        package_name=package_name,
+        partial=partial,
+        strict=strict,
+    )

@@ -1,0 +1,614 @@
+"""Lower raw ROS bindings into the canonical model: check names, group components, link procedures,
+resolve types for ROS 1 and ROS 2, and cross-check TD data schemas against the message definitions.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from td2adaptor.diagnostics import Diagnostics, pointer_join
+from td2adaptor.frontend.extract import BINDING, REFERENCE, RawEndpoint, obj
+from td2adaptor.lowering.rosnames import (
+    BINDING_PLACEHOLDER,
+    REFERENCE_PLACEHOLDER,
+    identifier_problem,
+    name_problems,
+    package_name,
+    package_name_problem,
+    split_namespace,
+)
+from td2adaptor.model import (
+    Component,
+    Interface,
+    MessageDef,
+    Model,
+    Procedure,
+    ProcedureRole,
+    Role,
+    Ros1Digest,
+    ServiceDef,
+    ServiceEndpoint,
+    Thing,
+    TopicEndpoint,
+    TypeTable,
+    freeze,
+)
+
+if TYPE_CHECKING:
+    from td2adaptor.rostypes.registry import TypeRegistry
+
+DISTROS = ("ros1", "ros2")
+
+#: ROS name suffixes and affordance-name suffixes that identify procedure roles in the reference dialect.
+_RUN_SUFFIXES = ("/add",)
+_QUERY_SUFFIXES = ("/query_state", "/query")
+_CANCEL_SUFFIXES = ("/cancel",)
+_NAME_ROLE = (
+    (re.compile(r"(Run)$"), ProcedureRole.RUN),
+    (re.compile(r"(Query)$"), ProcedureRole.QUERY),
+    (re.compile(r"(Cancel|Cancle)$"), ProcedureRole.CANCEL),
+)
+
+
+@dataclass
+class _Endpoint:
+    raw: RawEndpoint
+    component: str
+    ros_name: Any
+    type_name: str
+    procedure_role: ProcedureRole = ProcedureRole.NONE
+    errors: bool = False
+
+
+@dataclass
+class _Group:
+    name: str
+    pointer: str
+    endpoints: list[_Endpoint] = field(default_factory=list)
+
+
+def thing_of(td: Mapping[str, Any], fallback_title: str) -> Thing:
+    title = td.get("title") if isinstance(td.get("title"), str) and td.get("title") else fallback_title
+    master = td.get("rosv:masterURI", td.get("ros:masterURI"))
+    version = obj(td.get("version")).get("instance")
+    return Thing(
+        title=str(title),
+        id=td["id"] if isinstance(td.get("id"), str) else None,
+        description=td["description"] if isinstance(td.get("description"), str) else None,
+        version=version if isinstance(version, str) else None,
+        master_uri=master if isinstance(master, str) else None,
+        security=freeze(obj(td.get("securityDefinitions"))),
+    )
+
+
+def lower(
+    td: Mapping[str, Any],
+    raws: Sequence[RawEndpoint],
+    diags: Diagnostics,
+    *,
+    interface_dirs: Sequence[Path] = (),
+    package: str | None = None,
+    fallback_title: str = "thing",
+    registries: Mapping[str, TypeRegistry] | None = None,
+) -> Model | None:
+    """Build the canonical model; returns None when errors make a model meaningless."""
+    errors_before = len(diags.errors())
+    thing = thing_of(td, fallback_title)
+    pkg = package or package_name(thing.title)
+    problem = package_name_problem(pkg)
+    if problem:
+        diags.error("ROS432", f"package name {pkg!r} {problem}", "/title" if package is None else "")
+    if not raws:
+        diags.warning(
+            "ROS400",
+            "no affordance is bound to ROS; there is nothing to generate",
+            "",
+            "bind actions to ROS services and properties to topics (docs/binding.md)",
+        )
+    _check_unbound_actions(td, raws, diags)
+    endpoints = [ep for ep in (_endpoint(raw, diags) for raw in raws) if ep is not None]
+    _check_duplicate_names(endpoints, diags)
+    groups = _group(endpoints, diags)
+    procedures = {g.name: _procedures(g, diags) for g in groups}
+    regs = registries if registries is not None else _registries(interface_dirs, diags)
+    tables = _resolve_types(endpoints, regs, diags)
+    for g in groups:
+        procedures[g.name] = tuple(_mission_ids(g, procedures[g.name], tables, diags))
+    _crosscheck(endpoints, tables, diags)
+    if len(diags.errors()) > errors_before:
+        return None
+    components = tuple(
+        Component(
+            name=g.name,
+            services=tuple(_service(ep) for ep in g.endpoints if ep.raw.interface is not Interface.TOPIC),
+            topics=tuple(_topic(ep) for ep in g.endpoints if ep.raw.interface is Interface.TOPIC),
+            procedures=procedures[g.name],
+        )
+        for g in groups
+    )
+    return Model(thing, pkg, components, tables["ros1"], tables["ros2"])
+
+
+# ---------------------------------------------------------------------------------------------------------
+
+
+def _check_unbound_actions(td: Mapping[str, Any], raws: Sequence[RawEndpoint], diags: Diagnostics) -> None:
+    if not raws:
+        return
+    bound = {r.pointer for r in raws}
+    for name, aff in obj(td.get("actions")).items():
+        ptr = pointer_join("", "actions", name)
+        if ptr not in bound and isinstance(aff, dict):
+            diags.error(
+                "ROS401",
+                f"action {name!r} is not bound to a ROS service",
+                ptr,
+                "add a form with rosv:name and rosv:type (docs/binding.md)",
+            )
+
+
+def _endpoint(raw: RawEndpoint, diags: Diagnostics) -> _Endpoint | None:
+    from td2adaptor.rostypes.names import normalize_type_name
+
+    what = f"{raw.kind} {raw.name!r}"
+    ok = True
+    problem = identifier_problem(raw.name)
+    if problem:
+        diags.error(
+            "ROS431",
+            f"{what}: the name {problem}; generated method names are made from it",
+            raw.pointer,
+            "rename the affordance (e.g. camelCase letters and digits)",
+        )
+        ok = False
+    ros_name, placeholder = split_namespace(raw.ros_name.value)
+    for p in name_problems(ros_name):
+        diags.error("ROS410", f"{what}: ROS name {raw.ros_name.value!r}: {p}", raw.ros_name.pointer)
+        ok = False
+    if raw.dialect == BINDING and placeholder == REFERENCE_PLACEHOLDER:
+        diags.warning(
+            "ROS411",
+            f"{what}: '/{REFERENCE_PLACEHOLDER}' is the reference system's namespace placeholder",
+            raw.ros_name.pointer,
+            f"write '/{BINDING_PLACEHOLDER}/...' in the td2adaptor binding",
+        )
+    _check_href(raw, ros_name, diags)
+    kind = {Interface.SERVICE: "srv", Interface.TOPIC: "msg", Interface.ACTION: "action"}[raw.interface]
+    type_name = normalize_type_name(raw.type_name.value, kind)  # type: ignore[arg-type]
+    if type_name is None:
+        diags.error(
+            "ROS420",
+            f"{what}: {raw.type_name.value!r} is not a ROS interface type name",
+            raw.type_name.pointer,
+            f"write it as pkg/{kind}/Name",
+        )
+        ok = False
+    elif type_name.split("/")[1] != kind:
+        diags.error(
+            "ROS421",
+            f"{what}: a ROS {raw.interface.value} needs a {kind} type, not {type_name!r}",
+            raw.type_name.pointer,
+        )
+        ok = False
+    else:
+        _check_declared(raw, type_name, diags)
+    if raw.interface is Interface.ACTION:
+        diags.error(
+            "ROS425",
+            f"{what}: ROS 2 actions are reserved in the binding but not generated yet",
+            raw.form_pointer,
+            "bind the action's goal/cancel/status services instead",
+        )
+        ok = False
+    component = raw.component.value if raw.component else _default_component(raw.name)
+    if type_name is None or type_name.split("/")[1] != kind:
+        return None
+    # other problems were reported; keep going so type resolution can report its own too
+    return _Endpoint(raw, component, ros_name, type_name, errors=not ok)
+
+
+def _default_component(name: str) -> str:
+    return (name[:1].upper() + name[1:] + "Component") if name else "Component"
+
+
+def _check_href(raw: RawEndpoint, ros_name: Any, diags: Diagnostics) -> None:
+    href = raw.href
+    if href is None:
+        return
+    if raw.dialect == REFERENCE and href.value == "":
+        diags.warning(
+            "ROS412",
+            f"{raw.kind} {raw.name!r}: empty href and no base (reference-dialect defect)",
+            href.pointer,
+            "td2adaptor reads the ROS name from the form; 'td2adaptor migrate' writes a ros: href",
+        )
+    elif raw.dialect == BINDING and isinstance(href.value, str) and href.value.startswith("ros:"):
+        expected = "ros:" + ros_name.path
+        ref = href.value[4:]
+        # a relative href is the name as seen from inside the robot namespace, whether that namespace is
+        # still a placeholder or was baked in by instantiating a Thing Model
+        baked = not ros_name.namespaced and not ref.startswith("/") and ros_name.path.endswith("/" + ref)
+        if href.value != expected and not baked:
+            diags.warning(
+                "ROS413",
+                f"{raw.kind} {raw.name!r}: href {href.value!r} does not match rosv:name",
+                href.pointer,
+                f"write {expected!r} (the name as seen from inside the robot namespace)",
+            )
+
+
+def _check_declared(raw: RawEndpoint, type_name: str, diags: Diagnostics) -> None:
+    """Reference dialect: Java class names are derivable; report any that disagree with the ROS type."""
+    pkg, kind, base = type_name.split("/")
+    if kind == "srv":
+        expected = {
+            "ros:serviceRequestType": f"{pkg}.{base}Request",
+            "ros:serviceResponseType": f"{pkg}.{base}Response",
+        }
+    else:
+        expected = {"ros:MessageType": f"{pkg}.{base}"}
+    for declared in raw.declared:
+        key = declared.pointer.rsplit("/", 1)[-1]
+        want = expected.get(key)
+        if want is not None and declared.value != want:
+            diags.warning(
+                "ROS422",
+                f"{raw.kind} {raw.name!r}: {key} {declared.value!r} does not match {want!r} "
+                f"derived from {raw.type_name.value!r}",
+                declared.pointer,
+                "td2adaptor uses the ROS type; remove the redundant class name or correct it",
+            )
+
+
+def _check_duplicate_names(endpoints: Sequence[_Endpoint], diags: Diagnostics) -> None:
+    seen: dict[tuple[str, bool, str], _Endpoint] = {}
+    for ep in endpoints:
+        space = "service" if ep.raw.interface is not Interface.TOPIC else "topic"
+        key = (space, ep.ros_name.namespaced, ep.ros_name.path)
+        first = seen.setdefault(key, ep)
+        if first is not ep and first.type_name != ep.type_name:
+            diags.error(
+                "ROS414",
+                f"ROS {space} {ep.raw.ros_name.value!r} is bound with type {ep.type_name!r} here and "
+                f"{first.type_name!r} by {first.raw.kind} {first.raw.name!r}",
+                ep.raw.type_name.pointer,
+                "one ROS name has one type",
+            )
+
+
+def _group(endpoints: Sequence[_Endpoint], diags: Diagnostics) -> list[_Group]:
+    groups: dict[str, _Group] = {}
+    for ep in endpoints:
+        g = groups.get(ep.component)
+        if g is None:
+            ptr = ep.raw.component.pointer if ep.raw.component else ep.raw.pointer
+            problem = identifier_problem(ep.component)
+            if problem:
+                diags.error(
+                    "ROS430",
+                    f"component name {ep.component!r} {problem}; it becomes a class name",
+                    ptr,
+                    "use a CamelCase name such as 'GoToComponent'",
+                )
+            g = groups[ep.component] = _Group(ep.component, ptr)
+        g.endpoints.append(ep)
+    return list(groups.values())
+
+
+# ---------------------------------------------------------------------------------------------------------
+# procedures
+
+
+def _procedures(group: _Group, diags: Diagnostics) -> tuple[Procedure, ...]:
+    services = {ep.raw.name: ep for ep in group.endpoints if ep.raw.interface is Interface.SERVICE}
+    explicit = [ep for ep in services.values() if ep.raw.procedure is not None]
+    derived_from_names = all(ep.raw.dialect == REFERENCE for ep in services.values())
+    procs: list[Procedure] = []
+    claimed: dict[str, str] = {}
+    for ep in explicit:
+        proc = _explicit_procedure(ep, services, group, claimed, diags)
+        if proc is not None:
+            procs.append(proc)
+    if not explicit and derived_from_names and services:
+        proc = _derived_procedure(services, group, diags)
+        if proc is not None:
+            procs.append(proc)
+    for proc in procs:
+        services[proc.run].procedure_role = ProcedureRole.RUN
+        if proc.query:
+            services[proc.query].procedure_role = ProcedureRole.QUERY
+        if proc.cancel:
+            services[proc.cancel].procedure_role = ProcedureRole.CANCEL
+    return tuple(procs)
+
+
+def _explicit_procedure(
+    ep: _Endpoint,
+    services: Mapping[str, _Endpoint],
+    group: _Group,
+    claimed: dict[str, str],
+    diags: Diagnostics,
+) -> Procedure | None:
+    loc = ep.raw.procedure
+    assert loc is not None
+    value = loc.value
+    if not isinstance(value, Mapping):
+        diags.error("ROS441", f"action {ep.raw.name!r}: rosv:procedure must be an object", loc.pointer)
+        return None
+    ok = True
+    links: dict[str, str | None] = {"query": None, "cancel": None}
+    for key in value:
+        if key not in ("query", "cancel", "missionId"):
+            diags.error(
+                "ROS441",
+                f"action {ep.raw.name!r}: unknown procedure link {key!r}",
+                pointer_join(loc.pointer, key),
+                "rosv:procedure has 'query', 'cancel' and 'missionId'",
+            )
+            ok = False
+    for key in ("query", "cancel"):
+        target = value.get(key)
+        if target is None:
+            continue
+        tptr = pointer_join(loc.pointer, key)
+        if not isinstance(target, str) or target not in services:
+            diags.error(
+                "ROS442",
+                f"action {ep.raw.name!r}: procedure {key} {target!r} is not an action of component {group.name!r}",
+                tptr,
+                "name an action bound to a ROS service in the same rosv:component",
+            )
+            ok = False
+        elif target == ep.raw.name:
+            diags.error("ROS443", f"action {ep.raw.name!r} cannot be its own {key}", tptr)
+            ok = False
+        elif target in claimed:
+            diags.error(
+                "ROS443",
+                f"action {target!r} is already linked to procedure {claimed[target]!r}",
+                tptr,
+                "an action queries or cancels one run action",
+            )
+            ok = False
+        elif services[target].raw.procedure is not None:
+            diags.error("ROS443", f"action {target!r} is itself a run action and cannot be its {key}", tptr)
+            ok = False
+        else:
+            links[key] = target
+            claimed[target] = ep.raw.name
+    mission = value.get("missionId")
+    path: tuple[str, ...] = ()
+    if mission is not None:
+        if isinstance(mission, str) and re.fullmatch(r"[A-Za-z_]\w*(/[A-Za-z_]\w*)*", mission):
+            path = tuple(mission.split("/"))
+        else:
+            diags.error(
+                "ROS444",
+                f"action {ep.raw.name!r}: missionId must be a '/'-separated response field path",
+                pointer_join(loc.pointer, "missionId"),
+                "e.g. 'state/header/id'",
+            )
+            ok = False
+    return Procedure(ep.raw.name, links["query"], links["cancel"], path) if ok else None
+
+
+def _role_of(ep: _Endpoint) -> ProcedureRole:
+    path = ep.ros_name.path
+    for suffixes, role in (
+        (_RUN_SUFFIXES, ProcedureRole.RUN),
+        (_QUERY_SUFFIXES, ProcedureRole.QUERY),
+        (_CANCEL_SUFFIXES, ProcedureRole.CANCEL),
+    ):
+        if path.endswith(suffixes):
+            return role
+    for pattern, role in _NAME_ROLE:
+        if pattern.search(ep.raw.name):
+            return role
+    return ProcedureRole.NONE
+
+
+def _derived_procedure(services: Mapping[str, _Endpoint], group: _Group, diags: Diagnostics) -> Procedure | None:
+    """Reference dialect: nothing links xRun to xQuery/xCancel except names (defect 10); derive it."""
+    by_role: dict[ProcedureRole, list[str]] = {}
+    for name, ep in services.items():
+        by_role.setdefault(_role_of(ep), []).append(name)
+    runs = by_role.get(ProcedureRole.RUN, [])
+    if len(runs) != 1:
+        return None
+    queries = by_role.get(ProcedureRole.QUERY, [])
+    cancels = by_role.get(ProcedureRole.CANCEL, [])
+    query = queries[0] if len(queries) == 1 else None
+    cancel = cancels[0] if len(cancels) == 1 else None
+    if query is None and cancel is None:
+        return None
+    diags.info(
+        "ROS440",
+        f"component {group.name!r}: procedure linkage derived from names: run {runs[0]!r}"
+        + (f", query {query!r}" if query else "")
+        + (f", cancel {cancel!r}" if cancel else ""),
+        services[runs[0]].raw.pointer,
+        "'td2adaptor migrate' writes it explicitly as rosv:procedure",
+    )
+    return Procedure(runs[0], query, cancel)
+
+
+def _field_path(msg: MessageDef, path: Sequence[str], table: TypeTable) -> str | None:
+    """The primitive type at `path` in `msg`, or None when the path does not exist."""
+    current: MessageDef | None = msg
+    for i, part in enumerate(path):
+        if current is None:
+            return None
+        fld = next((f for f in current.fields if f.name == part), None)
+        if fld is None or fld.type.array.value != "none":
+            return None
+        if i == len(path) - 1:
+            return None if fld.type.is_message else fld.type.base
+        found = table.get(fld.type.base) if fld.type.is_message else None
+        current = found if isinstance(found, MessageDef) else None
+    return None
+
+
+_INT_TYPES = {"int8", "int16", "int32", "int64", "uint8", "uint16", "uint32", "uint64"}
+
+
+def _mission_ids(
+    group: _Group, procs: Sequence[Procedure], tables: Mapping[str, TypeTable], diags: Diagnostics
+) -> list[Procedure]:
+    """Check explicit mission-id paths; derive `state/header/id` for procedures_msgs-style responses."""
+    out = []
+    by_name = {ep.raw.name: ep for ep in group.endpoints}
+    for proc in procs:
+        ep = by_name[proc.run]
+        responses = []
+        for distro in DISTROS:
+            srv = tables[distro].get(ep.type_name)
+            if isinstance(srv, ServiceDef):
+                responses.append((tables[distro], srv.response))
+        if proc.mission_id:
+            types = {_field_path(resp, proc.mission_id, t) for t, resp in responses}
+            if responses and not types <= _INT_TYPES:
+                ptr = ep.raw.procedure.pointer if ep.raw.procedure else ep.raw.pointer
+                diags.error(
+                    "ROS444",
+                    f"action {proc.run!r}: missionId {'/'.join(proc.mission_id)!r} is not an integer field "
+                    f"of {ep.type_name}'s response",
+                    pointer_join(ptr, "missionId"),
+                )
+            out.append(proc)
+            continue
+        derived = ("state", "header", "id")
+        if responses and all(_field_path(resp, derived, t) in _INT_TYPES for t, resp in responses):
+            out.append(Procedure(proc.run, proc.query, proc.cancel, derived))
+        else:
+            out.append(proc)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------------
+# types
+
+
+def _registries(interface_dirs: Sequence[Path], diags: Diagnostics) -> dict[str, TypeRegistry]:
+    from td2adaptor.rostypes.registry import TypeRegistry
+
+    # user-file problems are the same for both distros: report them once
+    regs = {"ros1": TypeRegistry("ros1", interface_dirs, diags)}
+    regs["ros2"] = TypeRegistry("ros2", interface_dirs, Diagnostics())
+    return regs
+
+
+def _resolve_types(
+    endpoints: Sequence[_Endpoint], regs: Mapping[str, TypeRegistry], diags: Diagnostics
+) -> dict[str, TypeTable]:
+    names = list(dict.fromkeys(ep.type_name for ep in endpoints))
+    tables = {d: regs[d].table(names) for d in DISTROS}
+    tables["ros1"] = _with_digests(tables["ros1"], regs["ros1"])
+    reported: set[str] = set()
+    for ep in endpoints:
+        missing = [d for d in DISTROS if tables[d].get(ep.type_name) is None]
+        if not missing or ep.type_name in reported:
+            continue
+        reported.add(ep.type_name)
+        if len(missing) == len(DISTROS):
+            close = regs["ros2"].closest(ep.type_name) or regs["ros1"].closest(ep.type_name)
+            diags.error(
+                "ROS423",
+                f"{ep.raw.kind} {ep.raw.name!r}: unknown ROS type {ep.type_name!r}",
+                ep.raw.type_name.pointer,
+                ("closest known types: " + ", ".join(close) if close else "no similar type is known")
+                + "; add its definition with --interfaces DIR",
+            )
+        else:
+            backends = "rospy and mROS" if missing == ["ros1"] else "rclpy"
+            diags.warning(
+                "ROS424",
+                f"{ep.raw.kind} {ep.raw.name!r}: type {ep.type_name!r} is not known for "
+                f"{'ROS 1' if missing == ['ros1'] else 'ROS 2'}; the {backends} backends cannot use it",
+                ep.raw.type_name.pointer,
+            )
+    # message types referenced inside resolved definitions but missing for a distro
+    for d in DISTROS:
+        for name in tables[d].missing:
+            if name not in names:
+                diags.warning("ROS426", f"type {name!r} used by the interface definitions is not known for {d}")
+    return tables
+
+
+def _with_digests(table: TypeTable, reg: TypeRegistry) -> TypeTable:
+    """Attach ROS 1 definitions and md5 sums (the rospy and mROS backends put them on the wire)."""
+    from dataclasses import replace
+
+    digests = []
+    for name in [m.name for m in table.messages] + [s.name for s in table.services]:
+        try:
+            text, md5 = reg.ros1_definition(name)
+        except (KeyError, ValueError):
+            continue
+        digests.append(Ros1Digest(name, text, md5))
+    return replace(table, ros1_digests=tuple(digests))
+
+
+def _crosscheck(endpoints: Sequence[_Endpoint], tables: Mapping[str, TypeTable], diags: Diagnostics) -> None:
+    """Compare each affordance's data schemas with its message types.
+
+    Schemas may follow ROS 1 or ROS 2 layouts (Header.seq, secs/nsecs vs sec/nanosec); each endpoint is
+    checked against every distro its type resolves in, and the distro its schemas fit best is reported.
+    """
+    from td2adaptor.lowering.crosscheck import crosscheck
+
+    for ep in endpoints:
+        raw = ep.raw
+        pairs: list[tuple[Any, str, str]] = []
+        if raw.interface is Interface.SERVICE:
+            for schema, half, key in (
+                (raw.input_schema, "_Request", "input"),
+                (raw.output_schema, "_Response", "output"),
+            ):
+                if isinstance(schema, Mapping):
+                    pairs.append((schema, pointer_join(raw.pointer, key), ep.type_name + half))
+        elif isinstance(raw.schema, Mapping):
+            pairs.append((raw.schema, raw.pointer, ep.type_name))
+        if not pairs:
+            continue
+        best: Diagnostics | None = None
+        order = ("ros1", "ros2") if raw.dialect == REFERENCE else ("ros2", "ros1")
+        for distro in order:
+            if tables[distro].get(ep.type_name) is None:
+                continue
+            local = Diagnostics()
+            for schema, ptr, msg in pairs:
+                crosscheck(_plain(schema), ptr, msg, tables[distro], local)
+            if best is None or len(local) < len(best):
+                best = local
+        if best is not None:
+            diags.extend(best)
+
+
+def _plain(value: Any) -> Any:
+    from td2adaptor.model import thaw
+
+    return thaw(value)
+
+
+def _service(ep: _Endpoint) -> ServiceEndpoint:
+    raw = ep.raw
+    return ServiceEndpoint(
+        raw.name,
+        ep.ros_name,
+        ep.type_name,
+        raw.text,
+        ep.procedure_role,
+        raw.input_schema,
+        raw.output_schema,
+        raw.pointer,
+    )
+
+
+def _topic(ep: _Endpoint) -> TopicEndpoint:
+    raw = ep.raw
+    role = raw.role if raw.role is not Role.CLIENT else Role.SUBSCRIBER
+    return TopicEndpoint(raw.name, ep.ros_name, ep.type_name, role, raw.qos, raw.text, raw.schema, raw.pointer)

@@ -1,0 +1,539 @@
+"""The events an adaptor consumes and emits, derived from the canonical model.
+
+One catalog serves both the `events` backend (which writes the schemas, the AsyncAPI document and the exposed
+TD) and the runtime (which validates and routes with the very same schemas), so the two cannot drift apart.
+
+Topic scheme (every level but the robot id is a validated identifier, so no level can contain `/`, `+`, `#`):
+
+    td2adaptor/<robot>/<Component>/<action>            invoke (run or plain action), query, cancel  (in)
+    td2adaptor/<robot>/<Component>/<property>/write    write a publisher property                   (in)
+    td2adaptor/<robot>/<Component>/<property>          property value, retained, throttled          (out)
+    td2adaptor/<robot>/<Component>/<run>/feedback      every state change of a mission              (out)
+    td2adaptor/<robot>/<Component>/<run>/state         answer to a query or cancel event            (out)
+    td2adaptor/<robot>/error                           error events                                 (out)
+    td2adaptor/<robot>/status                          online/offline, retained, last will          (out)
+
+`<robot>` is the robot id; the reserved id `all` addresses every robot (inbound events only).
+"""
+
+from __future__ import annotations
+
+import enum
+import re
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Any
+
+from td2adaptor.model import Model, ProcedureRole, Role, ServiceEndpoint, Text, TopicEndpoint, thaw
+from td2adaptor.model.msgschema import message_schema
+
+TOPIC_ROOT = "td2adaptor"
+ALL_ROBOTS = "all"
+#: robot ids: one MQTT topic level, readable in logs; `all` is reserved for the all-robots channel
+ROBOT_ID = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]{0,127}$")
+ROBOT_ID_PATTERN = ROBOT_ID.pattern
+SCHEMA_BASE = "https://td2adaptor.dev/events/"
+DRAFT = "https://json-schema.org/draft/2020-12/schema"
+_TIME_PATTERN = r"^\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2}(\.\d{1,9})?(Z|[+-]\d{2}:\d{2})$"
+
+
+class Kind(str, enum.Enum):
+    INVOKE = "invoke"
+    QUERY = "query"
+    CANCEL = "cancel"
+    WRITE = "write"
+    FEEDBACK = "feedback"
+    STATE = "state"
+    PROPERTY = "property"
+    ERROR = "error"
+    STATUS = "status"
+
+    @property
+    def inbound(self) -> bool:
+        return self in (Kind.INVOKE, Kind.QUERY, Kind.CANCEL, Kind.WRITE)
+
+
+#: procedure states a feedback or state event reports; the last three are terminal
+STATES = ("queued", "running", "paused", "finished", "failed", "cancelled")
+TERMINAL_STATES = frozenset({"finished", "failed", "cancelled"})
+#: why a mission failed (feedback `reason`)
+FAILURE_REASONS = ("rejected", "busy", "timeout", "unreachable", "call-failed", "aborted", "robot-error")
+#: error event codes
+ERROR_CODES = (
+    "invalid-json",
+    "invalid-event",
+    "too-large",
+    "unknown-topic",
+    "busy",
+    "call-failed",
+    "unsupported",
+    "internal",
+)
+
+
+@dataclass(frozen=True)
+class EventSpec:
+    """One kind of event for one affordance (or for the robot as a whole: `component` is None)."""
+
+    kind: Kind
+    component: str | None
+    affordance: str | None  # the TD affordance; for feedback/state the run action
+    schema: Mapping[str, Any]
+    title: str
+    description: str
+    run: str | None = None  # query/cancel: the run action they belong to
+
+    @property
+    def key(self) -> str:
+        """A stable identifier, usable as an AsyncAPI component key."""
+        parts = [p for p in (self.component, self.affordance) if p]
+        return ".".join([*parts, self.kind.value])
+
+    @property
+    def schema_file(self) -> str:
+        """Path of the file holding the schema, relative to the events output directory: one file per
+        component (its events in `$defs`), one per robot-level event. Component names have no `.`, so a
+        component called `error` or `envelope` cannot collide with the robot-level files."""
+        if self.component is None:
+            return f"schemas/{self.kind.value}.schema.json"
+        return f"schemas/{self.component}.events.schema.json"
+
+    @property
+    def def_name(self) -> str:
+        """The schema's name in its component file's `$defs`: `<affordance>.<kind>`."""
+        return f"{self.affordance}.{self.kind.value}"
+
+    @property
+    def schema_ref(self) -> str:
+        """`schema_file` with the JSON pointer to the schema inside it (what `$ref`s and links use)."""
+        if self.component is None:
+            return self.schema_file
+        return f"{self.schema_file}#/$defs/{self.def_name}"
+
+    def topic(self, robot: str, root: str = TOPIC_ROOT) -> str:
+        if self.component is None:
+            return f"{root}/{robot}/{self.kind.value}"
+        base = f"{root}/{robot}/{self.component}/{self.affordance}"
+        if self.kind in (Kind.WRITE, Kind.FEEDBACK, Kind.STATE):
+            return f"{base}/{self.kind.value}"
+        return base
+
+
+@dataclass(frozen=True)
+class EventCatalog:
+    """Every event of one model, in TD order, plus the shared envelope schema."""
+
+    package: str
+    specs: tuple[EventSpec, ...]
+    envelope: Mapping[str, Any]
+
+    @property
+    def base(self) -> str:
+        return f"{SCHEMA_BASE}{self.package}/"
+
+    def inbound(self) -> Iterator[EventSpec]:
+        return (s for s in self.specs if s.kind.inbound)
+
+    def find(self, kind: Kind, affordance: str | None = None) -> EventSpec:
+        return next(s for s in self.specs if s.kind is kind and s.affordance == affordance)
+
+    def uri(self, spec: EventSpec) -> str:
+        """The absolute URI of `spec`'s schema (a `$ref` to it validates an event)."""
+        return self.base + spec.schema_ref
+
+    @cached_property
+    def files(self) -> tuple[tuple[str, Mapping[str, Any]], ...]:
+        """(path, schema document) of every schema file, envelope first, then in TD order.
+
+        A component's events share one file, each under `$defs/<affordance>.<kind>`: a large Thing gets one
+        file per component instead of one per event (1,000 affordances: 250 files, not 1,500).
+        """
+        out: list[tuple[str, Mapping[str, Any]]] = [("schemas/envelope.schema.json", self.envelope)]
+        bundles: dict[str, dict[str, Any]] = {}
+        for spec in self.specs:
+            if spec.component is None:
+                out.append((spec.schema_file, spec.schema))
+                continue
+            bundle = bundles.get(spec.schema_file)
+            if bundle is None:
+                bundle = {
+                    "$schema": DRAFT,
+                    "$id": self.base + spec.schema_file,
+                    "title": f"{spec.component} events",
+                    "description": f"The events of {spec.component}, each in $defs as <affordance>.<kind>.",
+                    "$defs": {},
+                }
+                bundles[spec.schema_file] = bundle
+                out.append((spec.schema_file, bundle))
+            bundle["$defs"][spec.def_name] = spec.schema
+        return tuple(out)
+
+    def resources(self) -> list[tuple[str, Mapping[str, Any]]]:
+        """(`$id`, document) of every schema file: what a JSON Schema registry needs."""
+        return [(str(doc["$id"]), doc) for _, doc in self.files]
+
+    @cached_property
+    def _routes(self) -> dict[tuple[str, ...], EventSpec]:
+        return {tuple(s.topic("+").split("/")[2:]): s for s in self.inbound()}
+
+    def route(self, topic: str, root: str = TOPIC_ROOT) -> tuple[EventSpec, str] | None:
+        """The inbound event spec and robot id (possibly `all`) a topic addresses, or None."""
+        levels = topic.split("/")
+        if len(levels) < 4 or levels[0] != root:
+            return None
+        spec = self._routes.get(tuple(levels[2:]))
+        return None if spec is None else (spec, levels[1])
+
+
+# ---------------------------------------------------------------------------------------------------------
+# schemas
+
+_SCHEMA_MAPS = ("properties", "patternProperties", "$defs", "definitions", "dependentSchemas")
+_SCHEMA_ONE = (
+    "items",
+    "additionalItems",
+    "additionalProperties",
+    "unevaluatedItems",
+    "unevaluatedProperties",
+    "contains",
+    "propertyNames",
+    "not",
+    "if",
+    "then",
+    "else",
+)
+_SCHEMA_LISTS = ("allOf", "anyOf", "oneOf", "prefixItems")
+
+
+def data_schema(value: Any) -> Any:
+    """A TD data schema as a self-contained JSON Schema: thawed, with `$`- and `@`-keywords dropped.
+
+    TD data schemas have no references; dropping `$ref`/`$id`/... keeps a hostile TD from pointing a validator
+    at the network or redefining our schema ids, and JSON-LD keys (`@type`) mean nothing to JSON Schema.
+    """
+    value = thaw(value)
+    if isinstance(value, bool):
+        return value
+    if not isinstance(value, dict):
+        return {}
+    out: dict[str, Any] = {}
+    for key, sub in value.items():
+        if key.startswith(("$", "@")):
+            continue
+        if key in _SCHEMA_MAPS and isinstance(sub, dict):
+            out[key] = {name: data_schema(s) for name, s in sub.items()}
+        elif key in _SCHEMA_ONE:
+            out[key] = data_schema(sub) if isinstance(sub, (dict, bool)) else sub
+        elif key in _SCHEMA_LISTS and isinstance(sub, list):
+            out[key] = [data_schema(s) for s in sub]
+        else:
+            out[key] = sub
+    return out
+
+
+def _ros_schema(model: Model, type_name: str, half: str = "") -> dict[str, Any]:
+    """JSON Schema of a message (or a service half) from the first distro that resolves it."""
+    for table in (model.ros2, model.ros1):
+        found = table.get(type_name)
+        if found is None:
+            continue
+        if half:
+            svc = table.service(type_name)
+            return message_schema(svc.request if half == "request" else svc.response, table)
+        msg = table.message(type_name)
+        return message_schema(msg, table)
+    return {"type": "object"}
+
+
+def _text(text: Text, fallback: str) -> tuple[str, str]:
+    return (text.title or fallback, text.description or "")
+
+
+def _envelope(base: str) -> dict[str, Any]:
+    return {
+        "$schema": DRAFT,
+        "$id": f"{base}schemas/envelope.schema.json",
+        "title": "td2adaptor event envelope",
+        "description": (
+            "Fields every td2adaptor event shares. Inbound events (invoke, query, cancel, write) may leave out "
+            "what their topic already says; events the adaptor emits carry all of type, affordance (where there "
+            "is one), robot, id, time and source."
+        ),
+        "type": "object",
+        "properties": {
+            "type": {"description": "The kind of event.", "enum": [k.value for k in Kind]},
+            "affordance": {
+                "description": "The TD affordance the event is about (for feedback and state: the run action).",
+                "type": "string",
+                "pattern": "^[A-Za-z][A-Za-z0-9_]*$",
+            },
+            "robot": {
+                "description": f"Robot id; {ALL_ROBOTS!r} addresses every robot (inbound events only).",
+                "type": "string",
+                "pattern": ROBOT_ID_PATTERN,
+            },
+            "id": {
+                "description": "Unique id of this event; redeliveries of an inbound event with the same id are "
+                "handled once.",
+                "type": "string",
+                "minLength": 1,
+                "maxLength": 128,
+            },
+            "correlation": {
+                "description": "Chosen by the requester; copied into every event answering it (feedback, state, "
+                "error).",
+                "type": "string",
+                "minLength": 1,
+                "maxLength": 256,
+            },
+            "mission": {
+                "description": "Mission id the robot assigned to a procedure run.",
+                "type": "integer",
+                "minimum": -(2**63),
+                "maximum": 2**64 - 1,
+            },
+            "time": {
+                "description": "When the event was created (RFC 3339).",
+                "type": "string",
+                "format": "date-time",
+                "pattern": _TIME_PATTERN,
+            },
+            "source": {"description": "Who sent the event.", "type": "string", "minLength": 1, "maxLength": 256},
+            "payload": {"description": "Event-specific content."},
+        },
+    }
+
+
+_OUT_REQUIRED = ["type", "robot", "id", "time", "source", "payload"]
+
+
+def _event_schema(
+    base: str,
+    path: str | None,
+    title: str,
+    description: str,
+    kind: Kind,
+    affordance: str | None,
+    payload: Any,
+    *,
+    required: list[str],
+    extra: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
+    props: dict[str, Any] = {"type": {"const": kind.value}}
+    if affordance is not None:
+        props["affordance"] = {"const": affordance}
+    else:
+        props["affordance"] = False
+    if not kind.inbound:
+        props["robot"] = {"not": {"const": ALL_ROBOTS}}
+    props.update(extra or {})
+    props["payload"] = payload
+    # robot-level events are files of their own; a component's events sit in its file's $defs, where the
+    # file's $id is the base the (same) relative reference to the envelope resolves against
+    head: dict[str, Any] = {} if path is None else {"$schema": DRAFT, "$id": f"{base}{path}"}
+    return {
+        **head,
+        "title": title,
+        "description": description,
+        "type": "object",
+        "allOf": [{"$ref": "envelope.schema.json"}],
+        "properties": props,
+        "required": required,
+        "unevaluatedProperties": False,
+    }
+
+
+def _state_payload(*, feedback: bool, output: Any = None) -> dict[str, Any]:
+    props: dict[str, Any] = {
+        "state": {"description": "Procedure state.", "enum": list(STATES)},
+        "terminal": {"description": "Whether this is the mission's last event.", "type": "boolean"},
+    }
+    if feedback:
+        props["seq"] = {
+            "description": "1, 2, ... per mission: a gap means a lost event, a repeat a redelivery.",
+            "type": "integer",
+            "minimum": 1,
+        }
+    props.update(
+        {
+            "result": {"description": "The robot's result code (e.g. ok, error).", "type": "string"},
+            "message": {"description": "The robot's or the adaptor's message.", "type": "string"},
+            "last_event": {"description": "The robot's last procedure event (e.g. start, finish).", "type": "string"},
+            "reason": {"description": "Why the mission failed.", "enum": list(FAILURE_REASONS)},
+        }
+    )
+    if output is not None:
+        props["output"] = output
+    return {
+        "type": "object",
+        "properties": props,
+        "required": ["state", "terminal", "seq"] if feedback else ["state", "terminal"],
+        "additionalProperties": False,
+    }
+
+
+def _error_payload() -> dict[str, Any]:
+    return {
+        "type": "object",
+        "properties": {
+            "code": {"enum": list(ERROR_CODES)},
+            "message": {"type": "string"},
+            "topic": {"description": "Topic the offending event arrived on.", "type": "string"},
+            "event": {"description": "The start of the offending event, as text.", "type": "string", "maxLength": 1024},
+            "errors": {
+                "description": "Schema violations (at most 10).",
+                "type": "array",
+                "maxItems": 10,
+                "items": {
+                    "type": "object",
+                    "properties": {"path": {"type": "string"}, "message": {"type": "string"}},
+                    "required": ["path", "message"],
+                    "additionalProperties": False,
+                },
+            },
+        },
+        "required": ["code", "message"],
+        "additionalProperties": False,
+    }
+
+
+def _status_payload() -> dict[str, Any]:
+    return {
+        "type": "object",
+        "properties": {
+            "state": {"enum": ["online", "offline"]},
+            "thing": {"description": "Title of the Thing this adaptor serves.", "type": "string"},
+        },
+        "required": ["state"],
+        "additionalProperties": False,
+    }
+
+
+def _invoke_payload(model: Model, svc: ServiceEndpoint) -> tuple[Any, bool]:
+    """The payload schema of an invoke event and whether a payload is required."""
+    if svc.input_schema is not None:
+        return data_schema(svc.input_schema), True
+    schema = _ros_schema(model, svc.type_name, "request")
+    return schema, bool(schema.get("properties"))
+
+
+def _property_payload(model: Model, topic: TopicEndpoint) -> Any:
+    if topic.schema is not None:
+        return data_schema(topic.schema)
+    return _ros_schema(model, topic.type_name)
+
+
+def build_catalog(model: Model) -> EventCatalog:
+    """Every event of `model`: per component in TD order, then the robot-level error and status events."""
+    base = f"{SCHEMA_BASE}{model.package_name}/"
+    specs: list[EventSpec] = []
+
+    def add(kind: Kind, component: str | None, affordance: str | None, title: str, description: str, **kw: Any) -> None:
+        run = kw.pop("run", None)
+        probe = EventSpec(kind, component, affordance, {}, title, description, run)
+        path = probe.schema_file if component is None else None  # None: embedded in the component's file
+        schema = _event_schema(base, path, title, description, kind, affordance, **kw)
+        specs.append(EventSpec(kind, component, affordance, schema, title, description, run))
+
+    for comp in model.components:
+        for svc in comp.services:
+            title, desc = _text(svc.text, svc.name)
+            proc = comp.procedure_of(svc.name)
+            role = svc.procedure_role
+            if role is ProcedureRole.RUN or proc is None or role is ProcedureRole.NONE:
+                payload, needed = _invoke_payload(model, svc)
+                add(
+                    Kind.INVOKE,
+                    comp.name,
+                    svc.name,
+                    f"{title}: invoke",
+                    f"Start {svc.name}. {desc}".strip(),
+                    payload=payload,
+                    required=["payload"] if needed else [],
+                    extra={"mission": False},
+                )
+                plain = role is not ProcedureRole.RUN
+                output = None
+                if plain:
+                    output = (
+                        data_schema(svc.output_schema)
+                        if svc.output_schema is not None
+                        else _ros_schema(model, svc.type_name, "response")
+                    )
+                add(
+                    Kind.FEEDBACK,
+                    comp.name,
+                    svc.name,
+                    f"{title}: feedback",
+                    f"Every state change of a {svc.name} mission; exactly one has terminal true.",
+                    payload=_state_payload(feedback=True, output=output),
+                    required=_OUT_REQUIRED + ["affordance"],
+                )
+                if not plain:
+                    add(
+                        Kind.STATE,
+                        comp.name,
+                        svc.name,
+                        f"{title}: state",
+                        f"The state of a {svc.name} mission, answering a query or cancel event.",
+                        payload=_state_payload(feedback=False),
+                        required=_OUT_REQUIRED + ["affordance"],
+                    )
+            elif role in (ProcedureRole.QUERY, ProcedureRole.CANCEL):
+                kind = Kind.QUERY if role is ProcedureRole.QUERY else Kind.CANCEL
+                verb = "Query the state of" if kind is Kind.QUERY else "Cancel"
+                add(
+                    kind,
+                    comp.name,
+                    svc.name,
+                    f"{title}: {kind.value}",
+                    f"{verb} a {proc.run} mission: the one given by `mission`, else the current or last one. "
+                    f"Answered by a {proc.run} state event.",
+                    payload=False,
+                    required=[],
+                    run=proc.run,
+                )
+        for topic in comp.topics:
+            title, desc = _text(topic.text, topic.name)
+            if topic.role is Role.SUBSCRIBER:
+                add(
+                    Kind.PROPERTY,
+                    comp.name,
+                    topic.name,
+                    f"{title}: value",
+                    f"Latest value of {topic.name} (retained; throttled by the runtime). {desc}".strip(),
+                    payload=_property_payload(model, topic),
+                    required=_OUT_REQUIRED + ["affordance"],
+                )
+            else:
+                add(
+                    Kind.WRITE,
+                    comp.name,
+                    topic.name,
+                    f"{title}: write",
+                    f"Publish a value of {topic.name}. {desc}".strip(),
+                    payload=_property_payload(model, topic),
+                    required=["payload"],
+                    extra={"mission": False},
+                )
+    add(
+        Kind.ERROR,
+        None,
+        None,
+        "Error",
+        "An inbound event that was refused or failed; correlation and mission are copied when known.",
+        payload=_error_payload(),
+        required=_OUT_REQUIRED,
+        extra={"affordance": {"type": "string"}},
+    )
+    add(
+        Kind.STATUS,
+        None,
+        None,
+        "Status",
+        "Whether the adaptor is connected (retained; the broker publishes offline as the last will).",
+        payload=_status_payload(),
+        required=_OUT_REQUIRED,
+    )
+    return EventCatalog(model.package_name, tuple(specs), _envelope(base))
