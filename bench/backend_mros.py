@@ -4,7 +4,7 @@
   hand-written application doing the same job with the same message headers and pools
   (bench/mros/handwritten/; target <= 1.05x). Each side is its application objects plus a consumer of the
   latest values (bench/mros/user_generated.cpp, handwritten/user.cpp), the ros.cpp stand-in with the
-  application's glue (tests/mros_api/mros_stub_lib.cpp) and mros_usr_config.c, merged with `ld -r` so that
+  application's glue (tests/backends/mros/mros_api/mros_stub_lib.cpp) and mros_usr_config.c, merged with `ld -r` so that
   inline functions emitted by several objects count once (a real link does the same).
 * Host encode/decode throughput of the generated message classes (bench/mros/throughput.cpp, g++ -O2)
   against rosbags' serialize_ros1/deserialize_ros1 on the same bytes (report only).

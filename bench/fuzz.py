@@ -16,8 +16,8 @@ from hypothesis import HealthCheck, given, settings
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from tests.frontend.test_fuzz_frontend import mutated  # noqa: E402
 from tests.fuzz.strategies import binding_tds, round_trip  # noqa: E402
-from tests.test_fuzz_frontend import mutated  # noqa: E402
 
 EXAMPLE = REPO / "examples" / "robotnik_rb1"
 

@@ -10,7 +10,7 @@ import sysconfig
 import venv
 from pathlib import Path
 
-from .conftest import EXAMPLE, REPO
+from tests.conftest import EXAMPLE, REPO
 
 
 def test_wheel_installs_and_validates_outside_the_repo(tmp_path: Path) -> None:

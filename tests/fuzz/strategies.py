@@ -1,6 +1,6 @@
 """Hypothesis strategies for TDs in the td2adaptor binding (valid by construction) and a gen round trip.
 
-Shared by tests/test_fuzz_gen.py (a small sample in CI) and bench/fuzz.py (10,000 cases).
+Shared by tests/generation/test_fuzz_gen.py (a small sample in CI) and bench/fuzz.py (10,000 cases).
 """
 
 from __future__ import annotations

@@ -7,8 +7,7 @@ import time
 
 from td2adaptor.runtime import RuntimeConfig, serve
 from td2adaptor.runtime.simport import SimPort
-
-from .rb1 import rb1_model, sim
+from tests.runtime.rb1 import rb1_model, sim
 
 
 def main() -> None:

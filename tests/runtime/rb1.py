@@ -15,8 +15,7 @@ from td2adaptor.model import Model
 from td2adaptor.model.events import EventCatalog, Kind, build_catalog
 from td2adaptor.runtime.events import EventValidator
 from td2adaptor.runtime.localbus import LocalBroker, LocalBus
-
-from ..conftest import EXAMPLE
+from tests.conftest import EXAMPLE
 
 Event = tuple[str, dict[str, Any]]
 GOAL = {"procedure": {"goals": [{"pose": {"x": 1.5, "y": 3.0, "theta": 0.0}}]}}

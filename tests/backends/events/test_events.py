@@ -1,0 +1,391 @@
+"""`--backend events`: schemas valid against the 2020-12 meta-schema, example events good and bad, the AsyncAPI
+document's structure and references, the exposed TD accepted by our own validator, determinism, hostile text."""
+
+from __future__ import annotations
+
+import json
+import posixpath
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from jsonschema import Draft202012Validator  # type: ignore[import-untyped, unused-ignore]
+
+import td2adaptor
+from td2adaptor.backends.events import generator as backend
+from td2adaptor.diagnostics import Diagnostics, Severity
+from td2adaptor.generation.backend import GenOptions
+from td2adaptor.model import Model
+from td2adaptor.model.events import ALL_ROBOTS, Kind, build_catalog, data_schema
+from td2adaptor.runtime.events import EventValidator
+from tests.conftest import EXAMPLE
+from tests.runtime.rb1 import GOAL, compile_td, rb1_catalog, rb1_model, rb1_validator
+
+ENVELOPE = {"robot": "rb1_base_a", "id": "e1", "time": "2026-01-31T12:00:00.123Z", "source": "test"}
+
+
+def tree_of(model: Model) -> dict[str, bytes]:
+    return dict(backend.generate(model, GenOptions(), Diagnostics()).files)
+
+
+@pytest.fixture(scope="module")
+def files() -> dict[str, bytes]:
+    return tree_of(rb1_model())
+
+
+def doc(files: dict[str, bytes], path: str) -> Any:
+    return json.loads(files[path])
+
+
+def test_every_schema_is_a_valid_2020_12_schema(files: dict[str, bytes]) -> None:
+    schemas = sorted(p for p in files if p.endswith(".schema.json"))
+    specs = rb1_catalog().specs
+    # one file per component (its events in $defs), one per robot-level event, the envelope
+    components = {s.component for s in specs if s.component}
+    assert schemas == sorted(
+        [f"schemas/{c}.events.schema.json" for c in components]
+        + ["schemas/error.schema.json", "schemas/status.schema.json", "schemas/envelope.schema.json"]
+    )
+    ids = set()
+    for path in schemas:
+        schema = doc(files, path)
+        Draft202012Validator.check_schema(schema)
+        assert schema["$schema"] == "https://json-schema.org/draft/2020-12/schema"
+        assert schema["$id"].endswith("/" + path)  # the file layout mirrors the ids: relative refs resolve
+        ids.add(schema["$id"])
+    assert len(ids) == len(schemas)
+    # every event's schema is where its reference says, once
+    found = [_resolve(files, "README.md", None, s.schema_ref) for s in specs]
+    assert all(isinstance(f, dict) and f["title"] == s.title for f, s in zip(found, specs, strict=True))
+    defs = sum(len(doc(files, f"schemas/{c}.events.schema.json")["$defs"]) for c in components)
+    assert defs == sum(1 for s in specs if s.component)
+
+
+def test_one_event_per_affordance_role(files: dict[str, bytes]) -> None:
+    keys = [s.key for s in rb1_catalog().specs]
+    for run, query, cancel, comp in (
+        ("gotoRun", "gotoQuery", "gotoCancel", "GoToComponent"),
+        ("pickRun", "pickQuery", "pickCancel", "PickComponent"),
+        ("placeRun", "placeQuery", "placeCancel", "PlaceComponent"),
+    ):
+        for key in (f"{run}.invoke", f"{run}.feedback", f"{run}.state", f"{query}.query", f"{cancel}.cancel"):
+            assert f"{comp}.{key}" in keys
+    assert "AvailabilityComponent.availability.property" in keys
+    assert "PoseMarkerComponent.poseMarker.property" in keys
+    assert "DoorComponent.door.write" in keys
+    assert keys[-2:] == ["error", "status"]
+
+
+def _check(key: str, event: Any) -> list[tuple[str, str]]:
+    spec = next(s for s in rb1_catalog().specs if s.key == key)
+    return rb1_validator().errors(spec, event)
+
+
+FEEDBACK: dict[str, Any] = {
+    "type": "feedback",
+    "affordance": "gotoRun",
+    **ENVELOPE,
+    "correlation": "c",
+    "mission": 4,
+    "payload": {"state": "running", "terminal": False, "seq": 2, "result": "ok", "last_event": "start"},
+}
+
+GOOD: list[tuple[str, Any]] = [
+    ("GoToComponent.gotoRun.invoke", {"payload": GOAL}),
+    ("GoToComponent.gotoRun.invoke", {"type": "invoke", "affordance": "gotoRun", **ENVELOPE, "payload": GOAL}),
+    ("GoToComponent.gotoRun.invoke", {"robot": ALL_ROBOTS, "correlation": "x", "payload": {"procedure": {}}}),
+    ("GoToComponent.gotoQuery.query", {}),
+    ("GoToComponent.gotoQuery.query", {"mission": 4, "correlation": "q"}),
+    ("GoToComponent.gotoCancel.cancel", {"type": "cancel", "mission": -1}),
+    ("GoToComponent.gotoRun.feedback", FEEDBACK),
+    (
+        "GoToComponent.gotoRun.feedback",
+        {**FEEDBACK, "payload": {"state": "failed", "terminal": True, "seq": 3, "reason": "timeout", "message": "m"}},
+    ),
+    ("GoToComponent.gotoRun.state", {**FEEDBACK, "type": "state", "payload": {"state": "paused", "terminal": False}}),
+    (
+        "PoseMarkerComponent.poseMarker.property",
+        {"type": "property", "affordance": "poseMarker", **ENVELOPE, "payload": {"markers": [{"id": 3}]}},
+    ),
+    ("DoorComponent.door.write", {"payload": {"data": 1.0}}),
+    (
+        "error",
+        {
+            "type": "error",
+            **ENVELOPE,
+            "payload": {"code": "busy", "message": "m", "errors": [{"path": "", "message": "x"}]},
+        },
+    ),
+    ("status", {"type": "status", **ENVELOPE, "payload": {"state": "offline", "thing": "Robotnik RB-1"}}),
+]
+
+BAD: list[tuple[str, Any, str]] = [
+    ("GoToComponent.gotoRun.invoke", {}, "payload"),
+    ("GoToComponent.gotoRun.invoke", [], "object"),
+    ("GoToComponent.gotoRun.invoke", {"payload": GOAL, "extra": 1}, "extra"),
+    ("GoToComponent.gotoRun.invoke", {"payload": {"procedure": {"goals": {}}}}, "array"),
+    ("GoToComponent.gotoRun.invoke", {"payload": GOAL, "type": "cancel"}, "invoke"),
+    ("GoToComponent.gotoRun.invoke", {"payload": GOAL, "affordance": "pickRun"}, "gotoRun"),
+    ("GoToComponent.gotoRun.invoke", {"payload": GOAL, "mission": 3}, "mission"),
+    ("GoToComponent.gotoRun.invoke", {"payload": GOAL, "robot": "a/b"}, "does not match"),
+    ("GoToComponent.gotoRun.invoke", {"payload": GOAL, "time": "yesterday"}, "does not match"),
+    ("GoToComponent.gotoRun.invoke", {"payload": GOAL, "correlation": ""}, "non-empty"),
+    ("GoToComponent.gotoQuery.query", {"payload": {}}, "payload"),
+    ("GoToComponent.gotoQuery.query", {"mission": 1.5}, "integer"),
+    ("GoToComponent.gotoRun.feedback", {**FEEDBACK, "robot": ALL_ROBOTS}, "all"),
+    ("GoToComponent.gotoRun.feedback", {**FEEDBACK, "payload": {**FEEDBACK["payload"], "state": "done"}}, "done"),
+    ("GoToComponent.gotoRun.feedback", {**FEEDBACK, "payload": {**FEEDBACK["payload"], "seq": 0}}, "minimum"),
+    ("GoToComponent.gotoRun.feedback", {k: v for k, v in FEEDBACK.items() if k != "id"}, "'id'"),
+    ("GoToComponent.gotoRun.state", {**FEEDBACK, "type": "state"}, "seq"),
+    ("DoorComponent.door.write", {"payload": {"data": "open"}}, "number"),
+    ("error", {"type": "error", **ENVELOPE, "payload": {"code": "oops", "message": "m"}}, "oops"),
+    ("status", {"type": "status", **ENVELOPE, "payload": {"state": "sleepy"}}, "sleepy"),
+]
+
+
+@pytest.mark.parametrize(("key", "event"), GOOD, ids=[f"{k}-{i}" for i, (k, _) in enumerate(GOOD)])
+def test_good_events_validate(key: str, event: Any) -> None:
+    assert _check(key, event) == []
+
+
+@pytest.mark.parametrize(("key", "event", "why"), BAD, ids=[f"{k}-{i}" for i, (k, _, _) in enumerate(BAD)])
+def test_bad_events_are_refused(key: str, event: Any, why: str) -> None:
+    errors = _check(key, event)
+    assert errors, event
+    assert any(why in message or why in path for path, message in errors), errors
+
+
+def test_generated_schema_files_validate_like_the_runtime(files: dict[str, bytes], tmp_path: Path) -> None:
+    """The files on their own (a consumer's registry built from them) give the same verdicts."""
+    from referencing import Registry, Resource
+
+    schemas = {p: doc(files, p) for p in files if p.endswith(".schema.json")}
+    registry = Registry().with_resources((s["$id"], Resource.from_contents(s)) for s in schemas.values())
+    spec = next(s for s in rb1_catalog().specs if s.key == "GoToComponent.gotoRun.feedback")
+    # a consumer refers to the event by the file's id and the pointer into it, as the AsyncAPI document does
+    uri = doc(files, spec.schema_file)["$id"] + "#" + spec.schema_ref.partition("#")[2]
+    validator = Draft202012Validator({"$ref": uri}, registry=registry)
+    assert validator.is_valid(FEEDBACK)
+    assert not validator.is_valid({**FEEDBACK, "payload": {"state": "running"}})
+    assert not validator.is_valid({**FEEDBACK, "robot": ALL_ROBOTS})  # from the embedded schema
+    assert not validator.is_valid({**FEEDBACK, "time": "yesterday"})  # from the envelope, via its relative $ref
+    status = Draft202012Validator(schemas["schemas/status.schema.json"], registry=registry)
+    assert status.is_valid({"type": "status", **ENVELOPE, "payload": {"state": "online"}})
+    assert not status.is_valid({"type": "status", **ENVELOPE, "time": "now", "payload": {"state": "online"}})
+
+
+def _resolve(files: dict[str, bytes], base: str, root: Any, ref: str) -> Any:
+    path, _, fragment = ref.partition("#")
+    target = root if not path else doc(files, posixpath.normpath(posixpath.join(posixpath.dirname(base), path)))
+    for part in [p for p in fragment.split("/") if p]:
+        target = target[part.replace("~1", "/").replace("~0", "~")]
+    return target
+
+
+def _refs(node: Any) -> list[str]:
+    if isinstance(node, dict):
+        out = [node["$ref"]] if isinstance(node.get("$ref"), str) else []
+        return out + [r for v in node.values() for r in _refs(v)]
+    if isinstance(node, list):
+        return [r for v in node for r in _refs(v)]
+    return []
+
+
+def test_asyncapi_document(files: dict[str, bytes]) -> None:
+    api = doc(files, "asyncapi.json")
+    assert api["asyncapi"] == "3.0.0"
+    assert api["info"]["title"] and api["info"]["version"]
+    assert api["servers"]["broker"]["protocol"] == "mqtt"
+    assert set(api["servers"]["broker"]["host"].strip("{}").split(":")) <= set(api["servers"]["broker"]["variables"])
+    for ref in _refs(api):  # every reference resolves, in the document or to a schema file
+        assert _resolve(files, "asyncapi.json", api, ref) is not None, ref
+    for key, channel in api["channels"].items():
+        assert channel["address"].startswith("td2adaptor/") and channel["messages"]
+        for param in channel.get("parameters", {}):
+            assert "{" + param + "}" in channel["address"]
+        assert "{" not in channel["address"] or channel.get("parameters"), key
+    for key, op in api["operations"].items():
+        assert op["action"] in ("send", "receive")
+        channel_ref = op["channel"]["$ref"]
+        channel = _resolve(files, "asyncapi.json", api, channel_ref)
+        for m in op["messages"]:  # operation messages must be the channel's own
+            assert m["$ref"].startswith(channel_ref + "/messages/"), key
+        if "reply" in op:
+            assert op["action"] == "receive" and op["reply"]["channel"]["$ref"].startswith("#/channels/")
+        assert channel
+    for message in api["components"]["messages"].values():
+        payload = message["payload"]
+        assert payload["schemaFormat"] == "application/schema+json;version=draft-2020-12"
+        schema = _resolve(files, "asyncapi.json", api, payload["schema"]["$ref"])
+        Draft202012Validator.check_schema(schema)
+        assert schema["title"] == message["title"]
+    # every inbound event has its robot channel and the all-robots channel; outbound ones only the first
+    addresses = {c["address"] for c in api["channels"].values()}
+    for spec in rb1_catalog().specs:
+        assert spec.topic("{robot}") in addresses
+        assert (spec.topic(ALL_ROBOTS) in addresses) == spec.kind.inbound
+    receive = {k for k, o in api["operations"].items() if o["action"] == "receive"}
+    assert "receive.GoToComponent.gotoRun.invoke.all" in receive
+
+
+def test_exposed_td_passes_our_validator(files: dict[str, bytes], tmp_path: Path) -> None:
+    for name, td in (
+        ("template", doc(files, "td.mqtt.json")),
+        ("concrete", backend.exposed_td(rb1_model(), robot="rb1_base_a", broker="mqtt://127.0.0.1:1883")),
+    ):
+        path = tmp_path / f"{name}.json"
+        path.write_text(json.dumps(td), encoding="utf-8")
+        result = td2adaptor.compile(path)
+        errors = [d for d in result.diagnostics if d.severity is Severity.ERROR]
+        assert not errors, [(d.code, d.message, d.pointer) for d in errors]
+        warnings = {d.code for d in result.diagnostics}
+        assert warnings <= {"ROS400"}, warnings  # no ROS binding left: expected, it is the MQTT view
+
+
+def test_exposed_td_forms(files: dict[str, bytes]) -> None:
+    td = doc(files, "td.mqtt.json")
+    assert {"mqv": "http://www.example.org/mqtt-binding#"} in td["@context"]
+    topics = {s.topic("{{robotName}}") for s in rb1_catalog().specs}
+    seen = set()
+    for section in ("properties", "actions", "events"):
+        for affordance in td[section].values():
+            for form in affordance["forms"]:
+                assert form["href"] == "mqtt://localhost:1883" and form["contentType"] == "application/json"
+                assert form["mqv:controlPacket"] in ("mqv:publish", "mqv:subscribe", "mqv:unsubscribe")
+                seen.add(form["mqv:topic"])
+    assert seen == topics
+    goto = td["actions"]["gotoRun"]
+    assert goto["forms"][0]["op"] == "invokeaction" and goto["forms"][0]["mqv:controlPacket"] == "mqv:publish"
+    assert goto["input"]["required"] == ["payload"]
+    assert goto["input"]["properties"]["payload"]["properties"]["procedure"]["type"] == "object"
+    availability = td["properties"]["availability"]
+    assert availability["forms"][0]["op"] == ["readproperty", "observeproperty"] and availability["observable"]
+    assert availability["forms"][0]["mqv:retain"] is True
+    assert td["properties"]["door"]["writeOnly"] is True
+    assert td["properties"]["door"]["forms"][0]["mqv:topic"].endswith("/door/write")
+    feedback = td["events"]["gotoRunFeedback"]
+    assert feedback["forms"][0]["op"] == "subscribeevent"
+    assert feedback["data"]["properties"]["payload"]["properties"]["state"]["enum"][-1] == "cancelled"
+    assert set(td["events"]) >= {"gotoRunFeedback", "gotoRunState", "error", "status"}
+
+
+def test_generation_is_deterministic(files: dict[str, bytes]) -> None:
+    again = tree_of(compile_td(EXAMPLE / "td.json"))
+    assert again == files
+
+
+def test_hostile_td_text_stays_data(tmp_path: Path) -> None:
+    td = json.loads((EXAMPLE / "td.json").read_text(encoding="utf-8"))
+    evil = 'Evil | RB-1\n| injected | row |\n<script>alert(1)</script> `code` "quote" \\ \u2028 end'
+    td["title"] = evil
+    td["description"] = evil
+    td["actions"]["gotoRun"]["title"] = evil
+    td["actions"]["gotoRun"]["input"]["properties"]["procedure"]["$ref"] = "http://example.invalid/x.json"
+    td["actions"]["gotoRun"]["input"]["properties"]["procedure"]["$id"] = "http://example.invalid/owned"
+    path = tmp_path / "evil.json"
+    path.write_text(json.dumps(td), encoding="utf-8")
+    result = td2adaptor.compile(path, interfaces=[EXAMPLE / "interfaces"])
+    assert result.model is not None
+    files = tree_of(result.model)
+    readme = files["README.md"].decode()
+    assert "| injected | row |" not in readme and "<script>" not in readme
+    assert all(line.count("|") in (0, 5) for line in readme.splitlines() if line.startswith("|"))
+    for path_, data in files.items():
+        if path_.endswith(".json"):
+            parsed = json.loads(data)
+            assert "example.invalid" not in json.dumps(parsed.get("properties", {}).get("payload", {}))
+    api = json.loads(files["asyncapi.json"])
+    assert api["info"]["title"] == f"{evil} events"  # JSON escaping keeps the text as it was
+    exposed = tmp_path / "exposed.json"
+    exposed.write_bytes(files["td.mqtt.json"])
+    assert not [d for d in td2adaptor.compile(exposed).diagnostics if d.severity is Severity.ERROR]
+    # the runtime's validators never look anything up
+    EventValidator(build_catalog(result.model))
+
+
+def test_data_schema_keeps_data_and_drops_references() -> None:
+    schema = {
+        "type": "object",
+        "$id": "x",
+        "@type": "saref:Thing",
+        "properties": {"$odd": {"$ref": "http://x", "type": "string"}, "n": {"enum": [{"$ref": "kept as data"}]}},
+        "items": [1],
+    }
+    out = data_schema(schema)
+    assert out == {
+        "type": "object",
+        "properties": {"$odd": {"type": "string"}, "n": {"enum": [{"$ref": "kept as data"}]}},
+        "items": [1],
+    }
+
+
+def test_routes_match_topics() -> None:
+    catalog = rb1_catalog()
+    for spec in catalog.inbound():
+        for robot in ("rb1_base_a", ALL_ROBOTS):
+            assert catalog.route(spec.topic(robot)) == (spec, robot)
+    for spec in catalog.specs:
+        if not spec.kind.inbound:
+            assert catalog.route(spec.topic("rb1_base_a")) is None
+    assert catalog.route("td2adaptor/r/DoorComponent/door") is None
+    assert catalog.route("other/r/GoToComponent/gotoRun") is None
+    assert catalog.route("td2adaptor/r/GoToComponent/gotoRun/extra") is None
+
+
+def test_models_without_ros_types_still_get_schemas() -> None:
+    model = rb1_model()
+    comp = model.components[0]
+    bare = replace(comp, services=tuple(replace(s, input_schema=None) for s in comp.services))
+    catalog = build_catalog(replace(model, components=(bare, *model.components[1:])))
+    invoke = catalog.find(Kind.INVOKE, "gotoRun")
+    payload = invoke.schema["properties"]["payload"]
+    assert payload["properties"]["procedure"]["properties"]["goals"]["type"] == "array"  # from GoToPetition
+    Draft202012Validator.check_schema(invoke.schema)
+
+
+def test_components_named_like_robot_level_files_do_not_collide() -> None:
+    model = rb1_model()
+    renamed = tuple(replace(c, name=n) for c, n in zip(model.components, ("envelope", "error", "status"), strict=False))
+    model = replace(model, components=(*renamed, *model.components[3:]))
+    files = tree_of(model)
+    assert {"schemas/envelope.schema.json", "schemas/error.schema.json", "schemas/status.schema.json"} <= set(files)
+    assert {"schemas/envelope.events.schema.json", "schemas/error.events.schema.json"} <= set(files)
+    envelope = doc(files, "schemas/envelope.schema.json")
+    assert envelope["properties"]["payload"]["description"] == "Event-specific content."
+    validator = EventValidator(build_catalog(model))
+    spec = build_catalog(model).find(Kind.INVOKE, "gotoRun")
+    assert validator.errors(spec, {"payload": GOAL}) == []
+
+
+_json_data = st.recursive(
+    st.none()
+    | st.booleans()
+    | st.integers(-(2**70), 2**70)
+    | st.floats(allow_nan=False, allow_infinity=False)
+    | st.text(max_size=8),
+    lambda children: st.lists(children, max_size=3) | st.dictionaries(st.text(max_size=6), children, max_size=3),
+    max_leaves=12,
+)
+
+
+def _floats(value: Any) -> bool:
+    if isinstance(value, float):
+        return True
+    if isinstance(value, dict):
+        return any(_floats(v) for v in value.values())
+    return isinstance(value, list) and any(_floats(v) for v in value)
+
+
+@settings(max_examples=300, deadline=None)
+@given(_json_data)
+def test_dump_is_the_standard_library_layout(value: Any) -> None:
+    # orjson (fast path) and json.dumps (what it refuses, e.g. integers beyond 64 bits) must agree on layout;
+    # floats only differ in how an exponent is spelled (1e-05 / 0.00001), both exact
+    text = backend.dump(value)
+    assert json.loads(text) == value
+    if not _floats(value):
+        assert text == json.dumps(value, indent=2, ensure_ascii=False) + "\n"
+    assert backend.dump(value) == text

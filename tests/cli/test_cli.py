@@ -1,0 +1,206 @@
+"""The CLI through click's runner and as a real subprocess: exit codes, formats, stdin, writing files."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from td2adaptor.cli.main import cli, main
+from tests.conftest import EXAMPLE, REPO
+
+IFACE = ["-I", str(EXAMPLE / "interfaces")]
+TD = str(EXAMPLE / "td.json")
+
+
+@pytest.fixture
+def runner() -> CliRunner:
+    return CliRunner()
+
+
+def test_version_and_help(runner: CliRunner) -> None:
+    from td2adaptor import __version__
+
+    result = runner.invoke(cli, ["--version"])
+    assert result.exit_code == 0 and result.output.strip() == f"td2adaptor {__version__}"
+    for command in ([], ["validate"], ["types"], ["instantiate"], ["migrate"]):
+        result = runner.invoke(cli, [*command, "--help"])
+        assert result.exit_code == 0 and "Usage:" in result.output, command
+
+
+def test_validate_valid_td(runner: CliRunner) -> None:
+    result = runner.invoke(cli, ["validate", TD, *IFACE])
+    assert result.exit_code == 0, result.output
+    assert "valid (0 errors, 0 warnings)" in result.output
+
+
+def test_validate_json_format(runner: CliRunner) -> None:
+    result = runner.invoke(cli, ["validate", str(EXAMPLE / "td.reference-dialect.json"), *IFACE, "--format", "json"])
+    assert result.exit_code == 0
+    doc = json.loads(result.stdout)
+    assert doc["valid"] is True and doc["warnings"] > 5
+    first = doc["diagnostics"][0]
+    assert set(first) == {"code", "severity", "message", "hint", "pointer", "file", "line", "col"}
+
+
+def test_invalid_input_exit_1_with_located_errors(runner: CliRunner, tmp_path: Path) -> None:
+    bad = tmp_path / "bad.json"
+    bad.write_text(
+        '{"title": "x",\n  "actions": {"a": {"forms": '
+        '[{"href": "ros:a", "rosv:name": "/a//b", "rosv:type": "x/srv/Y"}]}}}'
+    )
+    result = runner.invoke(cli, ["validate", str(bad), "--format", "json"])
+    assert result.exit_code == 1
+    doc = json.loads(result.stdout)
+    codes = {d["code"] for d in doc["diagnostics"]}
+    assert {"ROS410", "ROS423"} <= codes
+    assert all(d["file"] == str(bad) for d in doc["diagnostics"])
+
+
+def test_syntax_error_exit_1(runner: CliRunner, tmp_path: Path) -> None:
+    bad = tmp_path / "broken.json"
+    bad.write_text('{"title": \n  }')
+    result = runner.invoke(cli, ["validate", str(bad)])
+    assert result.exit_code == 1 and f"{bad}:2:3: error TD004" in result.output
+
+
+def test_usage_error_exit_2(runner: CliRunner) -> None:
+    assert runner.invoke(cli, ["validate"]).exit_code == 2
+    assert runner.invoke(cli, ["validate", TD, "--format", "yaml"]).exit_code == 2
+    assert runner.invoke(cli, ["no-such-command"]).exit_code == 2
+
+
+def test_stdin(runner: CliRunner) -> None:
+    result = runner.invoke(cli, ["validate", "-", *IFACE], input=Path(TD).read_bytes())
+    assert result.exit_code == 0, result.output
+    assert "<stdin>: valid" in result.output
+
+
+def test_strict(runner: CliRunner) -> None:
+    result = runner.invoke(cli, ["validate", str(EXAMPLE / "td.reference-dialect.json"), *IFACE, "--strict"])
+    assert result.exit_code == 1
+
+
+def test_types_table_and_json(runner: CliRunner) -> None:
+    result = runner.invoke(cli, ["types", TD, *IFACE])
+    assert result.exit_code == 0
+    lines = result.stdout.splitlines()
+    assert lines[0] == "package robotnik_rb_1_adaptor" and lines[1] == "GoToComponent"
+    assert any("gotoRun" in line and "robot_local_control_msgs/srv/GoToPetition" in line for line in lines)
+    result = runner.invoke(cli, ["types", TD, *IFACE, "--format", "json"])
+    rows = json.loads(result.stdout)["types"]["endpoints"]
+    assert [r["name"] for r in rows][:3] == ["gotoRun", "gotoCancel", "gotoQuery"]
+    assert all(r["ros1"] and r["ros2"] for r in rows)
+
+
+def test_instantiate_writes_td(runner: CliRunner, tmp_path: Path) -> None:
+    out = tmp_path / "rb1_a.td.json"
+    result = runner.invoke(
+        cli, ["instantiate", str(EXAMPLE / "rb1.tm.json"), "-o", str(out), "--set", "robotName=rb1_base_a"]
+    )
+    assert result.exit_code == 0, result.output
+    td = json.loads(out.read_text())
+    assert td["@type"] == "Thing"
+    assert td["actions"]["gotoRun"]["forms"][0]["rosv:name"].startswith("/rb1_base_a/")
+    assert runner.invoke(cli, ["validate", str(out), *IFACE]).exit_code == 0
+
+
+def test_instantiate_missing_placeholder_writes_nothing(runner: CliRunner, tmp_path: Path) -> None:
+    tm = tmp_path / "m.tm.json"
+    tm.write_text(
+        json.dumps(
+            {
+                "@context": ["https://www.w3.org/2022/wot/td/v1.1"],
+                "@type": "tm:ThingModel",
+                "title": "{{A}} and {{B}}",
+                "properties": {"p": {"type": "number", "maximum": "{{MAX}}"}},
+            }
+        )
+    )
+    out = tmp_path / "out.json"
+    out.write_text("precious")
+    result = runner.invoke(cli, ["instantiate", str(tm), "-o", str(out), "--format", "json"])
+    assert result.exit_code == 1
+    missing = [d for d in json.loads(result.stdout)["diagnostics"] if d["code"] == "TM301"]
+    assert len(missing) == 1 and all(n in missing[0]["message"] for n in ("A", "B", "MAX"))
+    assert out.read_text() == "precious"
+    result = runner.invoke(
+        cli, ["instantiate", str(tm), "-o", "-", "--set", "A=x", "--set", "B=y", "--set", "MAX=47.7"]
+    )
+    assert result.exit_code == 0
+    td = json.loads(result.stdout[result.stdout.index("{") :])
+    assert td["title"] == "x and y" and td["properties"]["p"]["maximum"] == 47.7
+
+
+def test_migrate_command(runner: CliRunner, tmp_path: Path) -> None:
+    out = tmp_path / "migrated.json"
+    legacy = REPO / "tests" / "data" / "legacy"
+    result = runner.invoke(
+        cli, ["migrate", str(legacy / "service.json"), str(legacy / "topic.json"), *IFACE, "-o", str(out)]
+    )
+    assert result.exit_code == 0, result.output
+    td = json.loads(out.read_text())
+    assert td["actions"]["gotoRun"]["rosv:procedure"] == {
+        "query": "gotoQuery",
+        "cancel": "gotoCancle",
+        "missionId": "state/header/id",
+    }
+    assert runner.invoke(cli, ["validate", str(out), *IFACE, "--strict"]).exit_code == 0
+
+
+def test_migrate_refuses_invalid_input(runner: CliRunner, tmp_path: Path) -> None:
+    out = tmp_path / "never.json"
+    result = runner.invoke(cli, ["migrate", str(tmp_path / "missing.json"), "-o", str(out)])
+    assert result.exit_code == 1 and not out.exists()
+
+
+def test_internal_error_is_one_line_exit_3(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    import td2adaptor.compiler.pipeline
+
+    def boom(*_a: object, **_k: object) -> None:
+        raise RuntimeError("simulated bug")
+
+    monkeypatch.setattr(td2adaptor.compiler.pipeline, "compile", boom)
+    with pytest.raises(SystemExit) as exc:
+        main(["validate", TD])
+    assert exc.value.code == 3
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "internal error: RuntimeError: simulated bug" in err
+
+
+def _run(*args: str, stdin: bytes | None = None) -> subprocess.CompletedProcess[bytes]:
+    exe = Path(sys.executable).parent / "td2adaptor"
+    return subprocess.run(
+        [str(exe), *args], input=stdin, capture_output=True, timeout=60, env={**os.environ, "NO_COLOR": "1"}
+    )
+
+
+def test_subprocess_bad_inputs_never_trace(tmp_path: Path) -> None:
+    cases = {
+        "binary.json": b"\x00\xff\xfe garbage",
+        "array.json": b"[1, 2, 3]",
+        "deep.json": b"[" * 50_000 + b"]" * 50_000,
+        "nan.json": b'{"title": NaN}',
+        "dupe.json": b'{"title": "a", "title": "b"}',
+        "empty.json": b"",
+        "weird.json": json.dumps(
+            {"title": 5, "actions": {"a": {"forms": [{"rosv:name": 7, "rosv:type": None}]}}}
+        ).encode(),
+    }
+    for name, data in cases.items():
+        path = tmp_path / name
+        path.write_bytes(data)
+        proc = _run("validate", str(path))
+        assert proc.returncode == 1, (name, proc.stderr)
+        assert b"Traceback" not in proc.stderr and b"internal error" not in proc.stderr, (name, proc.stderr)
+        assert str(path).encode() in proc.stderr
+
+
+def test_subprocess_stdin_and_colour_only_on_tty() -> None:
+    proc = _run("validate", "-", *IFACE, stdin=Path(TD).read_bytes())
+    assert proc.returncode == 0 and b"\x1b[" not in proc.stderr and b"<stdin>: valid" in proc.stderr

@@ -1,0 +1,91 @@
+"""The compile result cache: hits give the same answer, any relevant change is a miss."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+import td2adaptor
+from td2adaptor.compiler.pipeline import Result
+from tests.conftest import EXAMPLE
+
+
+@pytest.fixture
+def work(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    monkeypatch.setenv("TD2ADAPTOR_CACHE_DIR", str(tmp_path / "cache"))
+    shutil.copytree(EXAMPLE, tmp_path / "rb1", ignore=shutil.ignore_patterns("sim"))
+    return tmp_path / "rb1"
+
+
+def _compile(path: Path, work: Path) -> Result:
+    return td2adaptor.compile(path, interfaces=[work / "interfaces"], use_cache=True)
+
+
+def _entries(work: Path) -> int:
+    return len(list((work.parent / "cache" / "results").glob("*.pickle")))
+
+
+def test_hit_equals_fresh_result(work: Path) -> None:
+    first = _compile(work / "td.reference-dialect.json", work)
+    assert _entries(work) == 1
+    second = _compile(work / "td.reference-dialect.json", work)
+    assert second.model == first.model and second.diagnostics == first.diagnostics
+    assert second.input is None  # answered from the cache
+    assert _entries(work) == 1
+
+
+def test_changed_td_or_interface_is_a_miss(work: Path) -> None:
+    assert _compile(work / "td.json", work).ok
+    td = json.loads((work / "td.json").read_text())
+    td["actions"]["gotoRun"]["forms"][0]["rosv:type"] = "robot_local_control_msgs/srv/Nope"
+    (work / "td.json").write_text(json.dumps(td))
+    assert not _compile(work / "td.json", work).ok
+    td["actions"]["gotoRun"]["forms"][0]["rosv:type"] = "robot_local_control_msgs/srv/GoToPetition"
+    (work / "td.json").write_text(json.dumps(td))
+    assert _compile(work / "td.json", work).ok
+    srv = work / "interfaces" / "robot_local_control_msgs" / "srv" / "GoToPetition.srv"
+    srv.write_text("this is not a definition\n---\n")
+    assert not _compile(work / "td.json", work).ok
+
+
+def test_files_found_while_compiling_are_dependencies(work: Path) -> None:
+    parent = work / "parent.tm.json"
+    parent.write_text(
+        json.dumps(
+            {
+                "@context": ["https://www.w3.org/2022/wot/td/v1.1", "https://td2adaptor.dev/ns/rosv/v1"],
+                "@type": "tm:ThingModel",
+                "title": "Parent",
+                "properties": {
+                    "p": {
+                        "type": "number",
+                        "forms": [{"href": "ros:p", "rosv:name": "/p", "rosv:type": "std_msgs/msg/Float64"}],
+                    }
+                },
+            }
+        )
+    )
+    child = work / "child.tm.json"
+    child.write_text(
+        json.dumps(
+            {
+                "@context": ["https://www.w3.org/2022/wot/td/v1.1", "https://td2adaptor.dev/ns/rosv/v1"],
+                "@type": "tm:ThingModel",
+                "title": "Child",
+                "links": [{"rel": "tm:extends", "href": "./parent.tm.json", "type": "application/tm+json"}],
+            }
+        )
+    )
+    assert _compile(child, work).ok
+    parent.write_text("{ broken")
+    again = _compile(child, work)
+    assert not again.ok and any(d.file and "parent" in d.file for d in again.diagnostics)
+
+
+def test_cache_can_be_disabled(work: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("TD2ADAPTOR_NO_CACHE", "1")
+    assert _compile(work / "td.json", work).input is not None
+    assert not (work.parent / "cache").exists()

@@ -1,0 +1,40 @@
+"""generated/<backend>/ holds the RB-1 example's output; regenerating must reproduce it byte for byte.
+
+The example is configured in pyproject.toml ([tool.td2adaptor]). Refresh after an intended change, then
+review `git diff generated/` before committing:
+    .venv/bin/td2adaptor gen
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+
+from td2adaptor.diagnostics import Diagnostics, Severity
+from td2adaptor.generation import targets as config
+from td2adaptor.generation.build import check
+from td2adaptor.generation.registry import available
+from tests.conftest import REPO
+
+GOLDEN = REPO / "generated"
+
+
+def _targets(backend: str) -> list[config.Target]:
+    diags = Diagnostics()
+    loaded = config.load(REPO / "pyproject.toml", diags)
+    assert loaded is not None, [d.message for d in diags]
+    return [replace(t, backends=(backend,)) for t in loaded.targets]
+
+
+@pytest.mark.parametrize("backend", available())
+def test_golden_files_are_current(backend: str) -> None:
+    outcome = check(_targets(backend), use_cache=False)
+    errors = [d.message for d in outcome.diagnostics if d.severity is Severity.ERROR]
+    assert not errors
+    assert outcome.ok, f"stale: {outcome.stale[:20]} — regenerate with `.venv/bin/td2adaptor gen` and review the diff"
+
+
+def test_every_backend_has_golden_files() -> None:
+    present = sorted(p.name for p in GOLDEN.iterdir() if p.is_dir()) if GOLDEN.is_dir() else []
+    assert present == sorted(available())

@@ -1,0 +1,221 @@
+"""The edge node on real ROS 1 (Debian's rospy and rosmaster, no mocks): the generated rospy package's
+`GeneratedPort`s run under /usr/bin/python3 in the ROS 1 bridge (td2adaptor.runtime.bridge) against the
+simulated RB-1; a mission goes end to end through the engine and the local bus; `td2adaptor run --ros 1`
+serves a robot over a real mosquitto.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import td2adaptor
+from td2adaptor.backends.rospy import generator as backend
+from td2adaptor.diagnostics import Diagnostics
+from td2adaptor.generation.backend import GenOptions
+from td2adaptor.runtime import LocalBroker, PortCallFailed, PortUnavailable, RuntimeConfig, serve
+from td2adaptor.runtime.bridge import Ros1Bridge
+from td2adaptor.runtime.genport import Layout
+from tests.conftest import EXAMPLE
+from tests.ros1 import harness
+from tests.ros1.harness import Master, Sim
+from tests.runtime.broker import Mosquitto
+from tests.runtime.client import AppClient
+from tests.runtime.edge import RunProcess, check_mission, until
+from tests.runtime.rb1 import GOAL, LocalApp, check_outbound, rb1_model, terminal
+
+PKG = "robotnik_rb_1_adaptor"
+ROBOT = "edge_ros1"
+
+
+@pytest.fixture(scope="module")
+def ros1() -> None:
+    problem = harness.ros1_problem()
+    if problem:
+        if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
+            pytest.skip(problem)
+        pytest.fail(problem)
+
+
+@pytest.fixture(scope="module")
+def package_src(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Path:
+    """The RB-1 rospy package generated into a temporary directory; its src/ (to import from)."""
+    result = td2adaptor.compile(EXAMPLE / "td.json", interfaces=[EXAMPLE / "interfaces"])
+    assert result.model is not None
+    root = tmp_path_factory.mktemp("rospy")
+    for rel, data in backend.generate(result.model, GenOptions(), Diagnostics()):
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        (root / rel).write_bytes(data)
+    return root / PKG / "src"
+
+
+@pytest.fixture(scope="module")
+def interfaces(ros1: None) -> Path:
+    return harness.interfaces_dir()
+
+
+@pytest.fixture(scope="module")
+def master(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Iterator[Master]:
+    with harness.rosmaster(tmp_path_factory.mktemp("ros1-home")) as m:
+        yield m
+
+
+@pytest.fixture(scope="module")
+def sim(master: Master, interfaces: Path) -> Iterator[Sim]:
+    with harness.run_sim(master, interfaces, ROBOT, "--duration", "0.5") as s:
+        yield s
+
+
+def test_bridge_ports_drive_the_ros1_sim_and_a_mission_runs_through_the_engine(
+    master: Master, sim: Sim, interfaces: Path, package_src: Path
+) -> None:
+    model = rb1_model()
+    bridge = Ros1Bridge(
+        Layout.of(model),
+        PKG,
+        [(ROBOT, ROBOT)],
+        python=harness.SYSTEM_PYTHON,
+        pythonpath=[interfaces, package_src],
+        master_uri=master.uri,
+        timeout=5.0,
+        environ=master.env(),
+        restart_period=0.5,
+    )
+    bridge.start()
+    try:
+        port = bridge.port(ROBOT)
+        started = port.start("PickComponent", "pickRun", {"procedure": {"pick_frame_id": "edge_ros1_cart2"}}, 5.0)
+        assert started.mission_id is not None and started.mission_id > 0
+        assert started.response["state"]["current_state"] == "queued"
+        # ROS 1 times come out with the TD's (ROS 2) field names
+        assert set(started.response["state"]["header"]["stamp"]) == {"sec", "nanosec"}
+        with pytest.raises(PortCallFailed, match="already running a procedure") as busy:
+            port.start("PickComponent", "pickRun", {}, 5.0)
+        assert busy.value.response is not None and busy.value.response["state"]["current_state"] == "unknown"
+        cancelled = port.cancel("PickComponent", "pickCancel", started.mission_id, 5.0)
+        assert cancelled["state"]["header"]["id"] == started.mission_id
+        assert (cancelled["state"]["last_event"], cancelled["last_message"]["data"]) == ("cancel", "Cancelled")
+        with pytest.raises(PortCallFailed, match="no procedure with id 777"):
+            port.query("PickComponent", "pickQuery", 777, 5.0)
+
+        # a mission end to end: engine and local bus here, rospy in the bridge
+        broker = LocalBroker()
+        app = LocalApp(broker)
+        config = RuntimeConfig(robot=ROBOT, poll_period=0.05, property_period=0.1, call_timeout=5.0)
+        engine = serve(model, port, config, broker=broker)
+        try:
+            app.send(f"td2adaptor/{ROBOT}/GoToComponent/gotoRun", {"correlation": "r1", "payload": GOAL})
+            app.wait(terminal("feedback", "r1"), timeout=20)
+            fb = check_mission(app.events, "r1", ["queued", "running", "finished"])
+            assert fb[-1]["payload"]["message"] == "Perfect"
+            app.wait(
+                lambda ev: any(
+                    t.endswith("/poseMarker") and [m["id"] for m in e["payload"]["markers"]] == [3] for t, e in ev
+                ),
+                timeout=10,
+            )
+            app.send(f"td2adaptor/{ROBOT}/DoorComponent/door/write", {"payload": {"data": 0.5}})
+            assert sim.read_until("door 0.5", 10.0)
+        finally:
+            engine.stop()
+        check_outbound(app.events)
+
+        status: Any = port.read_property("AvailabilityComponent", "availability", 5.0)
+        assert status["robot_id"] == ROBOT and status["robot_status"]["pose"]["pose"]["x"] == 1.5
+        # the bridge dies: calls fail as unreachable, and the next call after the restart period restarts it
+        pid = bridge.pid
+        assert pid is not None
+        os.kill(pid, signal.SIGKILL)
+        assert until(lambda: not _alive(port), 10.0)
+        time.sleep(0.5)
+        assert until(lambda: _alive(port), 20.0, 0.2)
+        assert bridge.pid != pid and bridge.starts == 2
+    finally:
+        bridge.close()
+
+
+def _alive(port: Any) -> bool:
+    try:
+        port.query("GoToComponent", "gotoQuery", -1, 2.0)
+    except PortUnavailable:
+        return False
+    return True
+
+
+@pytest.fixture(scope="module")
+def workspace(tmp_path_factory: pytest.TempPathFactory, package_src: Path) -> Path:
+    """A catkin workspace with the generated package, built by Debian's catkin_make (as a ROS 1 user would)."""
+    ws = tmp_path_factory.mktemp("catkin_ws")
+    shutil.copytree(package_src.parent, ws / "src" / PKG, symlinks=True)
+    build = subprocess.run(
+        ["catkin_make", "-C", str(ws), f"-DPYTHON_EXECUTABLE={harness.SYSTEM_PYTHON}"],
+        cwd=ws, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert build.returncode == 0, build.stdout[-3000:] + build.stderr[-3000:]
+    assert os.access(ws / "devel" / "lib" / PKG / "edge_node", os.X_OK)
+    return ws
+
+
+def test_rosrun_edge_node_serves_a_robot_over_mosquitto(
+    master: Master, sim: Sim, interfaces: Path, package_src: Path, workspace: Path, tmp_path: Path
+) -> None:
+    # `rosrun PKG edge_node ...` in the built workspace becomes `td2adaptor run --ros 1 --package PKG ...`
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    app = AppClient(broker.url, [f"td2adaptor/{ROBOT}/#"], client_id="edge-ros1-app")
+    environ = {**os.environ, "ROS_HOME": str(master.home), "ROS_IP": "127.0.0.1", "ROS_HOSTNAME": "127.0.0.1"}
+    environ["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{environ.get('PATH', '')}"  # td2adaptor
+    rosrun = f'source {workspace}/devel/setup.bash && exec rosrun {PKG} edge_node "$@"'
+    run = RunProcess(
+        [
+            str(EXAMPLE / "td.json"),
+            "-I",
+            str(EXAMPLE / "interfaces"),
+            "--ros",
+            "1",
+            "--robot",
+            ROBOT,
+            "--bus",
+            broker.url,
+            "--master-uri",
+            master.uri,
+            "--ros1-python",
+            harness.SYSTEM_PYTHON,
+            "--package-path",
+            str(package_src),
+            "--package-path",
+            str(interfaces),
+            "--poll-period",
+            "0.05",
+            "--property-period",
+            "0",
+            "__name:=edge_node",  # what roslaunch adds: dropped by the script
+        ],
+        env=environ,
+        command=["bash", "-c", rosrun, "edge_node"],
+    )
+    try:
+        run.wait_ready()
+        assert "via ROS 1 via /usr/bin/python3" in run.output()
+        goal = {"procedure": {"goals": [{"pose": {"x": 3.0, "y": 3.0, "theta": 0.0}}]}}
+        app.send(f"td2adaptor/{ROBOT}/GoToComponent/gotoRun", {"correlation": "cli", "payload": goal})
+        app.wait(terminal("feedback", "cli"), timeout=20)
+        check_mission(app.events, "cli", ["queued", "running", "finished"])
+        assert run.terminate(signal.SIGTERM) == 0, run.output()
+        app.wait(
+            lambda ev: [e["payload"]["state"] for t, e in ev if t.endswith("/status")][-1:] == ["offline"], timeout=10
+        )
+    finally:
+        run.close()
+        app.close()
+        broker.stop()
+    check_outbound(app.events)

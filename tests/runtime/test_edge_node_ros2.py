@@ -1,0 +1,257 @@
+"""The edge node on real ROS 2 Jazzy (PyPI wheels): `GeneratedPort` over the colcon-built rclpy adaptor
+against the simulated RB-1, the engine over a real mosquitto (with a broker restart mid-mission), a robot
+killed mid-mission, and `td2adaptor run` serving a fleet from the Thing Model. No mocks anywhere.
+
+The simulated RB-1 of this module serves its own namespaces (edge_*), so it never shares a robot with the
+other ROS 2 tests of the same worker.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import pytest
+
+from td2adaptor.runtime import LocalBroker, NoValue, PortCallFailed, PortUnavailable, RuntimeConfig, serve
+from td2adaptor.runtime.genport import GeneratedPort
+from td2adaptor.runtime.mqttbus import MqttBus
+from tests.ros2 import env
+from tests.ros2.common import EXAMPLE, PACKAGE, Process
+from tests.runtime.broker import Mosquitto
+from tests.runtime.client import AppClient
+from tests.runtime.edge import RunProcess, check_mission, feedback, until
+from tests.runtime.rb1 import GOAL, LocalApp, check_outbound, rb1_model, terminal
+
+pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain, rb1_prefix, adaptor_build, adaptor, ros_node
+
+NAMESPACES = ("edge_port", "edge_mqtt", "edge_fleet_a", "edge_fleet_b", "edge_fleet_c")
+DURATION = 1.0
+
+
+def goto_topic(robot: str) -> str:
+    return f"td2adaptor/{robot}/GoToComponent/gotoRun"
+
+
+def sim_process(prefix: Path, namespaces: tuple[str, ...], duration: float) -> Process:
+    args = [sys.executable, "-m", "examples.robotnik_rb1.sim.ros2", "--duration", str(duration)]
+    for ns in namespaces:
+        args += ["--namespace", ns]
+    process = Process(args, env.child_env([prefix]))
+    try:
+        process.wait_for(lambda e: e.get("event") == "ready", timeout=30)
+    except BaseException:
+        process.stop()
+        raise
+    return process
+
+
+@pytest.fixture(scope="module")
+def edge_sim(rb1_prefix: Path) -> Iterator[Process]:
+    process = sim_process(rb1_prefix, NAMESPACES, DURATION)
+    yield process
+    process.stop()
+
+
+@pytest.fixture
+def broker(tmp_path: Path) -> Iterator[Mosquitto]:
+    b = Mosquitto(tmp_path / "broker")
+    b.start()
+    yield b
+    b.stop()
+
+
+def port_for(adaptor: ModuleType, node: Any, namespace: str, timeout: float = 5.0, wait: float = 10.0) -> GeneratedPort:
+    return GeneratedPort(rb1_model(), adaptor, namespace, distro="ros2", node=node, timeout=timeout, wait_timeout=wait)
+
+
+def test_generated_port_drives_the_simulated_rb1(adaptor: ModuleType, ros_node: Any, edge_sim: Process) -> None:
+    port = port_for(adaptor, ros_node, "edge_port")
+    goal = {"procedure": {"goals": [{"header": {"frame_id": "map"}, "pose": {"x": 1.5, "y": 3.0, "theta": 0.0}}]}}
+    started = port.start("GoToComponent", "gotoRun", goal, 5.0)
+    assert started.mission_id is not None and started.mission_id > 0
+    assert started.response["state"]["current_state"] == "queued"
+    assert started.response["state"]["header"]["id"] == started.mission_id
+    json.dumps(started.response, allow_nan=False)  # plain JSON data, stamps as {sec, nanosec}
+    assert set(started.response["state"]["header"]["stamp"]) == {"sec", "nanosec"}
+    # a second run while busy: the robot's refusal, carried by the error
+    with pytest.raises(PortCallFailed, match="already running a procedure") as busy:
+        port.start("GoToComponent", "gotoRun", {}, 5.0)
+    assert busy.value.response is not None and busy.value.response["state"]["current_state"] == "unknown"
+
+    def query() -> dict[str, Any]:
+        return dict(port.query("GoToComponent", "gotoQuery", started.mission_id or -1, 5.0))
+
+    assert until(lambda: query()["state"]["current_state"] == "finished", 10.0)
+    done = query()
+    assert done["state"]["header"]["id"] == started.mission_id
+    assert (done["state"]["last_event"], done["result"]["message"]) == ("finish", "Perfect")
+    with pytest.raises(PortCallFailed, match="no procedure with id 4242") as unknown:
+        port.query("GoToComponent", "gotoQuery", 4242, 5.0)
+    assert unknown.value.response is not None and unknown.value.response["state"]["current_state"] == "unknown"
+
+    # the robot stands at cart 3 now: robot_local_control/state (Status) and AlvarMarkers say so
+    def status() -> Any:
+        return port.read_property("AvailabilityComponent", "availability", 5.0)
+
+    assert until(lambda: status()["robot_status"]["pose"]["pose"]["x"] == 1.5, 5.0)
+    assert (status()["robot_id"], status()["operation_state"]) == ("edge_port", "idle")
+    markers = port.read_property("PoseMarkerComponent", "poseMarker", 5.0)
+    assert [m["id"] for m in markers["markers"]] == [3]
+    assert markers["markers"][0]["pose"]["pose"]["orientation"]["w"] == 1.0
+
+    # cancel by the mission id the robot returned
+    pick = port.start("PickComponent", "pickRun", {"procedure": {"pick_frame_id": "edge_port_cart3_contact"}}, 5.0)
+    assert pick.mission_id is not None and pick.mission_id > started.mission_id
+    cancelled = port.cancel("PickComponent", "pickCancel", pick.mission_id, 5.0)
+    assert cancelled["state"]["header"]["id"] == pick.mission_id
+    assert (cancelled["state"]["current_state"], cancelled["state"]["last_event"]) == ("finished", "cancel")
+    edge_sim.wait_for(lambda e: e.get("op") == "cancel" and e.get("id") == pick.mission_id, timeout=5.0)
+
+    # the door: a publisher property (latched); the simulation hears the command
+    port.write_property("DoorComponent", "door", {"data": 0.25})
+    assert edge_sim.wait_for(lambda e: e.get("event") == "door" and e.get("value") == 0.25, timeout=10.0)
+    # a payload the request type does not have is a failed call, not a crash
+    with pytest.raises(PortCallFailed, match="no field bogus"):
+        port.start("GoToComponent", "gotoRun", {"procedure": {"bogus": 1}}, 5.0)
+
+    # a robot that is not there: unavailable within the wait timeout; a silent topic: no value
+    nobody = port_for(adaptor, ros_node, "edge_nobody", timeout=0.3, wait=0.3)
+    begin = time.monotonic()
+    with pytest.raises(PortUnavailable):
+        nobody.query("GoToComponent", "gotoQuery", -1, 0.3)
+    assert time.monotonic() - begin < 3.0
+    with pytest.raises(NoValue):
+        nobody.read_property("AvailabilityComponent", "availability", 0.2)
+
+
+def test_engine_over_mosquitto_on_ros2_survives_a_broker_restart(
+    adaptor: ModuleType, ros_node: Any, edge_sim: Process, broker: Mosquitto
+) -> None:
+    robot = "edge_mqtt"
+    model = rb1_model()
+    config = RuntimeConfig(
+        robot=robot, bus=broker.url, poll_period=0.05, property_period=0.2, call_timeout=5.0, mission_timeout=30.0
+    )
+    engine = serve(model, port_for(adaptor, ros_node, robot), config)
+    app = AppClient(broker.url, [f"td2adaptor/{robot}/#"], client_id="edge-ros2-app")
+    try:
+        app.send(goto_topic(robot), {"id": "e-first", "correlation": "first", "source": "test", "payload": GOAL})
+        app.wait(terminal("feedback", "first"), timeout=20)
+        first = check_mission(app.events, "first", ["queued", "running", "finished"])
+        assert first[-1]["payload"]["message"] == "Perfect" and first[0]["mission"] > 0
+        # property events carry what ROS publishes (and conform to their schemas: check_outbound below)
+        app.wait(
+            lambda ev: any(
+                t.endswith("/poseMarker") and [m["id"] for m in e["payload"]["markers"]] == [3] for t, e in ev
+            ),
+            timeout=10,
+        )
+        # the broker goes away mid-mission and comes back: the mission completes, no feedback is lost
+        second_goal = {"procedure": {"goals": [{"pose": {"x": 3.0, "y": 3.0, "theta": 0.0}}]}}
+        app.send(goto_topic(robot), {"correlation": "second", "payload": second_goal})
+        app.wait(lambda ev: "running" in [e["payload"]["state"] for e in feedback(ev, "second")], timeout=10)
+        broker.stop()
+        time.sleep(DURATION + 0.4)  # the procedure ends on the robot meanwhile; "finished" waits in the client
+        assert isinstance(engine.bus, MqttBus) and not engine.bus.connected
+        broker.start()
+        app.wait(terminal("feedback", "second"), timeout=20)
+        check_mission(app.events, "second", ["queued", "running", "finished"])
+        assert engine.bus.connects >= 2
+    finally:
+        engine.stop()
+        app.close()
+    check_outbound(app.events)
+
+
+def test_a_robot_killed_mid_mission_gives_failure_feedback_within_the_timeout(
+    adaptor: ModuleType, ros_node: Any, rb1_prefix: Path
+) -> None:
+    robot = "edge_doomed"
+    sim = sim_process(rb1_prefix, (robot,), 30.0)
+    try:
+        model = rb1_model()
+        config = RuntimeConfig(robot=robot, poll_period=0.1, call_timeout=1.0, mission_timeout=15.0, property_period=0)
+        # as `td2adaptor run` makes it: the wait for a (re)appearing service is bounded by the call timeout too
+        port = port_for(adaptor, ros_node, robot, timeout=config.call_timeout, wait=config.call_timeout)
+
+        def reachable() -> bool:
+            try:
+                port.query("GoToComponent", "gotoQuery", -1, 1.0)
+            except PortCallFailed:
+                return True  # the robot answered (it has no procedure yet)
+            except PortUnavailable:
+                return False
+            return True
+
+        assert until(reachable, 20.0, 0.1)
+        broker = LocalBroker()
+        app = LocalApp(broker)
+        engine = serve(model, port, config, broker=broker)
+        try:
+            app.send(goto_topic(robot), {"correlation": "doomed", "payload": GOAL})
+            app.wait(lambda ev: "running" in [e["payload"]["state"] for e in feedback(ev, "doomed")], timeout=10)
+            killed = time.monotonic()
+            sim.proc.send_signal(signal.SIGKILL)
+            sim.proc.wait(10)
+            app.wait(terminal("feedback", "doomed"), timeout=config.mission_timeout + 5)
+            elapsed = time.monotonic() - killed
+            last = feedback(app.events, "doomed")[-1]["payload"]
+            assert (last["state"], last["reason"]) == ("failed", "unreachable"), last
+            assert "did not answer 3 queries" in last["message"]
+            assert elapsed < config.mission_timeout, elapsed  # the robot's absence, not the mission timeout
+            assert len([e for e in feedback(app.events, "doomed") if e["payload"]["terminal"]]) == 1
+        finally:
+            engine.stop()
+        check_outbound(app.events)
+    finally:
+        sim.stop()
+
+
+def test_the_generated_entry_point_serves_a_fleet_from_the_thing_model_and_stops_cleanly(
+    adaptor_build: tuple[Path, Path], rb1_prefix: Path, edge_sim: Process, broker: Mosquitto, tmp_path: Path
+) -> None:
+    robots = {"fleet_1": "edge_fleet_a", "fleet_2": "edge_fleet_b", "fleet_3": "edge_fleet_c"}
+    fleet = tmp_path / "fleet.yaml"
+    lines = [f"bus: {broker.url}", "poll_period: 0.05", "property_period: 0", "call_timeout: 10", "robots:"]
+    lines += [f"  - {{robot: {r}, namespace: {ns}}}" for r, ns in robots.items()]
+    fleet.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    app = AppClient(broker.url, ["td2adaptor/#"], client_id="edge-fleet-app")
+    # the colcon-installed package's console script (`ros2 run robotnik_rb_1_adaptor edge_node`) becomes
+    # `td2adaptor run --ros 2 --package robotnik_rb_1_adaptor ...`; the environment is that of sourced install
+    # spaces (interfaces and adaptor on PYTHONPATH and LD_LIBRARY_PATH), so no --prefix is needed
+    entry_point = adaptor_build[1] / "lib" / PACKAGE / "edge_node"
+    assert entry_point.is_file()
+    environ = env.child_env([rb1_prefix, adaptor_build[1]])
+    environ["PATH"] = os.pathsep.join([str(Path(sys.executable).parent), environ["PATH"]])
+    args = [str(EXAMPLE / "rb1.tm.json"), "-I", str(EXAMPLE / "interfaces"), "--config", str(fleet)]
+    args += ["--ros-args", "-r", "__node:=edge_node"]  # what `ros2 launch` appends: dropped by the entry point
+    run = RunProcess(args, env=environ, command=[str(entry_point)])
+    try:
+        run.wait_ready()
+        assert "serving fleet_1 (namespace edge_fleet_a), fleet_2" in run.output()
+        assert f"package {PACKAGE}" in run.output()
+
+        def statuses(ev: list[tuple[str, dict[str, Any]]], robot: str) -> list[str]:
+            return [e["payload"]["state"] for t, e in ev if t == f"td2adaptor/{robot}/status"]
+
+        app.wait(lambda ev: all(statuses(ev, r)[-1:] == ["online"] for r in robots), timeout=20)
+        for robot in robots:
+            app.send(goto_topic(robot), {"correlation": f"go-{robot}", "payload": GOAL})
+        for robot in robots:
+            app.wait(terminal("feedback", f"go-{robot}"), timeout=30)
+            check_mission(app.events, f"go-{robot}", ["queued", "running", "finished"])
+        assert run.terminate(signal.SIGTERM) == 0, run.output()
+        app.wait(lambda ev: all(statuses(ev, r)[-1:] == ["offline"] for r in robots), timeout=10)
+        assert "td2adaptor run: stopped" in run.output()
+    finally:
+        run.close()
+        app.close()
+    check_outbound(app.events)

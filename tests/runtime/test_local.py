@@ -1,0 +1,157 @@
+"""The in-process bus keeps the MQTT semantics the engine relies on; the same checks run on MqttBus too."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+
+from td2adaptor.runtime import BusError, LocalBroker, LocalBus, Message
+from td2adaptor.runtime.bus import Bus, topic_matches, valid_filter
+from td2adaptor.runtime.mqttbus import MqttBus
+from td2adaptor.runtime.security import parse_broker_url
+from tests.runtime.broker import Mosquitto
+
+
+class Inbox:
+    def __init__(self) -> None:
+        self.got: list[Message] = []
+        self.cond = threading.Condition()
+
+    def __call__(self, msg: Message) -> None:
+        with self.cond:
+            self.got.append(msg)
+            self.cond.notify_all()
+
+    def wait(self, n: int, timeout: float = 10) -> list[Message]:
+        with self.cond:
+            assert self.cond.wait_for(lambda: len(self.got) >= n, timeout), self.got
+            return list(self.got)
+
+
+def test_topic_filters() -> None:
+    assert topic_matches("a/+/c", "a/b/c") and not topic_matches("a/+/c", "a/b/c/d")
+    assert topic_matches("a/#", "a") and topic_matches("a/#", "a/b/c") and topic_matches("#", "x/y")
+    assert not topic_matches("#", "$SYS/x") and topic_matches("+/+", "a/b") and not topic_matches("+", "a/b")
+    assert valid_filter("a/+/#") and not valid_filter("a/#/b") and not valid_filter("a/b+") and not valid_filter("")
+
+
+BusFactory = Callable[[str], Bus]
+
+
+@pytest.fixture(params=["local", "mqtt"])
+def make_bus(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[BusFactory]:
+    """Bus clients on one local broker, or on one real mosquitto."""
+    made: list[Bus] = []
+    if request.param == "local":
+        broker = LocalBroker()
+
+        def local(client_id: str) -> Bus:
+            bus = LocalBus(broker, client_id)
+            made.append(bus)
+            return bus
+
+        yield local
+    else:
+        mosquitto = Mosquitto(tmp_path / "broker")
+        mosquitto.start()
+
+        def mqtt(client_id: str) -> Bus:
+            bus = MqttBus(parse_broker_url(mosquitto.url), client_id=client_id)
+            made.append(bus)
+            return bus
+
+        yield mqtt
+        for bus in made:
+            bus.close()
+        mosquitto.stop()
+        return
+    for bus in made:
+        bus.close()
+
+
+def test_wildcards_order_and_retained(make_bus: BusFactory) -> None:
+    sub, pub = make_bus("sub"), make_bus("pub")
+    inbox, other = Inbox(), Inbox()
+    pub.connect()
+    pub.publish("t/r1/status", b"online", retain=True)
+    pub.publish("t/r2/status", b"online", retain=True)
+    pub.publish("t/r2/status", b"", retain=True)  # deletes the retained message
+    assert pub.flush(5)
+    sub.subscribe("t/+/status", inbox)
+    sub.subscribe("t/r1/x/#", other)
+    sub.connect()
+    first = inbox.wait(1)[0]
+    assert (first.topic, first.payload, first.retain) == ("t/r1/status", b"online", True)
+    for i in range(300):
+        pub.publish("t/r1/x/y", str(i).encode())
+    got = other.wait(300)
+    assert [int(m.payload) for m in got] == list(range(300))  # per-topic order
+    assert not any(m.retain for m in got)
+    time.sleep(0.1)
+    assert [m.topic for m in inbox.got] == ["t/r1/status"]  # r2 was deleted, x/y does not match
+
+
+def test_persistent_session_keeps_messages_while_away(make_bus: BusFactory) -> None:
+    sub, pub = make_bus("keeper"), make_bus("pub")
+    inbox = Inbox()
+    sub.subscribe("q/#", inbox)
+    sub.connect()
+    pub.connect()
+    pub.publish("q/1", b"before")
+    inbox.wait(1)
+    sub.close()
+    for i in range(5):
+        pub.publish("q/1", f"away{i}".encode())
+    assert pub.flush(5)
+    again = make_bus("keeper")  # same client id, clean_start False: the session and its queue are back
+    again.subscribe("q/#", inbox)
+    again.connect()
+    got = inbox.wait(6)
+    assert [m.payload for m in got] == [b"before"] + [f"away{i}".encode() for i in range(5)]
+
+
+def test_local_redelivers_when_a_handler_fails() -> None:
+    broker = LocalBroker()
+    bus = LocalBus(broker, "flaky")
+    calls: list[bytes] = []
+
+    def flaky(msg: Message) -> None:
+        calls.append(msg.payload)
+        if len(calls) < 3:
+            raise RuntimeError("not yet")
+
+    bus.subscribe("x", flaky)
+    bus.connect()
+    bus.publish("x", b"1")
+    assert bus.drain(5)
+    assert calls == [b"1", b"1", b"1"]  # at least once
+    bus.close()
+
+
+def test_local_will_only_on_crash_and_clean_start() -> None:
+    broker = LocalBroker()
+    watcher, inbox = LocalBus(broker, "watcher"), Inbox()
+    watcher.subscribe("s/#", inbox)
+    watcher.connect()
+    will = Message("s/a", b"offline", True)
+    a = LocalBus(broker, "a", will=will, birth=Message("s/a", b"online", True))
+    a.connect()
+    a.close()
+    b = LocalBus(broker, "b", will=Message("s/b", b"offline", True))
+    b.connect()
+    b.crash()
+    got = inbox.wait(2)
+    time.sleep(0.05)
+    assert [(m.topic, m.payload) for m in inbox.got] == [("s/a", b"online"), ("s/b", b"offline")], got
+    with pytest.raises(BusError, match="already connected"):
+        LocalBus(broker, "watcher").connect()
+    with pytest.raises(BusError, match="invalid topic"):
+        watcher.publish("s/+", b"")
+    fresh = LocalBus(broker, "b", clean_start=True)
+    fresh.connect()  # the old session (and its subscriptions) is gone
+    fresh.close()
+    watcher.close()

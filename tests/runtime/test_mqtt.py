@@ -1,0 +1,209 @@
+"""The runtime against a real mosquitto on a free loopback port: missions, will, credentials, restarts, floods."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from td2adaptor.runtime import BusError, RuntimeConfig, SecurityError, open_bus, serve
+from td2adaptor.runtime.mqttbus import MqttBus
+from td2adaptor.runtime.simport import SimPort
+from tests.conftest import REPO
+from tests.runtime.broker import Mosquitto
+from tests.runtime.certs import make_certs
+from tests.runtime.client import AppClient
+from tests.runtime.rb1 import GOAL, check_outbound, rb1_model, sim, td_with_security, terminal
+
+ROBOT = "rb1_base_a"
+GOTO = f"td2adaptor/{ROBOT}/GoToComponent/gotoRun"
+
+
+def config(url: str, **kw: Any) -> RuntimeConfig:
+    base: dict[str, Any] = {"robot": ROBOT, "bus": url, "poll_period": 0.05, "property_period": 0, "call_timeout": 2}
+    return RuntimeConfig(**{**base, **kw})
+
+
+@pytest.fixture
+def broker(tmp_path: Path) -> Iterator[Mosquitto]:
+    b = Mosquitto(tmp_path / "broker")
+    b.start()
+    yield b
+    b.stop()
+
+
+def states(app: AppClient, correlation: str) -> list[tuple[int, str]]:
+    return [
+        (e["payload"]["seq"], e["payload"]["state"])
+        for _, e in app.events
+        if e.get("type") == "feedback" and e.get("correlation") == correlation
+    ]
+
+
+def test_goto_over_mqtt_with_status(broker: Mosquitto) -> None:
+    model = rb1_model()
+    engine = serve(model, SimPort(model, sim(0.2)), config(broker.url))
+    app = AppClient(broker.url, [f"td2adaptor/{ROBOT}/#"])
+    try:
+        app.send(GOTO, {"correlation": "m1", "payload": GOAL})
+        app.wait(terminal("feedback", "m1"))
+        assert states(app, "m1") == [(1, "queued"), (2, "running"), (3, "finished")]
+        assert [e["payload"]["state"] for t, e in app.events if t.endswith("/status")][:1] == ["online"]
+    finally:
+        engine.stop()
+    app.wait(lambda ev: any(t.endswith("/status") and e["payload"]["state"] == "offline" for t, e in ev))
+    app.close()
+    check_outbound(app.events)
+
+
+def test_the_broker_publishes_offline_when_the_adaptor_dies(broker: Mosquitto) -> None:
+    app = AppClient(broker.url, ["td2adaptor/+/status"])
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "tests.runtime.engine_proc", broker.url, "rb1_base_k"],
+        cwd=REPO,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    try:
+        assert proc.stdout is not None and proc.stdout.readline().strip() == b"ready", proc.stderr
+        app.wait(lambda ev: [e["payload"]["state"] for _, e in ev] == ["online"])
+        proc.kill()
+        proc.wait(10)
+        app.wait(lambda ev: [e["payload"]["state"] for _, e in ev] == ["online", "offline"])
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(10)
+        for stream in (proc.stdout, proc.stderr):
+            if stream:
+                stream.close()
+        app.close()
+
+
+def test_credentials_from_the_td_security(tmp_path: Path) -> None:
+    broker = Mosquitto(tmp_path / "broker", users={"robot": "s3cret", "app": "app-pass"})
+    broker.start()
+    try:
+        model = td_with_security(tmp_path, {"basic_sc": {"scheme": "basic"}})
+        port = SimPort(model, sim(0.1))
+        with pytest.raises(SecurityError, match="requires basic security.*TD2ADAPTOR_MQTT_PASSWORD"):
+            serve(model, port, config(broker.url), env={})
+        with pytest.raises(BusError, match=r"refused user 'robot': .*(Not authorized|Bad user name).*password"):
+            serve(model, port, config(broker.url, username="robot", password="wrong"), env={})
+        with pytest.raises(BusError, match="refused user 'intruder'"):
+            intruder = {"TD2ADAPTOR_MQTT_USERNAME": "intruder", "TD2ADAPTOR_MQTT_PASSWORD": "x"}
+            serve(model, port, config(broker.url), env=intruder)
+        env = {"TD2ADAPTOR_MQTT_USERNAME": "robot", "TD2ADAPTOR_MQTT_PASSWORD": "s3cret"}
+        engine = serve(model, port, config(broker.url), env=env)
+        app = AppClient(broker.url, [f"td2adaptor/{ROBOT}/#"], username="app", password="app-pass")
+        try:
+            app.send(GOTO, {"correlation": "auth", "payload": GOAL})
+            app.wait(terminal("feedback", "auth"))
+        finally:
+            engine.stop()
+            app.close()
+    finally:
+        broker.stop()
+
+
+def test_insecure_connections_need_an_explicit_allowance(tmp_path: Path) -> None:
+    model = rb1_model()  # nosec
+    remote = "mqtt://192.0.2.10:1883"  # TEST-NET-1: never contacted, the check happens before connecting
+    with pytest.raises(SecurityError, match="nosec.*not a loopback address.*--allow-insecure"):
+        open_bus(config(remote), model, env={})
+    assert isinstance(open_bus(config(remote, allow_insecure=True), model, env={}), MqttBus)
+    assert isinstance(open_bus(config("mqtt://localhost:1883"), model, env={}), MqttBus)
+    basic = td_with_security(tmp_path, {"basic_sc": {"scheme": "basic"}})
+    with pytest.raises(SecurityError, match="password in clear"):
+        open_bus(config(remote, username="u", password="p"), basic, env={})
+    with pytest.raises(SecurityError, match="credentials"):
+        open_bus(config("mqtt://user:pw@127.0.0.1:1883"), model, env={})
+    bearer = td_with_security(tmp_path, {"bearer_sc": {"scheme": "bearer"}})
+    with pytest.raises(SecurityError, match="'bearer'.*cannot be used on an MQTT bus"):
+        open_bus(config("mqtt://127.0.0.1:1883"), bearer, env={})
+
+
+def test_tls_with_a_client_certificate(tmp_path: Path) -> None:
+    certs = make_certs(tmp_path / "certs")
+    broker = Mosquitto(tmp_path / "broker", tls=(certs.ca, certs.server_cert, certs.server_key))
+    broker.start()
+    model = rb1_model()
+    url = f"mqtts://127.0.0.1:{broker.port}"
+    remote_ok = {"tls_ca_file": str(certs.ca), "tls_cert_file": str(certs.client_cert)}
+    try:
+        with pytest.raises(BusError, match="TLS handshake .* failed: .*certificate verify failed"):
+            serve(model, SimPort(model, sim()), config(url), env={})  # the system CAs do not know ours
+        with pytest.raises(BusError, match="closed the connection before accepting it|TLS handshake"):
+            serve(model, SimPort(model, sim()), config(url, tls_ca_file=str(certs.ca)), env={})  # no client cert
+        engine = serve(
+            model, SimPort(model, sim(0.1)), config(url, tls_key_file=str(certs.client_key), **remote_ok), env={}
+        )
+        try:
+            assert isinstance(engine.bus, MqttBus) and engine.bus.connected
+            engine.bus.publish(GOTO, b'{"correlation": "tls", "payload": {"procedure": {}}}')
+            deadline = time.monotonic() + 10
+            while engine.stats.get("out.feedback", 0) < 2 and time.monotonic() < deadline:
+                time.sleep(0.02)
+            assert engine.stats.get("out.feedback", 0) >= 2  # its own invoke came back through the broker
+        finally:
+            engine.stop()
+    finally:
+        broker.stop()
+
+
+def test_unreachable_broker_is_a_clear_error() -> None:
+    from tests.runtime.broker import free_port
+
+    model = rb1_model()
+    with pytest.raises(BusError, match="cannot reach the MQTT broker at mqtt://127.0.0.1:"):
+        serve(model, SimPort(model, sim()), config(f"mqtt://127.0.0.1:{free_port()}"))
+
+
+def test_broker_restart_mid_mission_loses_no_feedback(broker: Mosquitto) -> None:
+    model = rb1_model()
+    robot = sim(1.5)
+    engine = serve(model, SimPort(model, robot), config(broker.url))
+    app = AppClient(broker.url, [f"td2adaptor/{ROBOT}/#"], client_id="restart-app")
+    try:
+        app.send(GOTO, {"correlation": "through", "payload": GOAL})
+        app.wait(lambda ev: (2, "running") in states(app, "through"))
+        broker.stop()
+        time.sleep(1.8)  # the mission finishes while the broker is down: its feedback waits in the client
+        assert robot.components["GoToComponent"].active() is None
+        assert isinstance(engine.bus, MqttBus) and not engine.bus.connected  # "finished" was sent into the void
+        broker.start()
+        app.wait(terminal("feedback", "through"), timeout=20)
+        got = states(app, "through")
+        assert sorted(set(got)) == [(1, "queued"), (2, "running"), (3, "finished")]
+        feedback = [e for _, e in app.events if e.get("type") == "feedback" and e["correlation"] == "through"]
+        terminals = {e["id"] for e in feedback if e["payload"]["terminal"]}
+        assert len(terminals) == 1  # one terminal event (a QoS 1 redelivery would repeat its id, not add one)
+        # subscriptions survived: the next action is served
+        app.send(GOTO, {"correlation": "after", "payload": GOAL})
+        app.wait(terminal("feedback", "after"), timeout=20)
+        assert isinstance(engine.bus, MqttBus) and engine.bus.connects >= 2
+    finally:
+        engine.stop()
+        app.close()
+    check_outbound(app.events)
+
+
+def test_a_thousand_malformed_events_over_mqtt(broker: Mosquitto) -> None:
+    model = rb1_model()
+    engine = serve(model, SimPort(model, sim(0.1)), config(broker.url))
+    app = AppClient(broker.url, [f"td2adaptor/{ROBOT}/error", f"td2adaptor/{ROBOT}/+/+/feedback"])
+    try:
+        for i in range(1000):
+            app.client.publish(GOTO, b"{oops" if i % 2 else b'{"payload": 1}', qos=1)
+        app.wait(lambda ev: sum(1 for _, e in ev if e.get("type") == "error") >= 1000, timeout=30)
+        app.send(GOTO, {"correlation": "alive", "payload": GOAL})
+        app.wait(terminal("feedback", "alive"))
+        assert engine.stats["invalid"] == 1000
+    finally:
+        engine.stop()
+        app.close()
