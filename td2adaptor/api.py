@@ -1,4 +1,8 @@
-"""`td2adaptor.generation.build` and `td2adaptor.check` for build scripts: the CLI's semantics, no click needed."""
+"""`td2adaptor.generate` and `td2adaptor.check` for build scripts: the CLI's semantics, no click needed.
+
+Both build their targets with `generation.targets.targets`, as the CLI does, so options given together
+with the project configuration override it by the same rules.
+"""
 
 from __future__ import annotations
 
@@ -10,33 +14,45 @@ from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.generation.build import Outcome
 from td2adaptor.generation.build import check as _check
 from td2adaptor.generation.build import generate as _generate
-from td2adaptor.generation.build import target as _target
-from td2adaptor.generation.targets import Target, find, load
+from td2adaptor.generation.targets import Options, Target, targets
 
 PathLike = str | Path
 
 
 def _targets(
-    tds: PathLike | Sequence[PathLike] | None, config: PathLike | None, options: dict[str, Any]
+    tds: PathLike | Sequence[PathLike] | None,
+    config: PathLike | None,
+    *,
+    backends: Sequence[str] | None,
+    output: PathLike | None,
+    interfaces: Sequence[PathLike],
+    values: Mapping[str, Any] | None,
+    package_name: str | None,
+    partial: bool,
+    strict: bool,
 ) -> tuple[list[Target], Outcome | None]:
-    if tds is not None:
-        return [_target(tds, **options)], None
+    paths = [] if tds is None else [tds] if isinstance(tds, (str, Path)) else list(tds)
+    options = Options(
+        backends=tuple(backends or ()),
+        output=Path(output) if output is not None else None,
+        interfaces=tuple(Path(p) for p in interfaces),
+        values=tuple(sorted((values or {}).items())),
+        package_name=package_name,
+        partial=partial,
+        strict=strict,
+    )
     diags = Diagnostics()
-    path = Path(config) if config is not None else find()
-    if path is None:
-        diags.error("CFG907", "no TD given and no td2adaptor.toml or [tool.td2adaptor] in pyproject.toml found")
+    found = targets([Path(p) for p in paths], options, diags, config=Path(config) if config is not None else None)
+    if found is None:
         return [], Outcome(list(diags))
-    loaded = load(path, diags)
-    if loaded is None:
-        return [], Outcome(list(diags))
-    return list(loaded.targets), None
+    return found, None
 
 
 def generate(
     tds: PathLike | Sequence[PathLike] | None = None,
     *,
-    backends: Sequence[str] = ("all",),
-    output: PathLike = "generated",
+    backends: Sequence[str] | None = None,
+    output: PathLike | None = None,
     interfaces: Sequence[PathLike] = (),
     values: Mapping[str, Any] | None = None,
     package_name: str | None = None,
@@ -48,9 +64,12 @@ def generate(
 ) -> Outcome:
     """Generate adaptors for `tds` (or the project configuration when `tds` is None) and write them.
 
-    `Outcome.ok` is False with diagnostics when anything was invalid; then nothing was written.
+    Defaults with TDs: every backend, into `generated/`. `Outcome.ok` is False with diagnostics when anything
+    was invalid; then nothing was written.
     """
-    options = dict(
+    found, failed = _targets(
+        tds,
+        config,
         backends=backends,
         output=output,
         interfaces=interfaces,
@@ -59,15 +78,14 @@ def generate(
         partial=partial,
         strict=strict,
     )
-    targets, failed = _targets(tds, config, options)
-    return failed or _generate(targets, force=force, use_cache=use_cache)
+    return failed or _generate(found, force=force, use_cache=use_cache)
 
 
 def check(
     tds: PathLike | Sequence[PathLike] | None = None,
     *,
-    backends: Sequence[str] = ("all",),
-    output: PathLike = "generated",
+    backends: Sequence[str] | None = None,
+    output: PathLike | None = None,
     interfaces: Sequence[PathLike] = (),
     values: Mapping[str, Any] | None = None,
     package_name: str | None = None,
@@ -77,7 +95,9 @@ def check(
     use_cache: bool = True,
 ) -> Outcome:
     """Whether the generated code on disk is current (`Outcome.ok`); `Outcome.stale` lists what is not."""
-    options = dict(
+    found, failed = _targets(
+        tds,
+        config,
         backends=backends,
         output=output,
         interfaces=interfaces,
@@ -86,5 +106,4 @@ def check(
         partial=partial,
         strict=strict,
     )
-    targets, failed = _targets(tds, config, options)
-    return failed or _check(targets, use_cache=use_cache)
+    return failed or _check(found, use_cache=use_cache)

@@ -175,3 +175,72 @@ def _expand(base: Path, patterns: Sequence[str], excludes: Sequence[str]) -> lis
             if m.is_file() and not any(m.match(x) or m.relative_to(base).match(x) for x in excludes):
                 found[m] = None
     return list(found)
+
+
+@dataclass(frozen=True)
+class Options:
+    """What a caller (the CLI's options, or the library's keyword arguments) asks for besides the TDs.
+
+    None / empty means "not given": with TDs the defaults apply (all backends, `generated/`); with the
+    project configuration each configured target keeps its own setting.
+    """
+
+    backends: tuple[str, ...] = ()
+    output: Path | None = None
+    interfaces: tuple[Path, ...] = ()
+    values: tuple[tuple[str, Any], ...] = ()
+    package_name: str | None = None
+    partial: bool = False
+    strict: bool = False
+
+
+NO_CONFIGURATION = "no TD given and no td2adaptor.toml or [tool.td2adaptor] in pyproject.toml found"
+
+
+def targets(
+    tds: Sequence[Path | str], options: Options, diags: Diagnostics, *, config: Path | None = None
+) -> list[Target] | None:
+    """The generation jobs for `gen`/`check`, the same for the CLI and the library.
+
+    With TDs: one target built from `options`. Without: the project configuration (`config`, or the one
+    found upwards from the working directory), each of its targets with every given option applied on top:
+    backends, output and package name replace the configured ones, interfaces are added, placeholder values
+    are merged (the option wins), partial and strict switch on. None (with diagnostics) when there is no
+    configuration or it is invalid (CFG907 for none at all).
+    """
+    if tds:
+        return [
+            Target(
+                tds=tuple(Path(p) for p in tds),
+                backends=options.backends or ("all",),
+                output=options.output or Path("generated"),
+                interfaces=options.interfaces,
+                values=options.values,
+                package_name=options.package_name,
+                partial=options.partial,
+                strict=options.strict,
+            )
+        ]
+    path = config or find()
+    if path is None:
+        diags.error("CFG907", NO_CONFIGURATION)
+        return None
+    loaded = load(path, diags)
+    if loaded is None:
+        return None
+    return [_override(t, options) for t in loaded.targets]
+
+
+def _override(target: Target, options: Options) -> Target:
+    values = dict(target.values)
+    values.update(options.values)
+    return Target(
+        tds=target.tds,
+        backends=options.backends or target.backends,
+        output=options.output or target.output,
+        interfaces=target.interfaces + tuple(p for p in options.interfaces if p not in target.interfaces),
+        values=tuple(sorted(values.items())),
+        package_name=options.package_name or target.package_name,
+        partial=target.partial or options.partial,
+        strict=target.strict or options.strict,
+    )

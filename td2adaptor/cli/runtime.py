@@ -1,0 +1,247 @@
+"""The edge node (`run`) and the demonstrations (`demo warehouse`, from a source checkout)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any
+
+import click
+
+from td2adaptor.cli.common import (
+    EXIT_INVALID,
+    EXIT_OK,
+    _compile,
+    _fail,
+    _input_options,
+    _label,
+    _positive,
+    cli,
+    report,
+)
+
+# ---------------------------------------------------------------------------------------------------------
+# the edge node and the demo
+
+
+@cli.command()
+@click.argument("source", metavar="TD")
+@_input_options
+@click.option("--robot", help="Robot id on the bus (default: TD2ADAPTOR_ROBOT or the configuration file).")
+@click.option("--namespace", help="ROS namespace of the robot ({{robotName}}); default: the robot id.")
+@click.option("--bus", help="mqtt://host:port, mqtts://host:port or local (default: local).")
+@click.option(
+    "--config",
+    "config_file",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="YAML runtime configuration; with a robots: list, one process serves the whole fleet.",
+)
+@click.option("--ros", type=click.Choice(["1", "2"]), default="2", show_default=True, help="ROS version.")
+@click.option("--package", help="Module name of the generated adaptor package (default: the TD's package name).")
+@click.option(
+    "--package-path",
+    "package_paths",
+    multiple=True,
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Directory to import the adaptor (and ROS 1 interfaces) from, e.g. the generated source; repeatable.",
+)
+@click.option(
+    "--prefix",
+    "prefixes",
+    multiple=True,
+    type=click.Path(file_okay=False, path_type=Path),
+    help="ROS 2 install prefix to load (built interfaces, a colcon install space); repeatable.",
+)
+@click.option("--ros1-python", help="Interpreter that has rospy (ROS 1 runs in a bridge process under it).")
+@click.option("--domain-id", type=click.IntRange(0, 232), help="ROS 2 domain id (default: ROS_DOMAIN_ID).")
+@click.option("--master-uri", help="ROS 1 master URI (default: ROS_MASTER_URI).")
+@click.option("--poll-period", type=float, callback=_positive, help="Seconds between queries of a mission.")
+@click.option("--mission-timeout", type=float, callback=_positive, help="Overall limit of one mission, seconds.")
+@click.option("--call-timeout", type=float, callback=_positive, help="Limit of one ROS call, seconds.")
+@click.option("--property-period", type=float, help="Seconds between property events (0: none).")
+@click.option("--allow-insecure", is_flag=True, default=None, help="Allow nosec/plain connections to remote brokers.")
+@click.option(
+    "--log-level",
+    type=click.Choice(["debug", "info", "warning", "error"]),
+    default="info",
+    show_default=True,
+    help="What the edge node logs (stderr).",
+)
+def run(
+    source: str,
+    interfaces: tuple[Path, ...],
+    sets: tuple[str, ...],
+    values_file: Path | None,
+    strict: bool,
+    no_cache: bool,
+    max_bytes: int,
+    max_affordances: int,
+    robot: str | None,
+    namespace: str | None,
+    bus: str | None,
+    config_file: Path | None,
+    ros: str,
+    package: str | None,
+    package_paths: tuple[Path, ...],
+    prefixes: tuple[Path, ...],
+    ros1_python: str | None,
+    domain_id: int | None,
+    master_uri: str | None,
+    poll_period: float | None,
+    mission_timeout: float | None,
+    call_timeout: float | None,
+    property_period: float | None,
+    allow_insecure: bool | None,
+    log_level: str,
+) -> None:
+    """Run the edge node of a robot (or a fleet): bus events in, ROS calls out, feedback back.
+
+    The generated adaptor package must be importable: source the colcon/catkin install space it was built
+    into, or give --package-path (its source directory) and, for ROS 2, --prefix (the built interfaces).
+    Precedence of settings: options > TD2ADAPTOR_* environment > --config file. SIGINT/SIGTERM stop it
+    cleanly (the robot's status becomes offline).
+    """
+    import logging
+    import signal
+    import threading
+
+    from td2adaptor.runtime.node import EdgeNode, RosOptions, wait_for_signal
+
+    stop = threading.Event()
+    result = _compile([source], interfaces, sets, values_file, strict, max_bytes, None, no_cache, max_affordances)
+    if result.model is None:
+        report(result.diagnostics, "human", label=_label([source]))
+        sys.exit(EXIT_INVALID)
+    if result.diagnostics:
+        report(result.diagnostics, "human", label=_label([source]))
+    from td2adaptor.runtime.config import ConfigError, load_fleet
+
+    overrides: dict[str, Any] = {
+        "robot": robot,
+        "namespace": namespace,
+        "bus": bus,
+        "ros_domain_id": domain_id,
+        "ros_master_uri": master_uri,
+        "poll_period": poll_period,
+        "mission_timeout": mission_timeout,
+        "call_timeout": call_timeout,
+        "property_period": property_period,
+        "allow_insecure": allow_insecure,
+    }
+    try:
+        configs = load_fleet(config_file, overrides=overrides)
+    except ConfigError as exc:
+        _fail("run", f"configuration: {exc}")
+    logging.basicConfig(
+        level=getattr(logging, log_level.upper()), format="%(asctime)s %(levelname)s %(name)s: %(message)s"
+    )
+    if any(c.bus == "local" for c in configs):
+        click.echo(
+            "td2adaptor run: warning: --bus local is in-process; nothing outside this process can reach it", err=True
+        )
+    from td2adaptor.runtime.bus import BusError
+    from td2adaptor.runtime.port import PortError
+    from td2adaptor.runtime.ros import RosSetupError
+    from td2adaptor.runtime.security import SecurityError
+
+    options = RosOptions(int(ros), package, package_paths, prefixes, ros1_python)
+    node = EdgeNode(result.model, configs, options)
+
+    def interrupt(_signum: int, _frame: Any) -> None:
+        raise KeyboardInterrupt  # SIGTERM while starting: undo what was opened, like Ctrl-C
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        node.start()
+    except KeyboardInterrupt:
+        node.stop()
+        click.echo("td2adaptor run: interrupted while starting", err=True)
+        sys.exit(130)
+    except (RosSetupError, SecurityError, BusError, PortError) as exc:  # the user's to fix: one clear line
+        node.stop()
+        _fail("run", str(exc))
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    click.echo(f"td2adaptor run: {node.describe()}; SIGINT/SIGTERM stops", err=True)
+    try:
+        wait_for_signal(stop)
+    finally:
+        node.stop()
+        click.echo("td2adaptor run: stopped", err=True)
+    sys.exit(EXIT_OK)
+
+
+@cli.group()
+def demo() -> None:
+    """Demonstrations that run on a simulated robot (from a source checkout)."""
+
+
+@demo.command()
+@click.option("--bus", default="local", show_default=True, help="local, or mqtt://host:port of a running broker.")
+@click.option("--robots", type=click.IntRange(1, 3), default=3, show_default=True, help="How many robots.")
+@click.option(
+    "--duration",
+    type=float,
+    default=1.0,
+    show_default=True,
+    callback=_positive,
+    help="Seconds each simulated procedure takes.",
+)
+@click.option(
+    "--timeout", type=float, default=120.0, show_default=True, callback=_positive, help="Give up after this long."
+)
+@click.option(
+    "--cache",
+    "cache_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Where the built ROS 2 interfaces are kept (default: .cache/ros2-interfaces of the checkout).",
+)
+@click.option("--allow-insecure", is_flag=True, help="Allow a broker that is not on this machine.")
+@click.option("-v", "--verbose", is_flag=True, help="Log what the edge nodes do.")
+def warehouse(
+    bus: str, robots: int, duration: float, timeout: float, cache_dir: Path | None, allow_insecure: bool, verbose: bool
+) -> None:
+    """Three RB-1s move three carts through a door into storage zones A/B/C (ROS 2 Jazzy, simulated).
+
+    A behaviour service that talks only events over the bus takes carts from a shared SQLite task table and
+    drives the robots through their edge nodes; with --bus mqtt://... every edge node is its own process.
+    Prints a summary (carts moved, bus messages per action, total time); exit 0 when every cart is stored.
+    """
+    demo_module = _checkout_module("examples.warehouse.warehouse")
+    if demo_module is None:
+        _fail(
+            "demo warehouse",
+            "the demo runs from a source checkout of td2adaptor (it needs examples/: the RB-1 robot, its "
+            "simulation and the warehouse); this installation has none",
+        )
+    DemoError, WarehouseOptions, run_warehouse = (
+        demo_module.DemoError,
+        demo_module.WarehouseOptions,
+        demo_module.run_warehouse,
+    )
+    options = WarehouseOptions(
+        bus=bus,
+        robots=robots,
+        duration=duration,
+        timeout=timeout,
+        cache_dir=cache_dir,
+        allow_insecure=allow_insecure,
+        verbose=verbose,
+    )
+    try:
+        ok = run_warehouse(options)
+    except DemoError as exc:
+        _fail("demo warehouse", str(exc))
+    sys.exit(EXIT_OK if ok else EXIT_INVALID)
+
+
+def _checkout_module(name: str) -> Any:
+    """A module of the source checkout this td2adaptor runs from (examples/ is not part of the wheel)."""
+    import importlib
+
+    repo = Path(__file__).resolve().parents[2]
+    if not (repo / "examples" / "warehouse" / "warehouse.py").is_file():
+        return None
+    if str(repo) not in sys.path:
+        sys.path.insert(0, str(repo))
+    return importlib.import_module(name)
