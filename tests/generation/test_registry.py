@@ -1,0 +1,57 @@
+"""Backends are found, not listed: every package under td2adaptor/backends/ is one (a new backend is a new
+folder), and so is an entry point of the `td2adaptor.backends` group that another distribution installs."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+import td2adaptor.backends
+from td2adaptor.generation import registry
+from td2adaptor.generation.build import resolve_backends
+
+
+@pytest.fixture
+def fresh_registry() -> Iterator[None]:
+    registry.modules.cache_clear()
+    yield
+    registry.modules.cache_clear()
+
+
+def test_every_backend_folder_is_a_backend_in_its_order() -> None:
+    folders = sorted(
+        p.name
+        for p in Path(td2adaptor.backends.__file__).parent.iterdir()
+        if (p / "__init__.py").is_file() and not p.name.startswith("_")
+    )
+    assert sorted(registry.modules()) == folders
+    assert registry.available() == ["rclpy", "rospy", "mros", "events"]  # `all` order: ORDER of each backend
+    for name in folders:
+        plugin = registry.load(name)
+        assert plugin.NAME == name and callable(plugin.generate)
+        assert (Path(td2adaptor.backends.__file__).parent / name / "templates").is_dir()
+
+
+def test_an_entry_point_adds_a_backend(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, fresh_registry: None) -> None:
+    plugin = tmp_path / "td2a_plugin_backend.py"
+    plugin.write_text(
+        "from td2adaptor.generation.backend import GeneratedTree\n"
+        "NAME = 'plugin'\nDISTRO = None\nORDER = 50\n"
+        "def generate(model, options, diags):\n    return GeneratedTree()\n"
+    )
+    dist = tmp_path / "td2a_plugin-1.0.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: td2a-plugin\nVersion: 1.0\n")
+    (dist / "entry_points.txt").write_text("[td2adaptor.backends]\nplugin = td2a_plugin_backend\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    assert registry.available() == ["rclpy", "rospy", "mros", "plugin", "events"]
+    assert resolve_backends(["plugin", "rclpy"]) == (["rclpy", "plugin"], None)
+    sys.modules.pop("td2a_plugin_backend", None)
+
+
+def test_unknown_backend_names_the_known_ones() -> None:
+    names, problem = resolve_backends(["nope"])
+    assert names == [] and problem is not None and "rclpy" in problem and "all" in problem
