@@ -12,7 +12,7 @@ from typing import Any
 from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity, escalate
 from td2adaptor.generation import registry as backend_registry
 from td2adaptor.generation.backend import GeneratedTree, GenOptions
-from td2adaptor.generation.emit import EmitReport, plan, write
+from td2adaptor.generation.emit import EmitReport, discard, plan, stage, swap
 from td2adaptor.generation.targets import Target
 from td2adaptor.lowering.rosnames import package_name_problem
 from td2adaptor.model import Model
@@ -158,13 +158,35 @@ def generate(
     if trees is not None:
         plans = {root: plan(tree, root, diags, force=force) for root, tree in trees.items()}
         if all(p is not None for p in plans.values()):
-            for root, rep in plans.items():
-                assert rep is not None
-                write(trees[root], root, rep)
-                outcome.reports[root] = rep
-            outcome.ok = not diags.has_errors
+            reports = {root: rep for root, rep in plans.items() if rep is not None}
+            if _write_all(trees, reports, diags):
+                outcome.reports.update(reports)
+                outcome.ok = not diags.has_errors
     outcome.diagnostics = list(diags)
     return outcome
+
+
+def _write_all(trees: Mapping[Path, GeneratedTree], reports: Mapping[Path, EmitReport], diags: Diagnostics) -> bool:
+    """Stage every output directory first and swap them in only when all staged: a failure (a full disk, a
+    name the file system refuses) leaves every directory as it was."""
+    staged: dict[Path, Path] = {}
+    try:
+        for root, rep in reports.items():
+            new = stage(trees[root], root, rep)
+            if new is not None:
+                staged[root] = new
+    except OSError as exc:
+        for new in staged.values():
+            discard(new)
+        diags.error(
+            "GEN806",
+            f"could not write {root}: {exc.strerror or exc}",
+            hint="nothing was changed; free space or fix the permissions and run again",
+        )
+        return False
+    for root, new in staged.items():
+        swap(new, root)
+    return True
 
 
 def check(targets: Sequence[Target], *, use_cache: bool = True, parallel: bool = False) -> Outcome:

@@ -137,44 +137,69 @@ def plan(tree: GeneratedTree, root: Path, diags: Diagnostics, *, force: bool = F
 
 
 def write(tree: GeneratedTree, root: Path, report: EmitReport) -> None:
-    """Carry out a plan made by `plan`, replacing the whole directory at once.
+    """Carry out a plan made by `plan`, replacing the whole directory at once (see `stage` and `swap`)."""
+    staged = stage(tree, root, report)
+    if staged is not None:
+        swap(staged, root)
 
-    The new tree is assembled beside the old one (unchanged and foreign files hard-linked, so they keep
-    their mtime) and swapped in with one atomic exchange: an interrupted run leaves the old tree or the
-    new one, never a mix.
+
+def stage(tree: GeneratedTree, root: Path, report: EmitReport) -> Path | None:
+    """Assemble the new tree beside the old one; None when nothing would change.
+
+    Unchanged and foreign files are hard-linked (they keep their mtime). Nothing at `root` changes until
+    `swap`, so several backends can be staged first and swapped only when all of them staged: a failure
+    leaves every output directory as it was. Modes follow the umask, as for any file the user writes.
     """
     if not report.written and not report.removed and _manifest_bytes(tree) == _read(root / MANIFEST):
-        return
+        return None
     _recover(root)
     root.parent.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=f".{root.name}.td2a-new-", dir=root.parent))
+    staged = Path(tempfile.mkdtemp(prefix=f".{root.name}.td2a-new-", dir=root.parent))
     try:
+        mask = _umask()
+        os.chmod(staged, 0o777 & ~mask)  # mkdtemp makes it 0700, and the swap keeps the mode
         skip = set(report.written) | set(report.removed) | {MANIFEST}
         if root.is_dir():
-            _replicate(root, stage, skip)
+            _replicate(root, staged, skip)
         made: set[Path] = set()
         for rel in report.written:
-            target = stage / rel
+            target = staged / rel
             if target.parent not in made:  # one mkdir per folder, not per file
                 target.parent.mkdir(parents=True, exist_ok=True)
                 made.add(target.parent)
             target.write_bytes(tree.files[rel])
-            os.chmod(target, 0o755 if rel in tree.executable else 0o644)
+            os.chmod(target, (0o777 if rel in tree.executable else 0o666) & ~mask)
         for rel in report.removed:
-            parent = (stage / rel).parent
-            while parent != stage and parent.is_dir() and not any(parent.iterdir()):
+            parent = (staged / rel).parent
+            while parent != staged and parent.is_dir() and not any(parent.iterdir()):
                 parent.rmdir()
                 parent = parent.parent
-        (stage / MANIFEST).write_bytes(_manifest_bytes(tree))
-        _flush(stage, report.written)
-        if root.exists():
-            _exchange(stage, root)
-            shutil.rmtree(stage)  # now holds the old tree
-        else:
-            os.rename(stage, root)
+        (staged / MANIFEST).write_bytes(_manifest_bytes(tree))
+        _flush(staged, report.written)
     except BaseException:
-        shutil.rmtree(stage, ignore_errors=True)
+        discard(staged)
         raise
+    return staged
+
+
+def swap(staged: Path, root: Path) -> None:
+    """Put a staged tree in place of `root` with one atomic exchange: the old tree or the new, never a mix."""
+    if root.exists():
+        _exchange(staged, root)
+        shutil.rmtree(staged)  # now holds the old tree
+    else:
+        os.rename(staged, root)
+
+
+def discard(staged: Path) -> None:
+    """Drop a staged tree that will not be swapped in."""
+    shutil.rmtree(staged, ignore_errors=True)
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def _manifest_bytes(tree: GeneratedTree) -> bytes:

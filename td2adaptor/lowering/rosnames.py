@@ -70,11 +70,17 @@ _CPP_KEYWORDS = frozenset(
 )
 _IDENT = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 
+#: Longest component, affordance or package name: they become file and folder names (with prefixes and
+#: suffixes such as `.events.schema.json`), and file systems refuse names over 255 bytes.
+MAX_NAME = 100
+
 
 def identifier_problem(name: str) -> str | None:
     """Why `name` cannot be a class or method-name part in Python and C++ (None when it can)."""
     if not _IDENT.match(name):
         return "must start with a letter and contain only ASCII letters, digits and '_'"
+    if len(name) > MAX_NAME:
+        return f"is {len(name)} characters long, more than {MAX_NAME} (it becomes file and class names)"
     if keyword.iskeyword(name) or name in _CPP_KEYWORDS or name in {"None", "True", "False"}:
         return "is a reserved word in Python or C++"
     if "__" in name:
@@ -86,10 +92,14 @@ def package_name(title: str) -> str:
     """A ROS package name (REP 144) derived from a Thing title: `Robotnik RB-1` → `robotnik_rb_1_adaptor`."""
     base = re.sub(r"[^a-z0-9]+", "_", title.lower()).strip("_")
     base = re.sub(r"^[0-9_]+", "", base) or "thing"
-    return base if base.endswith("_adaptor") else base + "_adaptor"
+    if base.endswith("_adaptor"):
+        base = base[: -len("_adaptor")]
+    return base[: MAX_NAME - len("_adaptor")].rstrip("_") + "_adaptor"
 
 
 def package_name_problem(name: str) -> str | None:
     if not re.fullmatch(r"[a-z][a-z0-9]*(_[a-z0-9]+)*", name):
         return "must be lower-case letters and digits separated by single '_', starting with a letter"
+    if len(name) > MAX_NAME:
+        return f"is {len(name)} characters long, more than {MAX_NAME} (it becomes folder names)"
     return None

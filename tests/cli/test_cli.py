@@ -204,3 +204,17 @@ def test_subprocess_bad_inputs_never_trace(tmp_path: Path) -> None:
 def test_subprocess_stdin_and_colour_only_on_tty() -> None:
     proc = _run("validate", "-", *IFACE, stdin=Path(TD).read_bytes())
     assert proc.returncode == 0 and b"\x1b[" not in proc.stderr and b"<stdin>: valid" in proc.stderr
+
+
+def test_a_name_too_long_for_a_file_is_refused_at_validate_and_nothing_is_written(
+    runner: CliRunner, tmp_path: Path
+) -> None:
+    text = Path(TD).read_text(encoding="utf-8").replace('"GoToComponent"', '"' + "G" * 5000 + '"')
+    td = tmp_path / "td.json"
+    td.write_text(text, encoding="utf-8")
+    result = runner.invoke(cli, ["validate", str(td), *IFACE, "--no-cache"])
+    assert result.exit_code == 1 and "ROS430" in result.output and "5000 characters long" in result.output
+    out = tmp_path / "out"
+    result = runner.invoke(cli, ["gen", str(td), *IFACE, "--partial", "-o", str(out), "--no-cache"])
+    assert result.exit_code == 1 and "internal error" not in result.output
+    assert not out.exists()

@@ -229,3 +229,45 @@ def test_config_errors_are_diagnostics(tmp_path: Path) -> None:
 def test_no_config_is_a_usage_error(tmp_path: Path) -> None:
     code, out = _run(tmp_path, "gen")
     assert code == 2 and "no TD given" in out
+
+
+def test_a_failing_backend_leaves_every_output_as_it_was(tmp_path: Path) -> None:
+    from td2adaptor.generation.build import _write_all
+
+    first, second = tmp_path / "out" / "a", tmp_path / "out" / "b"
+    old = GeneratedTree()
+    old.add("keep.txt", "old\n")
+    for root in (first, second):
+        report = plan(old, root, Diagnostics())
+        assert report is not None
+        write(old, root, report)
+    new_a, new_b = GeneratedTree(), GeneratedTree()
+    new_a.add("keep.txt", "new\n")
+    new_b.add("x" * 300 + ".txt", "the file system refuses this name\n")  # a real ENAMETOOLONG
+    trees = {first: new_a, second: new_b}
+    reports = {root: plan(tree, root, Diagnostics()) for root, tree in trees.items()}
+    assert all(r is not None for r in reports.values())
+    diags = Diagnostics()
+    assert not _write_all(trees, {k: v for k, v in reports.items() if v is not None}, diags)
+    assert [d.code for d in diags] == ["GEN806"] and "File name too long" in diags.errors()[0].message
+    assert (first / "keep.txt").read_text() == "old\n"  # staged, but never swapped in
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["a", "b"]  # no stage left behind
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o077, 0o002])
+def test_output_modes_follow_the_umask(tmp_path: Path, umask: int) -> None:
+    tree = GeneratedTree()
+    tree.add("pkg/module.py", "x = 1\n")
+    tree.add("pkg/scripts/run", "#!/bin/sh\n", executable=True)
+    root = tmp_path / "out" / "backend"
+    previous = os.umask(umask)
+    try:
+        report = plan(tree, root, Diagnostics())
+        assert report is not None
+        write(tree, root, report)
+    finally:
+        os.umask(previous)
+    for folder in (root, root / "pkg", root / "pkg" / "scripts"):
+        assert folder.stat().st_mode & 0o777 == 0o777 & ~umask, folder
+    assert (root / "pkg" / "module.py").stat().st_mode & 0o777 == 0o666 & ~umask
+    assert (root / "pkg" / "scripts" / "run").stat().st_mode & 0o777 == 0o777 & ~umask

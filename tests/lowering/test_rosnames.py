@@ -75,3 +75,15 @@ def test_package_names() -> None:
     assert package_name_problem("robotnik_rb_1_adaptor") is None
     assert package_name_problem("Bad-Name") is not None
     assert package_name_problem("a__b") is not None
+
+
+def test_names_that_become_file_names_are_bounded() -> None:
+    from td2adaptor.lowering.rosnames import MAX_NAME, identifier_problem, package_name, package_name_problem
+
+    assert identifier_problem("A" * MAX_NAME) is None
+    assert "characters long" in (identifier_problem("A" * 5000) or "")
+    assert "characters long" in (package_name_problem("a" * (MAX_NAME + 1)) or "")
+    derived = package_name("Robot " * 1000)
+    assert len(derived) <= MAX_NAME and derived.endswith("_adaptor") and package_name_problem(derived) is None
+    assert package_name("Robotnik RB-1") == "robotnik_rb_1_adaptor"
+    assert package_name("my_adaptor") == "my_adaptor"
