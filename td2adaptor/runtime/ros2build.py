@@ -104,10 +104,28 @@ def _cmakelists(package: str, files: list[str], deps: list[str]) -> str:
     return "\n".join(lines) + "\n"
 
 
+class BuildError(Exception):
+    """The interfaces cannot be built; the message says why (one line for the user)."""
+
+
+def packages_in(src: Path) -> list[Path]:
+    """The interface packages `src` holds: its subfolders with a package.xml, or `src` itself when it is one."""
+    if (src / "package.xml").is_file():
+        return [src]
+    if not src.is_dir():
+        raise BuildError(f"{src} is not a folder")
+    found = sorted(p for p in src.iterdir() if (p / "package.xml").is_file())
+    if not found:
+        raise BuildError(
+            f"no interface package in {src}: a package is a folder with a package.xml and msg/, srv/ or action/"
+        )
+    return found
+
+
 def prepare_sources(src: Path, dest: Path) -> list[str]:
     """Copy every interface package under `src` to `dest`, translated, with a CMakeLists.txt; their names."""
     names = []
-    for pkg_dir in sorted(p for p in src.iterdir() if (p / "package.xml").is_file()):
+    for pkg_dir in packages_in(src):
         package = pkg_dir.name
         out = dest / package
         out.mkdir(parents=True)
@@ -237,6 +255,7 @@ def colcon_build(base: Path, prefixes: list[Path], *, cmake: bool, colcon_home: 
 
 def build_interfaces(src: Path, cache: Path, *, colcon_home: Path | None = None) -> Path:
     """The install prefix of the interface packages under `src`, built once per definitions hash."""
+    packages_in(src)  # refuse an empty or missing folder before hashing or locking anything
     key = definitions_hash(src)
     root = cache / key
     done = root / "DONE"
@@ -254,7 +273,27 @@ def build_interfaces(src: Path, cache: Path, *, colcon_home: Path | None = None)
         return install
 
 
+def main(argv: list[str]) -> int:
+    """`python -m td2adaptor.runtime.ros2build INTERFACES CACHE`: print the install prefix, or one line why not."""
+    if len(argv) != 2:
+        print("usage: python -m td2adaptor.runtime.ros2build INTERFACES CACHE", file=sys.stderr)
+        return 2
+    try:
+        print(build_interfaces(Path(argv[0]), Path(argv[1])))
+    except BuildError as exc:
+        print(f"ros2build: {exc}", file=sys.stderr)
+        return 1
+    except (RuntimeError, OSError, subprocess.SubprocessError) as exc:
+        print(f"ros2build: building the interfaces failed: {exc}", file=sys.stderr)
+        return 1
+    except ImportError as exc:
+        print(
+            f"ros2build: the ROS 2 build tools are not installed ({exc}): pip install 'td2adaptor[ros2]'",
+            file=sys.stderr,
+        )
+        return 1
+    return 0
+
+
 if __name__ == "__main__":
-    if len(sys.argv) != 3:
-        sys.exit("usage: python -m td2adaptor.runtime.ros2build INTERFACES CACHE")
-    print(build_interfaces(Path(sys.argv[1]), Path(sys.argv[2])))
+    sys.exit(main(sys.argv[1:]))
