@@ -158,6 +158,9 @@ out["goto_done"] = [r.state.header.id, r.state.last_event, r.result.message, sor
 status = wait_for(avail.get_value, lambda m: m.operation_state == "idle")
 out["pose"] = [status.localization_status.pose.pose.x, status.localization_status.pose.pose.y]
 out["markers"] = [m.id for m in wait_for(marker.get_value, lambda m: len(m.markers) > 0).markers]
+# rospy publishes through a queue thread: a message published just before the process exits can be lost, so
+# the door command goes out here, long after register() connected it and well before the client ends
+door.publish_door_Msg(door.construct_door_Msg(data=1.0))
 
 started = pick.call_pickRun(pick.construct_pickRun_Msg(procedure={"pick_frame_id": "rb1_base_b_cart3_contact"}))
 r, _ = until_finished(pick.call_pickQuery, started.mission_id)
@@ -175,7 +178,6 @@ after = goto.call_gotoQuery(mission_id=started.mission_id)
 out["cancel"] = [started.mission_id, cancelled.state.header.id, cancelled.state.current_state,
                  cancelled.state.last_event, after.state.last_event]
 
-door.publish_door_Msg(door.construct_door_Msg(data=1.0))
 remove()
 out["callback_seen"] = len(seen) > 0 and "moving" in seen
 emit(out)
