@@ -264,9 +264,11 @@ def parse_json(
     try:
         data = json.loads(text, object_pairs_hook=_pairs_hook(flag), parse_constant=_reject_constant)
     except json.JSONDecodeError as exc:
-        diags.append(
-            Diagnostic("TD004", Severity.ERROR, f"invalid JSON: {exc.msg}", "", None, name, exc.lineno, exc.colno)
-        )
+        from td2adaptor.frontend.jsonsyntax import explain
+
+        problem = explain(text, exc)
+        line, col = doc_line_col(text, problem.offset)
+        diags.append(Diagnostic("TD004", Severity.ERROR, problem.message, "", problem.hint, name, line, col))
         return None
     except ValueError as exc:  # NaN / Infinity
         off = _find_constant(text)

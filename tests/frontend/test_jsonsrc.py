@@ -3,9 +3,15 @@
 from __future__ import annotations
 
 import io
+import json
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.frontend.jsonsrc import load_path, parse_json
+from td2adaptor.frontend.jsonsyntax import explain
 
 
 def test_positions_of_values_and_keys() -> None:
@@ -98,3 +104,34 @@ def test_root_position_without_and_with_the_source_map() -> None:
         assert doc.position("") == quick
     doc = parse_json(b'{"k\\"ey": {"x\\u0041": [1, {"y": 2}]}}', "e.json", Diagnostics())
     assert doc is not None and doc.position('/k"ey/xA/1/y') == (1, 33)
+
+
+@pytest.mark.parametrize(
+    ("text", "where", "message", "hint"),
+    [
+        ('{\n  "a": 1,\n  "b": {},\n}\n', (3, 10), "trailing comma before '}'", "remove this comma"),
+        ('{\n  "a": [1, 2,],\n  "b": 1\n}\n', (2, 13), "trailing comma before ']'", "remove this comma"),
+        ('{\n  "a": "x"\n  "b": 1\n}\n', (2, 11), "',' is missing after this value", "separate"),
+        ('{\n  "a": {\n    "b": [1,\n', (3, 10), "'[' opened here is never closed", "add the missing ']'"),
+        ('{\n  "a": {"x": "}"\n', (2, 8), "'{' opened here is never closed", "add the missing '}'"),
+        ("{\n  'a': 1\n}\n", (2, 3), "property name", "double quotes"),
+        ('{\n  /* c */ "a": 1\n}\n', (2, 3), "comments are not allowed", "remove the comment"),
+    ],
+)
+def test_syntax_errors_point_where_they_were_made(text: str, where: tuple[int, int], message: str, hint: str) -> None:
+    diags = Diagnostics()
+    assert parse_json(text.encode(), "s.json", diags) is None
+    [d] = diags.items
+    assert d.code == "TD004" and (d.line, d.col) == where, d
+    assert message in d.message and d.hint is not None and hint in d.hint
+
+
+@given(st.text(alphabet="{}[],:\"\\ \n\tab1'/*", max_size=40))
+def test_every_syntax_error_is_explained_inside_the_text(text: str) -> None:
+    try:
+        json.loads(text)
+    except json.JSONDecodeError as exc:
+        problem = explain(text, exc)
+        assert 0 <= problem.offset <= len(text) and problem.message.startswith("invalid JSON") and problem.hint
+    except RecursionError:
+        pass
