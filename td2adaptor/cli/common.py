@@ -142,10 +142,20 @@ def _compile(
     return Result(result.model, tuple(problems) + result.diagnostics, result.input)
 
 
-def report(diagnostics: Sequence[Diagnostic], fmt: str, *, label: str, extra: dict[str, Any] | None = None) -> bool:
-    """Print diagnostics (stderr for humans, stdout JSON); True when there is no error."""
-    errors = sum(d.severity.value == "error" for d in diagnostics)
-    warnings = sum(d.severity.value == "warning" for d in diagnostics)
+def report(
+    diagnostics: Sequence[Diagnostic],
+    fmt: str,
+    *,
+    label: str,
+    extra: dict[str, Any] | None = None,
+    counted: Sequence[Diagnostic] | None = None,
+) -> bool:
+    """Print diagnostics (stderr for humans, stdout JSON); True when there is no error.
+
+    `counted`: the diagnostics the verdict line counts, when only some of them are printed."""
+    total = diagnostics if counted is None else counted
+    errors = sum(d.severity.value == "error" for d in total)
+    warnings = sum(d.severity.value == "warning" for d in total)
     if fmt == "json":
         doc: dict[str, Any] = {"valid": errors == 0, "errors": errors, "warnings": warnings}
         doc.update(extra or {})

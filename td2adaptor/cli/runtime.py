@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
@@ -19,6 +20,9 @@ from td2adaptor.cli.common import (
     cli,
     report,
 )
+
+if TYPE_CHECKING:
+    from td2adaptor.diagnostics import Diagnostic
 
 # ---------------------------------------------------------------------------------------------------------
 # the edge node and the demo
@@ -113,7 +117,7 @@ def run(
         report(result.diagnostics, "human", label=_label([source]))
         sys.exit(EXIT_INVALID)
     if result.diagnostics:
-        report(result.diagnostics, "human", label=_label([source]))
+        _summarise(result.diagnostics, source)
     from td2adaptor.runtime.config import ConfigError, load_fleet
 
     overrides: dict[str, Any] = {
@@ -245,3 +249,21 @@ def _checkout_module(name: str) -> Any:
     if str(repo) not in sys.path:
         sys.path.insert(0, str(repo))
     return importlib.import_module(name)
+
+
+def _summarise(diagnostics: Sequence[Diagnostic], source: str) -> None:
+    """The TD's problems at start-up: errors and the first warning in full, the rest (warnings, notes)
+    counted by code; a node restarts often, and `validate` is where to read them all."""
+    from collections import Counter
+
+    errors = [d for d in diagnostics if d.severity.value == "error"]
+    others = [d for d in diagnostics if d.severity.value != "error"]
+    first = next((d for d in others if d.severity.value == "warning"), None)
+    rest = [d for d in others if d is not first]
+    if len(rest) <= 1:
+        report(diagnostics, "human", label=_label([source]))
+        return
+    report([*errors, *([first] if first else [])], "human", label=_label([source]), counted=diagnostics)
+    counts = Counter(d.code for d in rest)
+    codes = ", ".join(f"{code} x{n}" for code, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
+    click.echo(f"... and {len(rest)} more ({codes}); `td2adaptor validate {source}` lists them", err=True)

@@ -102,3 +102,15 @@ def test_demo_refuses_what_cannot_work() -> None:
     assert run("demo", "warehouse", "--duration", "-1")[0] == 2
     code, out = run("demo", "--help")
     assert code == 0 and "warehouse" in out
+
+
+def test_run_summarises_the_tds_warnings_instead_of_reprinting_them() -> None:
+    dialect = str(EXAMPLE / "td.reference-dialect.json")
+    code, out = run("run", dialect, *IFACE, "--robot", "r1", "--bus", "nope://x")
+    assert code == 1 and "use mqtt://host:port" in out
+    printed = [line for line in out.splitlines() if " warning " in line or " info " in line]
+    assert len(printed) == 1, printed  # the first warning in full
+    (summary,) = [line for line in out.splitlines() if line.startswith("... and ")]
+    assert "ROS412 x12" in summary and f"td2adaptor validate {dialect}" in summary
+    verdict = next(line for line in out.splitlines() if line.startswith(f"{dialect}: valid"))
+    assert "(0 errors, 39 warnings)" in verdict  # counts every warning, not the one shown
