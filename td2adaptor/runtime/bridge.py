@@ -22,6 +22,7 @@ import importlib
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -443,6 +444,11 @@ def _serve(requests: IO[str], replies: IO[str]) -> int:
 
 def main() -> int:
     """`python -m td2adaptor.runtime.bridge`: requests on stdin, replies on the original stdout."""
+    # The parent ends the bridge by closing its input (its death closes it too). A SIGINT/SIGTERM sent to the
+    # whole process group (Ctrl-C, a launch system stopping the node) must not end it first: the parent would
+    # log the property reads of its last moments as failures of a clean stop.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     replies = os.fdopen(os.dup(1), "w", encoding="utf-8")
     os.dup2(2, 1)  # anything else that prints (rospy, user code) goes to stderr, not into the protocol
     sys.stdout = sys.stderr

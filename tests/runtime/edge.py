@@ -48,7 +48,11 @@ class RunProcess:
     """`td2adaptor run ...` in a child process; its stderr in a file (read on failure)."""
 
     def __init__(
-        self, args: Sequence[str], env: dict[str, str] | None = None, command: Sequence[str] | None = None
+        self,
+        args: Sequence[str],
+        env: dict[str, str] | None = None,
+        command: Sequence[str] | None = None,
+        new_session: bool = False,
     ) -> None:
         self.log = tempfile.NamedTemporaryFile(prefix="td2adaptor-run-", suffix=".log", delete=False)
         self.proc = subprocess.Popen(
@@ -57,6 +61,7 @@ class RunProcess:
             env=env if env is not None else dict(os.environ),
             stdout=subprocess.DEVNULL,
             stderr=self.log,
+            start_new_session=new_session,  # its own process group, as a launch system starts it
         )
 
     def output(self) -> str:
@@ -66,9 +71,12 @@ class RunProcess:
         ok = until(lambda: "SIGINT/SIGTERM stops" in self.output() or self.proc.poll() is not None, timeout, 0.05)
         assert ok and self.proc.poll() is None, f"td2adaptor run did not start:\n{self.output()}"
 
-    def terminate(self, sig: int = signal.SIGTERM, timeout: float = 20.0) -> int:
+    def terminate(self, sig: int = signal.SIGTERM, timeout: float = 20.0, group: bool = False) -> int:
         if self.proc.poll() is None:
-            self.proc.send_signal(sig)
+            if group:  # every process of the group, children included (Ctrl-C, roslaunch, systemd)
+                os.killpg(self.proc.pid, sig)
+            else:
+                self.proc.send_signal(sig)
         try:
             return self.proc.wait(timeout)
         finally:

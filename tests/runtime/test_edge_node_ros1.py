@@ -11,6 +11,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -146,6 +147,19 @@ def test_bridge_ports_drive_the_ros1_sim_and_a_mission_runs_through_the_engine(
         bridge.close()
 
 
+def _group_members(pgid: int) -> list[int]:
+    """Processes of a process group, from /proc."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[2]) == pgid:
+            found.append(int(stat.parent.name))
+    return found
+
+
 def _alive(port: Any) -> bool:
     try:
         port.query("GoToComponent", "gotoQuery", -1, 2.0)
@@ -200,11 +214,12 @@ def test_rosrun_edge_node_serves_a_robot_over_mosquitto(
             "--poll-period",
             "0.05",
             "--property-period",
-            "0",
+            "0.05",
             "__name:=edge_node",  # what roslaunch adds: dropped by the script
         ],
         env=environ,
         command=["bash", "-c", rosrun, "edge_node"],
+        new_session=True,
     )
     try:
         run.wait_ready()
@@ -213,7 +228,16 @@ def test_rosrun_edge_node_serves_a_robot_over_mosquitto(
         app.send(f"td2adaptor/{ROBOT}/GoToComponent/gotoRun", {"correlation": "cli", "payload": goal})
         app.wait(terminal("feedback", "cli"), timeout=20)
         check_mission(app.events, "cli", ["queued", "running", "finished"])
-        assert run.terminate(signal.SIGTERM) == 0, run.output()
+        # SIGTERM to the whole process group, bridge included, as roslaunch or systemd stop a node: a clean
+        # stop, with no property read reported as failed on the way out. The group's members get the signal
+        # in no set order; the bridge first (and a moment of polling before the node's turn) is the worst case.
+        members = [pid for pid in _group_members(run.proc.pid) if pid != run.proc.pid]
+        assert members, "the ROS 1 bridge runs in the node's process group"
+        for pid in members:
+            os.kill(pid, signal.SIGTERM)
+        time.sleep(0.5)  # ten property polls; a bridge that died of the signal would fail them
+        assert run.terminate(signal.SIGTERM, group=True) == 0, run.output()
+        assert "failed" not in run.output() and "PortUnavailable" not in run.output(), run.output()
         app.wait(
             lambda ev: [e["payload"]["state"] for t, e in ev if t.endswith("/status")][-1:] == ["offline"], timeout=10
         )
