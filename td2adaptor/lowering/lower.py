@@ -118,7 +118,7 @@ def lower(
     tables = _resolve_types(endpoints, regs, diags)
     for g in groups:
         procedures[g.name] = tuple(_mission_ids(g, procedures[g.name], tables, diags))
-    _crosscheck(endpoints, tables, diags)
+    _crosscheck(endpoints, tables, diags, ros1_first=thing.master_uri is not None)
     if len(diags.errors()) > errors_before:
         return None
     components = tuple(
@@ -552,11 +552,15 @@ def _with_digests(table: TypeTable, reg: TypeRegistry) -> TypeTable:
     return replace(table, ros1_digests=tuple(digests))
 
 
-def _crosscheck(endpoints: Sequence[_Endpoint], tables: Mapping[str, TypeTable], diags: Diagnostics) -> None:
+def _crosscheck(
+    endpoints: Sequence[_Endpoint], tables: Mapping[str, TypeTable], diags: Diagnostics, *, ros1_first: bool = False
+) -> None:
     """Compare each affordance's data schemas with its message types.
 
     Schemas may follow ROS 1 or ROS 2 layouts (Header.seq, secs/nsecs vs sec/nanosec); each endpoint is
-    checked against every distro its type resolves in, and the distro its schemas fit best is reported.
+    checked against every distro its type resolves in, and the distro its schemas fit best is reported. On a
+    tie the robot's own ROS wins: ROS 1 for the reference dialect and for a TD naming a ROS 1 master
+    (`rosv:masterURI`), else ROS 2.
     """
     from td2adaptor.lowering.crosscheck import crosscheck
 
@@ -575,7 +579,7 @@ def _crosscheck(endpoints: Sequence[_Endpoint], tables: Mapping[str, TypeTable],
         if not pairs:
             continue
         best: Diagnostics | None = None
-        order = ("ros1", "ros2") if raw.dialect == REFERENCE else ("ros2", "ros1")
+        order = ("ros1", "ros2") if ros1_first or raw.dialect == REFERENCE else ("ros2", "ros1")
         for distro in order:
             if tables[distro].get(ep.type_name) is None:
                 continue

@@ -612,3 +612,34 @@ def test_schema_members_named_like_keywords_are_not_misplaced() -> None:
     # ...but a field name beside `properties` of its own message is
     schema = {"type": "object", "properties": {"type": STR, "description": STR}, "name": STR}
     assert run(schema, "r/msg/S", table).codes() == ["XC603"]
+
+
+def test_a_tie_between_distros_goes_to_the_robots_own_ros(tmp_path: Any) -> None:
+    import json
+
+    import td2adaptor
+
+    schema = {
+        "type": "object",
+        "properties": {
+            "seq": {"type": "integer"},  # ROS 1 only
+            "stamp": {"type": "object", "properties": {"sec": {"type": "integer"}, "nanosec": {"type": "integer"}}},
+            "frame_id": {"type": "string"},
+        },
+    }
+    form = {"href": "ros:///hdr", "rosv:name": "/hdr", "rosv:type": "std_msgs/msg/Header", "op": ["readproperty"]}
+    td: dict[str, Any] = {
+        "@context": ["https://www.w3.org/2022/wot/td/v1.1", {"rosv": "https://td2adaptor.dev/ros#"}],
+        "title": "Tie",
+        "securityDefinitions": {"nosec_sc": {"scheme": "nosec"}},
+        "security": "nosec_sc",
+        "properties": {"hdr": {**schema, "forms": [{**form, "rosv:component": "H"}]}},
+    }
+
+    def findings(master: bool) -> list[str]:
+        path = tmp_path / f"tie-{master}.json"
+        path.write_text(json.dumps({**td, **({"rosv:masterURI": "http://localhost:11311/"} if master else {})}))
+        return [d.code for d in td2adaptor.compile(path).diagnostics if d.code.startswith("XC")]
+
+    assert findings(master=False) == ["XC601"]  # read as ROS 2: `seq` is not a field
+    assert findings(master=True) == ["XC606"]  # a ROS 1 robot: the stamp is a ROS 1 time in ROS 2 names
