@@ -149,10 +149,12 @@ def report(
     label: str,
     extra: dict[str, Any] | None = None,
     counted: Sequence[Diagnostic] | None = None,
+    verdict: str | None = None,
 ) -> bool:
     """Print diagnostics (stderr for humans, stdout JSON); True when there is no error.
 
-    `counted`: the diagnostics the verdict line counts, when only some of them are printed."""
+    `counted`: the diagnostics the verdict line counts, when only some of them are printed; `verdict`: what
+    to say instead of valid/invalid (when the input was fine and something else went wrong)."""
     total = diagnostics if counted is None else counted
     errors = sum(d.severity.value == "error" for d in total)
     warnings = sum(d.severity.value == "warning" for d in total)
@@ -168,7 +170,10 @@ def report(
         click.echo(f"{d.location}: {sev} {d.code}: {d.message}{where}", err=True)
         if d.hint:
             click.echo(f"    hint: {d.hint}", err=True)
-    verdict = click.style("valid", fg="green") if errors == 0 else click.style("invalid", fg="red", bold=True)
+    if verdict is not None:
+        verdict = click.style(verdict, fg="red", bold=True)
+    else:
+        verdict = click.style("valid", fg="green") if errors == 0 else click.style("invalid", fg="red", bold=True)
     click.echo(
         f"{label}: {verdict} ({errors} error{'s' * (errors != 1)}, {warnings} warning{'s' * (warnings != 1)})",
         err=True,

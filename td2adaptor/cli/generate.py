@@ -25,6 +25,10 @@ if TYPE_CHECKING:
     from td2adaptor.generation.targets import Target
 
 
+#: errors about the output directory, not the input: refused overwrites, unsafe paths, failed writes
+_OUTPUT_CODES = frozenset({"GEN801", "GEN802", "GEN806"})
+
+
 def _gen_options(f: Any) -> Any:
     f = click.option(
         "--backend",
@@ -134,7 +138,12 @@ def gen(
         sys.exit(EXIT_INVALID)
     outcome = generate(targets, force=force, use_cache=not no_cache, parallel=True)
     label = _label(sources) or "configuration"
-    ok = report([*diags, *outcome.diagnostics], fmt, label=label) and outcome.ok
+    found = [*diags, *outcome.diagnostics]
+    refused = [d for d in found if d.severity.value == "error"]
+    verdict = None
+    if refused and all(d.code in _OUTPUT_CODES for d in refused):  # the TDs are fine; the output directory is not
+        verdict = "valid, but nothing was written"
+    ok = report(found, fmt, label=label, verdict=verdict) and outcome.ok
     if fmt == "human":
         for root, rep in sorted(outcome.reports.items()):
             click.echo(

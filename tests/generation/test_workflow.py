@@ -91,6 +91,9 @@ def test_hand_edit_survives_a_refused_run_and_force_overwrites(project: Path) ->
     (project / "rb1" / "td.json").write_text(json.dumps(td))
     code, out = _run(project, "gen")
     assert code == 1 and "GEN802" in out and "edited" in out
+    # located at the file itself, and the verdict says the TDs were fine but nothing was written
+    assert "out/dummy/robotnik_rb_1_adaptor/index.txt: error GEN802: refusing to overwrite this file" in out
+    assert "<input>" not in out and "configuration: valid, but nothing was written (1 error" in out
     assert index.read_text() == "my precious notes\n"
     assert not (project / "out" / "dummy" / "robotnik_rb_1_adaptor" / "gatecomponent.txt").exists()
     code, out = _run(project, "gen", "--force")
