@@ -61,3 +61,18 @@ def test_demo_warehouse_on_the_local_bus(ros2_domain: int, rb1_prefix: Path) -> 
 
 def test_demo_warehouse_across_processes_over_mqtt(ros2_domain: int, rb1_prefix: Path, broker: Mosquitto) -> None:
     check_summary(demo("--bus", broker.url), broker.url)
+
+
+def test_the_readme_simulator_command_works_as_written(ros2_domain: int, rb1_prefix: Path) -> None:
+    # README: `.venv/bin/python -m examples.robotnik_rb1.sim.ros2 --namespace rb1_base_a` (no prefix given: the
+    # simulation finds the checkout's build of the RB-1 interfaces itself, as rb1_prefix made it)
+    out = subprocess.run(
+        [sys.executable, "-m", "examples.robotnik_rb1.sim.ros2", "--namespace", "rb1_base_a", "--run-for", "1"],
+        cwd=REPO,
+        env={k: v for k, v in os.environ.items() if k != "PYTHONPATH"},
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert out.returncode == 0 and "Traceback" not in out.stderr, out.stderr
+    assert '"event": "ready"' in out.stdout

@@ -8,8 +8,8 @@ One command starts it (one node per robot, all in this process):
     --duration S     how long a procedure runs (default 1.0); --queue-time S before it starts (default 0.05)
     --rate HZ        how often Status and AlvarMarkers are published (default 10)
     --run-for S      exit after S seconds (default: until SIGINT/SIGTERM)
-    --prefix DIR     an install prefix holding the RB-1 interfaces (repeatable), if they are not importable
-                     already; `.venv/bin/python -m tests.ros2.build` builds them and prints the prefix
+    --prefix DIR     an install prefix holding the RB-1 interfaces (repeatable); without one, and when they
+                     are not importable already, they are built once with CMake into .cache/ros2-interfaces
 
 Per robot NS it serves `/NS/robot_local_control/NavigationComponent/{GoTo,Pick,Place}Component/{add,cancel,
 query_state}` with the robot's semantics (`core.py`), publishes `/NS/robot_local_control/state`
@@ -199,10 +199,38 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
+def ensure_interfaces(prefixes: Sequence[str]) -> str | None:
+    """Make the RB-1 interfaces importable: the given prefixes, or else the source checkout's build of them
+    (made with CMake on first use and cached in .cache/ros2-interfaces, as the warehouse demo does). The
+    reason when that cannot be done, for one line on stderr."""
+    import importlib.util
+
+    if importlib.util.find_spec("rclpy") is None:
+        return "ROS 2 Jazzy (rclpy) is not installed: bash .ci/setup-ros2.sh, or pip install -e '.[ros2]'"
+    for prefix in prefixes:
+        use_prefix(Path(prefix))
+    if prefixes or importlib.util.find_spec("ar_track_alvar_msgs") is not None:
+        return None
+    from td2adaptor.runtime import ros2build
+
+    repo = Path(__file__).resolve().parents[3]
+    src, cache = repo / "examples" / "robotnik_rb1" / "interfaces", repo / ".cache" / "ros2-interfaces"
+    if not (cache / ros2build.definitions_hash(src) / "DONE").is_file():
+        print(f"building the RB-1 interfaces with CMake (once; cached in {cache}) ...", file=sys.stderr, flush=True)
+    try:
+        prefix = ros2build.build_interfaces(src, cache, colcon_home=repo / ".cache" / "colcon-home")
+    except (ros2build.BuildError, RuntimeError, OSError, ImportError) as exc:
+        return f"building the RB-1 interfaces failed: {str(exc)[:2000]}"
+    use_prefix(prefix)
+    return None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
-    for prefix in args.prefix:
-        use_prefix(Path(prefix))
+    problem = ensure_interfaces(args.prefix)
+    if problem is not None:
+        print(f"sim: {problem}", file=sys.stderr)
+        return 1
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
