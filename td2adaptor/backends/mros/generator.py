@@ -15,7 +15,10 @@ Output, under `<package>/` (an mROS application directory, to be placed at `mros
   `registerPublishers()`/`registerSubscribers()`, `construct_P_Msg()`/`publish_P_Msg()` per published
   property, `get_P_value()` (a copy of the latest message taken under a semaphore) per subscribed one and
   `get_value()` when there is exactly one; `adaptor_hooks.h` (fill outgoing / handle incoming messages;
-  weak no-op defaults); `td2a_config.h` (build-time settings) and `td2a_support.h` (wire helpers).
+  weak no-op defaults); `td2a_config.h` (build-time settings);
+* copied unchanged from `verbatim/` (`VERBATIM_FILES`): `include/td2a_wire.h` (wire-format helpers, `time` and
+  `duration`), `include/td2a_support.h` (the latest-value slot, the robot namespace) and
+  `mros_config/os/target/os_asp/mros_os_config.h` (task priorities and stack sizes).
 
 Layout: one publisher task (one node; advertises, then fills and publishes at a fixed rate) and one
 subscriber task (one node; subscribes, then `ros::spin()`), as mROS binds nodes to tasks and `spin` blocks.
@@ -59,10 +62,17 @@ from td2adaptor.backends.mros.types import (
 from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.generation import textsafe as ts
 from td2adaptor.generation.backend import GeneratedTree, GenOptions
-from td2adaptor.generation.templating import render
+from td2adaptor.generation.templating import render, verbatim
 from td2adaptor.model import Component, Model, Role, TopicEndpoint
 
 TEMPLATES = Path(__file__).parent / "templates"
+VERBATIM = Path(__file__).parent / "verbatim"
+#: the files copied unchanged from `verbatim/`, by their path in the application directory
+VERBATIM_FILES = (
+    "include/td2a_support.h",
+    "include/td2a_wire.h",
+    "mros_config/os/target/os_asp/mros_os_config.h",
+)
 
 
 #: mROS v1.3 limits (mros_usr_config.h defaults and fixed buffers)
@@ -593,14 +603,17 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     tree.add(root + "td2adaptor.mk", _render("td2adaptor.mk.j2", **context))
     tree.add(root + "mros_config/mros_usr_config.h", _render("mros_config/mros_usr_config.h.j2", **context))
     tree.add(root + "mros_config/mros_usr_config.c", _render("mros_config/mros_usr_config.c.j2", **context))
-    tree.add(
-        root + "mros_config/os/target/os_asp/mros_os_config.h",
-        _render("mros_config/os/target/os_asp/mros_os_config.h.j2", **context),
-    )
+    for rel in VERBATIM_FILES:
+        tree.add(root + rel, verbatim(VERBATIM, rel))
     inc = root + "include/"
-    for name in ("message_headers.h", "message_class_specialization.h", "msg_max_size.h", "td2a_config.h"):
-        tree.add(inc + name, _render(f"include/{name}.j2", **context))
-    for name in ("td2a_wire.h", "td2a_support.h", "adaptor_components.h", "adaptor_hooks.h"):
+    for name in (
+        "message_headers.h",
+        "message_class_specialization.h",
+        "msg_max_size.h",
+        "td2a_config.h",
+        "adaptor_components.h",
+        "adaptor_hooks.h",
+    ):
         tree.add(inc + name, _render(f"include/{name}.j2", **context))
     for msg in context["messages"]:
         tree.add(inc + msg.header, _render("include/message.h.j2", m=msg, **context))
