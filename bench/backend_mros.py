@@ -34,7 +34,7 @@ from td2adaptor.model import ArrayKind, FieldType, TypeTable  # noqa: E402
 from td2adaptor.rostypes.registry import TypeRegistry  # noqa: E402
 
 EXAMPLE = REPO / "examples" / "robotnik_rb1"
-API = REPO / "tests" / "mros_api"
+API = REPO / "tests" / "backends" / "mros" / "mros_api"
 HAND = REPO / "bench" / "mros" / "handwritten"
 ARM = ["-mcpu=cortex-a9", "-marm", "-mfpu=vfpv3", "-mfloat-abi=hard", "-mno-unaligned-access", "-Os"]
 ARM_CXX = ["arm-none-eabi-g++", "-std=gnu++98", *ARM, "-fno-exceptions", "-Wall", "-Wextra", "-Werror", "-Wno-psabi"]

@@ -1,6 +1,6 @@
 """The mROS backend's generation (no compiler needed): golden files, diagnostics, limits, pools, names.
 
-Compiling and running the output: test_backend_mros_compile.py; the wire format: test_backend_mros_wire.py.
+Compiling and running the output: test_mros_compile.py; the wire format: test_mros_wire.py.
 """
 
 from __future__ import annotations
