@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity
+from td2adaptor.diagnostics.catalogue import meaning, meanings
 from td2adaptor.model import ArrayKind, Constant, FieldType, MessageDef, MessageField
 from td2adaptor.rostypes.names import ACTION_PARTS, SERVICE_PARTS, Kind, is_valid_package_name, is_valid_type_name
 from td2adaptor.rostypes.primitives import FLOATS as _FLOATS
@@ -21,24 +22,7 @@ from td2adaptor.rostypes.primitives import INT_RANGES as _INT_RANGES
 from td2adaptor.rostypes.primitives import STRINGS as _STRINGS
 from td2adaptor.rostypes.typestore import TIME_TYPES, Distro
 
-CODES: dict[str, str] = {
-    "TY500": "interface folder not found",
-    "TY501": "interface folder contains no .msg/.srv/.action files",
-    "TY502": "interface package or file name is not a valid ROS name",
-    "TY503": "interface file cannot be read",
-    "TY510": "syntax error in interface file",
-    "TY511": "invalid field type",
-    "TY512": "invalid constant",
-    "TY513": "duplicate field or constant name",
-    "TY514": "wrong number of '---' separators for the file kind",
-    "TY515": "field default values are a ROS 2 feature; ignored for ROS 1",
-    "TY516": "invalid field default value",
-    "TY517": "name is accepted by ROS 1 but rejected by ROS 2 (rosidl)",
-    "TY520": "field uses an undefined type",
-    "TY521": "messages contain each other (recursive definition)",
-    "TY530": "user definition replaces a different typestore definition of the same name",
-    "TY531": "interface definition replaces a different earlier definition of the same name",
-}
+CODES: dict[str, str] = meanings("TY")  # the codes this module reports (see the catalogue)
 
 PRIMITIVES = frozenset({"bool", "byte", *_INT_RANGES, *_FLOATS, *_STRINGS})
 _HEADER = "std_msgs/msg/Header"
@@ -200,7 +184,7 @@ class FileParser:
     def default(self, ftype: FieldType, text: str, lineno: int, col: int) -> Any:
         """A ROS 2 field default (`int32 x 5`, `float64[] v [1.0, 2.0]`); None after reporting a problem."""
         if self.distro == "ros1":
-            self.report("TY515", CODES["TY515"], lineno, col, severity=Severity.WARNING)
+            self.report("TY515", meaning("TY515"), lineno, col, severity=Severity.WARNING)
             return None
         if ftype.is_message:
             self.report("TY516", f"message fields cannot have defaults ({ftype})", lineno, col)

@@ -9,46 +9,9 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from td2adaptor.diagnostics import pointer_tokens
+from td2adaptor.diagnostics.catalogue import meanings
 
-CODES: dict[str, str] = {
-    "TM300": "the document to instantiate is not a Thing Model",
-    "TM301": "placeholders without a value",
-    "TM302": "runtime placeholders left in place",
-    "TM303": "placeholder values not used by the model",
-    "TM304": "two keys of an object became equal after placeholder substitution",
-    "TM305": "malformed --set item",
-    "TM306": "placeholder given more than once",
-    "TM307": "placeholder map file cannot be read or parsed",
-    "TM308": "placeholder map has the wrong shape",
-    "TM309": "model too deeply nested to process",
-    "TM310": "referenced Thing Model file not found",
-    "TM311": "remote Thing Model not fetched",
-    "TM312": "tm:extends cycle",
-    "TM313": "malformed tm:extends link",
-    "TM314": "extended document is not a Thing Model",
-    "TM320": "malformed tm:ref",
-    "TM321": "tm:ref target not found",
-    "TM322": "tm:ref cycle",
-    "TM323": "too many tm:ref imports",
-    "TM330": "malformed tm:optional",
-    "TM331": "tm:optional entry does not point to a whole affordance",
-    "TM332": "selected optional affordance is not declared optional",
-    "TM333": "optional affordances left out",
-    "TM340": "@context adjusted for a Thing Description",
-    "TM341": "no security in the model: nosec added",
-    "TM342": "model has only part of the security configuration",
-    "TM343": "affordance without forms",
-    "TM344": "model has no title",
-    "TM345": "instance version added",
-    "TM346": "version is not an object",
-    "TM347": "tm:submodel links are not instantiated",
-    "TM348": "Thing Model terms dropped",
-    "TM349": "no rel=type link added",
-    "TM350": "linked Thing Model not fetched",
-    "TM351": "linked Thing Model cannot be used",
-    "TM352": "affordance of the linked Thing Model missing in the TD",
-    "TM353": "affordance data type differs from the linked Thing Model",
-}
+CODES: dict[str, str] = meanings("TM")  # the codes this module reports (see the catalogue)
 
 TM_TYPE = "tm:ThingModel"
 TM_TYPE_IRI = "https://www.w3.org/2019/wot/tm#ThingModel"
