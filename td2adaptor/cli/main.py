@@ -492,6 +492,21 @@ def check(
     sys.exit(EXIT_OK if outcome.ok else EXIT_INVALID)
 
 
+@cli.command()
+@click.argument("codes", nargs=-1, required=True, metavar="CODE...")
+@click.option("--format", "fmt", type=click.Choice(["human", "json"]), default="human", show_default=True)
+def explain(codes: tuple[str, ...], fmt: str) -> None:
+    """Show what diagnostic codes mean: severity, meaning, hint (all of them: docs/diagnostics.md)."""
+    from td2adaptor.diagnostics.explain import explain_json, explain_text, unknown_codes
+
+    unknown = unknown_codes(codes)
+    if unknown:
+        click.echo(f"unknown diagnostic code(s): {', '.join(unknown)} (all codes: docs/diagnostics.md)", err=True)
+        sys.exit(EXIT_USAGE)
+    click.echo(json.dumps(explain_json(codes), indent=2) if fmt == "json" else explain_text(codes))
+    sys.exit(EXIT_OK)
+
+
 # ---------------------------------------------------------------------------------------------------------
 # the edge node and the demo
 
