@@ -14,15 +14,13 @@ from pathlib import Path
 from typing import Any
 
 from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity
-from td2adaptor.diagnostics.catalogue import meaning, meanings
+from td2adaptor.diagnostics.catalogue import meaning
 from td2adaptor.model import ArrayKind, Constant, FieldType, MessageDef, MessageField
 from td2adaptor.rostypes.names import ACTION_PARTS, SERVICE_PARTS, Kind, is_valid_package_name, is_valid_type_name
 from td2adaptor.rostypes.primitives import FLOATS as _FLOATS
 from td2adaptor.rostypes.primitives import INT_RANGES as _INT_RANGES
 from td2adaptor.rostypes.primitives import STRINGS as _STRINGS
 from td2adaptor.rostypes.typestore import TIME_TYPES, Distro
-
-CODES: dict[str, str] = meanings("TY")  # the codes this module reports (see the catalogue)
 
 PRIMITIVES = frozenset({"bool", "byte", *_INT_RANGES, *_FLOATS, *_STRINGS})
 _HEADER = "std_msgs/msg/Header"

@@ -18,7 +18,7 @@ from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity
 from td2adaptor.model import ActionDef, MessageDef, ServiceDef, TypeTable
 from td2adaptor.rostypes.md5 import Ros1Texts
 from td2adaptor.rostypes.names import KINDS, Kind, is_valid_package_name, is_valid_type_name, parse_type_name
-from td2adaptor.rostypes.parser import CODES, PART_SUFFIXES, FileParser, ParsedDef, split_sections
+from td2adaptor.rostypes.parser import PART_SUFFIXES, FileParser, ParsedDef, split_sections
 from td2adaptor.rostypes.typestore import (
     STORE_NAMES,
     TIME_MESSAGES,
@@ -33,7 +33,7 @@ from td2adaptor.rostypes.typestore import (
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
 
-__all__ = ["BUNDLED_DIR", "CODES", "Distro", "Resolved", "TypeRegistry"]
+__all__ = ["BUNDLED_DIR", "Distro", "Resolved", "TypeRegistry"]
 
 Resolved = MessageDef | ServiceDef | ActionDef
 

@@ -28,10 +28,10 @@ Modules: `common` (constants, JSON helpers), `values` (placeholder values), `res
 
 from __future__ import annotations
 
+from td2adaptor.diagnostics.catalogue import meanings
 from td2adaptor.frontend.thingmodel.check import check_against_model
 from td2adaptor.frontend.thingmodel.common import (
     AFFORDANCE_KINDS,
-    CODES,
     TD_CONTEXT_V1,
     TD_CONTEXT_V11,
     TM_MEDIA_TYPE,
@@ -43,6 +43,8 @@ from td2adaptor.frontend.thingmodel.common import (
 from td2adaptor.frontend.thingmodel.instantiate import instantiate
 from td2adaptor.frontend.thingmodel.resolve import MAX_REF_IMPORTS, merge_extends
 from td2adaptor.frontend.thingmodel.values import load_placeholder_map, parse_set_options
+
+CODES: dict[str, str] = meanings("TM")  # the TM3xx codes, texts in td2adaptor.diagnostics.catalogue
 
 __all__ = [
     "AFFORDANCE_KINDS",

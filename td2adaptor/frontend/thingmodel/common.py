@@ -9,9 +9,6 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from td2adaptor.diagnostics import pointer_tokens
-from td2adaptor.diagnostics.catalogue import meanings
-
-CODES: dict[str, str] = meanings("TM")  # the codes this module reports (see the catalogue)
 
 TM_TYPE = "tm:ThingModel"
 TM_TYPE_IRI = "https://www.w3.org/2019/wot/tm#ThingModel"
