@@ -10,6 +10,7 @@ import click
 from td2adaptor.cli.common import (
     EXIT_INVALID,
     EXIT_OK,
+    EXIT_USAGE,
     _compile,
     _format_option,
     _input_options,
@@ -164,3 +165,20 @@ def _relative_href(model: str, output: str) -> str | None:
         return None
     base = Path.cwd() if output == "-" else Path(output).resolve().parent
     return Path(os.path.relpath(Path(model).resolve(), base)).as_posix()
+
+
+@cli.command()
+@click.argument("codes", nargs=-1, required=True, metavar="CODE...")
+@click.option("--format", "fmt", type=click.Choice(["human", "json"]), default="human", show_default=True)
+def explain(codes: tuple[str, ...], fmt: str) -> None:
+    """Show what diagnostic codes mean: severity, meaning, hint (all of them: docs/diagnostics.md)."""
+    import json
+
+    from td2adaptor.diagnostics.explain import explain_json, explain_text, unknown_codes
+
+    unknown = unknown_codes(codes)
+    if unknown:
+        click.echo(f"unknown diagnostic code(s): {', '.join(unknown)} (all codes: docs/diagnostics.md)", err=True)
+        sys.exit(EXIT_USAGE)
+    click.echo(json.dumps(explain_json(codes), indent=2) if fmt == "json" else explain_text(codes))
+    sys.exit(EXIT_OK)

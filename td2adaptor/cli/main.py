@@ -1,6 +1,6 @@
 """The `td2adaptor` command line: the click group with every command registered, and the console entry point.
 
-Commands live by stage: frontend.py (validate, types, instantiate, migrate), generate.py (gen, check),
+Commands live by stage: frontend.py (validate, types, instantiate, migrate, explain), generate.py (gen, check),
 runtime.py (run, demo); common.py holds the group and what they share.
 """
 

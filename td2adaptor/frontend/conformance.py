@@ -23,6 +23,7 @@ from functools import cache
 from typing import TYPE_CHECKING, Any
 
 from td2adaptor.diagnostics import Diagnostics, Severity, pointer_join, pointer_tokens
+from td2adaptor.diagnostics.catalogue import meanings
 from td2adaptor.frontend.bundled import load_schema
 from td2adaptor.frontend.jsonsrc import JsonDocument
 
@@ -33,32 +34,7 @@ if TYPE_CHECKING:
 TD_SCHEMA = "td-1.1.schema.json"
 TM_SCHEMA = "tm-1.1.schema.json"
 
-CODES: dict[str, str] = {
-    # schema violations (errors)
-    "TD100": "value violates the TD/TM schema",
-    "TD101": "required member missing",
-    "TD102": "value has the wrong JSON type",
-    "TD103": "value not allowed (not one of the permitted values, or a forbidden value)",
-    "TD104": "malformed value (date-time, IRI, URI template or pattern)",
-    "TD105": "array or object is empty, too small or has duplicate items",
-    "TD106": "@context is not a TD 1.0/1.1 context",
-    # cross-references (errors)
-    "TD110": "security scheme name is not defined in securityDefinitions",
-    "TD111": "combo security scheme refers to an undefined scheme or to itself",
-    "TD112": "additionalResponses schema is not defined in schemaDefinitions",
-    "TD113": "more than one link with rel 'type'",
-    "TD114": "tm:optional entry does not resolve to an interaction affordance",
-    # advice (warnings)
-    "TD120": "enum and const used together",
-    "TD121": "object schema without properties",
-    "TD122": "array schema without items",
-    "TD123": "readOnly and writeOnly are both true",
-    "TD124": "form operation contradicts readOnly/writeOnly",
-    "TD125": "multi-language maps use different sets of languages",
-    "TD126": "malformed BCP 47 language tag",
-    "TD127": "apikey in 'uri' has no matching URI template variable in href",
-    "TD128": "apikey in 'uri' name is also declared in uriVariables",
-}
+CODES: dict[str, str] = meanings("TD1")  # the codes this module reports (see the catalogue)
 
 _WEAK = frozenset({"anyOf", "oneOf"})
 _SIZE = frozenset({"minItems", "maxItems", "minProperties", "maxProperties", "uniqueItems", "minLength", "contains"})

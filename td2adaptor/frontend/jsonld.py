@@ -17,14 +17,11 @@ from collections.abc import Mapping
 from typing import Any
 
 from td2adaptor.diagnostics import Diagnostics, pointer_join
+from td2adaptor.diagnostics.catalogue import meanings
 from td2adaptor.frontend.bundled import load_schema
 from td2adaptor.frontend.jsonsrc import JsonDocument
 
-CODES: dict[str, str] = {
-    "TD251": "remote JSON-LD context not available offline; not fetched, expansion continues without it",
-    "TD252": "JSON-LD syntax error",
-    "TD253": "JSON-LD processing failed unexpectedly",
-}
+CODES: dict[str, str] = meanings("TD25")  # the codes this module reports (see the catalogue)
 
 TD_CONTEXT_V1 = "https://www.w3.org/2019/wot/td/v1"
 TD_CONTEXT_V11 = "https://www.w3.org/2022/wot/td/v1.1"

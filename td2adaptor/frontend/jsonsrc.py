@@ -165,7 +165,7 @@ class JsonDocument:
 
 
 # diagnostics about a key itself (unknown term, duplicate) point at the key, not its value
-_KEY_CODES = {"TD003", "TD201", "TD202", "TD203", "TD204", "XC601", "XC603"}
+_KEY_CODES = {"TD003", "TD201", "TD202", "TD203", "XC601", "XC603"}
 
 
 class _Duplicates(Exception):

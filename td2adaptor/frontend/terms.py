@@ -19,14 +19,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from td2adaptor.diagnostics import Diagnostics, pointer_join
+from td2adaptor.diagnostics.catalogue import meanings
 from td2adaptor.frontend.bundled import load_schema
 from td2adaptor.frontend.jsonsrc import JsonDocument
 
-CODES: dict[str, str] = {
-    "TD201": "unknown term: not a TD 1.1 term at this position, nor a compact IRI",
-    "TD202": "compact IRI prefix not declared in @context",
-    "TD203": "suspicious data-schema member name (contains a colon but is not a compact IRI)",
-}
+CODES: dict[str, str] = meanings("TD20")  # the codes this module reports (see the catalogue)
 
 # prefixes the TD 1.1 context declares (the 2019 and 2022 context documents are identical)
 TD_PREFIXES = frozenset({"td", "jsonschema", "wotsec", "hctl", "rdfs", "xsd", "dct", "htv", "tm"})

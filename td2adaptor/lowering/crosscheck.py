@@ -39,21 +39,11 @@ from collections.abc import Callable, Mapping
 from typing import Any, TypeGuard
 
 from td2adaptor.diagnostics import Diagnostics, pointer_join
+from td2adaptor.diagnostics.catalogue import meanings
 from td2adaptor.model import ArrayKind, FieldType, MessageDef, MessageField, TypeTable
 from td2adaptor.rostypes.primitives import INT_RANGES as _INT_RANGES
 
-CODES: dict[str, str] = {
-    "XC601": "schema property is not a field of the message",
-    "XC602": "message fields missing from the schema",
-    "XC603": "misplaced field: a message field written beside `properties` instead of inside it",
-    "XC604": "JSON type does not match the ROS field type",
-    "XC605": "integer ROS field described as `number`",
-    "XC606": "time/duration written with the other ROS distribution's member names",
-    "XC607": "array length constraints contradict the ROS array size",
-    "XC608": "minItems on a ROS sequence, which may be empty",
-    "XC609": "enum values that are not constants of the message",
-    "XC611": "schema bounds exceed the range of the ROS type",
-}
+CODES: dict[str, str] = meanings("XC")  # the codes this module reports (see the catalogue)
 
 _FLOATS = {"float32", "float64"}
 _STRINGS = {"string", "wstring"}

@@ -5,6 +5,7 @@
 
 from __future__ import annotations
 
+from td2adaptor.diagnostics.catalogue import meanings
 from td2adaptor.rostypes.names import (
     TypeName,
     action_part_names,
@@ -16,7 +17,9 @@ from td2adaptor.rostypes.names import (
     service_part_names,
     split_canonical,
 )
-from td2adaptor.rostypes.registry import CODES, TypeRegistry
+from td2adaptor.rostypes.registry import TypeRegistry
+
+CODES: dict[str, str] = meanings("TY")  # the TY5xx codes, texts in td2adaptor.diagnostics.catalogue
 
 __all__ = [
     "CODES",

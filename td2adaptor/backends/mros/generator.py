@@ -60,6 +60,7 @@ from td2adaptor.backends.mros.types import (
     unsupported_fields,
 )
 from td2adaptor.diagnostics import Diagnostics
+from td2adaptor.diagnostics.catalogue import meanings
 from td2adaptor.generation import textsafe as ts
 from td2adaptor.generation.backend import GeneratedTree, GenOptions
 from td2adaptor.generation.templating import render, verbatim
@@ -95,26 +96,7 @@ OPTIONS: dict[str, tuple[int, int, int]] = {  # name → (default, min, max)
 }
 
 #: every diagnostic this backend reports
-CODES: dict[str, str] = {
-    "MROS900": "TD action: mROS 1 has no services (error; a warning and skipped under --partial)",
-    "MROS901": "node name longer than mROS allows; the td2a_pub/td2a_sub default is used (warning)",
-    "MROS902": "topic name longer than mROS's 48 characters (error)",
-    "MROS903": "a namespaced topic leaves no room for a robot namespace (warning)",
-    "MROS904": "type name longer than mROS's 49 characters (error)",
-    "MROS905": "more topics/publishers/subscribers than mROS's default tables; the table is raised (warning)",
-    "MROS906": "latched publisher requested; mROS 1 cannot latch (warning)",
-    "MROS910": "message larger than the largest allowed pool block (error)",
-    "MROS911": "unbounded strings/sequences: pool sized with the assumed capacities (info)",
-    "MROS912": "invalid mros.* option (error)",
-    "MROS920": "field or constant name unusable in C++: renamed with a trailing '_' (warning)",
-    "MROS921": "package or message name unusable in C++: the namespace/class is renamed (warning)",
-    "MROS922": "component or affordance name unusable in C++ identifiers (error)",
-    "MROS923": "component name reserved in C++ (renamed, warning) or generated names collide (error)",
-    "MROS930": "no property bound to a topic: only a README is generated (warning)",
-    "MROS931": "ROS 1 message types not found (error)",
-    "MROS932": "field type ROS 1 lacks, e.g. wstring (error)",
-    "MROS933": "constant C++ cannot hold (non-finite float) or of an unknown type: left out (warning)",
-}
+CODES: dict[str, str] = meanings("MROS")  # texts in td2adaptor.diagnostics.catalogue
 
 #: names the generated code uses in namespace `adaptor` / at file scope
 _RESERVED = CPP_KEYWORDS | MACRO_LIKE | {"adaptor", "adaptor_hooks", "td2a", "ros", "std"}

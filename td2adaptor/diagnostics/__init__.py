@@ -3,19 +3,20 @@
 Each diagnostic carries a stable code, a severity, a message, an optional hint and a JSON pointer into the
 document it is about; file/line/column are attached later from the document's source map, so stages never
 need to know about text positions.
+
+Every code is listed in `catalogue` (severity, meaning, hint); `Diagnostics.add` refuses a code that is not,
+so a new code cannot go undocumented. `python -m td2adaptor.diagnostics.docs` writes docs/diagnostics.md.
 """
 
 from __future__ import annotations
 
-import enum
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, replace
 
+from td2adaptor.diagnostics.catalogue import CATALOGUE
+from td2adaptor.diagnostics.severity import Severity
 
-class Severity(str, enum.Enum):
-    ERROR = "error"
-    WARNING = "warning"
-    INFO = "info"
+__all__ = ["Diagnostic", "Diagnostics", "Severity", "escalate", "pointer_join", "pointer_tokens"]
 
 
 @dataclass(frozen=True)
@@ -68,6 +69,8 @@ class Diagnostics:
         *,
         file: str | None = None,
     ) -> Diagnostic:
+        """Record one diagnostic; ValueError for a code missing from the catalogue (a bug, never bad input)."""
+        _check_code(code)
         diag = Diagnostic(code, severity, message, pointer, hint, file)
         self._items.append(diag)
         return diag
@@ -85,6 +88,7 @@ class Diagnostics:
         self._items.extend(other)
 
     def append(self, diag: Diagnostic) -> None:
+        _check_code(diag.code)
         self._items.append(diag)
 
     def __iter__(self) -> Iterator[Diagnostic]:
@@ -109,6 +113,11 @@ class Diagnostics:
 
     def codes(self) -> list[str]:
         return [d.code for d in self._items]
+
+
+def _check_code(code: str) -> None:
+    if code not in CATALOGUE:
+        raise ValueError(f"diagnostic code {code!r} is not in td2adaptor.diagnostics.catalogue: add it there")
 
 
 def escalate(diags: Iterable[Diagnostic]) -> list[Diagnostic]:
