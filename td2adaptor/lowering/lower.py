@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from td2adaptor.diagnostics import Diagnostics, pointer_join
+from td2adaptor.diagnostics import Diagnostics, Severity, pointer_join
 from td2adaptor.frontend.extract import BINDING, REFERENCE, RawEndpoint, obj
 from td2adaptor.lowering.rosnames import (
     BINDING_PLACEHOLDER,
@@ -114,8 +114,10 @@ def lower(
     _check_duplicate_names(endpoints, diags)
     groups = _group(endpoints, diags)
     procedures = {g.name: _procedures(g, diags) for g in groups}
-    regs = registries if registries is not None else _registries(interface_dirs, diags)
+    found = Diagnostics()
+    regs = registries if registries is not None else _registries(interface_dirs, found)
     tables = _resolve_types(endpoints, regs, diags)
+    _report_interface_problems(found, endpoints, tables, diags)
     for g in groups:
         procedures[g.name] = tuple(_mission_ids(g, procedures[g.name], tables, diags))
     _crosscheck(endpoints, tables, diags, ros1_first=thing.master_uri is not None)
@@ -499,6 +501,38 @@ def _registries(interface_dirs: Sequence[Path], diags: Diagnostics) -> dict[str,
     regs = {"ros1": TypeRegistry("ros1", interface_dirs, diags)}
     regs["ros2"] = TypeRegistry("ros2", interface_dirs, Diagnostics())
     return regs
+
+
+def _report_interface_problems(
+    found: Diagnostics, endpoints: Sequence[_Endpoint], tables: Mapping[str, TypeTable], diags: Diagnostics
+) -> None:
+    """Problems in interface files: errors where the TD uses the type (or a type that contains it), warnings
+    for the rest. An interface folder often holds more than one robot uses, and ROS 1's genmsg builds what
+    it can; a broken file nobody needs must not stop the compile. A missing folder stays an error."""
+    from td2adaptor.rostypes.names import parse_type_name
+
+    needed: set[tuple[str, str]] = set()
+    for name in (
+        {ep.type_name for ep in endpoints}
+        | {n for table in tables.values() for n in (*table.missing, *(m.name for m in table.messages))}
+        | {s.name for table in tables.values() for s in table.services}
+    ):
+        parsed = parse_type_name(name)
+        if parsed is not None:
+            needed.add((parsed.package, parsed.name))
+    for d in found:
+        if d.severity is Severity.ERROR and d.code != "TY500" and not _file_needed(d.file, needed):
+            d = replace(d, severity=Severity.WARNING, message=f"{d.message} (the TD uses no type that needs it)")
+        diags.append(d)
+
+
+def _file_needed(file: str | None, needed: set[tuple[str, str]]) -> bool:
+    if not file:
+        return True
+    path = Path(file)
+    if path.suffix not in (".msg", ".srv", ".action"):
+        return False  # a folder-level problem (e.g. an invalid package name): no TD type can live there
+    return (path.parent.parent.name, path.stem) in needed
 
 
 def _resolve_types(

@@ -314,17 +314,23 @@ class FileParser:
         texts.append(text)
 
 
-def split_sections(text: str) -> tuple[list[list[tuple[int, str]]], list[int]]:
-    """Numbered lines of each `---`-separated section, and the line numbers of the separators."""
+def split_sections(text: str, *, genmsg: bool = False) -> tuple[list[list[tuple[int, str]]], list[int], list[int]]:
+    """Numbered lines of each `---`-separated section, the line numbers of the separators, and those of them
+    only ROS 1 accepts: with `genmsg`, any line starting with `---` separates (`-----`, `--- comment`), as
+    genmsg reads it; rosidl wants `---` alone."""
     sections: list[list[tuple[int, str]]] = [[]]
     separators: list[int] = []
+    loose: list[int] = []
     for lineno, line in enumerate(text.splitlines(), start=1):
-        if _SEPARATOR.fullmatch(line):
+        strict = _SEPARATOR.fullmatch(line) is not None
+        if strict or (genmsg and line.startswith("---")):
             sections.append([])
             separators.append(lineno)
+            if not strict:
+                loose.append(lineno)
         else:
             sections[-1].append((lineno, line))
-    return sections, separators
+    return sections, separators, loose
 
 
 PART_SUFFIXES: dict[Kind, tuple[str, ...]] = {

@@ -44,6 +44,10 @@ BUNDLED_DIR = Path(__file__).resolve().parent / "interfaces"
 # the registry
 
 
+#: what genmsg accepts as a type name (rosidl and td2adaptor want CamelCase)
+_GENMSG_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
+
+
 class TypeRegistry:
     """Resolves canonical type names (`pkg/msg/Name`, `pkg/srv/Name`, `pkg/action/Name`) for one distro.
 
@@ -117,6 +121,14 @@ class TypeRegistry:
         parser = FileParser(path, package, self.distro, self.diags, origin)
         stem = path.name[: -len(kind) - 1]
         if not is_valid_type_name(stem):
+            if self.distro == "ros1" and _GENMSG_NAME.fullmatch(stem):
+                parser.report(
+                    "TY517",
+                    f"type name {stem!r} is accepted by ROS 1 (genmsg) but not by ROS 2 or td2adaptor, which need "
+                    "CamelCase letters and digits: skipped, a TD cannot use it",
+                    severity=Severity.WARNING,
+                )
+                return
             parser.report("TY502", f"invalid type name {stem!r} (CamelCase letters and digits)")
             return
         name = f"{package}/{kind}/{stem}"
@@ -126,7 +138,15 @@ class TypeRegistry:
             parser.report("TY503", f"cannot read {path}: {exc}")
             self._broken.add(name)
             return
-        sections, separators = split_sections(text)
+        sections, separators, loose = split_sections(text, genmsg=self.distro == "ros1")
+        for loose_line in loose:
+            parser.report(
+                "TY517",
+                "a separator other than '---' alone is accepted by ROS 1 (genmsg) but not by ROS 2 (rosidl)",
+                loose_line,
+                hint="write the separator as '---'",
+                severity=Severity.WARNING,
+            )
         suffixes = PART_SUFFIXES[kind]
         if len(sections) != len(suffixes):
             line = separators[len(suffixes) - 1] if len(separators) >= len(suffixes) else None

@@ -315,3 +315,29 @@ def test_strict_turns_warnings_into_errors(tmp_path: Path) -> None:
 def test_no_ros_binding_is_a_warning_not_an_error(shared_dir: Path) -> None:
     result = td2adaptor.compile(shared_dir / "wot" / "playground" / "valid" / "MinimalThing.json")
     assert result.ok and "ROS400" in [d.code for d in result.diagnostics]
+
+
+def test_broken_interface_files_the_td_does_not_use_are_warnings(tmp_path: Path) -> None:
+    """An interface folder as ROS 1 users have them: genmsg-only spellings and a broken file the TD never uses
+    do not fail the compile; a broken file the TD needs does."""
+    extra = tmp_path / "extra"
+    (extra / "odom_msgs" / "srv").mkdir(parents=True)
+    (extra / "odom_msgs" / "msg").mkdir(parents=True)
+    (extra / "odom_msgs" / "srv" / "set_odometry.srv").write_text("float64 x\n---\nbool ok\n")
+    (extra / "odom_msgs" / "srv" / "Reset.srv").write_text("bool hard\n-----\nbool ok\n")
+    (extra / "odom_msgs" / "msg" / "Broken.msg").write_text("int32\n")
+    dirs = [EXAMPLE / "interfaces", extra]
+    result = td2adaptor.compile(EXAMPLE / "td.json", interfaces=dirs)
+    assert result.model is not None, [d.message for d in result.diagnostics]
+    found = {(d.code, d.severity) for d in result.diagnostics}
+    assert found == {("TY517", Severity.WARNING), ("TY510", Severity.WARNING)}
+    broken = next(d for d in result.diagnostics if d.code == "TY510")
+    assert broken.file is not None and broken.file.endswith("Broken.msg") and "uses no type" in broken.message
+    # the same broken message, used by the TD: an error
+    td = json.loads((EXAMPLE / "td.json").read_text())
+    td["properties"]["door"]["forms"][0]["rosv:type"] = "odom_msgs/msg/Broken"
+    path = tmp_path / "td.json"
+    path.write_text(json.dumps(td))
+    failed = td2adaptor.compile(path, interfaces=dirs)
+    assert failed.model is None
+    assert any(d.code == "TY510" and d.severity is Severity.ERROR for d in failed.diagnostics)

@@ -475,10 +475,30 @@ def test_bad_separator_count_in_srv(tmp_path: Path) -> None:
 
 def test_invalid_file_and_package_names(tmp_path: Path) -> None:
     write(tmp_path, "demo_msgs/msg/bad_name.msg", "int32 x\n")
+    write(tmp_path, "demo_msgs/msg/9Digit.msg", "int32 x\n")
     write(tmp_path, "DemoMsgs/msg/Fine.msg", "int32 x\n")
     diags = Diagnostics()
+    TypeRegistry("ros2", [tmp_path], diags)
+    assert diags.codes() == ["TY502", "TY502", "TY502"]
+    # genmsg builds a lower-case type name: for ROS 1 a warning (skipped: no TD can name it), not an error
+    diags = Diagnostics()
     TypeRegistry("ros1", [tmp_path], diags)
-    assert diags.codes() == ["TY502", "TY502"]
+    assert [(d.code, d.severity) for d in diags] == [
+        ("TY502", Severity.ERROR),
+        ("TY502", Severity.ERROR),
+        ("TY517", Severity.WARNING),
+    ]
+
+
+def test_genmsg_separator_lines_are_ros1_only(tmp_path: Path) -> None:
+    write(tmp_path, "demo_msgs/srv/SetOdometry.srv", "float64 x\n-----\nbool success\n")
+    diags = Diagnostics()
+    ros1 = TypeRegistry("ros1", [tmp_path], diags)
+    assert [(d.code, d.severity, d.line) for d in diags] == [("TY517", Severity.WARNING, 2)]
+    assert ros1.resolve("demo_msgs/srv/SetOdometry") is not None
+    diags = Diagnostics()
+    ros2 = TypeRegistry("ros2", [tmp_path], diags)
+    assert ros2.resolve("demo_msgs/srv/SetOdometry") is None and "TY514" in diags.codes()
 
 
 def test_missing_folder(tmp_path: Path) -> None:
