@@ -6,7 +6,6 @@ generated two different packages of the same name (GEN805) instead of one adapto
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import pytest
@@ -22,25 +21,17 @@ CONFIG = [LEGACY / "service.json", LEGACY / "topic.json"]
 IFACES = [EXAMPLE / "interfaces"]
 
 
-def _run(cwd: Path, *args: str) -> tuple[int, str]:
-    old = Path.cwd()
-    os.chdir(cwd)
-    try:
-        result = CliRunner().invoke(cli, list(args))
-    finally:
-        os.chdir(old)
-    return result.exit_code, result.output
-
-
-def test_gen_then_check_of_service_and_topic_config(tmp_path: Path) -> None:
+def test_gen_then_check_of_service_and_topic_config(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
     args = [*map(str, CONFIG), "-I", str(IFACES[0]), "-o", "out", "--partial", "--no-cache"]
-    code, out = _run(tmp_path, "gen", *args)
-    assert code == 0, out
-    assert "GEN805" not in out
+    gen = CliRunner().invoke(cli, ["gen", *args])
+    assert gen.exit_code == 0, gen.output
+    assert "GEN805" not in gen.output
     components = (tmp_path / "out/rclpy/ros_edge_node_adaptor/ros_edge_node_adaptor/components.py").read_text()
     for cls in ("GoToComponent", "PickComponent", "AvailibilityComponent", "Ar_pose_markerComponent", "DoorComponent"):
         assert f"class {cls}" in components, cls
-    assert _run(tmp_path, "check", *args) == (0, "td2adaptor check: generated code is current\n")
+    check = CliRunner().invoke(cli, ["check", *args])
+    assert (check.exit_code, check.output) == (0, "td2adaptor check: generated code is current\n")
 
 
 def test_library_build_merges_config_files_and_points_backend_warnings_into_them(tmp_path: Path) -> None:
