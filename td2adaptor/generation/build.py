@@ -95,9 +95,9 @@ def build(
             diags.error("GEN804", problem)
             ok = False
             continue
-        for td in target.tds:
+        for unit in compile_units(target.tds):
             result = compile(
-                str(td),
+                [str(td) for td in unit],
                 interfaces=list(target.interfaces),
                 values=dict(target.values),
                 strict=target.strict,
@@ -118,7 +118,7 @@ def build(
                 package_name=target.package_name,
                 strict=target.strict,
             )
-            diags.extend(_locate(local, td))
+            diags.extend(_locate(local, unit))
             if trees is None:
                 ok = False
                 continue
@@ -138,13 +138,47 @@ def build(
     return merged if ok else None
 
 
-def _locate(diags: Diagnostics, td: Path) -> list[Diagnostic]:
-    """Backends point into the TD; give their diagnostics the TD's file:line:col."""
+def compile_units(tds: Sequence[Path]) -> list[list[Path]]:
+    """The inputs a target's TDs make: each TD or Thing Model alone, but RosClasses config files together.
+
+    A RosClasses configuration is split over several files (service.json, topic.json) that only make one
+    adaptor together, as `validate` and `migrate` read them; a target whose files are all RosClasses files is
+    therefore one input. Any other mix stays one input per file (the compiler refuses several TDs at once).
+    """
+    if len(tds) > 1 and all(_is_rosclasses(td) for td in tds):
+        return [list(tds)]
+    return [[td] for td in tds]
+
+
+def _is_rosclasses(path: Path) -> bool:
+    from td2adaptor.frontend.jsonsrc import load_path
+    from td2adaptor.frontend.legacy import is_legacy
+
+    doc = load_path(str(path), Diagnostics())
+    return doc is not None and is_legacy(doc.data)
+
+
+def _locate(diags: Diagnostics, unit: Sequence[Path]) -> list[Diagnostic]:
+    """Backends point into the TD; give their diagnostics the TD's file:line:col (for RosClasses files: the
+    line of the config file the affordance came from)."""
     if all(d.file for d in diags):
         return list(diags)
+    if _is_rosclasses(unit[0]):  # a unit of several files is all RosClasses files
+        from td2adaptor.compiler.pipeline import load
+
+        inp = load([str(td) for td in unit], Diagnostics())
+        if inp is None or inp.legacy is None:
+            return list(diags)
+        out = []
+        for d in diags:
+            if not d.file:
+                d, doc = inp.legacy.remap(d)
+                d = d if doc is None else doc.locate(d)
+            out.append(d)
+        return out
     from td2adaptor.frontend.jsonsrc import load_path
 
-    doc = load_path(str(td), Diagnostics())
+    doc = load_path(str(unit[0]), Diagnostics())
     return [d if d.file or doc is None else doc.locate(d) for d in diags]
 
 

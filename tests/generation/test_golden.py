@@ -1,8 +1,8 @@
 """generated/<backend>/ holds the RB-1 example's output; regenerating must reproduce it byte for byte.
 
-The example is configured in pyproject.toml ([tool.td2adaptor]). Refresh after an intended change, then
-review `git diff generated/` before committing:
-    .venv/bin/td2adaptor gen
+The example is configured in pyproject.toml ([tool.td2adaptor]); this checks it through `check`, the CLI's
+own comparison. Refresh it with every other golden after an intended change, then review `git diff`:
+    .venv/bin/python -m tests.golden --refresh
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from td2adaptor.generation import targets as config
 from td2adaptor.generation.build import check
 from td2adaptor.generation.registry import available
 from tests.conftest import REPO
+from tests.golden.goldens import ADVICE
 
 GOLDEN = REPO / "generated"
 
@@ -32,7 +33,7 @@ def test_golden_files_are_current(backend: str) -> None:
     outcome = check(_targets(backend), use_cache=False)
     errors = [d.message for d in outcome.diagnostics if d.severity is Severity.ERROR]
     assert not errors
-    assert outcome.ok, f"stale: {outcome.stale[:20]} — regenerate with `.venv/bin/td2adaptor gen` and review the diff"
+    assert outcome.ok, f"stale: {outcome.stale[:20]} — {ADVICE}"
 
 
 def test_every_backend_has_golden_files() -> None:

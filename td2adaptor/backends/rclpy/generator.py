@@ -778,7 +778,9 @@ class Builder:
                     ),
                 )
             )
-        convert_pairs = conv_namer.import_pairs() + [("collections.abc", "Mapping"), ("typing", "Any")]
+        convert_pairs = conv_namer.import_pairs() + [("collections.abc", "Mapping")]
+        if converters:  # `Any` is only in converter signatures: a package that sends nothing has none (F401)
+            convert_pairs.append(("typing", "Any"))
 
         # stubs: every type the package touches, with everything those refer to
         stub_types: set[str] = set(conv_types)

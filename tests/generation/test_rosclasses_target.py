@@ -1,0 +1,70 @@
+"""A target of several RosClasses config files (service.json + topic.json) is ONE input, as in validate/migrate.
+
+`generation.build` used to compile each file of a target separately, so the two halves of one configuration
+generated two different packages of the same name (GEN805) instead of one adaptor with every class.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from td2adaptor.cli.main import cli
+from td2adaptor.diagnostics import Severity
+from td2adaptor.generation.build import check, generate, target
+from tests.conftest import EXAMPLE, REPO
+
+LEGACY = REPO / "tests" / "data" / "legacy"
+CONFIG = [LEGACY / "service.json", LEGACY / "topic.json"]
+IFACES = [EXAMPLE / "interfaces"]
+
+
+def test_gen_then_check_of_service_and_topic_config(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    args = [*map(str, CONFIG), "-I", str(IFACES[0]), "-o", "out", "--partial", "--no-cache"]
+    gen = CliRunner().invoke(cli, ["gen", *args])
+    assert gen.exit_code == 0, gen.output
+    assert "GEN805" not in gen.output
+    components = (tmp_path / "out/rclpy/ros_edge_node_adaptor/ros_edge_node_adaptor/components.py").read_text()
+    for cls in ("GoToComponent", "PickComponent", "AvailibilityComponent", "Ar_pose_markerComponent", "DoorComponent"):
+        assert f"class {cls}" in components, cls
+    check = CliRunner().invoke(cli, ["check", *args])
+    assert (check.exit_code, check.output) == (0, "td2adaptor check: generated code is current\n")
+
+
+def test_library_build_merges_config_files_and_points_backend_warnings_into_them(tmp_path: Path) -> None:
+    job = target(CONFIG, backends=["mros"], output=tmp_path, interfaces=IFACES, partial=True)
+    outcome = generate([job], use_cache=False)
+    assert outcome.ok, [d.message for d in outcome.diagnostics]
+    skipped = [d for d in outcome.diagnostics if d.code == "MROS900"]
+    assert len(skipped) == 6, "mROS skips the six service clients with a warning each"
+    assert all(d.severity is Severity.WARNING for d in skipped)
+    # the warnings point at the service clients in service.json, where the user wrote them
+    assert {Path(str(d.file)).resolve() for d in skipped} == {CONFIG[0]}
+    assert [d.pointer for d in skipped[:2]] == ["/RosClasses/0/ServceClients/0", "/RosClasses/0/ServceClients/1"]
+    assert all(d.line for d in skipped)
+    assert check([job], use_cache=False).ok
+
+
+@pytest.mark.parametrize("order", [CONFIG, CONFIG[::-1]])
+def test_the_merged_config_is_one_package_whatever_the_order(tmp_path: Path, order: list[Path]) -> None:
+    outcome = generate([target(order, backends=["events"], output=tmp_path, interfaces=IFACES)], use_cache=False)
+    assert outcome.ok, [d.message for d in outcome.diagnostics]
+    schemas = sorted(p.name.split(".")[0] for p in (tmp_path / "events" / "schemas").glob("*Component.*"))
+    assert schemas == [
+        "Ar_pose_markerComponent",
+        "AvailibilityComponent",
+        "DoorComponent",
+        "GoToComponent",
+        "PickComponent",
+    ]
+
+
+def test_td_targets_still_compile_each_td_alone(tmp_path: Path) -> None:
+    """Two TDs of one target are two inputs: the same TD twice generates the same files (no GEN805)."""
+    td = EXAMPLE / "td.json"
+    job = target([td, td], backends=["events"], output=tmp_path, interfaces=IFACES, partial=True)
+    outcome = generate([job], use_cache=False)
+    assert outcome.ok, [d.message for d in outcome.diagnostics]

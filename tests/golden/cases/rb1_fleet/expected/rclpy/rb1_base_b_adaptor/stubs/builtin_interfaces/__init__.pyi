@@ -1,0 +1,1 @@
+"""Stubs of the builtin_interfaces interfaces rb1_base_b_adaptor uses (partial)."""

@@ -1,0 +1,1 @@
+"""Stubs of the procedures_msgs interfaces rb1_base_b_adaptor uses (partial)."""

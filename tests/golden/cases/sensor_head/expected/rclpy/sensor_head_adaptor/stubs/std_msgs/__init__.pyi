@@ -1,0 +1,1 @@
+"""Stubs of the std_msgs interfaces sensor_head_adaptor uses (partial)."""

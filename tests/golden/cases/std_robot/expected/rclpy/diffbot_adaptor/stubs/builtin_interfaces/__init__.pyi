@@ -1,0 +1,1 @@
+"""Stubs of the builtin_interfaces interfaces diffbot_adaptor uses (partial)."""

@@ -1,0 +1,1 @@
+"""Stubs of the geometry_msgs interfaces diffbot_adaptor uses (partial)."""

@@ -1,0 +1,1 @@
+"""Stubs of the sensor_msgs interfaces diffbot_adaptor uses (partial)."""

@@ -1,0 +1,1 @@
+"""Stubs of the std_msgs interfaces diffbot_adaptor uses (partial)."""

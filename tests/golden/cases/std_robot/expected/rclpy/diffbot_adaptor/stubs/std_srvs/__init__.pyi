@@ -1,0 +1,1 @@
+"""Stubs of the std_srvs interfaces diffbot_adaptor uses (partial)."""

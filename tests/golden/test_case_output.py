@@ -1,0 +1,71 @@
+"""Each golden case's expected output is valid output, not just stable output: the Python packages pass ruff
+(check and format, with the ruff.toml they ship), the event schemas are JSON Schemas and the exposed TD passes
+td2adaptor's validator, the mROS application is C++98 with every warning an error."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from jsonschema import Draft202012Validator
+
+import td2adaptor
+from td2adaptor.backends.mros import lint as mros_lint
+from td2adaptor.diagnostics import Severity
+from tests.backends.mros import build as mros_build
+from tests.golden.goldens import CASES
+
+VENV_BIN = Path(sys.executable).parent
+
+
+def _packages(backend: str) -> list[Path]:
+    return sorted(p for p in CASES.glob(f"*/expected/{backend}/*") if p.is_dir())
+
+
+PYTHON = _packages("rclpy") + _packages("rospy")
+EVENTS = sorted(p for p in CASES.glob("*/expected/events") if p.is_dir())
+MROS = _packages("mros")
+
+
+def _id(path: Path) -> str:
+    return path.relative_to(CASES).as_posix()
+
+
+def test_every_case_has_python_events_and_mros_output() -> None:
+    cases = sorted(p.name for p in CASES.iterdir() if p.is_dir())
+    for found in (PYTHON, EVENTS, MROS):
+        assert sorted({p.relative_to(CASES).parts[0] for p in found}) == cases
+
+
+@pytest.mark.parametrize("pkg", PYTHON, ids=[_id(p) for p in PYTHON])
+def test_python_package_passes_ruff(pkg: Path) -> None:
+    assert (pkg / "ruff.toml").is_file()
+    for args in (["check", "--no-cache", "."], ["format", "--check", "--no-cache", "."]):
+        proc = subprocess.run([str(VENV_BIN / "ruff"), *args], cwd=pkg, capture_output=True, text=True, check=False)
+        assert proc.returncode == 0, f"ruff {' '.join(args)} in {pkg}:\n{proc.stdout}{proc.stderr}"
+
+
+@pytest.mark.parametrize("out", EVENTS, ids=[_id(p) for p in EVENTS])
+def test_event_schemas_and_exposed_td_are_valid(out: Path) -> None:
+    schemas = sorted((out / "schemas").glob("*.json"))
+    assert schemas
+    for path in schemas:
+        Draft202012Validator.check_schema(json.loads(path.read_text(encoding="utf-8")))
+    assert json.loads((out / "asyncapi.json").read_text(encoding="utf-8"))["asyncapi"].startswith("3.")
+    result = td2adaptor.compile(out / "td.mqtt.json")
+    errors = [(d.code, d.message, d.pointer) for d in result.diagnostics if d.severity is Severity.ERROR]
+    assert not errors
+
+
+@pytest.mark.skipif(not mros_build.have(mros_build.HOST_CXX), reason="g++ not installed (.ci/setup-mros.sh)")
+@pytest.mark.parametrize("app", MROS, ids=[_id(p) for p in MROS])
+def test_mros_application_is_cxx98(app: Path, tmp_path: Path) -> None:
+    """In a copy, with the kernel_cfg.h the TOPPERS configurator would make from app.cfg."""
+    root = tmp_path / app.name
+    shutil.copytree(app, root)
+    (root / "kernel_cfg.h").write_text(mros_lint.kernel_cfg_h((root / "app.cfg").read_text(encoding="utf-8")))
+    mros_build.run([mros_build.HOST_CXX, *mros_build.HOST_SYNTAX, *mros_build.includes(root), str(root / "app.cpp")])
