@@ -33,6 +33,9 @@
 /* Largest block of the publish pool (mros_config/mros_usr_config.h): a message takes dataSize() + 4 bytes. */
 #define TD2A_PUBLISH_BLOCK_MAX 1024
 
+/* At most this many elements of an empty message type are accepted in one received sequence (td2a_wire.h). */
+#define TD2A_MAX_EMPTY_ELEMENTS 65536u
+
 /* Compile-time checks of the settings above (an array of negative size names the failing one). */
 typedef char td2a_check_robot_namespace_length[(sizeof(TD2A_ROBOT_NAMESPACE) - 1 <= TD2A_ROBOT_NAMESPACE_MAXLEN) ? 1 : -1];
 typedef char td2a_check_pub_node_name_length[(sizeof(TD2A_PUB_NODE_NAME) > 1 && sizeof(TD2A_PUB_NODE_NAME) - 1 <= 19) ? 1 : -1];
