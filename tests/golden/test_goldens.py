@@ -125,10 +125,10 @@ def test_a_changed_snapshot_is_shown_as_a_diff_and_refreshed(tmp_path: Path) -> 
     golden = Golden("diagnostics/json_syntax", folder)
     assert compare(golden).current
     recorded = (folder / EXPECTED).read_text()
-    (folder / EXPECTED).write_text(recorded.replace('"line": 8', '"line": 9'))
+    (folder / EXPECTED).write_text(recorded.replace('"line": 7', '"line": 9'))
     report = compare(golden)
     assert report.differences == [f"M {folder / EXPECTED}"]
-    assert '-      "line": 9,' in report.diff and '+      "line": 8,' in report.diff
+    assert '-      "line": 9,' in report.diff and '+      "line": 7,' in report.diff
     compare(golden, refresh=True)
     assert (folder / EXPECTED).read_text() == recorded
 
