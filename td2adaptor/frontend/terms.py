@@ -16,6 +16,7 @@ from __future__ import annotations
 import difflib
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cache
 from typing import Any
 
 from td2adaptor.diagnostics import Diagnostics, pointer_join
@@ -192,6 +193,13 @@ class _Walk:
         if key in _ANYWHERE or key in self.declared:
             return False
         prefix, colon, suffix = key.partition(":")
+        if colon and prefix == BINDING_PREFIX and key not in binding_terms():
+            close = difflib.get_close_matches(key, sorted(binding_terms()), n=1, cutoff=0.6)
+            hint = f"did you mean {close[0]!r}?" if close else "the binding's terms: docs/binding.md"
+            self.diags.warning(
+                "TD201", f"unknown binding term {key!r} in {_article(where)} {where}", pointer_join(ptr, key), hint
+            )
+            return False
         if colon and prefix and suffix:
             if suffix.startswith("//") or prefix in self.declared:
                 return False  # absolute IRI, or compact IRI with a declared prefix
@@ -385,6 +393,16 @@ class _Walk:
             if self.remote:
                 hint += f" (unless the remote context {self.remote[0]!r} declares it; it is not fetched)"
             self.diags.warning("TD202", f"prefix {prefix!r} is not declared in @context ({uses})", ptr, hint)
+
+
+BINDING_PREFIX = "rosv"
+
+
+@cache
+def binding_terms() -> frozenset[str]:
+    """Every term of the td2adaptor binding (`rosv:*`), as its bundled context defines them."""
+    context = load_schema(_BUNDLED_CONTEXTS["https://td2adaptor.dev/ns/rosv/v1"]).get("@context", {})
+    return frozenset(k for k in context if k.startswith(BINDING_PREFIX + ":"))
 
 
 def _declared(context: Any) -> tuple[frozenset[str], list[str]]:

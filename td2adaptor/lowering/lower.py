@@ -102,7 +102,7 @@ def lower(
     problem = package_name_problem(pkg)
     if problem:
         diags.error("ROS432", f"package name {pkg!r} {problem}", "/title" if package is None else "")
-    if not raws:
+    if not raws and not _attempts_binding(td):  # when every binding was refused, its errors say why
         diags.warning(
             "ROS400",
             "no affordance is bound to ROS; there is nothing to generate",
@@ -136,6 +136,18 @@ def lower(
 
 
 # ---------------------------------------------------------------------------------------------------------
+
+
+def _attempts_binding(td: Mapping[str, Any]) -> bool:
+    """Whether any form of the TD carries ROS binding terms (`rosv:`, or the reference dialect's `ros:`)."""
+    for kind in ("properties", "actions", "events"):
+        affordances = td.get(kind)
+        for aff in affordances.values() if isinstance(affordances, Mapping) else ():
+            forms = aff.get("forms") if isinstance(aff, Mapping) else None
+            for form in forms if isinstance(forms, list) else ():
+                if isinstance(form, Mapping) and any(str(k).startswith(("rosv:", "ros:")) for k in form):
+                    return True
+    return False
 
 
 def _check_unbound_actions(td: Mapping[str, Any], raws: Sequence[RawEndpoint], diags: Diagnostics) -> None:

@@ -301,3 +301,22 @@ def test_playground_corpus_findings(shared_dir: Path) -> None:
     assert seen["valid/readWriteAllProperties.json"] == {("TD201", "/versioning")}
     assert seen["valid/versionThing.json"] == {("TD202", "/version/xyz:firmware")}
     assert {code for code, _ in seen["valid/mqtt-experimental.json"]} == {"TD201", "TD202"}
+
+
+def test_a_misspelt_binding_term_is_named_with_the_term_meant() -> None:
+    from td2adaptor.frontend.jsonsrc import parse_json
+    from td2adaptor.frontend.terms import binding_terms, check_terms
+
+    td = {
+        "@context": ["https://www.w3.org/2022/wot/td/v1.1", "https://td2adaptor.dev/ns/rosv/v1"],
+        "title": "T",
+        "properties": {"p": {"forms": [{"href": "ros:///p", "rosv:nmae": "/p", "rosv:type": "std_msgs/msg/Bool"}]}},
+    }
+    diags = Diagnostics()
+    doc = parse_json(json.dumps(td).encode(), "t.json", diags)
+    assert doc is not None
+    check_terms(doc, diags)
+    [d] = [d for d in diags if d.code == "TD201"]
+    assert d.message == "unknown binding term 'rosv:nmae' in a form" and d.hint == "did you mean 'rosv:name'?"
+    assert d.pointer == "/properties/p/forms/0/rosv:nmae"
+    assert {"rosv:name", "rosv:type", "rosv:procedure", "rosv:masterURI"} <= binding_terms()
