@@ -280,6 +280,12 @@ _ENTRIES: tuple[Entry, ...] = (
         "an output directory could not be written: nothing was changed",
         "free space or fix the permissions and run again",
     ),
+    Entry(
+        "GEN807",
+        (_W,),
+        "a backend that `all` brought in cannot represent the TD: skipped, the others are generated",
+        "--partial generates what it can; name the backend with -b to see every problem",
+    ),
     Entry("GEN820", (_E,), "rclpy backend cannot express an affordance", "--partial skips it"),
     Entry("GEN821", (_W,), "rclpy backend skipped an affordance (--partial)"),
     Entry("GEN822", (_E,), "rclpy backend: generated method names clash", "rename one of the affordances"),

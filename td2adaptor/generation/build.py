@@ -42,8 +42,14 @@ def generate_trees(
     partial: bool = False,
     package_name: str | None = None,
     strict: bool = False,
+    optional: frozenset[str] = frozenset(),
 ) -> dict[str, GeneratedTree] | None:
-    """Every requested backend's tree, or None when any backend reported an error."""
+    """Every requested backend's tree, or None when a backend reported an error.
+
+    `optional` backends are the ones `all` brought in without being named: one that cannot represent the TD
+    is skipped with a warning (GEN807) while another backend generates, so `gen td.json` makes what it can
+    and says what it left out. A backend named explicitly, or --strict, keeps its errors.
+    """
     if package_name:
         problem = package_name_problem(package_name)
         if problem:
@@ -51,15 +57,30 @@ def generate_trees(
             return None
         model = replace(model, package_name=package_name)
     options = GenOptions(package_name=package_name, partial=partial)
-    trees: dict[str, GeneratedTree] = {}
-    local = Diagnostics()
+    results: list[tuple[str, GeneratedTree, list[Diagnostic]]] = []
     for name in names:
-        trees[name] = backend_registry.load(name).generate(model, options, local)
-    found = escalate(local) if strict else list(local)
-    diags.extend(found)
-    if any(d.severity is Severity.ERROR for d in found):
-        return None
-    return trees
+        local = Diagnostics()
+        tree = backend_registry.load(name).generate(model, options, local)
+        results.append((name, tree, escalate(local) if strict else list(local)))
+    failed = {name for name, _, found in results if any(d.severity is Severity.ERROR for d in found)}
+    skip = not strict and failed <= optional and len(failed) < len(names)
+    trees: dict[str, GeneratedTree] = {}
+    for name, tree, found in results:
+        if name in failed and skip:
+            first = next(d for d in found if d.severity is Severity.ERROR)
+            count = sum(d.severity is Severity.ERROR for d in found)
+            diags.warning(
+                "GEN807",
+                f"{name} backend skipped: it cannot represent this TD ({first.code}: {first.message}"
+                + (f"; {count - 1} more" if count > 1 else "")
+                + ")",
+                first.pointer,
+                hint=f"--partial generates what it can; -b {name} shows every problem",
+            )
+            continue
+        diags.extend(found)
+        trees[name] = tree
+    return None if failed and not skip else trees
 
 
 @dataclass
@@ -117,6 +138,9 @@ def build(
                 partial=target.partial,
                 package_name=target.package_name,
                 strict=target.strict,
+                optional=frozenset(n for n in names if n not in target.backends)
+                if "all" in target.backends
+                else frozenset(),
             )
             diags.extend(_locate(local, unit))
             if trees is None:
