@@ -43,10 +43,11 @@ def key(sources: Sequence[str], interfaces: Sequence[Path], options: Any) -> str
             if src == "-":
                 return None
             p = Path(src).resolve()
-            h.update(f"src {p} {_file_digest(p)}\n".encode())
+            # the spelling too: diagnostics name files as the user wrote them, and a hit must repeat that
+            h.update(f"src {p} {src} {_file_digest(p)}\n".encode())
         for folder in interfaces:
             root = Path(folder).resolve()
-            h.update(f"dir {root}\n".encode())
+            h.update(f"dir {root} {folder}\n".encode())
             if root.is_dir():
                 for f in sorted(root.rglob("*")):
                     if f.is_file():

@@ -89,3 +89,17 @@ def test_cache_can_be_disabled(work: Path, monkeypatch: pytest.MonkeyPatch) -> N
     monkeypatch.setenv("TD2ADAPTOR_NO_CACHE", "1")
     assert _compile(work / "td.json", work).input is not None
     assert not (work.parent / "cache").exists()
+
+
+def test_a_hit_names_interface_files_as_this_run_spells_them(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    iface = tmp_path / "ifaces"
+    (iface / "demo_msgs" / "msg").mkdir(parents=True)
+    (iface / "demo_msgs" / "msg" / "Broken.msg").write_text("int32\n")
+    td = tmp_path / "td.json"
+    td.write_text((EXAMPLE / "td.json").read_text())
+    monkeypatch.chdir(tmp_path)
+    interfaces = [str(EXAMPLE / "interfaces")]
+    first = td2adaptor.compile("td.json", interfaces=[*interfaces, "ifaces"], use_cache=True)
+    again = td2adaptor.compile("td.json", interfaces=[*interfaces, str(iface)], use_cache=True)
+    files = [{d.file for d in r.diagnostics if d.code == "TY510"} for r in (first, again)]
+    assert files == [{"ifaces/demo_msgs/msg/Broken.msg"}, {str(iface / "demo_msgs" / "msg" / "Broken.msg")}]
