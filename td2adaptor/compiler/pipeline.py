@@ -271,11 +271,11 @@ def validate(sources: Source | Sequence[Source], **options: Any) -> list[Diagnos
 def _locate(inp: Input | None, diag: Diagnostic) -> Diagnostic:
     if inp is None:
         return diag
+    if diag.file and diag.file not in {d.name for d in inp.docs}:
+        return diag  # about another document (a linked Thing Model, an interface file): located there
     if inp.legacy is not None:
         diag, doc = inp.legacy.remap(diag)
         return doc.locate(diag) if doc is not None else diag
-    if diag.file and diag.file != inp.doc.name:
-        return diag  # about another document (a linked Thing Model, an interface file)
     return inp.doc.locate(diag)
 
 

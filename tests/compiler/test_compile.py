@@ -341,3 +341,18 @@ def test_broken_interface_files_the_td_does_not_use_are_warnings(tmp_path: Path)
     failed = td2adaptor.compile(path, interfaces=dirs)
     assert failed.model is None
     assert any(d.code == "TY510" and d.severity is Severity.ERROR for d in failed.diagnostics)
+
+
+def test_interface_file_diagnostics_are_located_in_the_file_whatever_the_input(tmp_path: Path) -> None:
+    (tmp_path / "demo_msgs" / "msg").mkdir(parents=True)
+    (tmp_path / "demo_msgs" / "msg" / "Broken.msg").write_text("bool ok\n\nuint8  \n")
+    (tmp_path / "BadPkg" / "msg").mkdir(parents=True)
+    (tmp_path / "BadPkg" / "msg" / "X.msg").write_text("int32 x\n")
+    broken = str(tmp_path / "demo_msgs" / "msg" / "Broken.msg")
+    legacy = [REPO / "tests" / "data" / "legacy" / "service.json", REPO / "tests" / "data" / "legacy" / "topic.json"]
+    for sources, dirs in (([EXAMPLE / "td.json"], [EXAMPLE / "interfaces", tmp_path]), (legacy, [tmp_path])):
+        result = td2adaptor.compile(sources, interfaces=dirs)
+        [found] = [d for d in result.diagnostics if d.code == "TY510"]
+        assert (found.file, found.line) == (broken, 3), sources
+        [folder] = [d for d in result.diagnostics if d.code == "TY502"]  # about a folder: no line, no column
+        assert (folder.file, folder.line, folder.col) == (str(tmp_path / "BadPkg"), None, None), sources
