@@ -112,6 +112,7 @@ def lower(
     _check_unbound_actions(td, raws, diags)
     endpoints = [ep for ep in (_endpoint(raw, diags) for raw in raws) if ep is not None]
     _check_duplicate_names(endpoints, diags)
+    _check_relative_names(endpoints, diags)
     groups = _group(endpoints, diags)
     procedures = {g.name: _procedures(g, diags) for g in groups}
     found = Diagnostics()
@@ -210,6 +211,13 @@ def _endpoint(raw: RawEndpoint, diags: Diagnostics) -> _Endpoint | None:
         ok = False
     else:
         _check_declared(raw, type_name, diags)
+        if raw.dialect == BINDING and raw.type_name.value.strip() != type_name:
+            diags.warning(
+                "ROS427",
+                f"{what}: type {raw.type_name.value!r} is written in another spelling (ROS 1 or rosjava)",
+                raw.type_name.pointer,
+                f"write {type_name!r}, the binding's form",
+            )
     if raw.interface is Interface.ACTION:
         diags.error(
             "ROS425",
@@ -223,6 +231,22 @@ def _endpoint(raw: RawEndpoint, diags: Diagnostics) -> _Endpoint | None:
         return None
     # other problems were reported; keep going so type resolution can report its own too
     return _Endpoint(raw, component, ros_name, type_name, errors=not ok)
+
+
+def _check_relative_names(endpoints: Sequence[_Endpoint], diags: Diagnostics) -> None:
+    """A relative name beside names under the robot namespace is almost always a forgotten placeholder: the
+    adaptor's node does not run in the robot's namespace, so every robot of a fleet would share it."""
+    if not any(ep.ros_name.namespaced for ep in endpoints):
+        return
+    for ep in endpoints:
+        if not ep.ros_name.namespaced and not ep.ros_name.path.startswith(("/", "~")):
+            diags.warning(
+                "ROS416",
+                f"{ep.raw.kind} {ep.raw.name!r}: ROS name {ep.raw.ros_name.value!r} is relative while the TD's "
+                f"other names are under {BINDING_PLACEHOLDER}: every robot of a fleet would share it",
+                ep.raw.ros_name.pointer,
+                f"write '/{BINDING_PLACEHOLDER}/{ep.ros_name.path}' (or '/{ep.ros_name.path}' if it is global)",
+            )
 
 
 def _default_component(name: str) -> str:

@@ -356,3 +356,16 @@ def test_interface_file_diagnostics_are_located_in_the_file_whatever_the_input(t
         assert (found.file, found.line) == (broken, 3), sources
         [folder] = [d for d in result.diagnostics if d.code == "TY502"]  # about a folder: no line, no column
         assert (folder.file, folder.line, folder.col) == (str(tmp_path / "BadPkg"), None, None), sources
+
+
+def test_ros1_type_spellings_and_relative_names_in_a_fleet_td_are_warned(tmp_path: Path) -> None:
+    text = (REPO / "tests" / "golden" / "cases" / "std_robot" / "td.json").read_text()
+    text = text.replace('"/{{robotName}}/odom"', '"odom"').replace('"std_srvs/srv/SetBool"', '"std_srvs/SetBool"')
+    path = tmp_path / "td.json"
+    path.write_text(text)
+    result = td2adaptor.compile(path)
+    assert result.model is not None
+    found = {d.code: d for d in result.diagnostics}
+    assert found["ROS427"].hint == "write 'std_srvs/srv/SetBool', the binding's form"
+    assert "relative" in found["ROS416"].message and "/{{robotName}}/odom" in (found["ROS416"].hint or "")
+    assert found["ROS416"].pointer.endswith("/rosv:name") and found["ROS427"].pointer.endswith("/rosv:type")
