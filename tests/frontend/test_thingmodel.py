@@ -260,7 +260,7 @@ def test_all_missing_placeholders_in_one_error() -> None:
     for name in ("SERIAL", "N", "MAX", "RO", "SENSOR"):
         assert re.search(rf"\b{name} \(at /", message), message
     assert "robotName" not in message and "MODEL" not in message
-    assert "MAX (at /properties/speed/maximum)" in message
+    assert "MAX (at /properties/speed/maximum, /properties/speed/d" in message  # every place it is used
     assert "SENSOR (at /properties/{{SENSOR}}_range)" in message
     assert errors[0].pointer == "/id"  # where the first missing one is first used
 
@@ -269,7 +269,10 @@ def test_keep_nothing_makes_robot_name_required() -> None:
     td, diags = run("placeholders.tm.json", PLACEHOLDER_VALUES, keep=())
     assert td is None
     assert [d.code for d in diags.errors()] == ["TM301"]
-    assert "robotName (at /properties/speed/forms/0/rosv:name)" in diags.errors()[0].message
+    assert (
+        "robotName (at /properties/speed/forms/0/rosv:name, /properties/{{SENSOR}}_range/forms/0/rosv:name)"
+        in diags.errors()[0].message
+    )
 
 
 def test_unused_values_are_mentioned() -> None:

@@ -220,11 +220,13 @@ def instantiate(
         for ptr, key in subst.collisions:
             diags.error("TM304", f"two keys became {key!r} after placeholder substitution", ptr)
         if subst.missing:
-            listed = join_names([f"{n} (at {p or '/'})" for n, p in subst.missing.items()])
+            listed = join_names(
+                [f"{n} (at {', '.join(p or '/' for p in places)})" for n, places in subst.missing.items()]
+            )
             diags.error(
                 "TM301",
                 f"no value for {len(subst.missing)} placeholder(s): {listed}",
-                next(iter(subst.missing.values())),
+                next(iter(subst.missing.values()))[0],
                 "give each with --set NAME=VALUE or in a --values file",
             )
         if subst.kept:

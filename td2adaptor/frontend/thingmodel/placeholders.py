@@ -21,7 +21,7 @@ class Substitution:
     def __init__(self, values: Mapping[str, Any], keep: Collection[str]) -> None:
         self.values = values
         self.keep = set(keep)
-        self.missing: dict[str, str] = {}
+        self.missing: dict[str, list[str]] = {}  # name -> every place it is used, in model order
         self.kept: dict[str, str] = {}
         self.used: set[str] = set()
         self.collisions: list[tuple[str, str]] = []
@@ -36,7 +36,9 @@ class Substitution:
         if name in self.keep:
             self.kept.setdefault(name, pointer)
         else:
-            self.missing.setdefault(name, pointer)
+            places = self.missing.setdefault(name, [])
+            if pointer not in places:
+                places.append(pointer)
         return MISSING
 
     def text(self, s: str, pointer: str) -> str:
