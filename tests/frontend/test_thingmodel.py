@@ -261,7 +261,7 @@ def test_all_missing_placeholders_in_one_error() -> None:
         assert re.search(rf"\b{name} \(at /", message), message
     assert "robotName" not in message and "MODEL" not in message
     assert "MAX (at /properties/speed/maximum, /properties/speed/d" in message  # every place it is used
-    assert "SENSOR (at /properties/{{SENSOR}}_range)" in message
+    assert "SENSOR (at /properties/{{SENSOR}}_range, /properties/{{SENSOR}}_range/forms/0/href" in message
     assert errors[0].pointer == "/id"  # where the first missing one is first used
 
 
