@@ -188,6 +188,12 @@ _ENTRIES: tuple[Entry, ...] = (
     Entry("ROS425", (_E,), "ROS 2 actions are not generated yet", "bind the action's goal/cancel/status services"),
     Entry("ROS426", (_W,), "type used by the interface definitions not known for one ROS version"),
     Entry("ROS427", (_W,), "type written in a ROS 1 or rosjava spelling", "write pkg/msg/Name (srv, action)"),
+    Entry(
+        "ROS428",
+        (_I,),
+        "a standard interface package the adaptors import at run time",
+        "ROS 2: pip install ros-jazzy-<package>; ROS 1: apt install python3-<package>",
+    ),
     Entry("ROS430", (_E,), "component name unusable as a class name", "use a CamelCase name"),
     Entry("ROS431", (_E,), "affordance name unusable in generated method names"),
     Entry("ROS432", (_E,), "package name is not a valid ROS package name"),

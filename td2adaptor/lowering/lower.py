@@ -600,12 +600,33 @@ def _resolve_types(
                 f"{'ROS 1' if missing == ['ros1'] else 'ROS 2'}; the {backends} backends cannot use it",
                 ep.raw.type_name.pointer,
             )
+    _name_standard_packages(endpoints, regs["ros2"], diags)
     # message types referenced inside resolved definitions but missing for a distro
     for d in DISTROS:
         for name in tables[d].missing:
             if name not in names:
                 diags.warning("ROS426", f"type {name!r} used by the interface definitions is not known for {d}")
     return tables
+
+
+def _name_standard_packages(endpoints: Sequence[_Endpoint], reg: TypeRegistry, diags: Diagnostics) -> None:
+    """Once per standard interface package the TD binds to: where the robot's software gets it (td2adaptor
+    knows its definitions, but the generated adaptor imports it at run time)."""
+    from td2adaptor.rostypes.names import providers
+
+    first: dict[str, _Endpoint] = {}
+    for ep in endpoints:
+        package = ep.type_name.split("/")[0]
+        if package not in first and reg.is_standard(ep.type_name):
+            first[package] = ep
+    for package, ep in first.items():
+        wheel, debian = providers(package)
+        diags.info(
+            "ROS428",
+            f"{package} is a standard interface package: the generated adaptors import it at run time",
+            ep.raw.type_name.pointer,
+            f"ROS 2: pip install {wheel} (or your ROS 2 distribution's package); ROS 1: apt install {debian}",
+        )
 
 
 def _with_digests(table: TypeTable, reg: TypeRegistry) -> TypeTable:

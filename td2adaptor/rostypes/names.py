@@ -171,3 +171,9 @@ def ros1_name(name: str) -> str:
     if len(pieces) == 3:
         return f"{pieces[0]}/{pieces[2]}"
     return name
+
+
+def providers(package: str) -> tuple[str, str]:
+    """What installs a standard interface package: the ROS 2 Jazzy wheel (PyPI) and Debian's ROS 1 package."""
+    dashed = package.replace("_", "-")
+    return f"ros-jazzy-{dashed}", f"python3-{dashed}"

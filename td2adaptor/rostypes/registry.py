@@ -288,6 +288,21 @@ class TypeRegistry:
             return ActionDef(name, goal, result, feedback)
         return self._message(name)
 
+    def is_standard(self, name: str) -> bool:
+        """Whether `name` resolves from a standard interface package (rosbags' type sets, or the definitions
+        td2adaptor bundles) rather than from the user's --interfaces: the robot's software must install it."""
+        part = (
+            self._services[name][0]
+            if name in self._services
+            else self._actions[name][0]
+            if name in self._actions
+            else name
+        )
+        found = self._defs.get(part)
+        if found is None:
+            return self._message(part) is not None
+        return Path(found.file).is_relative_to(BUNDLED_DIR)
+
     def known_names(self, kind: Kind | None = None) -> list[str]:
         """Sorted canonical names of all messages, services and actions (not their parts)."""
         if self._known is None:

@@ -329,7 +329,7 @@ def test_broken_interface_files_the_td_does_not_use_are_warnings(tmp_path: Path)
     dirs = [EXAMPLE / "interfaces", extra]
     result = td2adaptor.compile(EXAMPLE / "td.json", interfaces=dirs)
     assert result.model is not None, [d.message for d in result.diagnostics]
-    found = {(d.code, d.severity) for d in result.diagnostics}
+    found = {(d.code, d.severity) for d in result.diagnostics if d.severity is not Severity.INFO}
     assert found == {("TY517", Severity.WARNING), ("TY510", Severity.WARNING)}
     broken = next(d for d in result.diagnostics if d.code == "TY510")
     assert broken.file is not None and broken.file.endswith("Broken.msg") and "uses no type" in broken.message
@@ -369,3 +369,16 @@ def test_ros1_type_spellings_and_relative_names_in_a_fleet_td_are_warned(tmp_pat
     assert found["ROS427"].hint == "write 'std_srvs/srv/SetBool', the binding's form"
     assert "relative" in found["ROS416"].message and "/{{robotName}}/odom" in (found["ROS416"].hint or "")
     assert found["ROS416"].pointer.endswith("/rosv:name") and found["ROS427"].pointer.endswith("/rosv:type")
+
+
+def test_standard_interface_packages_are_named_with_what_installs_them() -> None:
+    std = td2adaptor.compile(REPO / "tests" / "golden" / "cases" / "std_robot" / "td.json")
+    named = {d.message.split()[0]: d.hint for d in std.diagnostics if d.code == "ROS428"}
+    assert sorted(named) == ["geometry_msgs", "nav_msgs", "sensor_msgs", "std_srvs"]
+    assert named["sensor_msgs"] == (
+        "ROS 2: pip install ros-jazzy-sensor-msgs (or your ROS 2 distribution's package); "
+        "ROS 1: apt install python3-sensor-msgs"
+    )
+    # the RB-1's own packages come from --interfaces: only the standard one it binds to is named
+    rb1 = td2adaptor.compile(EXAMPLE / "td.json", interfaces=[EXAMPLE / "interfaces"])
+    assert [d.message.split()[0] for d in rb1.diagnostics if d.code == "ROS428"] == ["std_msgs"]
