@@ -274,7 +274,7 @@ _ENTRIES: tuple[Entry, ...] = (
     Entry("MIG701", (_E,), "legacy RosClasses file: a list or object is malformed"),
     Entry("MIG702", (_E,), "legacy RosClasses file: a name is missing or not a string"),
     Entry("MIG703", (_W,), "legacy class with neither service clients nor topics"),
-    Entry("MIG704", (_E,), "legacy RosClasses file: a name is used twice"),
+    Entry("MIG704", (_W,), "legacy RosClasses file: a name is used twice; the later one is renamed"),
     Entry("MIG710", (_I,), "migrate: links without href dropped"),
     Entry("MIG711", (_I,), "migrate: pre-recommendation @context replaced by the TD 1.1 context"),
     Entry("MIG712", (_I,), "migrate: epoch string written as a date-time"),

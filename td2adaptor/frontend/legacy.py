@@ -98,8 +98,17 @@ def to_reference_td(docs: Sequence[JsonDocument], diags: Diagnostics) -> LegacyI
                     target = groups.setdefault(group, {})
                     tptr = pointer_join("", group, name)
                     if name in target:
-                        local.error("MIG704", f"{kind} name {name!r} is used twice", pointer_join(iptr, name_key))
-                        continue
+                        # the reference generated both (e.g. topic-test.json's Subscriber and Publisher `door`);
+                        # a TD has one affordance per name, so the later one is renamed
+                        renamed = next(f"{name}{n}" for n in range(2, len(target) + 3) if f"{name}{n}" not in target)
+                        local.warning(
+                            "MIG704",
+                            f"{kind} name {name!r} is used twice: this one becomes {renamed!r}",
+                            pointer_join(iptr, name_key),
+                            "rename it in the config file, or in the TD that 'td2adaptor migrate' writes",
+                        )
+                        name = renamed
+                        tptr = pointer_join("", group, name)
                     form: dict[str, Any] = {"op": ["invokeaction"] if kind == "action" else ["readproperty"]}
                     form["subprotocol"] = "ros"
                     out.origins[tptr] = (index, iptr)

@@ -382,3 +382,30 @@ def test_standard_interface_packages_are_named_with_what_installs_them() -> None
     # the RB-1's own packages come from --interfaces: only the standard one it binds to is named
     rb1 = td2adaptor.compile(EXAMPLE / "td.json", interfaces=[EXAMPLE / "interfaces"])
     assert [d.message.split()[0] for d in rb1.diagnostics if d.code == "ROS428"] == ["std_msgs"]
+
+
+def test_a_rosclasses_name_used_twice_is_renamed_with_a_warning(tmp_path: Path) -> None:
+    """Like the reference's topic-test.json: a Subscriber and a Publisher of one name in one class; the
+    reference generated both, so the later one is renamed rather than the file refused."""
+    test = {
+        "RosClasses": [
+            {
+                "ClassName": "TestComponent",
+                "Topics": [
+                    {"Role": "Subscriber", "ReferenceName": "door", "TopicName": "/door1/state",
+                     "TopicType": "std_msgs/Float64", "MessageType": "std_msgs.Float64"},
+                    {"Role": "Publisher", "ReferenceName": "door", "TopicName": "/door1/door_controller/command",
+                     "TopicType": "std_msgs/Float64", "MessageType": "std_msgs.Float64"},
+                ],
+            }
+        ]
+    }  # fmt: skip
+    path = tmp_path / "topic-test.json"
+    path.write_text(json.dumps(test, indent=2))
+    result = td2adaptor.compile(path)
+    assert result.model is not None, [d.message for d in result.diagnostics]
+    [renamed] = [d for d in result.diagnostics if d.code == "MIG704"]
+    assert renamed.severity is Severity.WARNING and "becomes 'door2'" in renamed.message
+    assert renamed.file == str(path) and renamed.line is not None
+    (component,) = result.model.components
+    assert [t.name for t in component.topics] == ["door", "door2"]
