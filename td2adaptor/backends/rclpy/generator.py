@@ -15,6 +15,8 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from td2adaptor.backends import _python as py
+from td2adaptor.backends._python import StubClass, StubField, StubModule, import_block
 from td2adaptor.backends.rclpy import types as rt
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation import textsafe as ts
@@ -41,7 +43,6 @@ TEMPLATES = Path(__file__).parent / "templates"
 
 DEFAULT_TIMEOUT = 10.0
 DEFAULT_WAIT_TIMEOUT = 5.0
-LINE = 120  # line length of the generated package (its ruff.toml)
 VERSION = re.compile(r"^[0-9]+\.[0-9]+\.[0-9]+$")
 
 #: names the components module defines or imports besides message classes (messages get aliases instead)
@@ -78,16 +79,9 @@ RESERVED = frozenset(
 # small helpers
 
 
-def wrap(text: str, width: int) -> list[str]:
-    """Greedy word wrap measured in escaped characters (whitespace, line breaks included, collapses)."""
-    return ts.wrap_lines(" ".join(text.split()), width)
-
-
 def docstring(paragraphs: Iterable[str | None], indent: str) -> str:
-    """A docstring literal of the non-empty paragraphs, wrapped to the package's line length, escaped."""
-    width = LINE - len(indent) - 8
-    blocks = ["\n".join(wrap(p, width)) for p in paragraphs if p and p.strip()]
-    return ts.py_docstring("\n\n".join(b for b in blocks if b), indent, fallback="(no description)")
+    """A docstring literal of the non-empty paragraphs (each collapsed to one), wrapped and escaped."""
+    return py.docstring(paragraphs, indent, margin=8, collapse=True, fallback="(no description)")
 
 
 def text_paragraphs(text: Text, name: str) -> list[str]:
@@ -102,49 +96,6 @@ def text_paragraphs(text: Text, name: str) -> list[str]:
 def pyname(name: str) -> str:
     """A message field as a Python parameter name (keywords and `self` get a trailing `_`)."""
     return name + "_" if keyword.iskeyword(name) or name == "self" else name
-
-
-def import_key(name: str) -> tuple[int, str, str]:
-    """isort's order-by-type within one `from` import: CONSTANTS, Classes, functions."""
-    bare = name.split(" as ")[0]
-    kind = 0 if bare.isupper() and len(bare) > 1 else 1 if bare[:1].isupper() else 2
-    return (kind, bare.lower(), bare)
-
-
-STDLIB = frozenset({"array", "collections.abc", "typing"})
-
-
-@dataclass(frozen=True)
-class Import:
-    module: str
-    names: tuple[str, ...] = ()  # "Name" or "Name as alias", isort order; () for `import module`
-
-    @property
-    def line(self) -> str:
-        return f"from {self.module} import {', '.join(self.names)}" if self.names else f"import {self.module}"
-
-    @property
-    def wrapped(self) -> list[str]:
-        """The names one per line when the single line would be too long (ruff's wrapping)."""
-        return list(self.names) if len(self.line) > LINE else []
-
-
-def import_sections(pairs: Iterable[tuple[str, str]], plain: Iterable[str] = ()) -> list[list[Import]]:
-    """Import blocks as ruff's isort writes them: stdlib, third party, local; `import x` before `from x`."""
-    grouped: dict[str, set[str]] = {}
-    for module, name in pairs:
-        grouped.setdefault(module, set()).add(name)
-    froms = [
-        Import(m, tuple(sorted(n, key=import_key))) for m, n in sorted(grouped.items(), key=lambda kv: kv[0].lower())
-    ]
-    plains = [Import(m) for m in sorted(set(plain))]
-    sections = [
-        [i for i in plains if i.module in STDLIB] + [i for i in froms if i.module in STDLIB],
-        [i for i in plains if i.module not in STDLIB]
-        + [i for i in froms if i.module not in STDLIB and not i.module.startswith(".")],
-        [i for i in froms if i.module.startswith(".")],
-    ]
-    return [s for s in sections if s]
 
 
 def module_of(type_name: str) -> tuple[str, str]:
@@ -264,30 +215,6 @@ class ConverterView:
 
 
 @dataclass
-class StubField:
-    name: str
-    getter: str
-    init: str
-
-
-@dataclass
-class StubClass:
-    name: str
-    constants: list[str]  # `NAME: Final = value`
-    fields: list[StubField]
-    request: str | None = None  # service classes: their Request and Response aliases
-    response: str | None = None
-
-
-@dataclass
-class StubModule:
-    path: str
-    doc: str
-    imports: list[list[Import]]
-    classes: list[StubClass]
-
-
-@dataclass
 class PackageView:
     package: str
     version: str
@@ -298,13 +225,13 @@ class PackageView:
     components_doc: str
     exec_depends: list[str]
     components: list[ComponentView]
-    component_imports: list[list[Import]]
+    component_imports: list[str]
     converters: list[ConverterView]
-    convert_imports: list[list[Import]]
+    convert_imports: list[str]
     stubs: list[StubModule]
     stub_files: list[str]
     exports: list[str]
-    export_imports: list[list[Import]]
+    export_imports: list[str]
     example: str  # first component, for the README
     timeout: str
     wait_timeout: str
@@ -699,7 +626,7 @@ class Builder:
                 StubModule(
                     f"stubs/{pkg}/{kind}/__init__.pyi",
                     doc,
-                    import_sections(namer.import_pairs() + sorted(extra), plain),
+                    import_block(namer.import_pairs() + sorted(extra), plain),
                     classes,
                 )
             )
@@ -821,13 +748,13 @@ class Builder:
             ),
             exec_depends=sorted({n.split("/")[0] for n in stub_types} | {"rclpy"}),
             components=components,
-            component_imports=import_sections(pairs),
+            component_imports=import_block(pairs),
             converters=converters,
-            convert_imports=import_sections(convert_pairs),
+            convert_imports=import_block(convert_pairs),
             stubs=stubs,
             stub_files=[m.path for m in stubs],
             exports=exports,
-            export_imports=import_sections(export_pairs),
+            export_imports=import_block(export_pairs),
             example=components[0].name if components else "",
             timeout=repr(DEFAULT_TIMEOUT),
             wait_timeout=repr(DEFAULT_WAIT_TIMEOUT),

@@ -13,6 +13,9 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from td2adaptor.backends import _python as py
+from td2adaptor.backends._python import LINE as LINE  # the generated line length, for tests and tools
+from td2adaptor.backends._python import StubClass, StubField, StubModule, import_block
 from td2adaptor.backends.rospy.types import (
     FieldView,
     class_location,
@@ -43,7 +46,6 @@ TEMPLATES = Path(__file__).parent / "templates"
 
 DEFAULT_TIMEOUT = 10.0
 DEFAULT_WAIT_TIMEOUT = 5.0
-LINE = 120  # the generated package's line length (ruff.toml)
 
 #: names the generated components module defines or imports besides message classes
 _RESERVED = frozenset(
@@ -87,18 +89,9 @@ _RESERVED = frozenset(
 # docstrings
 
 
-def wrap(text: str, width: int) -> str:
-    """Text wrapped so that, escaped and indented, no docstring line exceeds the line length."""
-    return "\n".join(ts.wrap_lines(text, width))
-
-
 def docstring(td_parts: Iterable[str | None], fixed: Iterable[str], indent: str) -> str:
     """A docstring: TD text first (wrapped, escaped), then our own paragraphs, so it never ends in TD text."""
-    width = LINE - len(indent) - 4
-    paragraphs = [wrap(p, width) for p in td_parts if p and p.strip()]
-    paragraphs = [p for p in paragraphs if p]
-    paragraphs += [wrap(p, width) for p in fixed]
-    return ts.py_docstring("\n\n".join(paragraphs), indent)
+    return py.docstring([*td_parts, *fixed], indent)
 
 
 def _td_text(text: Text) -> list[str | None]:
@@ -189,27 +182,13 @@ class _Imports:
         self.modules.setdefault(module, []).append((cls, name))
         return name
 
-    def lines(self) -> list[str]:
+    def pairs(self) -> list[tuple[str, str]]:
+        """(module, `Class` or `Class as alias`) of every class used, for `import_block`."""
         return [
-            import_line(module, [cls if cls == alias else f"{cls} as {alias}" for cls, alias in self.modules[module]])
-            for module in sorted(self.modules)
+            (module, cls if cls == alias else f"{cls} as {alias}")
+            for module, classes in self.modules.items()
+            for cls, alias in classes
         ]
-
-
-def _member_key(member: str) -> tuple[int, str, str]:
-    """isort's order-by-type, as ruff applies it: CONSTANTS, then Classes, then functions."""
-    name = member.split(" as ")[0]
-    kind = 0 if name.isupper() and len(name) > 1 else 1 if name[:1].isupper() else 2
-    return kind, name.lower(), member
-
-
-def import_line(module: str, members: Iterable[str]) -> str:
-    """`from module import ...` as ruff's isort and formatter write it (exploded when too long)."""
-    names = sorted(set(members), key=_member_key)
-    line = f"from {module} import {', '.join(names)}"
-    if len(line) <= LINE:
-        return line
-    return f"from {module} import (\n" + "".join(f"    {n},\n" for n in names) + ")"
 
 
 def module_imports(views: list[ComponentView], imports: _Imports) -> list[str]:
@@ -232,15 +211,8 @@ def module_imports(views: list[ComponentView], imports: _Imports) -> list[str]:
     def used(*names: str) -> list[str]:
         return [n for n in names if re.search(rf"\b{n}\b", blob)]
 
-    lines = []
-    abc = used("Callable", "Mapping", "Sequence")
-    if abc:
-        lines.append(import_line("collections.abc", abc))
-    if used("Any"):
-        lines.append("from typing import Any")
-    third = (["import genpy"] if used("genpy") else []) + imports.lines()
-    if third:
-        lines += [""] + third if lines else third
+    members = [("collections.abc", n) for n in used("Callable", "Mapping", "Sequence")]
+    members += [("typing", n) for n in used("Any")] + imports.pairs()
     runtime = ["check_robot_name", "check_timeout", "require_node"] + used(
         "ServiceClient",
         "Started",
@@ -253,10 +225,8 @@ def module_imports(views: list[ComponentView], imports: _Imports) -> list[str]:
         "to_msgs",
         "to_time",
     )
-    local = [import_line("._runtime", runtime)]
-    if used("CallFailed"):
-        local.append(import_line(".errors", ["CallFailed"]))
-    return lines + [""] + local
+    members += [("._runtime", n) for n in runtime] + [(".errors", n) for n in used("CallFailed")]
+    return import_block(members, used("genpy"))
 
 
 def _name_expr(name: RosName) -> list[str]:
@@ -506,36 +476,6 @@ def component_views(model: Model, imports: _Imports, diags: Diagnostics) -> list
 # type stubs
 
 
-@dataclass(frozen=True)
-class StubField:
-    name: str
-    annotation: str
-
-
-@dataclass(frozen=True)
-class StubClass:
-    name: str
-    type_name: str
-    constants: list[StubField]
-    fields: list[StubField]
-
-
-@dataclass(frozen=True)
-class StubService:
-    name: str
-    request: str
-    response: str
-
-
-@dataclass(frozen=True)
-class StubModule:
-    name: str
-    path: str
-    imports: list[str]
-    classes: list[StubClass]
-    services: list[StubService]
-
-
 def _stub_class(msg: MessageDef, module: str, diags: Diagnostics) -> tuple[StubClass, set[str]]:
     """A stub class; other modules it refers to."""
     used: set[str] = set()
@@ -552,14 +492,14 @@ def _stub_class(msg: MessageDef, module: str, diags: Diagnostics) -> tuple[StubC
         if problem:
             diags.error("GEN840", f"rospy backend: {msg.name}: {problem}")
             continue
-        fields.append(StubField(f.name, stub_annotation(f.type, ref)))
+        annotation = stub_annotation(f.type, ref)
+        fields.append(StubField(f.name, annotation, annotation))
     constants = [
-        StubField(c.name, f"ClassVar[{constant_annotation(c.type)}]")
+        f"{c.name}: ClassVar[{constant_annotation(c.type)}]"
         for c in msg.constants
         if c.name.isidentifier() and c.name.isascii()
     ]
-    _, cls = class_location(msg.name)
-    return StubClass(cls, msg.name.replace("/msg/", "/").replace("/srv/", "/"), constants, fields), used
+    return StubClass(class_location(msg.name)[1], constants, fields), used
 
 
 def stub_modules(types: TypeTable, diags: Diagnostics) -> list[StubModule]:
@@ -579,20 +519,19 @@ def stub_modules(types: TypeTable, diags: Diagnostics) -> list[StubModule]:
             cls, refs = _stub_class(msg, module, diags)
             classes.append(cls)
             used |= refs
-        svcs = [
-            StubService(
-                class_location(s.name)[1], class_location(s.request.name)[1], class_location(s.response.name)[1]
+        classes += [
+            StubClass(
+                class_location(s.name)[1], [], [], class_location(s.request.name)[1], class_location(s.response.name)[1]
             )
             for s in sorted(services.get(module, []), key=lambda s: s.name)
         ]
-        annotations = " ".join(f.annotation for c in classes for f in (*c.fields, *c.constants))
-        imports = []
-        if "Sequence[" in annotations:
-            imports.append("from collections.abc import Sequence")
-        if "ClassVar[" in annotations or svcs:
-            imports.append("from typing import ClassVar")
-        imports += ([""] if imports else []) + ["import genpy"] + [f"import {m}" for m in sorted(used - {"genpy"})]
-        out.append(StubModule(module, module.replace(".", "/") + "/__init__.pyi", imports, classes, svcs))
+        annotations = " ".join(a for c in classes for a in (*(f.annotation for f in c.fields), *c.constants))
+        members = [("collections.abc", "Sequence")] if "Sequence[" in annotations else []
+        if "ClassVar[" in annotations or module in services:
+            members.append(("typing", "ClassVar"))
+        imports = import_block(members, {"genpy"} | used)
+        header = f"# Type stubs of {module} (genpy), generated by td2adaptor: only the types the adaptor uses."
+        out.append(StubModule(module.replace(".", "/") + "/__init__.pyi", header, imports, classes))
     return out
 
 
