@@ -1,10 +1,12 @@
 """The rclpy backend: an ament_python ROS 2 package of typed component classes, with stubs for its messages.
 
-Everything a template prints is computed here (the view model); the templates in `templates/rclpy/` only
-loop and print. Every TD string reaches the output through `textsafe`. Output, under `<package>/`:
-package.xml, setup.py, setup.cfg (also the mypy configuration), ruff.toml, README.md, resource/<package>,
-`<package>/` (components, convert, runtime, errors, py.typed) and `stubs/` (typed stubs of the interface
-packages used, because rosidl's Python messages carry no type information).
+Everything a template prints is computed here (the view model); the templates in `templates/` only loop and
+print, and the run-time modules are copied unchanged (`verbatim/runtime.py`, and `common.py` and `errors.py`
+shared with the rospy backend in `backends/_python/verbatim/`). Every TD string reaches the output through
+`textsafe`. Output, under `<package>/`: package.xml, setup.py, setup.cfg (also the mypy configuration),
+ruff.toml, README.md, resource/<package>, `<package>/` (components, convert, runtime, common, errors, py.typed)
+and `stubs/` (typed stubs of the interface packages used, because rosidl's Python messages carry no type
+information).
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from td2adaptor.backends.rclpy import types as rt
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation import textsafe as ts
 from td2adaptor.generation.backend import GeneratedTree, GenOptions
-from td2adaptor.generation.templating import render
+from td2adaptor.generation.templating import render, verbatim
 from td2adaptor.model import (
     ArrayKind,
     Component,
@@ -41,37 +43,14 @@ from td2adaptor.model import (
 TEMPLATES = Path(__file__).parent / "templates"
 
 
-DEFAULT_TIMEOUT = 10.0
-DEFAULT_WAIT_TIMEOUT = 5.0
 VERSION = re.compile(r"^[0-9]+\.[0-9]+\.[0-9]+$")
+VERBATIM = Path(__file__).parent / "verbatim"
 
-#: names the components module defines or imports besides message classes (messages get aliases instead)
-RESERVED = frozenset(
-    {
-        "annotations",
-        "Any",
-        "Callable",
-        "Mapping",
-        "Sequence",
-        "Node",
-        "DEFAULT_TIMEOUT",
-        "DEFAULT_WAIT_TIMEOUT",
-        "LAST_MISSION",
-        "ServiceCaller",
-        "Started",
-        "TopicPublisher",
-        "TopicSubscriber",
-        "check_namespace",
-        "check_timeout",
-        "name_in",
-        "procedure_failure",
-        "qos_profile",
-        "success_failure",
-        "check_fields",
-        "NDArray",
-        "Final",
-        "array",
-    }
+#: names generated modules must not give to message classes: what the runtime modules define, what the
+#: templates import besides them, keywords and builtins
+RESERVED = py.reserved_names(
+    [verbatim(VERBATIM, "runtime.py"), *(py.shared_source(n) for n in py.SHARED)],
+    ["annotations", "Any", "Callable", "Mapping", "Sequence", "Node", "NDArray", "Final", "array", "check_fields"],
 )
 
 
@@ -237,20 +216,16 @@ class PackageView:
     wait_timeout: str
 
 
-_ERRORS = (
-    "AdaptorError",
-    "CallFailed",
-    "CallTimeout",
-    "ExecutorError",
-    "InvalidNamespace",
-    "NoMessage",
-    "ServiceUnavailable",
-)
-_RUNTIME_EXPORTS = ("LAST_MISSION", "Spinner", "Started", "spin_in_background")
+_EXPORTS = ("LAST_MISSION", "Spinner", "Started", "spin_in_background")  # besides components and errors
 
 
 # ---------------------------------------------------------------------------------------------------------
 # building it
+
+
+def _runtime_module(name: str) -> str:
+    """Where components and __init__ import a run-time name from: the shared `.common` or rclpy's `.runtime`."""
+    return ".common" if name in py.common_names() else ".runtime"
 
 
 def _is(ftype: FieldType | None, base: str) -> bool:
@@ -278,7 +253,7 @@ class Builder:
         # what components.py refers to, so that it imports exactly that
         self.msg_used: set[str] = set()
         self.conv_used: set[str] = set()
-        self.runtime_used: set[str] = {"DEFAULT_TIMEOUT", "DEFAULT_WAIT_TIMEOUT", "check_namespace", "check_timeout"}
+        self.runtime_used: set[str] = {"DEFAULT_TIMEOUT", "DEFAULT_WAIT_TIMEOUT", "check_robot_name", "check_timeout"}
         self.std_used: set[tuple[str, str]] = set()
 
     # -- what the model asks for, and whether rclpy can express it
@@ -398,8 +373,8 @@ class Builder:
 
     def ros_name_expr(self, name: RosName) -> str:
         if name.namespaced:
-            self.runtime_used.add("name_in")
-            return f"name_in(self._namespace, {ts.py_str(name.path)})"
+            self.runtime_used.add("in_namespace")
+            return f"in_namespace({ts.py_str(name.path)}, self._namespace)"
         return ts.py_str(name.path)
 
     @staticmethod
@@ -450,7 +425,7 @@ class Builder:
     def call_view(self, comp: Component, svc: ServiceEndpoint, namer: Namer) -> CallView:
         sdef = self.types.service(svc.type_name)
         self.msg_used |= {svc.type_name, sdef.request.name, sdef.response.name}
-        self.runtime_used.add("ServiceCaller")
+        self.runtime_used.add("ServiceClient")
         srv, req, resp = namer[svc.type_name], namer[sdef.request.name], namer[sdef.response.name]
         proc = comp.procedure_of(svc.name)
         run_id = last_attr = mission_field = None
@@ -683,7 +658,7 @@ class Builder:
         components = [self.component_view(c, s, t, namer) for c, s, t in selected]
         pairs = [(module_of(f)[0], _import_name(f, namer[f])) for f in sorted(self.msg_used)]
         pairs += [(".convert", c) for c in sorted(self.conv_used)]
-        pairs += [(".runtime", n) for n in sorted(self.runtime_used)]
+        pairs += [(_runtime_module(n), n) for n in sorted(self.runtime_used)]
         pairs += sorted(self.std_used)
         pairs.append(("rclpy.node", "Node"))
 
@@ -705,7 +680,8 @@ class Builder:
                     ),
                 )
             )
-        convert_pairs = conv_namer.import_pairs() + [("collections.abc", "Mapping"), ("typing", "Any")]
+        convert_pairs = conv_namer.import_pairs() + [("collections.abc", "Mapping")]
+        convert_pairs += [("typing", "Any"), ("typing", "cast")]
 
         # stubs: every type the package touches, with everything those refer to
         stub_types: set[str] = set(conv_types)
@@ -722,9 +698,10 @@ class Builder:
         thing = self.model.thing
         description = thing.description or ""
         summary = f"ROS 2 (rclpy) adaptor for {thing.title}, generated by td2adaptor from its Thing Description."
-        exports = [c.name for c in components] + list(_ERRORS) + list(_RUNTIME_EXPORTS)
+        errors = sorted(py.error_classes())
+        exports = [c.name for c in components] + errors + list(_EXPORTS)
         export_pairs = [(".components", c.name) for c in components]
-        export_pairs += [(".errors", n) for n in _ERRORS] + [(".runtime", n) for n in _RUNTIME_EXPORTS]
+        export_pairs += [(".errors", n) for n in errors] + [(_runtime_module(n), n) for n in _EXPORTS]
         return PackageView(
             package=self.package,
             version=thing.version if thing.version and VERSION.match(thing.version) else "0.1.0",
@@ -756,8 +733,8 @@ class Builder:
             exports=exports,
             export_imports=import_block(export_pairs),
             example=components[0].name if components else "",
-            timeout=repr(DEFAULT_TIMEOUT),
-            wait_timeout=repr(DEFAULT_WAIT_TIMEOUT),
+            timeout=py.constant("DEFAULT_TIMEOUT"),
+            wait_timeout=py.constant("DEFAULT_WAIT_TIMEOUT"),
         )
 
 
@@ -786,8 +763,11 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     for name in ("package.xml", "setup.py", "setup.cfg", "ruff.toml", "README.md"):
         tree.add(f"{root}/{name}", _render(f"{name}.j2", **ctx))
     tree.add(f"{root}/resource/{root}", "")
-    for name in ("__init__.py", "errors.py", "runtime.py", "convert.py", "components.py", "edge_node.py"):
+    for name in ("__init__.py", "convert.py", "components.py", "edge_node.py"):
         tree.add(f"{src}/{name}", _render(f"package/{name}.j2", **ctx))
+    tree.add(f"{src}/runtime.py", verbatim(VERBATIM, "runtime.py"))
+    for name in py.SHARED:
+        tree.add(f"{src}/{name}", py.shared_source(name))
     tree.add(f"{src}/py.typed", "")
     for module in view.stubs:
         tree.add(f"{root}/{module.path}", _render("stubs/module.pyi.j2", m=module, **ctx))

@@ -1,13 +1,14 @@
 """The rospy backend: a catkin package of typed component classes for ROS 1, with type stubs for its messages.
 
-Everything a template prints is computed here (the view model); templates only loop and print. Every TD
-string reaches the output through `textsafe`. Output: `<package>/` with package.xml, CMakeLists.txt,
-setup.py, README.md, mypy.ini, ruff.toml, `src/<package>/`, `scripts/edge_node` (rosrun) and `stubs/`.
+Everything a template prints is computed here (the view model); templates only loop and print. The run-time
+modules and the rospy/genpy stubs are copied unchanged (`verbatim/`, and `common.py` and `errors.py` shared
+with the rclpy backend in `backends/_python/verbatim/`). Every TD string reaches the output through
+`textsafe`. Output: `<package>/` with package.xml, CMakeLists.txt, setup.py, README.md, mypy.ini, ruff.toml,
+`src/<package>/`, `scripts/edge_node` (rosrun) and `stubs/`.
 """
 
 from __future__ import annotations
 
-import builtins
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -27,7 +28,7 @@ from td2adaptor.backends.rospy.types import (
 from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.generation import textsafe as ts
 from td2adaptor.generation.backend import GeneratedTree, GenOptions
-from td2adaptor.generation.templating import render
+from td2adaptor.generation.templating import render, verbatim
 from td2adaptor.model import (
     Component,
     MessageDef,
@@ -44,45 +45,16 @@ from td2adaptor.model import (
 TEMPLATES = Path(__file__).parent / "templates"
 
 
-DEFAULT_TIMEOUT = 10.0
-DEFAULT_WAIT_TIMEOUT = 5.0
+VERBATIM = Path(__file__).parent / "verbatim"
+#: copied unchanged: the parts of rospy and genpy the package uses, typed
+_FIXED_STUBS = ("genpy/__init__.pyi", "rospy/__init__.pyi", "rospy/core.pyi", "rospy/exceptions.pyi")
 
-#: names the generated components module defines or imports besides message classes
-_RESERVED = frozenset(
-    {
-        "annotations",
-        "Any",
-        "Callable",
-        "Mapping",
-        "Sequence",
-        "genpy",
-        "AdaptorError",
-        "CallFailed",
-        "CallTimeout",
-        "InvalidMessage",
-        "NoMessage",
-        "ServiceUnavailable",
-        "Started",
-        "ServiceClient",
-        "TopicPublisher",
-        "TopicSubscriber",
-        "check_robot_name",
-        "check_timeout",
-        "in_namespace",
-        "require_node",
-        "to_duration",
-        "to_list",
-        "to_msg",
-        "to_msgs",
-        "to_time",
-        "self",
-        "item",
-        "request",
-        "response",
-        "mission_id",
-        "timeout",
-        *dir(builtins),
-    }
+#: names the generated components module must not give to message classes or parameters: what the runtime
+#: modules define, what the template uses besides them, keywords and builtins
+_RESERVED = py.reserved_names(
+    [verbatim(VERBATIM, "_runtime.py"), *(py.shared_source(n) for n in py.SHARED)],
+    ["annotations", "Any", "Callable", "Mapping", "Sequence", "genpy", "self", "item", "request", "response"]
+    + ["mission_id", "timeout"],
 )
 
 # ---------------------------------------------------------------------------------------------------------
@@ -204,6 +176,8 @@ def module_imports(views: list[ComponentView], imports: _Imports) -> list[str]:
             text += [p.annotation + " " + p.value for p in pub.params] + pub.ros_name + ["TopicPublisher"]
         if v.services:
             text.append("ServiceClient")
+        if v.mission_attrs:
+            text.append("LAST_MISSION")
     blob = " ".join(text)
     if any(s.fail_condition for v in views for s in v.services):
         blob += " CallFailed"
@@ -213,7 +187,8 @@ def module_imports(views: list[ComponentView], imports: _Imports) -> list[str]:
 
     members = [("collections.abc", n) for n in used("Callable", "Mapping", "Sequence")]
     members += [("typing", n) for n in used("Any")] + imports.pairs()
-    runtime = ["check_robot_name", "check_timeout", "require_node"] + used(
+    runtime = ["DEFAULT_TIMEOUT", "DEFAULT_WAIT_TIMEOUT", "check_robot_name", "check_timeout", "require_node"] + used(
+        "LAST_MISSION",
         "ServiceClient",
         "Started",
         "TopicPublisher",
@@ -225,7 +200,8 @@ def module_imports(views: list[ComponentView], imports: _Imports) -> list[str]:
         "to_msgs",
         "to_time",
     )
-    members += [("._runtime", n) for n in runtime] + [(".errors", n) for n in used("CallFailed")]
+    members += [(".common" if n in py.common_names() else "._runtime", n) for n in runtime]
+    members += [(".errors", n) for n in used("CallFailed")]
     return import_block(members, used("genpy"))
 
 
@@ -364,7 +340,7 @@ def _subscriber_view(topic: TopicEndpoint, imports: _Imports) -> SubscriberView:
         _td_text(topic.text),
         [
             f"The latest {ros_type} message on {display}, waiting at most timeout seconds (by default "
-            "self.wait_timeout) for the first one. Raises NoMessage when none arrives in time."
+            "self.timeout) for the first one. Raises NoMessage when none arrives in time."
         ],
         " " * 8,
     )
@@ -444,8 +420,8 @@ def component_views(model: Model, imports: _Imports, diags: Diagnostics) -> list
             [
                 "Bind the component to one robot.",
                 "robot_name is the robot's namespace (e.g. rb1_base_a); it replaces {{robotName}} in the names "
-                "below and is checked here (InvalidRobotName). timeout bounds each service call by default; "
-                "wait_timeout bounds waiting for a service to appear and for a first message. Both in seconds.",
+                "below and is checked here (InvalidRobotName). timeout bounds each service call and each wait for "
+                "a first message by default; wait_timeout bounds waiting for a service to appear. Both in seconds.",
             ],
             " " * 8,
         )
@@ -577,28 +553,16 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
         "package": pkg,
         "components": views,
         "imports": module_imports(views, imports),
-        "timeout": repr(DEFAULT_TIMEOUT),
-        "wait_timeout": repr(DEFAULT_WAIT_TIMEOUT),
+        "timeout": py.constant("DEFAULT_TIMEOUT"),
+        "wait_timeout": py.constant("DEFAULT_WAIT_TIMEOUT"),
         "module_doc": docstring(
             [thing.title, thing.description],
             ["Component classes generated by td2adaptor from the Thing Description; regenerate instead of editing."],
             "",
         ),
         "init_doc": docstring([thing.title], [f"ROS 1 (rospy) adaptor package {pkg}, generated by td2adaptor."], ""),
-        "exports": sorted(
-            [v.name for v in views]
-            + [
-                "AdaptorError",
-                "CallFailed",
-                "CallTimeout",
-                "InvalidMessage",
-                "InvalidRobotName",
-                "NoMessage",
-                "NotInitialized",
-                "ServiceUnavailable",
-                "Started",
-            ]
-        ),
+        "errors": sorted(py.error_classes()),
+        "exports": sorted([v.name for v in views] + list(py.error_classes()) + ["LAST_MISSION", "Started"]),
         "interface_packages": packages,
         "component_names": sorted(v.name for v in views),
         "xml_description": ts.xml_text(" ".join(description.split())),
@@ -617,14 +581,15 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     src = f"{root}src/{pkg}/"
     tree.add(src + "__init__.py", _render("src/__init__.py.j2", **context))
     tree.add(src + "py.typed", "")
-    tree.add(src + "errors.py", _render("src/errors.py.j2", **context))
-    tree.add(src + "_runtime.py", _render("src/_runtime.py.j2", **context))
+    for name in py.SHARED:
+        tree.add(src + name, py.shared_source(name))
+    tree.add(src + "_runtime.py", verbatim(VERBATIM, "_runtime.py"))
     tree.add(src + "components.py", _render("src/components.py.j2", **context))
     tree.add(src + "edge_node.py", _render("src/edge_node.py.j2", **context, script=False))
     # the same code as the rosrun script (catkin_install_python in CMakeLists.txt)
     tree.add(root + "scripts/edge_node", _render("src/edge_node.py.j2", **context, script=True), executable=True)
-    for name in ("genpy/__init__.pyi", "rospy/__init__.pyi", "rospy/core.pyi", "rospy/exceptions.pyi"):
-        tree.add(f"{root}stubs/{name}", _render(f"stubs/{name}.j2", **context))
+    for name in _FIXED_STUBS:
+        tree.add(f"{root}stubs/{name}", verbatim(VERBATIM, f"stubs/{name}"))
     packages_done: set[str] = set()
     for module in stubs:
         top = module.path.split("/")[0]

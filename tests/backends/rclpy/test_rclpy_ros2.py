@@ -236,7 +236,7 @@ def test_blocking_call_from_an_executor_callback_fails_fast(adaptor: ModuleType,
 
 def test_robot_name_is_validated_at_run_time(adaptor: ModuleType, ros_node: Any) -> None:
     for bad in ("bad name", "1robot", "a__b", "a//b", "robot-1"):
-        with pytest.raises(adaptor.InvalidNamespace):
+        with pytest.raises(adaptor.InvalidRobotName):
             adaptor.GoToComponent(ros_node, bad)
     assert adaptor.GoToComponent(ros_node, "/rb1_base_a/").robot_name == "rb1_base_a"
     with pytest.raises(ValueError):
