@@ -130,7 +130,7 @@ def make_port(
             timeout=config.call_timeout,
             wait_timeout=config.call_timeout,
         )
-    except ValueError as exc:  # InvalidNamespace / InvalidRobotName of the generated package
+    except ValueError as exc:  # InvalidRobotName of the generated package
         raise RosSetupError(f"robot {config.robot}: {exc}") from None
     except PortError as exc:
         raise RosSetupError(f"robot {config.robot}: {exc}") from None

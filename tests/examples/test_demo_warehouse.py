@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import REPO
+from tests.ros2 import env
 from tests.runtime.broker import Mosquitto
 
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain (private domain id), rb1_prefix (built interfaces)
@@ -31,7 +32,9 @@ def demo(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
         [sys.executable, "-m", "td2adaptor", "demo", "warehouse", "--duration", "0.2", *args],
         cwd=REPO,
-        env=dict(os.environ),  # the private ROS_DOMAIN_ID and localhost discovery of this worker
+        # localhost discovery as in this worker, but a domain of its own: the simulated RB-1 the other ROS 2 tests
+        # of this worker may have left running serves robots of the same names
+        env=dict(os.environ, ROS_DOMAIN_ID=str(env.private_domain_id())),
         capture_output=True,
         text=True,
         timeout=90,

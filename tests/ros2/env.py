@@ -36,8 +36,17 @@ def ros2_available() -> bool:
 def claim_domain_id() -> int:
     """A ROS_DOMAIN_ID no other live process of this machine's test runs holds (kept until exit)."""
     global _claimed
-    if _claimed is not None:
-        return _claimed[0]
+    if _claimed is None:
+        _claimed = _claim()
+    return _claimed[0]
+
+
+def private_domain_id() -> int:
+    """Another free ROS_DOMAIN_ID (kept until exit), for children that must not meet this process's robots."""
+    return _claim()[0]
+
+
+def _claim() -> tuple[int, IO[bytes]]:
     lock_dir = Path(tempfile.gettempdir()) / "td2adaptor-ros2-domains"
     lock_dir.mkdir(exist_ok=True)
     start = os.getpid() % len(DOMAIN_RANGE)
@@ -49,9 +58,8 @@ def claim_domain_id() -> int:
         except OSError:
             fh.close()
             continue
-        _claimed = (domain, fh)
         atexit.register(fh.close)
-        return domain
+        return domain, fh
     raise RuntimeError(f"no free ROS_DOMAIN_ID in {DOMAIN_RANGE}")
 
 

@@ -1,10 +1,12 @@
 """The rclpy backend: an ament_python ROS 2 package of typed component classes, with stubs for its messages.
 
-Everything a template prints is computed here (the view model); the templates in `templates/rclpy/` only
-loop and print. Every TD string reaches the output through `textsafe`. Output, under `<package>/`:
-package.xml, setup.py, setup.cfg (also the mypy configuration), ruff.toml, README.md, resource/<package>,
-`<package>/` (components, convert, runtime, errors, py.typed) and `stubs/` (typed stubs of the interface
-packages used, because rosidl's Python messages carry no type information).
+Everything a template prints is computed here (the view model); the templates in `templates/` only loop and
+print, and the run-time modules are copied unchanged (`verbatim/runtime.py`, and `common.py` and `errors.py`
+shared with the rospy backend in `backends/_python/verbatim/`). Every TD string reaches the output through
+`textsafe`. Output, under `<package>/`: package.xml, setup.py, setup.cfg (also the mypy configuration),
+ruff.toml, README.md, resource/<package>, `<package>/` (components, convert, runtime, common, errors, py.typed)
+and `stubs/` (typed stubs of the interface packages used, because rosidl's Python messages carry no type
+information).
 """
 
 from __future__ import annotations
@@ -15,11 +17,13 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from td2adaptor.backends import _python as py
+from td2adaptor.backends._python import StubClass, StubField, StubModule, import_block
 from td2adaptor.backends.rclpy import types as rt
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation import textsafe as ts
 from td2adaptor.generation.backend import GeneratedTree, GenOptions
-from td2adaptor.generation.templating import render
+from td2adaptor.generation.templating import render, verbatim
 from td2adaptor.model import (
     ArrayKind,
     Component,
@@ -39,38 +43,14 @@ from td2adaptor.model import (
 TEMPLATES = Path(__file__).parent / "templates"
 
 
-DEFAULT_TIMEOUT = 10.0
-DEFAULT_WAIT_TIMEOUT = 5.0
-LINE = 120  # line length of the generated package (its ruff.toml)
 VERSION = re.compile(r"^[0-9]+\.[0-9]+\.[0-9]+$")
+VERBATIM = Path(__file__).parent / "verbatim"
 
-#: names the components module defines or imports besides message classes (messages get aliases instead)
-RESERVED = frozenset(
-    {
-        "annotations",
-        "Any",
-        "Callable",
-        "Mapping",
-        "Sequence",
-        "Node",
-        "DEFAULT_TIMEOUT",
-        "DEFAULT_WAIT_TIMEOUT",
-        "LAST_MISSION",
-        "ServiceCaller",
-        "Started",
-        "TopicPublisher",
-        "TopicSubscriber",
-        "check_namespace",
-        "check_timeout",
-        "name_in",
-        "procedure_failure",
-        "qos_profile",
-        "success_failure",
-        "check_fields",
-        "NDArray",
-        "Final",
-        "array",
-    }
+#: names generated modules must not give to message classes: what the runtime modules define, what the
+#: templates import besides them, keywords and builtins
+RESERVED = py.reserved_names(
+    [verbatim(VERBATIM, "runtime.py"), *(py.shared_source(n) for n in py.SHARED)],
+    ["annotations", "Any", "Callable", "Mapping", "Sequence", "Node", "NDArray", "Final", "array", "check_fields"],
 )
 
 
@@ -78,16 +58,9 @@ RESERVED = frozenset(
 # small helpers
 
 
-def wrap(text: str, width: int) -> list[str]:
-    """Greedy word wrap measured in escaped characters (whitespace, line breaks included, collapses)."""
-    return ts.wrap_lines(" ".join(text.split()), width)
-
-
 def docstring(paragraphs: Iterable[str | None], indent: str) -> str:
-    """A docstring literal of the non-empty paragraphs, wrapped to the package's line length, escaped."""
-    width = LINE - len(indent) - 8
-    blocks = ["\n".join(wrap(p, width)) for p in paragraphs if p and p.strip()]
-    return ts.py_docstring("\n\n".join(b for b in blocks if b), indent, fallback="(no description)")
+    """A docstring literal of the non-empty paragraphs (each collapsed to one), wrapped and escaped."""
+    return py.docstring(paragraphs, indent, margin=8, collapse=True, fallback="(no description)")
 
 
 def text_paragraphs(text: Text, name: str) -> list[str]:
@@ -102,49 +75,6 @@ def text_paragraphs(text: Text, name: str) -> list[str]:
 def pyname(name: str) -> str:
     """A message field as a Python parameter name (keywords and `self` get a trailing `_`)."""
     return name + "_" if keyword.iskeyword(name) or name == "self" else name
-
-
-def import_key(name: str) -> tuple[int, str, str]:
-    """isort's order-by-type within one `from` import: CONSTANTS, Classes, functions."""
-    bare = name.split(" as ")[0]
-    kind = 0 if bare.isupper() and len(bare) > 1 else 1 if bare[:1].isupper() else 2
-    return (kind, bare.lower(), bare)
-
-
-STDLIB = frozenset({"array", "collections.abc", "typing"})
-
-
-@dataclass(frozen=True)
-class Import:
-    module: str
-    names: tuple[str, ...] = ()  # "Name" or "Name as alias", isort order; () for `import module`
-
-    @property
-    def line(self) -> str:
-        return f"from {self.module} import {', '.join(self.names)}" if self.names else f"import {self.module}"
-
-    @property
-    def wrapped(self) -> list[str]:
-        """The names one per line when the single line would be too long (ruff's wrapping)."""
-        return list(self.names) if len(self.line) > LINE else []
-
-
-def import_sections(pairs: Iterable[tuple[str, str]], plain: Iterable[str] = ()) -> list[list[Import]]:
-    """Import blocks as ruff's isort writes them: stdlib, third party, local; `import x` before `from x`."""
-    grouped: dict[str, set[str]] = {}
-    for module, name in pairs:
-        grouped.setdefault(module, set()).add(name)
-    froms = [
-        Import(m, tuple(sorted(n, key=import_key))) for m, n in sorted(grouped.items(), key=lambda kv: kv[0].lower())
-    ]
-    plains = [Import(m) for m in sorted(set(plain))]
-    sections = [
-        [i for i in plains if i.module in STDLIB] + [i for i in froms if i.module in STDLIB],
-        [i for i in plains if i.module not in STDLIB]
-        + [i for i in froms if i.module not in STDLIB and not i.module.startswith(".")],
-        [i for i in froms if i.module.startswith(".")],
-    ]
-    return [s for s in sections if s]
 
 
 def module_of(type_name: str) -> tuple[str, str]:
@@ -264,30 +194,6 @@ class ConverterView:
 
 
 @dataclass
-class StubField:
-    name: str
-    getter: str
-    init: str
-
-
-@dataclass
-class StubClass:
-    name: str
-    constants: list[str]  # `NAME: Final = value`
-    fields: list[StubField]
-    request: str | None = None  # service classes: their Request and Response aliases
-    response: str | None = None
-
-
-@dataclass
-class StubModule:
-    path: str
-    doc: str
-    imports: list[list[Import]]
-    classes: list[StubClass]
-
-
-@dataclass
 class PackageView:
     package: str
     version: str
@@ -298,32 +204,28 @@ class PackageView:
     components_doc: str
     exec_depends: list[str]
     components: list[ComponentView]
-    component_imports: list[list[Import]]
+    component_imports: list[str]
     converters: list[ConverterView]
-    convert_imports: list[list[Import]]
+    convert_imports: list[str]
     stubs: list[StubModule]
     stub_files: list[str]
     exports: list[str]
-    export_imports: list[list[Import]]
+    export_imports: list[str]
     example: str  # first component, for the README
     timeout: str
     wait_timeout: str
 
 
-_ERRORS = (
-    "AdaptorError",
-    "CallFailed",
-    "CallTimeout",
-    "ExecutorError",
-    "InvalidNamespace",
-    "NoMessage",
-    "ServiceUnavailable",
-)
-_RUNTIME_EXPORTS = ("LAST_MISSION", "Spinner", "Started", "spin_in_background")
+_EXPORTS = ("LAST_MISSION", "Spinner", "Started", "spin_in_background")  # besides components and errors
 
 
 # ---------------------------------------------------------------------------------------------------------
 # building it
+
+
+def _runtime_module(name: str) -> str:
+    """Where components and __init__ import a run-time name from: the shared `.common` or rclpy's `.runtime`."""
+    return ".common" if name in py.common_names() else ".runtime"
 
 
 def _is(ftype: FieldType | None, base: str) -> bool:
@@ -351,7 +253,7 @@ class Builder:
         # what components.py refers to, so that it imports exactly that
         self.msg_used: set[str] = set()
         self.conv_used: set[str] = set()
-        self.runtime_used: set[str] = {"DEFAULT_TIMEOUT", "DEFAULT_WAIT_TIMEOUT", "check_namespace", "check_timeout"}
+        self.runtime_used: set[str] = {"DEFAULT_TIMEOUT", "DEFAULT_WAIT_TIMEOUT", "check_robot_name", "check_timeout"}
         self.std_used: set[tuple[str, str]] = set()
 
     # -- what the model asks for, and whether rclpy can express it
@@ -471,8 +373,8 @@ class Builder:
 
     def ros_name_expr(self, name: RosName) -> str:
         if name.namespaced:
-            self.runtime_used.add("name_in")
-            return f"name_in(self._namespace, {ts.py_str(name.path)})"
+            self.runtime_used.add("in_namespace")
+            return f"in_namespace({ts.py_str(name.path)}, self._namespace)"
         return ts.py_str(name.path)
 
     @staticmethod
@@ -523,7 +425,7 @@ class Builder:
     def call_view(self, comp: Component, svc: ServiceEndpoint, namer: Namer) -> CallView:
         sdef = self.types.service(svc.type_name)
         self.msg_used |= {svc.type_name, sdef.request.name, sdef.response.name}
-        self.runtime_used.add("ServiceCaller")
+        self.runtime_used.add("ServiceClient")
         srv, req, resp = namer[svc.type_name], namer[sdef.request.name], namer[sdef.response.name]
         proc = comp.procedure_of(svc.name)
         run_id = last_attr = mission_field = None
@@ -699,7 +601,7 @@ class Builder:
                 StubModule(
                     f"stubs/{pkg}/{kind}/__init__.pyi",
                     doc,
-                    import_sections(namer.import_pairs() + sorted(extra), plain),
+                    import_block(namer.import_pairs() + sorted(extra), plain),
                     classes,
                 )
             )
@@ -756,7 +658,7 @@ class Builder:
         components = [self.component_view(c, s, t, namer) for c, s, t in selected]
         pairs = [(module_of(f)[0], _import_name(f, namer[f])) for f in sorted(self.msg_used)]
         pairs += [(".convert", c) for c in sorted(self.conv_used)]
-        pairs += [(".runtime", n) for n in sorted(self.runtime_used)]
+        pairs += [(_runtime_module(n), n) for n in sorted(self.runtime_used)]
         pairs += sorted(self.std_used)
         pairs.append(("rclpy.node", "Node"))
 
@@ -779,6 +681,7 @@ class Builder:
                 )
             )
         convert_pairs = conv_namer.import_pairs() + [("collections.abc", "Mapping")]
+        convert_pairs.append(("typing", "cast"))  # check_fields uses it
         if converters:  # `Any` is only in converter signatures: a package that sends nothing has none (F401)
             convert_pairs.append(("typing", "Any"))
 
@@ -797,9 +700,10 @@ class Builder:
         thing = self.model.thing
         description = thing.description or ""
         summary = f"ROS 2 (rclpy) adaptor for {thing.title}, generated by td2adaptor from its Thing Description."
-        exports = [c.name for c in components] + list(_ERRORS) + list(_RUNTIME_EXPORTS)
+        errors = sorted(py.error_classes())
+        exports = [c.name for c in components] + errors + list(_EXPORTS)
         export_pairs = [(".components", c.name) for c in components]
-        export_pairs += [(".errors", n) for n in _ERRORS] + [(".runtime", n) for n in _RUNTIME_EXPORTS]
+        export_pairs += [(".errors", n) for n in errors] + [(_runtime_module(n), n) for n in _EXPORTS]
         return PackageView(
             package=self.package,
             version=thing.version if thing.version and VERSION.match(thing.version) else "0.1.0",
@@ -823,16 +727,16 @@ class Builder:
             ),
             exec_depends=sorted({n.split("/")[0] for n in stub_types} | {"rclpy"}),
             components=components,
-            component_imports=import_sections(pairs),
+            component_imports=import_block(pairs),
             converters=converters,
-            convert_imports=import_sections(convert_pairs),
+            convert_imports=import_block(convert_pairs),
             stubs=stubs,
             stub_files=[m.path for m in stubs],
             exports=exports,
-            export_imports=import_sections(export_pairs),
+            export_imports=import_block(export_pairs),
             example=components[0].name if components else "",
-            timeout=repr(DEFAULT_TIMEOUT),
-            wait_timeout=repr(DEFAULT_WAIT_TIMEOUT),
+            timeout=py.constant("DEFAULT_TIMEOUT"),
+            wait_timeout=py.constant("DEFAULT_WAIT_TIMEOUT"),
         )
 
 
@@ -861,8 +765,11 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     for name in ("package.xml", "setup.py", "setup.cfg", "ruff.toml", "README.md"):
         tree.add(f"{root}/{name}", _render(f"{name}.j2", **ctx))
     tree.add(f"{root}/resource/{root}", "")
-    for name in ("__init__.py", "errors.py", "runtime.py", "convert.py", "components.py", "edge_node.py"):
+    for name in ("__init__.py", "convert.py", "components.py", "edge_node.py"):
         tree.add(f"{src}/{name}", _render(f"package/{name}.j2", **ctx))
+    tree.add(f"{src}/runtime.py", verbatim(VERBATIM, "runtime.py"))
+    for name in py.SHARED:
+        tree.add(f"{src}/{name}", py.shared_source(name))
     tree.add(f"{src}/py.typed", "")
     for module in view.stubs:
         tree.add(f"{root}/{module.path}", _render("stubs/module.pyi.j2", m=module, **ctx))

@@ -1,18 +1,22 @@
 """The rospy backend: a catkin package of typed component classes for ROS 1, with type stubs for its messages.
 
-Everything a template prints is computed here (the view model); templates only loop and print. Every TD
-string reaches the output through `textsafe`. Output: `<package>/` with package.xml, CMakeLists.txt,
-setup.py, README.md, mypy.ini, ruff.toml, `src/<package>/`, `scripts/edge_node` (rosrun) and `stubs/`.
+Everything a template prints is computed here (the view model); templates only loop and print. The run-time
+modules and the rospy/genpy stubs are copied unchanged (`verbatim/`, and `common.py` and `errors.py` shared
+with the rclpy backend in `backends/_python/verbatim/`). Every TD string reaches the output through
+`textsafe`. Output: `<package>/` with package.xml, CMakeLists.txt, setup.py, README.md, mypy.ini, ruff.toml,
+`src/<package>/`, `scripts/edge_node` (rosrun) and `stubs/`.
 """
 
 from __future__ import annotations
 
-import builtins
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from td2adaptor.backends import _python as py
+from td2adaptor.backends._python import LINE as LINE  # the generated line length, for tests and tools
+from td2adaptor.backends._python import StubClass, StubField, StubModule, import_block
 from td2adaptor.backends.rospy.types import (
     FieldView,
     class_location,
@@ -24,7 +28,7 @@ from td2adaptor.backends.rospy.types import (
 from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.generation import textsafe as ts
 from td2adaptor.generation.backend import GeneratedTree, GenOptions
-from td2adaptor.generation.templating import render
+from td2adaptor.generation.templating import render, verbatim
 from td2adaptor.model import (
     Component,
     MessageDef,
@@ -41,64 +45,25 @@ from td2adaptor.model import (
 TEMPLATES = Path(__file__).parent / "templates"
 
 
-DEFAULT_TIMEOUT = 10.0
-DEFAULT_WAIT_TIMEOUT = 5.0
-LINE = 120  # the generated package's line length (ruff.toml)
+VERBATIM = Path(__file__).parent / "verbatim"
+#: copied unchanged: the parts of rospy and genpy the package uses, typed
+_FIXED_STUBS = ("genpy/__init__.pyi", "rospy/__init__.pyi", "rospy/core.pyi", "rospy/exceptions.pyi")
 
-#: names the generated components module defines or imports besides message classes
-_RESERVED = frozenset(
-    {
-        "annotations",
-        "Any",
-        "Callable",
-        "Mapping",
-        "Sequence",
-        "genpy",
-        "AdaptorError",
-        "CallFailed",
-        "CallTimeout",
-        "InvalidMessage",
-        "NoMessage",
-        "ServiceUnavailable",
-        "Started",
-        "ServiceClient",
-        "TopicPublisher",
-        "TopicSubscriber",
-        "check_robot_name",
-        "check_timeout",
-        "in_namespace",
-        "require_node",
-        "to_duration",
-        "to_list",
-        "to_msg",
-        "to_msgs",
-        "to_time",
-        "self",
-        "item",
-        "request",
-        "response",
-        "mission_id",
-        "timeout",
-        *dir(builtins),
-    }
+#: names the generated components module must not give to message classes or parameters: what the runtime
+#: modules define, what the template uses besides them, keywords and builtins
+_RESERVED = py.reserved_names(
+    [verbatim(VERBATIM, "_runtime.py"), *(py.shared_source(n) for n in py.SHARED)],
+    ["annotations", "Any", "Callable", "Mapping", "Sequence", "genpy", "self", "item", "request", "response"]
+    + ["mission_id", "timeout"],
 )
 
 # ---------------------------------------------------------------------------------------------------------
 # docstrings
 
 
-def wrap(text: str, width: int) -> str:
-    """Text wrapped so that, escaped and indented, no docstring line exceeds the line length."""
-    return "\n".join(ts.wrap_lines(text, width))
-
-
 def docstring(td_parts: Iterable[str | None], fixed: Iterable[str], indent: str) -> str:
     """A docstring: TD text first (wrapped, escaped), then our own paragraphs, so it never ends in TD text."""
-    width = LINE - len(indent) - 4
-    paragraphs = [wrap(p, width) for p in td_parts if p and p.strip()]
-    paragraphs = [p for p in paragraphs if p]
-    paragraphs += [wrap(p, width) for p in fixed]
-    return ts.py_docstring("\n\n".join(paragraphs), indent)
+    return py.docstring([*td_parts, *fixed], indent)
 
 
 def _td_text(text: Text) -> list[str | None]:
@@ -189,27 +154,13 @@ class _Imports:
         self.modules.setdefault(module, []).append((cls, name))
         return name
 
-    def lines(self) -> list[str]:
+    def pairs(self) -> list[tuple[str, str]]:
+        """(module, `Class` or `Class as alias`) of every class used, for `import_block`."""
         return [
-            import_line(module, [cls if cls == alias else f"{cls} as {alias}" for cls, alias in self.modules[module]])
-            for module in sorted(self.modules)
+            (module, cls if cls == alias else f"{cls} as {alias}")
+            for module, classes in self.modules.items()
+            for cls, alias in classes
         ]
-
-
-def _member_key(member: str) -> tuple[int, str, str]:
-    """isort's order-by-type, as ruff applies it: CONSTANTS, then Classes, then functions."""
-    name = member.split(" as ")[0]
-    kind = 0 if name.isupper() and len(name) > 1 else 1 if name[:1].isupper() else 2
-    return kind, name.lower(), member
-
-
-def import_line(module: str, members: Iterable[str]) -> str:
-    """`from module import ...` as ruff's isort and formatter write it (exploded when too long)."""
-    names = sorted(set(members), key=_member_key)
-    line = f"from {module} import {', '.join(names)}"
-    if len(line) <= LINE:
-        return line
-    return f"from {module} import (\n" + "".join(f"    {n},\n" for n in names) + ")"
 
 
 def module_imports(views: list[ComponentView], imports: _Imports) -> list[str]:
@@ -225,6 +176,8 @@ def module_imports(views: list[ComponentView], imports: _Imports) -> list[str]:
             text += [p.annotation + " " + p.value for p in pub.params] + pub.ros_name + ["TopicPublisher"]
         if v.services:
             text.append("ServiceClient")
+        if v.mission_attrs:
+            text.append("LAST_MISSION")
     blob = " ".join(text)
     if any(s.fail_condition for v in views for s in v.services):
         blob += " CallFailed"
@@ -232,16 +185,10 @@ def module_imports(views: list[ComponentView], imports: _Imports) -> list[str]:
     def used(*names: str) -> list[str]:
         return [n for n in names if re.search(rf"\b{n}\b", blob)]
 
-    lines = []
-    abc = used("Callable", "Mapping", "Sequence")
-    if abc:
-        lines.append(import_line("collections.abc", abc))
-    if used("Any"):
-        lines.append("from typing import Any")
-    third = (["import genpy"] if used("genpy") else []) + imports.lines()
-    if third:
-        lines += [""] + third if lines else third
-    runtime = ["check_robot_name", "check_timeout", "require_node"] + used(
+    members = [("collections.abc", n) for n in used("Callable", "Mapping", "Sequence")]
+    members += [("typing", n) for n in used("Any")] + imports.pairs()
+    runtime = ["DEFAULT_TIMEOUT", "DEFAULT_WAIT_TIMEOUT", "check_robot_name", "check_timeout", "require_node"] + used(
+        "LAST_MISSION",
         "ServiceClient",
         "Started",
         "TopicPublisher",
@@ -253,10 +200,9 @@ def module_imports(views: list[ComponentView], imports: _Imports) -> list[str]:
         "to_msgs",
         "to_time",
     )
-    local = [import_line("._runtime", runtime)]
-    if used("CallFailed"):
-        local.append(import_line(".errors", ["CallFailed"]))
-    return lines + [""] + local
+    members += [(".common" if n in py.common_names() else "._runtime", n) for n in runtime]
+    members += [(".errors", n) for n in used("CallFailed")]
+    return import_block(members, used("genpy"))
 
 
 def _name_expr(name: RosName) -> list[str]:
@@ -394,7 +340,7 @@ def _subscriber_view(topic: TopicEndpoint, imports: _Imports) -> SubscriberView:
         _td_text(topic.text),
         [
             f"The latest {ros_type} message on {display}, waiting at most timeout seconds (by default "
-            "self.wait_timeout) for the first one. Raises NoMessage when none arrives in time."
+            "self.timeout) for the first one. Raises NoMessage when none arrives in time."
         ],
         " " * 8,
     )
@@ -474,8 +420,8 @@ def component_views(model: Model, imports: _Imports, diags: Diagnostics) -> list
             [
                 "Bind the component to one robot.",
                 "robot_name is the robot's namespace (e.g. rb1_base_a); it replaces {{robotName}} in the names "
-                "below and is checked here (InvalidRobotName). timeout bounds each service call by default; "
-                "wait_timeout bounds waiting for a service to appear and for a first message. Both in seconds.",
+                "below and is checked here (InvalidRobotName). timeout bounds each service call and each wait for "
+                "a first message by default; wait_timeout bounds waiting for a service to appear. Both in seconds.",
             ],
             " " * 8,
         )
@@ -506,36 +452,6 @@ def component_views(model: Model, imports: _Imports, diags: Diagnostics) -> list
 # type stubs
 
 
-@dataclass(frozen=True)
-class StubField:
-    name: str
-    annotation: str
-
-
-@dataclass(frozen=True)
-class StubClass:
-    name: str
-    type_name: str
-    constants: list[StubField]
-    fields: list[StubField]
-
-
-@dataclass(frozen=True)
-class StubService:
-    name: str
-    request: str
-    response: str
-
-
-@dataclass(frozen=True)
-class StubModule:
-    name: str
-    path: str
-    imports: list[str]
-    classes: list[StubClass]
-    services: list[StubService]
-
-
 def _stub_class(msg: MessageDef, module: str, diags: Diagnostics) -> tuple[StubClass, set[str]]:
     """A stub class; other modules it refers to."""
     used: set[str] = set()
@@ -552,14 +468,14 @@ def _stub_class(msg: MessageDef, module: str, diags: Diagnostics) -> tuple[StubC
         if problem:
             diags.error("GEN840", f"rospy backend: {msg.name}: {problem}")
             continue
-        fields.append(StubField(f.name, stub_annotation(f.type, ref)))
+        annotation = stub_annotation(f.type, ref)
+        fields.append(StubField(f.name, annotation, annotation))
     constants = [
-        StubField(c.name, f"ClassVar[{constant_annotation(c.type)}]")
+        f"{c.name}: ClassVar[{constant_annotation(c.type)}]"
         for c in msg.constants
         if c.name.isidentifier() and c.name.isascii()
     ]
-    _, cls = class_location(msg.name)
-    return StubClass(cls, msg.name.replace("/msg/", "/").replace("/srv/", "/"), constants, fields), used
+    return StubClass(class_location(msg.name)[1], constants, fields), used
 
 
 def stub_modules(types: TypeTable, diags: Diagnostics) -> list[StubModule]:
@@ -579,20 +495,19 @@ def stub_modules(types: TypeTable, diags: Diagnostics) -> list[StubModule]:
             cls, refs = _stub_class(msg, module, diags)
             classes.append(cls)
             used |= refs
-        svcs = [
-            StubService(
-                class_location(s.name)[1], class_location(s.request.name)[1], class_location(s.response.name)[1]
+        classes += [
+            StubClass(
+                class_location(s.name)[1], [], [], class_location(s.request.name)[1], class_location(s.response.name)[1]
             )
             for s in sorted(services.get(module, []), key=lambda s: s.name)
         ]
-        annotations = " ".join(f.annotation for c in classes for f in (*c.fields, *c.constants))
-        imports = []
-        if "Sequence[" in annotations:
-            imports.append("from collections.abc import Sequence")
-        if "ClassVar[" in annotations or svcs:
-            imports.append("from typing import ClassVar")
-        imports += ([""] if imports else []) + ["import genpy"] + [f"import {m}" for m in sorted(used - {"genpy"})]
-        out.append(StubModule(module, module.replace(".", "/") + "/__init__.pyi", imports, classes, svcs))
+        annotations = " ".join(a for c in classes for a in (*(f.annotation for f in c.fields), *c.constants))
+        members = [("collections.abc", "Sequence")] if "Sequence[" in annotations else []
+        if "ClassVar[" in annotations or module in services:
+            members.append(("typing", "ClassVar"))
+        imports = import_block(members, {"genpy"} | used)
+        header = f"# Type stubs of {module} (genpy), generated by td2adaptor: only the types the adaptor uses."
+        out.append(StubModule(module.replace(".", "/") + "/__init__.pyi", header, imports, classes))
     return out
 
 
@@ -638,28 +553,16 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
         "package": pkg,
         "components": views,
         "imports": module_imports(views, imports),
-        "timeout": repr(DEFAULT_TIMEOUT),
-        "wait_timeout": repr(DEFAULT_WAIT_TIMEOUT),
+        "timeout": py.constant("DEFAULT_TIMEOUT"),
+        "wait_timeout": py.constant("DEFAULT_WAIT_TIMEOUT"),
         "module_doc": docstring(
             [thing.title, thing.description],
             ["Component classes generated by td2adaptor from the Thing Description; regenerate instead of editing."],
             "",
         ),
         "init_doc": docstring([thing.title], [f"ROS 1 (rospy) adaptor package {pkg}, generated by td2adaptor."], ""),
-        "exports": sorted(
-            [v.name for v in views]
-            + [
-                "AdaptorError",
-                "CallFailed",
-                "CallTimeout",
-                "InvalidMessage",
-                "InvalidRobotName",
-                "NoMessage",
-                "NotInitialized",
-                "ServiceUnavailable",
-                "Started",
-            ]
-        ),
+        "errors": sorted(py.error_classes()),
+        "exports": sorted([v.name for v in views] + list(py.error_classes()) + ["LAST_MISSION", "Started"]),
         "interface_packages": packages,
         "component_names": sorted(v.name for v in views),
         "xml_description": ts.xml_text(" ".join(description.split())),
@@ -678,14 +581,15 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     src = f"{root}src/{pkg}/"
     tree.add(src + "__init__.py", _render("src/__init__.py.j2", **context))
     tree.add(src + "py.typed", "")
-    tree.add(src + "errors.py", _render("src/errors.py.j2", **context))
-    tree.add(src + "_runtime.py", _render("src/_runtime.py.j2", **context))
+    for name in py.SHARED:
+        tree.add(src + name, py.shared_source(name))
+    tree.add(src + "_runtime.py", verbatim(VERBATIM, "_runtime.py"))
     tree.add(src + "components.py", _render("src/components.py.j2", **context))
     tree.add(src + "edge_node.py", _render("src/edge_node.py.j2", **context, script=False))
     # the same code as the rosrun script (catkin_install_python in CMakeLists.txt)
     tree.add(root + "scripts/edge_node", _render("src/edge_node.py.j2", **context, script=True), executable=True)
-    for name in ("genpy/__init__.pyi", "rospy/__init__.pyi", "rospy/core.pyi", "rospy/exceptions.pyi"):
-        tree.add(f"{root}stubs/{name}", _render(f"stubs/{name}.j2", **context))
+    for name in _FIXED_STUBS:
+        tree.add(f"{root}stubs/{name}", verbatim(VERBATIM, f"stubs/{name}"))
     packages_done: set[str] = set()
     for module in stubs:
         top = module.path.split("/")[0]

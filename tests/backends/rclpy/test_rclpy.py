@@ -185,6 +185,7 @@ def test_hostile_titles_and_descriptions_stay_text(tmp_path: Path) -> None:
         "os",
         "setuptools",
         "components",
+        "common",
         "convert",
         "errors",
         "runtime",

@@ -234,9 +234,46 @@ def test_blocking_call_from_an_executor_callback_fails_fast(adaptor: ModuleType,
     assert "deadlock" in str(outcome[0])
 
 
+def test_blocking_call_from_an_on_callback_of_the_users_own_executor_fails_fast(
+    adaptor: ModuleType, sim: Process
+) -> None:
+    """An executor the adaptor did not start, spun in the user's thread: its on_* callbacks are known to it."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+
+    context = Context()
+    rclpy.init(context=context)
+    node: Any = rclpy.create_node("own_executor", context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
+    outcome: list[BaseException | None] = []
+    goto = adaptor.GoToComponent(node, "rb1_base_a", wait_timeout=5.0)
+
+    def callback(_msg: Any) -> None:
+        if not outcome:
+            try:
+                goto.call_gotoQuery()
+                outcome.append(None)
+            except adaptor.AdaptorError as exc:
+                outcome.append(exc)
+
+    try:
+        adaptor.AvailabilityComponent(node, "rb1_base_a").on_availability(callback)
+        assert until(lambda: bool(outcome), 10.0)
+        assert isinstance(outcome[0], adaptor.ExecutorError) and "deadlock" in str(outcome[0])
+    finally:
+        executor.shutdown(timeout_sec=5.0)
+        spinner.join(5.0)
+        node.destroy_node()
+        rclpy.shutdown(context=context)
+
+
 def test_robot_name_is_validated_at_run_time(adaptor: ModuleType, ros_node: Any) -> None:
     for bad in ("bad name", "1robot", "a__b", "a//b", "robot-1"):
-        with pytest.raises(adaptor.InvalidNamespace):
+        with pytest.raises(adaptor.InvalidRobotName):
             adaptor.GoToComponent(ros_node, bad)
     assert adaptor.GoToComponent(ros_node, "/rb1_base_a/").robot_name == "rb1_base_a"
     with pytest.raises(ValueError):

@@ -309,7 +309,8 @@ def test_a_restarted_robot_is_reconnected(master: Master, path: list[Path], inte
     assert proc.stdin is not None and proc.stdout is not None
     expected = [
         "CallFailed",
-        "/rb1_restart/robot_local_control/NavigationComponent/PickComponent/query_state: no procedure with id -1",
+        "/rb1_restart/robot_local_control/NavigationComponent/PickComponent/query_state failed: "
+        "no procedure with id -1",
     ]
     try:
         with harness.run_sim(master, interfaces, "rb1_restart"):

@@ -26,26 +26,22 @@ from robot_local_control_msgs.srv import (
 )
 from std_msgs.msg import Float64
 
+from .common import (
+    DEFAULT_TIMEOUT,
+    DEFAULT_WAIT_TIMEOUT,
+    LAST_MISSION,
+    Started,
+    check_robot_name,
+    check_timeout,
+    in_namespace,
+)
 from .convert import (
     to_procedures_msgs_ProcedureHeader,
     to_robot_local_control_msgs_GoTo,
     to_robot_local_control_msgs_Pick,
     to_robot_local_control_msgs_Place,
 )
-from .runtime import (
-    DEFAULT_TIMEOUT,
-    DEFAULT_WAIT_TIMEOUT,
-    LAST_MISSION,
-    ServiceCaller,
-    Started,
-    TopicPublisher,
-    TopicSubscriber,
-    check_namespace,
-    check_timeout,
-    name_in,
-    procedure_failure,
-    qos_profile,
-)
+from .runtime import ServiceClient, TopicPublisher, TopicSubscriber, procedure_failure, qos_profile
 
 
 class GoToComponent:
@@ -66,27 +62,27 @@ class GoToComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
         self._last_gotoRun_id: int | None = None
-        self._gotoRun: ServiceCaller[GoToPetition_Request, GoToPetition_Response] = ServiceCaller(
+        self._gotoRun: ServiceClient[GoToPetition_Request, GoToPetition_Response] = ServiceClient(
             node,
             GoToPetition,
-            name_in(self._namespace, "robot_local_control/NavigationComponent/GoToComponent/add"),
+            in_namespace("robot_local_control/NavigationComponent/GoToComponent/add", self._namespace),
             procedure_failure,
         )
-        self._gotoCancel: ServiceCaller[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceCaller(
+        self._gotoCancel: ServiceClient[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceClient(
             node,
             ProcedureQuery,
-            name_in(self._namespace, "robot_local_control/NavigationComponent/GoToComponent/cancel"),
+            in_namespace("robot_local_control/NavigationComponent/GoToComponent/cancel", self._namespace),
             procedure_failure,
         )
-        self._gotoQuery: ServiceCaller[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceCaller(
+        self._gotoQuery: ServiceClient[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceClient(
             node,
             ProcedureQuery,
-            name_in(self._namespace, "robot_local_control/NavigationComponent/GoToComponent/query_state"),
+            in_namespace("robot_local_control/NavigationComponent/GoToComponent/query_state", self._namespace),
             procedure_failure,
         )
 
@@ -348,27 +344,27 @@ class PickComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
         self._last_pickRun_id: int | None = None
-        self._pickRun: ServiceCaller[PickPetition_Request, PickPetition_Response] = ServiceCaller(
+        self._pickRun: ServiceClient[PickPetition_Request, PickPetition_Response] = ServiceClient(
             node,
             PickPetition,
-            name_in(self._namespace, "robot_local_control/NavigationComponent/PickComponent/add"),
+            in_namespace("robot_local_control/NavigationComponent/PickComponent/add", self._namespace),
             procedure_failure,
         )
-        self._pickCancel: ServiceCaller[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceCaller(
+        self._pickCancel: ServiceClient[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceClient(
             node,
             ProcedureQuery,
-            name_in(self._namespace, "robot_local_control/NavigationComponent/PickComponent/cancel"),
+            in_namespace("robot_local_control/NavigationComponent/PickComponent/cancel", self._namespace),
             procedure_failure,
         )
-        self._pickQuery: ServiceCaller[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceCaller(
+        self._pickQuery: ServiceClient[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceClient(
             node,
             ProcedureQuery,
-            name_in(self._namespace, "robot_local_control/NavigationComponent/PickComponent/query_state"),
+            in_namespace("robot_local_control/NavigationComponent/PickComponent/query_state", self._namespace),
             procedure_failure,
         )
 
@@ -630,27 +626,27 @@ class PlaceComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
         self._last_placeRun_id: int | None = None
-        self._placeRun: ServiceCaller[PlacePetition_Request, PlacePetition_Response] = ServiceCaller(
+        self._placeRun: ServiceClient[PlacePetition_Request, PlacePetition_Response] = ServiceClient(
             node,
             PlacePetition,
-            name_in(self._namespace, "robot_local_control/NavigationComponent/PlaceComponent/add"),
+            in_namespace("robot_local_control/NavigationComponent/PlaceComponent/add", self._namespace),
             procedure_failure,
         )
-        self._placeCancel: ServiceCaller[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceCaller(
+        self._placeCancel: ServiceClient[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceClient(
             node,
             ProcedureQuery,
-            name_in(self._namespace, "robot_local_control/NavigationComponent/PlaceComponent/cancel"),
+            in_namespace("robot_local_control/NavigationComponent/PlaceComponent/cancel", self._namespace),
             procedure_failure,
         )
-        self._placeQuery: ServiceCaller[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceCaller(
+        self._placeQuery: ServiceClient[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceClient(
             node,
             ProcedureQuery,
-            name_in(self._namespace, "robot_local_control/NavigationComponent/PlaceComponent/query_state"),
+            in_namespace("robot_local_control/NavigationComponent/PlaceComponent/query_state", self._namespace),
             procedure_failure,
         )
 
@@ -912,14 +908,14 @@ class AvailabilityComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
         self._availability: TopicSubscriber[Status] = TopicSubscriber(
             node,
             Status,
-            name_in(self._namespace, "robot_local_control/state"),
+            in_namespace("robot_local_control/state", self._namespace),
             qos_profile("reliable", "volatile", "keep_last", 10),
         )
 
@@ -995,14 +991,14 @@ class PoseMarkerComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
         self._poseMarker: TopicSubscriber[AlvarMarkers] = TopicSubscriber(
             node,
             AlvarMarkers,
-            name_in(self._namespace, "ar_pose_marker"),
+            in_namespace("ar_pose_marker", self._namespace),
             qos_profile("reliable", "volatile", "keep_last", 10),
         )
 
@@ -1078,7 +1074,7 @@ class DoorComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False

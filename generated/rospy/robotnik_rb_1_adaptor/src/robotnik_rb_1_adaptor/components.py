@@ -27,16 +27,15 @@ from robot_local_control_msgs.srv import (
 )
 from std_msgs.msg import Float64
 
-from ._runtime import (
-    ServiceClient,
+from ._runtime import ServiceClient, TopicPublisher, TopicSubscriber, require_node, to_msg
+from .common import (
+    DEFAULT_TIMEOUT,
+    DEFAULT_WAIT_TIMEOUT,
+    LAST_MISSION,
     Started,
-    TopicPublisher,
-    TopicSubscriber,
     check_robot_name,
     check_timeout,
     in_namespace,
-    require_node,
-    to_msg,
 )
 from .errors import CallFailed
 
@@ -61,14 +60,14 @@ class GoToComponent:
         self,
         robot_name: str = "",
         *,
-        timeout: float = 10.0,
-        wait_timeout: float = 5.0,
+        timeout: float = DEFAULT_TIMEOUT,
+        wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         """Bind the component to one robot.
 
         robot_name is the robot's namespace (e.g. rb1_base_a); it replaces {{robotName}} in the names below and is
-        checked here (InvalidRobotName). timeout bounds each service call by default; wait_timeout bounds waiting
-        for a service to appear and for a first message. Both in seconds.
+        checked here (InvalidRobotName). timeout bounds each service call and each wait for a first message by
+        default; wait_timeout bounds waiting for a service to appear. Both in seconds.
         """
         self.robot_name = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
@@ -233,10 +232,10 @@ class GoToComponent:
 
     @staticmethod
     def _mission(mission_id: int | None, last: int | None) -> int:
-        """The explicit id, else the last one this object started, else -1 (the robot's last procedure)."""
+        """The explicit id, else the last one this object started, else LAST_MISSION (the robot's last procedure)."""
         if mission_id is not None:
             return mission_id
-        return -1 if last is None else last
+        return LAST_MISSION if last is None else last
 
 
 class PickComponent:
@@ -250,14 +249,14 @@ class PickComponent:
         self,
         robot_name: str = "",
         *,
-        timeout: float = 10.0,
-        wait_timeout: float = 5.0,
+        timeout: float = DEFAULT_TIMEOUT,
+        wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         """Bind the component to one robot.
 
         robot_name is the robot's namespace (e.g. rb1_base_a); it replaces {{robotName}} in the names below and is
-        checked here (InvalidRobotName). timeout bounds each service call by default; wait_timeout bounds waiting
-        for a service to appear and for a first message. Both in seconds.
+        checked here (InvalidRobotName). timeout bounds each service call and each wait for a first message by
+        default; wait_timeout bounds waiting for a service to appear. Both in seconds.
         """
         self.robot_name = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
@@ -422,10 +421,10 @@ class PickComponent:
 
     @staticmethod
     def _mission(mission_id: int | None, last: int | None) -> int:
-        """The explicit id, else the last one this object started, else -1 (the robot's last procedure)."""
+        """The explicit id, else the last one this object started, else LAST_MISSION (the robot's last procedure)."""
         if mission_id is not None:
             return mission_id
-        return -1 if last is None else last
+        return LAST_MISSION if last is None else last
 
 
 class PlaceComponent:
@@ -439,14 +438,14 @@ class PlaceComponent:
         self,
         robot_name: str = "",
         *,
-        timeout: float = 10.0,
-        wait_timeout: float = 5.0,
+        timeout: float = DEFAULT_TIMEOUT,
+        wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         """Bind the component to one robot.
 
         robot_name is the robot's namespace (e.g. rb1_base_a); it replaces {{robotName}} in the names below and is
-        checked here (InvalidRobotName). timeout bounds each service call by default; wait_timeout bounds waiting
-        for a service to appear and for a first message. Both in seconds.
+        checked here (InvalidRobotName). timeout bounds each service call and each wait for a first message by
+        default; wait_timeout bounds waiting for a service to appear. Both in seconds.
         """
         self.robot_name = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
@@ -611,10 +610,10 @@ class PlaceComponent:
 
     @staticmethod
     def _mission(mission_id: int | None, last: int | None) -> int:
-        """The explicit id, else the last one this object started, else -1 (the robot's last procedure)."""
+        """The explicit id, else the last one this object started, else LAST_MISSION (the robot's last procedure)."""
         if mission_id is not None:
             return mission_id
-        return -1 if last is None else last
+        return LAST_MISSION if last is None else last
 
 
 class AvailabilityComponent:
@@ -628,14 +627,14 @@ class AvailabilityComponent:
         self,
         robot_name: str = "",
         *,
-        timeout: float = 10.0,
-        wait_timeout: float = 5.0,
+        timeout: float = DEFAULT_TIMEOUT,
+        wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         """Bind the component to one robot.
 
         robot_name is the robot's namespace (e.g. rb1_base_a); it replaces {{robotName}} in the names below and is
-        checked here (InvalidRobotName). timeout bounds each service call by default; wait_timeout bounds waiting
-        for a service to appear and for a first message. Both in seconds.
+        checked here (InvalidRobotName). timeout bounds each service call and each wait for a first message by
+        default; wait_timeout bounds waiting for a service to appear. Both in seconds.
         """
         self.robot_name = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
@@ -655,14 +654,14 @@ class AvailabilityComponent:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
         self._sub_availability.close()
 
-    def get_availability_value(self, timeout: float | None = None) -> Status:
+    def get_availability_value(self, *, timeout: float | None = None) -> Status:
         """Availability: Robot state: operation state, current mission, localization, navigation, battery and safety.
 
         The latest robot_local_control_msgs/Status message on /{{robotName}}/robot_local_control/state, waiting at
-        most timeout seconds (by default self.wait_timeout) for the first one. Raises NoMessage when none arrives in
+        most timeout seconds (by default self.timeout) for the first one. Raises NoMessage when none arrives in
         time.
         """
-        return self._sub_availability.latest(self._wait(timeout))
+        return self._sub_availability.latest(self._timeout(timeout))
 
     def on_availability(self, callback: Callable[[Status], None]) -> Callable[[], None]:
         """Call callback with every robot_local_control_msgs/Status message on
@@ -672,15 +671,12 @@ class AvailabilityComponent:
         """
         return self._sub_availability.add_callback(callback)
 
-    def get_value(self, timeout: float | None = None) -> Status:
+    def get_value(self, *, timeout: float | None = None) -> Status:
         """The latest message of this component's only subscribed property (see get_availability_value)."""
-        return self.get_availability_value(timeout)
+        return self.get_availability_value(timeout=timeout)
 
     def _timeout(self, timeout: float | None) -> float:
         return self.timeout if timeout is None else check_timeout(timeout, "timeout")
-
-    def _wait(self, timeout: float | None) -> float:
-        return self.wait_timeout if timeout is None else check_timeout(timeout, "timeout")
 
 
 class PoseMarkerComponent:
@@ -694,14 +690,14 @@ class PoseMarkerComponent:
         self,
         robot_name: str = "",
         *,
-        timeout: float = 10.0,
-        wait_timeout: float = 5.0,
+        timeout: float = DEFAULT_TIMEOUT,
+        wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         """Bind the component to one robot.
 
         robot_name is the robot's namespace (e.g. rb1_base_a); it replaces {{robotName}} in the names below and is
-        checked here (InvalidRobotName). timeout bounds each service call by default; wait_timeout bounds waiting
-        for a service to appear and for a first message. Both in seconds.
+        checked here (InvalidRobotName). timeout bounds each service call and each wait for a first message by
+        default; wait_timeout bounds waiting for a service to appear. Both in seconds.
         """
         self.robot_name = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
@@ -721,14 +717,13 @@ class PoseMarkerComponent:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
         self._sub_poseMarker.close()
 
-    def get_poseMarker_value(self, timeout: float | None = None) -> AlvarMarkers:
+    def get_poseMarker_value(self, *, timeout: float | None = None) -> AlvarMarkers:
         """Pose marker: AR markers the robot currently sees (carts 2-4, door 1); empty when none.
 
         The latest ar_track_alvar_msgs/AlvarMarkers message on /{{robotName}}/ar_pose_marker, waiting at most
-        timeout seconds (by default self.wait_timeout) for the first one. Raises NoMessage when none arrives in
-        time.
+        timeout seconds (by default self.timeout) for the first one. Raises NoMessage when none arrives in time.
         """
-        return self._sub_poseMarker.latest(self._wait(timeout))
+        return self._sub_poseMarker.latest(self._timeout(timeout))
 
     def on_poseMarker(self, callback: Callable[[AlvarMarkers], None]) -> Callable[[], None]:
         """Call callback with every ar_track_alvar_msgs/AlvarMarkers message on /{{robotName}}/ar_pose_marker.
@@ -737,15 +732,12 @@ class PoseMarkerComponent:
         """
         return self._sub_poseMarker.add_callback(callback)
 
-    def get_value(self, timeout: float | None = None) -> AlvarMarkers:
+    def get_value(self, *, timeout: float | None = None) -> AlvarMarkers:
         """The latest message of this component's only subscribed property (see get_poseMarker_value)."""
-        return self.get_poseMarker_value(timeout)
+        return self.get_poseMarker_value(timeout=timeout)
 
     def _timeout(self, timeout: float | None) -> float:
         return self.timeout if timeout is None else check_timeout(timeout, "timeout")
-
-    def _wait(self, timeout: float | None) -> float:
-        return self.wait_timeout if timeout is None else check_timeout(timeout, "timeout")
 
 
 class DoorComponent:
@@ -759,14 +751,14 @@ class DoorComponent:
         self,
         robot_name: str = "",
         *,
-        timeout: float = 10.0,
-        wait_timeout: float = 5.0,
+        timeout: float = DEFAULT_TIMEOUT,
+        wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         """Bind the component to one robot.
 
         robot_name is the robot's namespace (e.g. rb1_base_a); it replaces {{robotName}} in the names below and is
-        checked here (InvalidRobotName). timeout bounds each service call by default; wait_timeout bounds waiting
-        for a service to appear and for a first message. Both in seconds.
+        checked here (InvalidRobotName). timeout bounds each service call and each wait for a first message by
+        default; wait_timeout bounds waiting for a service to appear. Both in seconds.
         """
         self.robot_name = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")

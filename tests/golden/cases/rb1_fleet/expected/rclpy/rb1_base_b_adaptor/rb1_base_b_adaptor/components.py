@@ -26,25 +26,14 @@ from robot_local_control_msgs.srv import (
 )
 from std_msgs.msg import Float64
 
+from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, LAST_MISSION, Started, check_robot_name, check_timeout
 from .convert import (
     to_procedures_msgs_ProcedureHeader,
     to_robot_local_control_msgs_GoTo,
     to_robot_local_control_msgs_Pick,
     to_robot_local_control_msgs_Place,
 )
-from .runtime import (
-    DEFAULT_TIMEOUT,
-    DEFAULT_WAIT_TIMEOUT,
-    LAST_MISSION,
-    ServiceCaller,
-    Started,
-    TopicPublisher,
-    TopicSubscriber,
-    check_namespace,
-    check_timeout,
-    procedure_failure,
-    qos_profile,
-)
+from .runtime import ServiceClient, TopicPublisher, TopicSubscriber, procedure_failure, qos_profile
 
 
 class GoToComponent:
@@ -65,24 +54,24 @@ class GoToComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
         self._last_gotoRun_id: int | None = None
-        self._gotoRun: ServiceCaller[GoToPetition_Request, GoToPetition_Response] = ServiceCaller(
+        self._gotoRun: ServiceClient[GoToPetition_Request, GoToPetition_Response] = ServiceClient(
             node,
             GoToPetition,
             "/rb1_base_b/robot_local_control/NavigationComponent/GoToComponent/add",
             procedure_failure,
         )
-        self._gotoCancel: ServiceCaller[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceCaller(
+        self._gotoCancel: ServiceClient[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceClient(
             node,
             ProcedureQuery,
             "/rb1_base_b/robot_local_control/NavigationComponent/GoToComponent/cancel",
             procedure_failure,
         )
-        self._gotoQuery: ServiceCaller[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceCaller(
+        self._gotoQuery: ServiceClient[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceClient(
             node,
             ProcedureQuery,
             "/rb1_base_b/robot_local_control/NavigationComponent/GoToComponent/query_state",
@@ -347,24 +336,24 @@ class PickComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
         self._last_pickRun_id: int | None = None
-        self._pickRun: ServiceCaller[PickPetition_Request, PickPetition_Response] = ServiceCaller(
+        self._pickRun: ServiceClient[PickPetition_Request, PickPetition_Response] = ServiceClient(
             node,
             PickPetition,
             "/rb1_base_b/robot_local_control/NavigationComponent/PickComponent/add",
             procedure_failure,
         )
-        self._pickCancel: ServiceCaller[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceCaller(
+        self._pickCancel: ServiceClient[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceClient(
             node,
             ProcedureQuery,
             "/rb1_base_b/robot_local_control/NavigationComponent/PickComponent/cancel",
             procedure_failure,
         )
-        self._pickQuery: ServiceCaller[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceCaller(
+        self._pickQuery: ServiceClient[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceClient(
             node,
             ProcedureQuery,
             "/rb1_base_b/robot_local_control/NavigationComponent/PickComponent/query_state",
@@ -629,24 +618,24 @@ class PlaceComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
         self._last_placeRun_id: int | None = None
-        self._placeRun: ServiceCaller[PlacePetition_Request, PlacePetition_Response] = ServiceCaller(
+        self._placeRun: ServiceClient[PlacePetition_Request, PlacePetition_Response] = ServiceClient(
             node,
             PlacePetition,
             "/rb1_base_b/robot_local_control/NavigationComponent/PlaceComponent/add",
             procedure_failure,
         )
-        self._placeCancel: ServiceCaller[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceCaller(
+        self._placeCancel: ServiceClient[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceClient(
             node,
             ProcedureQuery,
             "/rb1_base_b/robot_local_control/NavigationComponent/PlaceComponent/cancel",
             procedure_failure,
         )
-        self._placeQuery: ServiceCaller[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceCaller(
+        self._placeQuery: ServiceClient[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceClient(
             node,
             ProcedureQuery,
             "/rb1_base_b/robot_local_control/NavigationComponent/PlaceComponent/query_state",
@@ -911,7 +900,7 @@ class AvailabilityComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
@@ -994,7 +983,7 @@ class PoseMarkerComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
@@ -1077,7 +1066,7 @@ class DoorComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False

@@ -23,25 +23,21 @@ from robot_local_control_msgs.srv import (
 )
 from std_msgs.msg import Float64
 
+from .common import (
+    DEFAULT_TIMEOUT,
+    DEFAULT_WAIT_TIMEOUT,
+    LAST_MISSION,
+    Started,
+    check_robot_name,
+    check_timeout,
+    in_namespace,
+)
 from .convert import (
     to_procedures_msgs_ProcedureHeader,
     to_robot_local_control_msgs_GoTo,
     to_robot_local_control_msgs_Pick,
 )
-from .runtime import (
-    DEFAULT_TIMEOUT,
-    DEFAULT_WAIT_TIMEOUT,
-    LAST_MISSION,
-    ServiceCaller,
-    Started,
-    TopicPublisher,
-    TopicSubscriber,
-    check_namespace,
-    check_timeout,
-    name_in,
-    procedure_failure,
-    qos_profile,
-)
+from .runtime import ServiceClient, TopicPublisher, TopicSubscriber, procedure_failure, qos_profile
 
 
 class GoToComponent:
@@ -62,27 +58,27 @@ class GoToComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
         self._last_gotoRun_id: int | None = None
-        self._gotoRun: ServiceCaller[GoToPetition_Request, GoToPetition_Response] = ServiceCaller(
+        self._gotoRun: ServiceClient[GoToPetition_Request, GoToPetition_Response] = ServiceClient(
             node,
             GoToPetition,
-            name_in(self._namespace, "robot_local_control/NavigationComponent/GoToComponent/add"),
+            in_namespace("robot_local_control/NavigationComponent/GoToComponent/add", self._namespace),
             procedure_failure,
         )
-        self._gotoCancle: ServiceCaller[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceCaller(
+        self._gotoCancle: ServiceClient[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceClient(
             node,
             ProcedureQuery,
-            name_in(self._namespace, "robot_local_control/NavigationComponent/GoToComponent/cancel"),
+            in_namespace("robot_local_control/NavigationComponent/GoToComponent/cancel", self._namespace),
             procedure_failure,
         )
-        self._gotoQuery: ServiceCaller[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceCaller(
+        self._gotoQuery: ServiceClient[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceClient(
             node,
             ProcedureQuery,
-            name_in(self._namespace, "robot_local_control/NavigationComponent/GoToComponent/query_state"),
+            in_namespace("robot_local_control/NavigationComponent/GoToComponent/query_state", self._namespace),
             procedure_failure,
         )
 
@@ -338,27 +334,27 @@ class PickComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
         self._last_pickRun_id: int | None = None
-        self._pickRun: ServiceCaller[PickPetition_Request, PickPetition_Response] = ServiceCaller(
+        self._pickRun: ServiceClient[PickPetition_Request, PickPetition_Response] = ServiceClient(
             node,
             PickPetition,
-            name_in(self._namespace, "robot_local_control/NavigationComponent/PickComponent/add"),
+            in_namespace("robot_local_control/NavigationComponent/PickComponent/add", self._namespace),
             procedure_failure,
         )
-        self._pickCancle: ServiceCaller[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceCaller(
+        self._pickCancle: ServiceClient[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceClient(
             node,
             ProcedureQuery,
-            name_in(self._namespace, "robot_local_control/NavigationComponent/PickComponent/cancel"),
+            in_namespace("robot_local_control/NavigationComponent/PickComponent/cancel", self._namespace),
             procedure_failure,
         )
-        self._pickQuery: ServiceCaller[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceCaller(
+        self._pickQuery: ServiceClient[ProcedureQuery_Request, ProcedureQuery_Response] = ServiceClient(
             node,
             ProcedureQuery,
-            name_in(self._namespace, "robot_local_control/NavigationComponent/PickComponent/query_state"),
+            in_namespace("robot_local_control/NavigationComponent/PickComponent/query_state", self._namespace),
             procedure_failure,
         )
 
@@ -614,14 +610,14 @@ class AvailibilityComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
         self._availiblity: TopicSubscriber[Status] = TopicSubscriber(
             node,
             Status,
-            name_in(self._namespace, "robot_local_control/state"),
+            in_namespace("robot_local_control/state", self._namespace),
             qos_profile("reliable", "volatile", "keep_last", 10),
         )
 
@@ -695,14 +691,14 @@ class Ar_pose_markerComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
         self._poseMarker: TopicSubscriber[AlvarMarkers] = TopicSubscriber(
             node,
             AlvarMarkers,
-            name_in(self._namespace, "ar_pose_marker"),
+            in_namespace("ar_pose_marker", self._namespace),
             qos_profile("reliable", "volatile", "keep_last", 10),
         )
 
@@ -776,7 +772,7 @@ class DoorComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False

@@ -10,15 +10,8 @@ from collections.abc import Callable
 from rclpy.node import Node
 from sensor_msgs.msg import Imu, Temperature
 
-from .runtime import (
-    DEFAULT_TIMEOUT,
-    DEFAULT_WAIT_TIMEOUT,
-    TopicSubscriber,
-    check_namespace,
-    check_timeout,
-    name_in,
-    qos_profile,
-)
+from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, check_robot_name, check_timeout, in_namespace
+from .runtime import TopicSubscriber, qos_profile
 
 
 class ImuComponent:
@@ -39,14 +32,14 @@ class ImuComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
         self._imu: TopicSubscriber[Imu] = TopicSubscriber(
             node,
             Imu,
-            name_in(self._namespace, "imu/data"),
+            in_namespace("imu/data", self._namespace),
             qos_profile("best_effort", "volatile", "keep_last", 20),
         )
 
@@ -122,14 +115,14 @@ class ThermalComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
         self._temperature: TopicSubscriber[Temperature] = TopicSubscriber(
             node,
             Temperature,
-            name_in(self._namespace, "temperature"),
+            in_namespace("temperature", self._namespace),
             qos_profile("reliable", "volatile", "keep_last", 10),
         )
 

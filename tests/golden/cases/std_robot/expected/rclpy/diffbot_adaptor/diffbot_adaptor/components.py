@@ -24,19 +24,9 @@ from std_srvs.srv import (
     Trigger_Response,
 )
 
+from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, check_robot_name, check_timeout, in_namespace
 from .convert import to_geometry_msgs_Vector3
-from .runtime import (
-    DEFAULT_TIMEOUT,
-    DEFAULT_WAIT_TIMEOUT,
-    ServiceCaller,
-    TopicPublisher,
-    TopicSubscriber,
-    check_namespace,
-    check_timeout,
-    name_in,
-    qos_profile,
-    success_failure,
-)
+from .runtime import ServiceClient, TopicPublisher, TopicSubscriber, qos_profile, success_failure
 
 
 class DriveComponent:
@@ -57,26 +47,26 @@ class DriveComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
-        self._resetOdometry: ServiceCaller[Empty_Request, Empty_Response] = ServiceCaller(
+        self._resetOdometry: ServiceClient[Empty_Request, Empty_Response] = ServiceClient(
             node,
             Empty,
-            name_in(self._namespace, "reset_odometry"),
+            in_namespace("reset_odometry", self._namespace),
             None,
         )
         self._cmdVel: TopicPublisher[Twist] = TopicPublisher(
             node,
             Twist,
-            name_in(self._namespace, "cmd_vel"),
+            in_namespace("cmd_vel", self._namespace),
             qos_profile("reliable", "volatile", "keep_last", 1),
         )
         self._odom: TopicSubscriber[Odometry] = TopicSubscriber(
             node,
             Odometry,
-            name_in(self._namespace, "odom"),
+            in_namespace("odom", self._namespace),
             qos_profile("reliable", "volatile", "keep_last", 10),
         )
 
@@ -239,14 +229,14 @@ class LaserComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
         self._scan: TopicSubscriber[LaserScan] = TopicSubscriber(
             node,
             LaserScan,
-            name_in(self._namespace, "scan"),
+            in_namespace("scan", self._namespace),
             qos_profile("best_effort", "volatile", "keep_last", 5),
         )
 
@@ -322,26 +312,26 @@ class PowerComponent:
         wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         self.node = node
-        self._namespace = check_namespace(robot_name)
+        self._namespace = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
-        self._enableMotors: ServiceCaller[SetBool_Request, SetBool_Response] = ServiceCaller(
+        self._enableMotors: ServiceClient[SetBool_Request, SetBool_Response] = ServiceClient(
             node,
             SetBool,
-            name_in(self._namespace, "enable_motors"),
+            in_namespace("enable_motors", self._namespace),
             success_failure,
         )
-        self._dock: ServiceCaller[Trigger_Request, Trigger_Response] = ServiceCaller(
+        self._dock: ServiceClient[Trigger_Request, Trigger_Response] = ServiceClient(
             node,
             Trigger,
-            name_in(self._namespace, "dock"),
+            in_namespace("dock", self._namespace),
             success_failure,
         )
         self._battery: TopicSubscriber[BatteryState] = TopicSubscriber(
             node,
             BatteryState,
-            name_in(self._namespace, "battery_state"),
+            in_namespace("battery_state", self._namespace),
             qos_profile("reliable", "transient_local", "keep_last", 1),
         )
 

@@ -22,16 +22,15 @@ from robot_local_control_msgs.srv import (
 )
 from std_msgs.msg import Float64
 
-from ._runtime import (
-    ServiceClient,
+from ._runtime import ServiceClient, TopicPublisher, TopicSubscriber, require_node, to_msg
+from .common import (
+    DEFAULT_TIMEOUT,
+    DEFAULT_WAIT_TIMEOUT,
+    LAST_MISSION,
     Started,
-    TopicPublisher,
-    TopicSubscriber,
     check_robot_name,
     check_timeout,
     in_namespace,
-    require_node,
-    to_msg,
 )
 from .errors import CallFailed
 
@@ -55,14 +54,14 @@ class GoToComponent:
         self,
         robot_name: str = "",
         *,
-        timeout: float = 10.0,
-        wait_timeout: float = 5.0,
+        timeout: float = DEFAULT_TIMEOUT,
+        wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         """Bind the component to one robot.
 
         robot_name is the robot's namespace (e.g. rb1_base_a); it replaces {{robotName}} in the names below and is
-        checked here (InvalidRobotName). timeout bounds each service call by default; wait_timeout bounds waiting
-        for a service to appear and for a first message. Both in seconds.
+        checked here (InvalidRobotName). timeout bounds each service call and each wait for a first message by
+        default; wait_timeout bounds waiting for a service to appear. Both in seconds.
         """
         self.robot_name = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
@@ -221,10 +220,10 @@ class GoToComponent:
 
     @staticmethod
     def _mission(mission_id: int | None, last: int | None) -> int:
-        """The explicit id, else the last one this object started, else -1 (the robot's last procedure)."""
+        """The explicit id, else the last one this object started, else LAST_MISSION (the robot's last procedure)."""
         if mission_id is not None:
             return mission_id
-        return -1 if last is None else last
+        return LAST_MISSION if last is None else last
 
 
 class PickComponent:
@@ -238,14 +237,14 @@ class PickComponent:
         self,
         robot_name: str = "",
         *,
-        timeout: float = 10.0,
-        wait_timeout: float = 5.0,
+        timeout: float = DEFAULT_TIMEOUT,
+        wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         """Bind the component to one robot.
 
         robot_name is the robot's namespace (e.g. rb1_base_a); it replaces {{robotName}} in the names below and is
-        checked here (InvalidRobotName). timeout bounds each service call by default; wait_timeout bounds waiting
-        for a service to appear and for a first message. Both in seconds.
+        checked here (InvalidRobotName). timeout bounds each service call and each wait for a first message by
+        default; wait_timeout bounds waiting for a service to appear. Both in seconds.
         """
         self.robot_name = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
@@ -404,10 +403,10 @@ class PickComponent:
 
     @staticmethod
     def _mission(mission_id: int | None, last: int | None) -> int:
-        """The explicit id, else the last one this object started, else -1 (the robot's last procedure)."""
+        """The explicit id, else the last one this object started, else LAST_MISSION (the robot's last procedure)."""
         if mission_id is not None:
             return mission_id
-        return -1 if last is None else last
+        return LAST_MISSION if last is None else last
 
 
 class AvailibilityComponent:
@@ -421,14 +420,14 @@ class AvailibilityComponent:
         self,
         robot_name: str = "",
         *,
-        timeout: float = 10.0,
-        wait_timeout: float = 5.0,
+        timeout: float = DEFAULT_TIMEOUT,
+        wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         """Bind the component to one robot.
 
         robot_name is the robot's namespace (e.g. rb1_base_a); it replaces {{robotName}} in the names below and is
-        checked here (InvalidRobotName). timeout bounds each service call by default; wait_timeout bounds waiting
-        for a service to appear and for a first message. Both in seconds.
+        checked here (InvalidRobotName). timeout bounds each service call and each wait for a first message by
+        default; wait_timeout bounds waiting for a service to appear. Both in seconds.
         """
         self.robot_name = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
@@ -448,12 +447,12 @@ class AvailibilityComponent:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
         self._sub_availiblity.close()
 
-    def get_availiblity_value(self, timeout: float | None = None) -> Status:
+    def get_availiblity_value(self, *, timeout: float | None = None) -> Status:
         """The latest robot_local_control_msgs/Status message on /{{robotName}}/robot_local_control/state, waiting at
-        most timeout seconds (by default self.wait_timeout) for the first one. Raises NoMessage when none arrives in
+        most timeout seconds (by default self.timeout) for the first one. Raises NoMessage when none arrives in
         time.
         """
-        return self._sub_availiblity.latest(self._wait(timeout))
+        return self._sub_availiblity.latest(self._timeout(timeout))
 
     def on_availiblity(self, callback: Callable[[Status], None]) -> Callable[[], None]:
         """Call callback with every robot_local_control_msgs/Status message on
@@ -463,15 +462,12 @@ class AvailibilityComponent:
         """
         return self._sub_availiblity.add_callback(callback)
 
-    def get_value(self, timeout: float | None = None) -> Status:
+    def get_value(self, *, timeout: float | None = None) -> Status:
         """The latest message of this component's only subscribed property (see get_availiblity_value)."""
-        return self.get_availiblity_value(timeout)
+        return self.get_availiblity_value(timeout=timeout)
 
     def _timeout(self, timeout: float | None) -> float:
         return self.timeout if timeout is None else check_timeout(timeout, "timeout")
-
-    def _wait(self, timeout: float | None) -> float:
-        return self.wait_timeout if timeout is None else check_timeout(timeout, "timeout")
 
 
 class Ar_pose_markerComponent:
@@ -485,14 +481,14 @@ class Ar_pose_markerComponent:
         self,
         robot_name: str = "",
         *,
-        timeout: float = 10.0,
-        wait_timeout: float = 5.0,
+        timeout: float = DEFAULT_TIMEOUT,
+        wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         """Bind the component to one robot.
 
         robot_name is the robot's namespace (e.g. rb1_base_a); it replaces {{robotName}} in the names below and is
-        checked here (InvalidRobotName). timeout bounds each service call by default; wait_timeout bounds waiting
-        for a service to appear and for a first message. Both in seconds.
+        checked here (InvalidRobotName). timeout bounds each service call and each wait for a first message by
+        default; wait_timeout bounds waiting for a service to appear. Both in seconds.
         """
         self.robot_name = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
@@ -512,12 +508,11 @@ class Ar_pose_markerComponent:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
         self._sub_poseMarker.close()
 
-    def get_poseMarker_value(self, timeout: float | None = None) -> AlvarMarkers:
+    def get_poseMarker_value(self, *, timeout: float | None = None) -> AlvarMarkers:
         """The latest ar_track_alvar_msgs/AlvarMarkers message on /{{robotName}}/ar_pose_marker, waiting at most
-        timeout seconds (by default self.wait_timeout) for the first one. Raises NoMessage when none arrives in
-        time.
+        timeout seconds (by default self.timeout) for the first one. Raises NoMessage when none arrives in time.
         """
-        return self._sub_poseMarker.latest(self._wait(timeout))
+        return self._sub_poseMarker.latest(self._timeout(timeout))
 
     def on_poseMarker(self, callback: Callable[[AlvarMarkers], None]) -> Callable[[], None]:
         """Call callback with every ar_track_alvar_msgs/AlvarMarkers message on /{{robotName}}/ar_pose_marker.
@@ -526,15 +521,12 @@ class Ar_pose_markerComponent:
         """
         return self._sub_poseMarker.add_callback(callback)
 
-    def get_value(self, timeout: float | None = None) -> AlvarMarkers:
+    def get_value(self, *, timeout: float | None = None) -> AlvarMarkers:
         """The latest message of this component's only subscribed property (see get_poseMarker_value)."""
-        return self.get_poseMarker_value(timeout)
+        return self.get_poseMarker_value(timeout=timeout)
 
     def _timeout(self, timeout: float | None) -> float:
         return self.timeout if timeout is None else check_timeout(timeout, "timeout")
-
-    def _wait(self, timeout: float | None) -> float:
-        return self.wait_timeout if timeout is None else check_timeout(timeout, "timeout")
 
 
 class DoorComponent:
@@ -548,14 +540,14 @@ class DoorComponent:
         self,
         robot_name: str = "",
         *,
-        timeout: float = 10.0,
-        wait_timeout: float = 5.0,
+        timeout: float = DEFAULT_TIMEOUT,
+        wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         """Bind the component to one robot.
 
         robot_name is the robot's namespace (e.g. rb1_base_a); it replaces {{robotName}} in the names below and is
-        checked here (InvalidRobotName). timeout bounds each service call by default; wait_timeout bounds waiting
-        for a service to appear and for a first message. Both in seconds.
+        checked here (InvalidRobotName). timeout bounds each service call and each wait for a first message by
+        default; wait_timeout bounds waiting for a service to appear. Both in seconds.
         """
         self.robot_name = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")

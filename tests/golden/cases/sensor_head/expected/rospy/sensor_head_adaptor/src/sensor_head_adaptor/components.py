@@ -11,7 +11,8 @@ from collections.abc import Callable
 
 from sensor_msgs.msg import Imu, Temperature
 
-from ._runtime import TopicSubscriber, check_robot_name, check_timeout, in_namespace, require_node
+from ._runtime import TopicSubscriber, require_node
+from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, check_robot_name, check_timeout, in_namespace
 
 __all__ = [
     "ImuComponent",
@@ -30,14 +31,14 @@ class ImuComponent:
         self,
         robot_name: str = "",
         *,
-        timeout: float = 10.0,
-        wait_timeout: float = 5.0,
+        timeout: float = DEFAULT_TIMEOUT,
+        wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         """Bind the component to one robot.
 
         robot_name is the robot's namespace (e.g. rb1_base_a); it replaces {{robotName}} in the names below and is
-        checked here (InvalidRobotName). timeout bounds each service call by default; wait_timeout bounds waiting
-        for a service to appear and for a first message. Both in seconds.
+        checked here (InvalidRobotName). timeout bounds each service call and each wait for a first message by
+        default; wait_timeout bounds waiting for a service to appear. Both in seconds.
         """
         self.robot_name = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
@@ -57,13 +58,13 @@ class ImuComponent:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
         self._sub_imu.close()
 
-    def get_imu_value(self, timeout: float | None = None) -> Imu:
+    def get_imu_value(self, *, timeout: float | None = None) -> Imu:
         """IMU: Orientation, angular velocity and linear acceleration of the head.
 
         The latest sensor_msgs/Imu message on /{{robotName}}/imu/data, waiting at most timeout seconds (by default
-        self.wait_timeout) for the first one. Raises NoMessage when none arrives in time.
+        self.timeout) for the first one. Raises NoMessage when none arrives in time.
         """
-        return self._sub_imu.latest(self._wait(timeout))
+        return self._sub_imu.latest(self._timeout(timeout))
 
     def on_imu(self, callback: Callable[[Imu], None]) -> Callable[[], None]:
         """Call callback with every sensor_msgs/Imu message on /{{robotName}}/imu/data.
@@ -72,15 +73,12 @@ class ImuComponent:
         """
         return self._sub_imu.add_callback(callback)
 
-    def get_value(self, timeout: float | None = None) -> Imu:
+    def get_value(self, *, timeout: float | None = None) -> Imu:
         """The latest message of this component's only subscribed property (see get_imu_value)."""
-        return self.get_imu_value(timeout)
+        return self.get_imu_value(timeout=timeout)
 
     def _timeout(self, timeout: float | None) -> float:
         return self.timeout if timeout is None else check_timeout(timeout, "timeout")
-
-    def _wait(self, timeout: float | None) -> float:
-        return self.wait_timeout if timeout is None else check_timeout(timeout, "timeout")
 
 
 class ThermalComponent:
@@ -94,14 +92,14 @@ class ThermalComponent:
         self,
         robot_name: str = "",
         *,
-        timeout: float = 10.0,
-        wait_timeout: float = 5.0,
+        timeout: float = DEFAULT_TIMEOUT,
+        wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         """Bind the component to one robot.
 
         robot_name is the robot's namespace (e.g. rb1_base_a); it replaces {{robotName}} in the names below and is
-        checked here (InvalidRobotName). timeout bounds each service call by default; wait_timeout bounds waiting
-        for a service to appear and for a first message. Both in seconds.
+        checked here (InvalidRobotName). timeout bounds each service call and each wait for a first message by
+        default; wait_timeout bounds waiting for a service to appear. Both in seconds.
         """
         self.robot_name = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
@@ -121,13 +119,13 @@ class ThermalComponent:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
         self._sub_temperature.close()
 
-    def get_temperature_value(self, timeout: float | None = None) -> Temperature:
+    def get_temperature_value(self, *, timeout: float | None = None) -> Temperature:
         """Enclosure temperature: Degrees Celsius; variance 0 when unknown.
 
         The latest sensor_msgs/Temperature message on /{{robotName}}/temperature, waiting at most timeout seconds
-        (by default self.wait_timeout) for the first one. Raises NoMessage when none arrives in time.
+        (by default self.timeout) for the first one. Raises NoMessage when none arrives in time.
         """
-        return self._sub_temperature.latest(self._wait(timeout))
+        return self._sub_temperature.latest(self._timeout(timeout))
 
     def on_temperature(self, callback: Callable[[Temperature], None]) -> Callable[[], None]:
         """Call callback with every sensor_msgs/Temperature message on /{{robotName}}/temperature.
@@ -136,12 +134,9 @@ class ThermalComponent:
         """
         return self._sub_temperature.add_callback(callback)
 
-    def get_value(self, timeout: float | None = None) -> Temperature:
+    def get_value(self, *, timeout: float | None = None) -> Temperature:
         """The latest message of this component's only subscribed property (see get_temperature_value)."""
-        return self.get_temperature_value(timeout)
+        return self.get_temperature_value(timeout=timeout)
 
     def _timeout(self, timeout: float | None) -> float:
         return self.timeout if timeout is None else check_timeout(timeout, "timeout")
-
-    def _wait(self, timeout: float | None) -> float:
-        return self.wait_timeout if timeout is None else check_timeout(timeout, "timeout")

@@ -11,72 +11,29 @@ or timed out is dropped and made anew on the next call.
 from __future__ import annotations
 
 import importlib
-import re
 import select
 import socket
 import struct
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any, Generic, TypeVar, cast
+from typing import TYPE_CHECKING, Any, Generic, TypeVar, cast
 
 import genpy
 import rospy
 import rospy.core
 from rospy.exceptions import TransportException, TransportInitError
 
-from .errors import (
-    CallFailed,
-    CallTimeout,
-    InvalidMessage,
-    InvalidRobotName,
-    NoMessage,
-    NotInitialized,
-    ServiceUnavailable,
-)
+if TYPE_CHECKING:
+    from typing import TypeGuard  # Python 3.10; only in annotations here, which Python 3.8 never evaluates
+
+from .common import Callbacks
+from .errors import CallFailed, CallTimeout, InvalidMessage, NoMessage, NotInitialized, ServiceUnavailable
 
 Req = TypeVar("Req")
 Resp = TypeVar("Resp")
 M = TypeVar("M")
-R = TypeVar("R")
-
-_SEGMENT = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
-
-
-@dataclass(frozen=True)
-class Started(Generic[R]):
-    """What a procedure's run call returns: the mission id the robot assigned, and the robot's response."""
-
-    mission_id: int
-    response: R
-
-
-def check_robot_name(robot_name: str) -> str:
-    """The robot namespace without surrounding slashes; refuses names ROS 1 or ROS 2 would not accept."""
-    if not isinstance(robot_name, str):
-        raise InvalidRobotName(f"robot name must be a string, not {type(robot_name).__name__}")
-    namespace = robot_name.strip("/")
-    if namespace and ("__" in namespace or not all(_SEGMENT.match(part) for part in namespace.split("/"))):
-        raise InvalidRobotName(
-            f"invalid robot name {robot_name!r}: use '/'-separated parts of letters, digits and '_', "
-            "each starting with a letter, without '__'"
-        )
-    return namespace
-
-
-def check_timeout(value: float, what: str) -> float:
-    """A positive, finite number of seconds (a zero or negative bound would make every call fail)."""
-    seconds = float(value)
-    if not 0.0 < seconds < float("inf"):
-        raise ValueError(f"{what} must be a positive number of seconds, not {value!r}")
-    return seconds
-
-
-def in_namespace(path: str, namespace: str) -> str:
-    """A name under the robot namespace, e.g. ('ar_pose_marker', 'rb1_base_a') -> '/rb1_base_a/ar_pose_marker'."""
-    return f"/{namespace}/{path}" if namespace else f"/{path}"
 
 
 def require_node() -> None:
@@ -95,18 +52,14 @@ def to_msg(cls: type[M], value: M | Mapping[str, Any] | None) -> M:
         return cls()
     if isinstance(value, cls):
         return value
-    if isinstance(value, Mapping):
-        return _from_mapping(cls, value)
-    raise InvalidMessage(f"expected {_type_name(cls)} or a mapping of its fields, not {type(value).__name__}")
+    return _from_mapping(cls, _mapping(value, f"{_type_name(cls)} or a mapping of its fields"))
 
 
 def to_msgs(cls: type[M], values: Sequence[M | Mapping[str, Any]] | None) -> list[M]:
     """A list of `cls` messages from a sequence of messages or mappings."""
     if values is None:
         return []
-    if isinstance(values, (str, bytes, Mapping)) or not isinstance(values, Sequence):
-        raise InvalidMessage(f"expected a sequence of {_type_name(cls)}, not {type(values).__name__}")
-    return [to_msg(cls, value) for value in values]
+    return [to_msg(cls, value) for value in _sequence(values, f"a sequence of {_type_name(cls)}")]
 
 
 def to_time(value: genpy.Time | Mapping[str, int] | None) -> genpy.Time:
@@ -123,9 +76,30 @@ def to_list(values: Sequence[Any] | None, length: int = 0, default: Any = 0) -> 
     """A primitive array field: a list copy, `length` defaults when None (fixed arrays) or empty."""
     if values is None:
         return [default] * length
-    if isinstance(values, (str, bytes, Mapping)) or not isinstance(values, Sequence):
-        raise InvalidMessage(f"expected a sequence, not {type(values).__name__}")
-    return list(values)
+    return list(_sequence(values, "a sequence"))
+
+
+def _sequence(value: object, expected: str) -> Sequence[Any]:
+    """`value` if it is a sequence of items, else InvalidMessage (callers may pass anything at run time)."""
+    if not _is_sequence(value):
+        raise InvalidMessage(f"expected {expected}, not {type(value).__name__}")
+    return value
+
+
+def _is_sequence(value: object) -> TypeGuard[Sequence[Any]]:
+    """Whether `value` is a sequence of items: not text, bytes or a mapping."""
+    return isinstance(value, Sequence) and not isinstance(value, (str, bytes, Mapping))
+
+
+def _mapping(value: object, expected: str) -> Mapping[Any, Any]:
+    """`value` if it is a mapping, else InvalidMessage."""
+    if not _is_mapping(value):
+        raise InvalidMessage(f"expected {expected}, not {type(value).__name__}")
+    return value
+
+
+def _is_mapping(value: object) -> TypeGuard[Mapping[Any, Any]]:
+    return isinstance(value, Mapping)
 
 
 _S = TypeVar("_S", genpy.Time, genpy.Duration)
@@ -136,19 +110,18 @@ def _stamp(cls: type[_S], value: _S | Mapping[str, int] | None) -> _S:
         return cls()
     if isinstance(value, cls):
         return value
-    if isinstance(value, Mapping):
-        unknown = set(value) - {"secs", "nsecs", "sec", "nanosec"}
-        if unknown:
-            raise InvalidMessage(f"unknown {cls.__name__.lower()} fields {sorted(unknown)}")
-        return cls(int(value.get("secs", value.get("sec", 0))), int(value.get("nsecs", value.get("nanosec", 0))))
-    raise InvalidMessage(f"expected {cls.__name__} or a mapping with secs/nsecs, not {type(value).__name__}")
+    fields = _mapping(value, f"{cls.__name__} or a mapping with secs/nsecs")
+    unknown = set(fields) - {"secs", "nsecs", "sec", "nanosec"}
+    if unknown:
+        raise InvalidMessage(f"unknown {cls.__name__.lower()} fields {sorted(unknown)}")
+    return cls(int(fields.get("secs", fields.get("sec", 0))), int(fields.get("nsecs", fields.get("nanosec", 0))))
 
 
 def _type_name(cls: type[Any]) -> str:
     return str(getattr(cls, "_type", cls.__name__))
 
 
-def _from_mapping(cls: type[M], fields: Mapping[str, Any]) -> M:
+def _from_mapping(cls: type[M], fields: Mapping[Any, Any]) -> M:
     slots: dict[str, str] = dict(zip(getattr(cls, "__slots__", ()), getattr(cls, "_slot_types", ())))
     values: dict[str, Any] = {}
     for key, value in fields.items():
@@ -320,7 +293,7 @@ class ServiceClient(Generic[Req, Resp]):
         except rospy.ROSInterruptException:
             raise ServiceUnavailable(self.name, "rospy is shutting down") from None
         except rospy.ROSException:
-            raise ServiceUnavailable(self.name, f"not available within {wait:g} s") from None
+            raise ServiceUnavailable(self.name, f"waited {wait:g} s") from None
         proxy = self._proxy
         if proxy is None:
             proxy = rospy.ServiceProxy(self.name, self._service_class, persistent=True)
@@ -405,7 +378,7 @@ class TopicSubscriber(Generic[M]):
         self._queue_size = queue_size
         self._cond = threading.Condition()
         self._latest: M | None = None
-        self._callbacks: list[Callable[[M], None]] = []
+        self._callbacks: Callbacks[M] = Callbacks()
         self._subscriber: Any = None
 
     def register(self) -> None:
@@ -427,9 +400,8 @@ class TopicSubscriber(Generic[M]):
     def _receive(self, msg: M) -> None:
         with self._cond:
             self._latest = msg
-            callbacks = list(self._callbacks)
             self._cond.notify_all()
-        for callback in callbacks:
+        for callback in self._callbacks.current():
             try:
                 callback(msg)
             except Exception as exc:  # one failing callback must not starve the others
@@ -450,15 +422,7 @@ class TopicSubscriber(Generic[M]):
     def add_callback(self, callback: Callable[[M], None]) -> Callable[[], None]:
         """Call `callback` with every message from now on; returns a function that removes it."""
         self.register()
-        with self._cond:
-            self._callbacks.append(callback)
-
-        def remove() -> None:
-            with self._cond:
-                if callback in self._callbacks:
-                    self._callbacks.remove(callback)
-
-        return remove
+        return self._callbacks.add(callback)
 
 
 class TopicPublisher(Generic[M]):

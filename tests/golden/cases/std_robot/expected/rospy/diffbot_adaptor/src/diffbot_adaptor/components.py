@@ -26,16 +26,8 @@ from std_srvs.srv import (
     TriggerResponse,
 )
 
-from ._runtime import (
-    ServiceClient,
-    TopicPublisher,
-    TopicSubscriber,
-    check_robot_name,
-    check_timeout,
-    in_namespace,
-    require_node,
-    to_msg,
-)
+from ._runtime import ServiceClient, TopicPublisher, TopicSubscriber, require_node, to_msg
+from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, check_robot_name, check_timeout, in_namespace
 from .errors import CallFailed
 
 __all__ = [
@@ -56,14 +48,14 @@ class DriveComponent:
         self,
         robot_name: str = "",
         *,
-        timeout: float = 10.0,
-        wait_timeout: float = 5.0,
+        timeout: float = DEFAULT_TIMEOUT,
+        wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         """Bind the component to one robot.
 
         robot_name is the robot's namespace (e.g. rb1_base_a); it replaces {{robotName}} in the names below and is
-        checked here (InvalidRobotName). timeout bounds each service call by default; wait_timeout bounds waiting
-        for a service to appear and for a first message. Both in seconds.
+        checked here (InvalidRobotName). timeout bounds each service call and each wait for a first message by
+        default; wait_timeout bounds waiting for a service to appear. Both in seconds.
         """
         self.robot_name = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
@@ -124,13 +116,13 @@ class DriveComponent:
         response = self._svc_resetOdometry.call(request, self._timeout(timeout), self.wait_timeout)
         return response
 
-    def get_odom_value(self, timeout: float | None = None) -> Odometry:
+    def get_odom_value(self, *, timeout: float | None = None) -> Odometry:
         """Odometry: Wheel odometry: pose in the odom frame and twist in the base frame.
 
         The latest nav_msgs/Odometry message on /{{robotName}}/odom, waiting at most timeout seconds (by default
-        self.wait_timeout) for the first one. Raises NoMessage when none arrives in time.
+        self.timeout) for the first one. Raises NoMessage when none arrives in time.
         """
-        return self._sub_odom.latest(self._wait(timeout))
+        return self._sub_odom.latest(self._timeout(timeout))
 
     def on_odom(self, callback: Callable[[Odometry], None]) -> Callable[[], None]:
         """Call callback with every nav_msgs/Odometry message on /{{robotName}}/odom.
@@ -139,9 +131,9 @@ class DriveComponent:
         """
         return self._sub_odom.add_callback(callback)
 
-    def get_value(self, timeout: float | None = None) -> Odometry:
+    def get_value(self, *, timeout: float | None = None) -> Odometry:
         """The latest message of this component's only subscribed property (see get_odom_value)."""
-        return self.get_odom_value(timeout)
+        return self.get_odom_value(timeout=timeout)
 
     def construct_cmdVel_Msg(
         self,
@@ -169,9 +161,6 @@ class DriveComponent:
     def _timeout(self, timeout: float | None) -> float:
         return self.timeout if timeout is None else check_timeout(timeout, "timeout")
 
-    def _wait(self, timeout: float | None) -> float:
-        return self.wait_timeout if timeout is None else check_timeout(timeout, "timeout")
-
 
 class LaserComponent:
     """The robot's LaserComponent: scan.
@@ -184,14 +173,14 @@ class LaserComponent:
         self,
         robot_name: str = "",
         *,
-        timeout: float = 10.0,
-        wait_timeout: float = 5.0,
+        timeout: float = DEFAULT_TIMEOUT,
+        wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         """Bind the component to one robot.
 
         robot_name is the robot's namespace (e.g. rb1_base_a); it replaces {{robotName}} in the names below and is
-        checked here (InvalidRobotName). timeout bounds each service call by default; wait_timeout bounds waiting
-        for a service to appear and for a first message. Both in seconds.
+        checked here (InvalidRobotName). timeout bounds each service call and each wait for a first message by
+        default; wait_timeout bounds waiting for a service to appear. Both in seconds.
         """
         self.robot_name = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
@@ -211,13 +200,13 @@ class LaserComponent:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
         self._sub_scan.close()
 
-    def get_scan_value(self, timeout: float | None = None) -> LaserScan:
+    def get_scan_value(self, *, timeout: float | None = None) -> LaserScan:
         """Laser scan: One 360 degree sweep of the front laser scanner.
 
         The latest sensor_msgs/LaserScan message on /{{robotName}}/scan, waiting at most timeout seconds (by default
-        self.wait_timeout) for the first one. Raises NoMessage when none arrives in time.
+        self.timeout) for the first one. Raises NoMessage when none arrives in time.
         """
-        return self._sub_scan.latest(self._wait(timeout))
+        return self._sub_scan.latest(self._timeout(timeout))
 
     def on_scan(self, callback: Callable[[LaserScan], None]) -> Callable[[], None]:
         """Call callback with every sensor_msgs/LaserScan message on /{{robotName}}/scan.
@@ -226,15 +215,12 @@ class LaserComponent:
         """
         return self._sub_scan.add_callback(callback)
 
-    def get_value(self, timeout: float | None = None) -> LaserScan:
+    def get_value(self, *, timeout: float | None = None) -> LaserScan:
         """The latest message of this component's only subscribed property (see get_scan_value)."""
-        return self.get_scan_value(timeout)
+        return self.get_scan_value(timeout=timeout)
 
     def _timeout(self, timeout: float | None) -> float:
         return self.timeout if timeout is None else check_timeout(timeout, "timeout")
-
-    def _wait(self, timeout: float | None) -> float:
-        return self.wait_timeout if timeout is None else check_timeout(timeout, "timeout")
 
 
 class PowerComponent:
@@ -248,14 +234,14 @@ class PowerComponent:
         self,
         robot_name: str = "",
         *,
-        timeout: float = 10.0,
-        wait_timeout: float = 5.0,
+        timeout: float = DEFAULT_TIMEOUT,
+        wait_timeout: float = DEFAULT_WAIT_TIMEOUT,
     ) -> None:
         """Bind the component to one robot.
 
         robot_name is the robot's namespace (e.g. rb1_base_a); it replaces {{robotName}} in the names below and is
-        checked here (InvalidRobotName). timeout bounds each service call by default; wait_timeout bounds waiting
-        for a service to appear and for a first message. Both in seconds.
+        checked here (InvalidRobotName). timeout bounds each service call and each wait for a first message by
+        default; wait_timeout bounds waiting for a service to appear. Both in seconds.
         """
         self.robot_name = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
@@ -351,13 +337,13 @@ class PowerComponent:
             raise CallFailed(self._svc_dock.name, response.message, response)
         return response
 
-    def get_battery_value(self, timeout: float | None = None) -> BatteryState:
+    def get_battery_value(self, *, timeout: float | None = None) -> BatteryState:
         """Battery: Battery state; percentage is 0.0-1.0.
 
         The latest sensor_msgs/BatteryState message on /{{robotName}}/battery_state, waiting at most timeout seconds
-        (by default self.wait_timeout) for the first one. Raises NoMessage when none arrives in time.
+        (by default self.timeout) for the first one. Raises NoMessage when none arrives in time.
         """
-        return self._sub_battery.latest(self._wait(timeout))
+        return self._sub_battery.latest(self._timeout(timeout))
 
     def on_battery(self, callback: Callable[[BatteryState], None]) -> Callable[[], None]:
         """Call callback with every sensor_msgs/BatteryState message on /{{robotName}}/battery_state.
@@ -366,12 +352,9 @@ class PowerComponent:
         """
         return self._sub_battery.add_callback(callback)
 
-    def get_value(self, timeout: float | None = None) -> BatteryState:
+    def get_value(self, *, timeout: float | None = None) -> BatteryState:
         """The latest message of this component's only subscribed property (see get_battery_value)."""
-        return self.get_battery_value(timeout)
+        return self.get_battery_value(timeout=timeout)
 
     def _timeout(self, timeout: float | None) -> float:
         return self.timeout if timeout is None else check_timeout(timeout, "timeout")
-
-    def _wait(self, timeout: float | None) -> float:
-        return self.wait_timeout if timeout is None else check_timeout(timeout, "timeout")

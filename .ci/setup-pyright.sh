@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# pyright (pinned, from npm) into .cache/pyright, for the test that type-checks the generated Python adaptors
+# in strict mode. Called by .ci/setup.sh --test; idempotent and quiet. Needs node and npm (Debian: nodejs npm).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+SUDO="${SUDO-}"
+VERSION=1.1.414
+PREFIX=.cache/pyright
+BIN="$PREFIX/node_modules/.bin/pyright"
+
+if ! command -v npm >/dev/null || ! command -v node >/dev/null; then
+  if command -v apt-get >/dev/null; then
+    log="$(mktemp)"
+    if ! { $SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq \
+        --no-install-recommends nodejs npm; } >"$log" 2>&1; then
+      cat "$log" >&2; rm -f "$log"
+      echo "setup-pyright: installing nodejs and npm failed" >&2
+      exit 1
+    fi
+    rm -f "$log"
+  else
+    echo "setup-pyright: no apt-get; install node and npm yourself (the pyright test skips without them)" >&2
+    exit 1
+  fi
+fi
+
+if [ -x "$BIN" ] && [ "$("$BIN" --version 2>/dev/null)" = "pyright $VERSION" ]; then
+  exit 0
+fi
+mkdir -p "$PREFIX"
+log="$(mktemp)"
+if ! npm install --prefix "$PREFIX" --no-audit --no-fund --silent "pyright@$VERSION" >"$log" 2>&1; then
+  cat "$log" >&2; rm -f "$log"
+  echo "setup-pyright: npm install pyright@$VERSION failed" >&2
+  exit 1
+fi
+rm -f "$log"
+[ "$("$BIN" --version)" = "pyright $VERSION" ] || { echo "setup-pyright: $BIN is not pyright $VERSION" >&2; exit 1; }

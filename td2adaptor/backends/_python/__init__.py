@@ -1,0 +1,32 @@
+"""What the two Python backends (rclpy, rospy) share: docstrings, import blocks, reserved names, stub classes.
+
+Not a backend (the registry skips packages whose name starts with `_`). Both generators build their view
+models with these helpers, so the two generated packages wrap, sort and reserve names the same way.
+"""
+
+from __future__ import annotations
+
+from td2adaptor.backends._python.imports import import_block, import_line, member_key
+from td2adaptor.backends._python.names import defined_names, reserved_names
+from td2adaptor.backends._python.runtime import SHARED, common_names, constant, error_classes, shared_source
+from td2adaptor.backends._python.stubs import StubClass, StubField, StubModule
+from td2adaptor.backends._python.text import LINE, docstring, wrap
+
+__all__ = [
+    "LINE",
+    "SHARED",
+    "StubClass",
+    "StubField",
+    "StubModule",
+    "common_names",
+    "constant",
+    "defined_names",
+    "docstring",
+    "error_classes",
+    "import_block",
+    "import_line",
+    "member_key",
+    "reserved_names",
+    "shared_source",
+    "wrap",
+]

@@ -1,0 +1,27 @@
+"""Docstrings of generated Python: TD text wrapped and escaped so that no line outgrows the package's ruff.toml."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+from td2adaptor.generation import textsafe as ts
+
+#: the line length of the generated packages (their ruff.toml)
+LINE = 120
+
+
+def wrap(text: str, width: int, *, collapse: bool = False) -> str:
+    """`text` wrapped to `width` escaped columns; `collapse` joins its lines into one paragraph first."""
+    return "\n".join(ts.wrap_lines(" ".join(text.split()) if collapse else text, width))
+
+
+def docstring(
+    paragraphs: Iterable[str | None], indent: str, *, margin: int = 4, collapse: bool = False, fallback: str = ""
+) -> str:
+    """A docstring literal of the non-empty paragraphs, each wrapped so that, indented and escaped, it fits.
+
+    `margin` is what a line may need besides its text (the quotes of a one-line docstring).
+    """
+    width = LINE - len(indent) - margin
+    blocks = [wrap(p, width, collapse=collapse) for p in paragraphs if p and p.strip()]
+    return ts.py_docstring("\n\n".join(b for b in blocks if b), indent, fallback=fallback)
