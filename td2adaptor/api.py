@@ -30,9 +30,10 @@ def _targets(
     package_name: str | None,
     partial: bool,
     strict: bool,
+    options: Mapping[str, Any] | None,
 ) -> tuple[list[Target], Outcome | None]:
     paths = [] if tds is None else [tds] if isinstance(tds, (str, Path)) else list(tds)
-    options = Options(
+    given = Options(
         backends=tuple(backends or ()),
         output=Path(output) if output is not None else None,
         interfaces=tuple(Path(p) for p in interfaces),
@@ -40,9 +41,10 @@ def _targets(
         package_name=package_name,
         partial=partial,
         strict=strict,
+        options=tuple(sorted((options or {}).items())),
     )
     diags = Diagnostics()
-    found = targets([Path(p) for p in paths], options, diags, config=Path(config) if config is not None else None)
+    found = targets([Path(p) for p in paths], given, diags, config=Path(config) if config is not None else None)
     if found is None:
         return [], Outcome(list(diags))
     return found, None
@@ -61,10 +63,12 @@ def generate(
     force: bool = False,
     config: PathLike | None = None,
     use_cache: bool = True,
+    options: Mapping[str, Any] | None = None,
 ) -> Outcome:
     """Generate adaptors for `tds` (or the project configuration when `tds` is None) and write them.
 
-    Defaults with TDs: every backend, into `generated/`. `Outcome.ok` is False with diagnostics when anything
+    Defaults with TDs: every backend, into `generated/`. `options` are backend options
+    (`{"mros.sequence_capacity": 64}`), as `--option` gives them. `Outcome.ok` is False with diagnostics when anything
     was invalid; then nothing was written.
     """
     found, failed = _targets(
@@ -77,6 +81,7 @@ def generate(
         package_name=package_name,
         partial=partial,
         strict=strict,
+        options=options,
     )
     return failed or _generate(found, force=force, use_cache=use_cache)
 
@@ -93,6 +98,7 @@ def check(
     strict: bool = False,
     config: PathLike | None = None,
     use_cache: bool = True,
+    options: Mapping[str, Any] | None = None,
 ) -> Outcome:
     """Whether the generated code on disk is current (`Outcome.ok`); `Outcome.stale` lists what is not."""
     found, failed = _targets(
@@ -105,5 +111,6 @@ def check(
         package_name=package_name,
         partial=partial,
         strict=strict,
+        options=options,
     )
     return failed or _check(found, use_cache=use_cache)

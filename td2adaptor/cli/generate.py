@@ -29,6 +29,24 @@ if TYPE_CHECKING:
 _OUTPUT_CODES = frozenset({"GEN801", "GEN802", "GEN806"})
 
 
+def _parse_backend_options(
+    _ctx: click.Context, param: click.Parameter, items: tuple[str, ...]
+) -> tuple[tuple[str, Any], ...]:
+    """`--option mros.sequence_capacity=64` items → (key, value) pairs; VALUE is JSON when it parses."""
+    import json
+
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        if not sep or not key.strip():
+            raise click.BadParameter(f"{item!r}: expected BACKEND.NAME=VALUE", param=param)
+        try:
+            out[key.strip()] = json.loads(raw)
+        except ValueError:
+            out[key.strip()] = raw
+    return tuple(sorted(out.items()))
+
+
 def _gen_options(f: Any) -> Any:
     f = click.option(
         "--backend",
@@ -45,6 +63,14 @@ def _gen_options(f: Any) -> Any:
     )(f)
     f = click.option("--package-name", help="Override the ROS package name derived from the Thing title.")(f)
     f = click.option("--partial", is_flag=True, help="Skip what a backend cannot express, with a warning each.")(f)
+    f = click.option(
+        "--option",
+        "backend_options",
+        multiple=True,
+        metavar="BACKEND.NAME=VALUE",
+        callback=_parse_backend_options,
+        help="A backend option, e.g. mros.sequence_capacity=64 (repeatable; JSON values are typed).",
+    )(f)
     f = click.option(
         "--config",
         "config_file",
@@ -66,6 +92,7 @@ def _targets(
     strict: bool,
     config_file: Path | None,
     diags: Diagnostics,
+    backend_options: tuple[tuple[str, Any], ...] = (),
 ) -> list[Target] | None:
     """Targets from the command line, or from the project configuration when no TD is given (the library
     API builds them with the same `targets`, so options override the configuration the same way)."""
@@ -84,6 +111,7 @@ def _targets(
         package_name=package_name,
         partial=partial,
         strict=strict,
+        options=backend_options,
     )
     found = Diagnostics()
     result = targets(list(sources), options, found, config=config_file)
@@ -106,6 +134,7 @@ def gen(
     output: Path | None,
     package_name: str | None,
     partial: bool,
+    backend_options: tuple[tuple[str, Any], ...],
     config_file: Path | None,
     force: bool,
     fail_on_change: bool,
@@ -131,7 +160,18 @@ def gen(
         raise click.BadParameter(problem, param_hint="--backend")
     diags = Diagnostics()
     targets = _targets(
-        sources, backends, output, package_name, partial, interfaces, sets, values_file, strict, config_file, diags
+        sources,
+        backends,
+        output,
+        package_name,
+        partial,
+        interfaces,
+        sets,
+        values_file,
+        strict,
+        config_file,
+        diags,
+        backend_options,
     )
     if targets is None:
         report(list(diags), fmt, label=_label(sources) or "configuration")
@@ -168,6 +208,7 @@ def check(
     output: Path | None,
     package_name: str | None,
     partial: bool,
+    backend_options: tuple[tuple[str, Any], ...],
     config_file: Path | None,
     interfaces: tuple[Path, ...],
     sets: tuple[str, ...],
@@ -184,7 +225,18 @@ def check(
 
     diags = Diagnostics()
     targets = _targets(
-        sources, backends, output, package_name, partial, interfaces, sets, values_file, strict, config_file, diags
+        sources,
+        backends,
+        output,
+        package_name,
+        partial,
+        interfaces,
+        sets,
+        values_file,
+        strict,
+        config_file,
+        diags,
+        backend_options,
     )
     if targets is None:
         report(list(diags), fmt, label=_label(sources) or "configuration")

@@ -43,6 +43,7 @@ def generate_trees(
     package_name: str | None = None,
     strict: bool = False,
     optional: frozenset[str] = frozenset(),
+    backend_options: Sequence[tuple[str, Any]] = (),
 ) -> dict[str, GeneratedTree] | None:
     """Every requested backend's tree, or None when a backend reported an error.
 
@@ -56,7 +57,17 @@ def generate_trees(
             diags.error("GEN800", f"package name {package_name!r} {problem}")
             return None
         model = replace(model, package_name=package_name)
-    options = GenOptions(package_name=package_name, partial=partial)
+    known = backend_registry.available()
+    problems = [key for key, _ in backend_options if key.split(".", 1)[0] not in known or "." not in key]
+    for key in problems:  # options of a known backend that is not generated this time are left alone
+        diags.error(
+            "GEN808",
+            f"option {key!r} names no backend (known: {', '.join(known)})",
+            hint="backend options are <backend>.<name>, e.g. mros.sequence_capacity",
+        )
+    if problems:
+        return None
+    options = GenOptions(package_name=package_name, partial=partial, extra=tuple(backend_options))
     results: list[tuple[str, GeneratedTree, list[Diagnostic]]] = []
     for name in names:
         local = Diagnostics()
@@ -141,6 +152,7 @@ def build(
                 optional=frozenset(n for n in names if n not in target.backends)
                 if "all" in target.backends
                 else frozenset(),
+                backend_options=target.options,
             )
             diags.extend(_locate(local, unit))
             if trees is None:

@@ -11,6 +11,7 @@
     values = { robotName = "rb1_base_a" }     # Thing Model placeholder values (optional)
     package-name = "my_adaptor"               # optional
     partial = true                            # skip what a backend cannot express (e.g. services in mROS)
+    options = { "mros.sequence_capacity" = 16, "mros.capacity.sensor_msgs/msg/LaserScan.ranges" = 720 }
     exclude = ["**/*.tm.json"]                # optional globs
 
 In td2adaptor.toml the same keys live at the top level (`output`, `[[target]]`).
@@ -44,6 +45,7 @@ class Target:
     package_name: str | None = None
     partial: bool = False
     strict: bool = False
+    options: tuple[tuple[str, Any], ...] = ()  # backend options, `<backend>.<name>` = value (GenOptions.extra)
 
 
 @dataclass(frozen=True)
@@ -107,6 +109,7 @@ def load(path: Path, diags: Diagnostics) -> Config | None:
             "partial",
             "strict",
             "exclude",
+            "options",
         }
         for key in raw:
             if key not in known:
@@ -124,6 +127,10 @@ def load(path: Path, diags: Diagnostics) -> Config | None:
             values = {}
         output = raw.get("output", default_output)
         package = raw.get("package-name")
+        backend_options = raw.get("options", {})
+        if not isinstance(backend_options, dict):
+            diags.add("CFG904", _err(), f"{where}: options must be a table", file=name)
+            backend_options = {}
         targets.append(
             Target(
                 tds=tuple(tds),
@@ -136,6 +143,7 @@ def load(path: Path, diags: Diagnostics) -> Config | None:
                 package_name=package if isinstance(package, str) else None,
                 partial=bool(raw.get("partial", False)),
                 strict=bool(raw.get("strict", False)),
+                options=tuple(sorted(backend_options.items())),
             )
         )
     return Config(path, tuple(targets))
@@ -192,6 +200,7 @@ class Options:
     package_name: str | None = None
     partial: bool = False
     strict: bool = False
+    options: tuple[tuple[str, Any], ...] = ()
 
 
 NO_CONFIGURATION = "no TD given and no td2adaptor.toml or [tool.td2adaptor] in pyproject.toml found"
@@ -205,8 +214,8 @@ def targets(
     With TDs: one target built from `options`. Without: the project configuration (`config`, or the one
     found upwards from the working directory), each of its targets with every given option applied on top:
     backends, output and package name replace the configured ones, interfaces are added, placeholder values
-    are merged (the option wins), partial and strict switch on. None (with diagnostics) when there is no
-    configuration or it is invalid (CFG907 for none at all).
+    and backend options are merged (the option wins), partial and strict switch on. None (with diagnostics)
+    when there is no configuration or it is invalid (CFG907 for none at all).
     """
     if tds:
         return [
@@ -219,6 +228,7 @@ def targets(
                 package_name=options.package_name,
                 partial=options.partial,
                 strict=options.strict,
+                options=options.options,
             )
         ]
     path = config or find()
@@ -234,6 +244,8 @@ def targets(
 def _override(target: Target, options: Options) -> Target:
     values = dict(target.values)
     values.update(options.values)
+    backend_options = dict(target.options)
+    backend_options.update(options.options)
     return Target(
         tds=target.tds,
         backends=options.backends or target.backends,
@@ -243,4 +255,5 @@ def _override(target: Target, options: Options) -> Target:
         package_name=options.package_name or target.package_name,
         partial=target.partial or options.partial,
         strict=target.strict or options.strict,
+        options=tuple(sorted(backend_options.items())),
     )

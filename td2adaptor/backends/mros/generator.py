@@ -64,7 +64,7 @@ from td2adaptor.diagnostics.catalogue import meanings
 from td2adaptor.generation import textsafe as ts
 from td2adaptor.generation.backend import GeneratedTree, GenOptions
 from td2adaptor.generation.templating import render, verbatim
-from td2adaptor.model import Component, Model, Role, TopicEndpoint
+from td2adaptor.model import ArrayKind, Component, MessageDef, Model, Role, TopicEndpoint, TypeTable
 
 TEMPLATES = Path(__file__).parent / "templates"
 VERBATIM = Path(__file__).parent / "verbatim"
@@ -186,10 +186,69 @@ class SkippedAction:
     type_name: str
 
 
+#: prefix of the per-field capacity options: `mros.capacity.<pkg>/msg/<Type>.<field>` = bytes or elements
+FIELD_CAPACITY = "mros.capacity."
+
+#: how large well-known unbounded fields of standard messages usually are (elements): a subscriber sized
+#: below this cannot receive what real robots publish (a 0.5-degree laser scan has 720 ranges)
+USUAL_SIZES: dict[tuple[str, str], int] = {
+    ("sensor_msgs/msg/LaserScan", "ranges"): 720,
+    ("sensor_msgs/msg/LaserScan", "intensities"): 720,
+    ("sensor_msgs/msg/Image", "data"): 320 * 240,
+    ("sensor_msgs/msg/CompressedImage", "data"): 16384,
+    ("sensor_msgs/msg/PointCloud2", "data"): 16384,
+    ("nav_msgs/msg/OccupancyGrid", "data"): 10000,
+    ("nav_msgs/msg/Path", "poses"): 100,
+    ("geometry_msgs/msg/PoseArray", "poses"): 100,
+}
+
+
+def _field_capacities(
+    options: GenOptions, table: TypeTable, diags: Diagnostics
+) -> tuple[tuple[tuple[str, str], int], ...]:
+    """The per-field capacities asked for, checked against the message definitions."""
+    out: dict[tuple[str, str], int] = {}
+    for key, raw in options.extra:
+        if not key.startswith(FIELD_CAPACITY):
+            continue
+        owner, _, name = key[len(FIELD_CAPACITY) :].rpartition(".")
+        found = table.get(owner)
+        field = next((f for f in found.fields if f.name == name), None) if isinstance(found, MessageDef) else None
+        if field is None:
+            diags.error(
+                "MROS912",
+                f"mros backend: option {key}: {owner or '?'} has no field {name!r}",
+                hint="write mros.capacity.<pkg>/msg/<Type>.<field>, for a message the application uses",
+            )
+        elif not (field.type.base == "string" and not field.type.string_bound) and not (
+            field.type.array is ArrayKind.SEQUENCE and not field.type.length
+        ):
+            diags.error("MROS912", f"mros backend: option {key}: {owner}.{name} is not an unbounded string or sequence")
+        elif isinstance(raw, bool) or not isinstance(raw, int) or not 0 <= raw <= 1 << 24:
+            diags.error("MROS912", f"mros backend: option {key} must be an integer in 0..{1 << 24}")
+        else:
+            out[(owner, name)] = raw
+    return tuple(sorted(out.items()))
+
+
+def _too_small(table: TypeTable, root: str, caps: Capacities) -> list[tuple[str, str, int, int]]:
+    """Well-known fields reachable from `root` left at the global sequence capacity although that is below
+    their usual size: (type, field, capacity, usual)."""
+    out = []
+    for name in closure(table, [root])[0]:
+        for f in table.message(name).fields:
+            usual = USUAL_SIZES.get((name, f.name))
+            # a capacity set for the field itself is the user's decision; the global default is not
+            if usual is not None and f.type.array is ArrayKind.SEQUENCE and not f.type.length:
+                if caps.of(name, f.name) is None and caps.sequence < usual:
+                    out.append((name, f.name, caps.sequence, usual))
+    return out
+
+
 def _options(options: GenOptions, diags: Diagnostics) -> dict[str, int]:
     values = {name: spec[0] for name, spec in OPTIONS.items()}
     for key, raw in options.extra:
-        if not key.startswith("mros."):
+        if not key.startswith("mros.") or key.startswith(FIELD_CAPACITY):
             continue
         spec = OPTIONS.get(key)
         if spec is None:
@@ -426,7 +485,10 @@ def plan(model: Model, options: GenOptions, diags: Diagnostics) -> Plan | None:
         )
     if bad:
         return None
-    caps = Capacities(opts["mros.string_capacity"], opts["mros.sequence_capacity"])
+    fields = _field_capacities(options, table, diags)
+    if any(d.code == "MROS912" for d in diags):
+        return None
+    caps = Capacities(opts["mros.string_capacity"], opts["mros.sequence_capacity"], fields)
     views = TypeViews(table, roots, caps, diags)
 
     publishers = [t for t in topics if t.role is Role.PUBLISHER]
@@ -444,6 +506,16 @@ def plan(model: Model, options: GenOptions, diags: Diagnostics) -> Plan | None:
                 + f"; with mROS's {PREFIX}-byte prefix it does not fit the largest pool block of {max_block} bytes",
                 t.pointer,
                 hint="raise the option mros.max_pool_block, or lower mros.string_capacity/mros.sequence_capacity",
+            )
+        elif t.role is Role.SUBSCRIBER and (small := _too_small(table, t.type_name, caps)):
+            listed = ", ".join(f"{owner}.{name} ({cap} of usually {usual}+)" for owner, name, cap, usual in small)
+            owner, name, _, usual = small[0]
+            diags.warning(
+                "MROS913",
+                f"mros backend: {t.name!r} ({t.type_name}) is sized below what robots usually publish: {listed}; "
+                "a larger message cannot be received",
+                t.pointer,
+                hint=f"--option {FIELD_CAPACITY}{owner}.{name}={usual} (or the project configuration's options)",
             )
         elif size.unbounded:
             diags.info(

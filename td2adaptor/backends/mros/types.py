@@ -82,10 +82,16 @@ FIRST_MSG_ID = 101  # the range mROS's own generator uses for custom types
 
 @dataclass(frozen=True)
 class Capacities:
-    """Assumed capacities of unbounded strings (bytes) and sequences (elements), for pool sizing."""
+    """Assumed capacities of unbounded strings (bytes) and sequences (elements), for pool sizing; `fields`
+    sets one field's capacity: ((message type, field), bytes of a string field or elements of a sequence)."""
 
     string: int = 64
     sequence: int = 8
+    fields: tuple[tuple[tuple[str, str], int], ...] = ()
+
+    def of(self, owner: str | None, name: str | None) -> int | None:
+        """The capacity set for field `name` of `owner`, if one was."""
+        return next((cap for key, cap in self.fields if key == (owner, name)), None)
 
 
 @dataclass(frozen=True)
@@ -226,7 +232,7 @@ class TypeViews:
 
     # -- sizes -------------------------------------------------------------------------------------------
 
-    def _element_size(self, ftype: FieldType) -> WireSize:
+    def _element_size(self, ftype: FieldType, string_cap: int | None = None) -> WireSize:
         if ftype.is_message:
             return self.size(ftype.base)
         if ftype.base in TIME_TYPES:
@@ -234,24 +240,27 @@ class TypeViews:
         if ftype.base == "string":
             if ftype.string_bound:
                 return WireSize(4, 4 + ftype.string_bound, False, False)
-            return WireSize(4, 4 + self.caps.string, False, True)
+            return WireSize(4, 4 + (self.caps.string if string_cap is None else string_cap), False, True)
         width = PRIMITIVES[ftype.base][1]
         return WireSize(width, width, True, False)
 
-    def field_size(self, ftype: FieldType) -> WireSize:
-        elem = self._element_size(ftype)
+    def field_size(self, ftype: FieldType, owner: str | None = None, name: str | None = None) -> WireSize:
+        """Wire size of a field; `owner`/`name` pick a capacity set for this field (Capacities.fields)."""
+        own = self.caps.of(owner, name)
+        sequence = ftype.array is ArrayKind.SEQUENCE and not ftype.length
+        elem = self._element_size(ftype, None if sequence else own)
         if ftype.array is ArrayKind.NONE:
             return elem
         if ftype.array is ArrayKind.FIXED:
             n = ftype.length
             return WireSize(elem.min * n, elem.max * n, elem.fixed, elem.unbounded)
-        count = ftype.length or self.caps.sequence
+        count = ftype.length or (self.caps.sequence if own is None else own)
         return WireSize(4, 4 + elem.max * count, False, elem.unbounded or not ftype.length)
 
     def size(self, name: str) -> WireSize:
         found = self._sizes.get(name)
         if found is None:
-            parts = [self.field_size(f.type) for f in self.table.message(name).fields]
+            parts = [self.field_size(f.type, name, f.name) for f in self.table.message(name).fields]
             found = WireSize(
                 sum(p.min for p in parts),
                 sum(p.max for p in parts),
