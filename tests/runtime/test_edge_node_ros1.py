@@ -22,7 +22,7 @@ import td2adaptor
 from td2adaptor.backends.rospy import generator as backend
 from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.generation.backend import GenOptions
-from td2adaptor.runtime import LocalBroker, PortCallFailed, PortUnavailable, RuntimeConfig, serve
+from td2adaptor.runtime import LocalBroker, PortCallFailed, PortTimeout, PortUnavailable, RuntimeConfig, serve
 from td2adaptor.runtime.bridge import Ros1Bridge
 from td2adaptor.runtime.genport import Layout
 from tests.conftest import EXAMPLE
@@ -163,7 +163,7 @@ def _group_members(pgid: int) -> list[int]:
 def _alive(port: Any) -> bool:
     try:
         port.query("GoToComponent", "gotoQuery", -1, 2.0)
-    except PortUnavailable:
+    except (PortUnavailable, PortTimeout):  # a bridge still starting may not answer in time yet
         return False
     return True
 
