@@ -29,7 +29,8 @@ import subprocess
 import sys
 import sysconfig
 import tempfile
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -253,9 +254,15 @@ def colcon_build(base: Path, prefixes: list[Path], *, cmake: bool, colcon_home: 
     return base / "install"
 
 
-def build_interfaces(src: Path, cache: Path, *, colcon_home: Path | None = None) -> Path:
-    """The install prefix of the interface packages under `src`, built once per definitions hash."""
-    packages_in(src)  # refuse an empty or missing folder before hashing or locking anything
+def build_interfaces(
+    src: Path, cache: Path, *, colcon_home: Path | None = None, progress: Callable[[str], None] | None = None
+) -> Path:
+    """The install prefix of the interface packages under `src`, built once per definitions hash.
+
+    `progress` hears about a build before it starts and when it is done (half a minute or more): the
+    command line passes it on a terminal only, so CI logs stay quiet.
+    """
+    packages = packages_in(src)  # refuse an empty or missing folder before hashing or locking anything
     key = definitions_hash(src)
     root = cache / key
     done = root / "DONE"
@@ -266,10 +273,16 @@ def build_interfaces(src: Path, cache: Path, *, colcon_home: Path | None = None)
             return root / "install"
         if root.exists():
             shutil.rmtree(root)  # a build that died half-way
+        started = time.monotonic()
+        if progress is not None:
+            names = ", ".join(p.name for p in packages)
+            progress(f"building {names} with CMake (once; cached in {cache}) ...")
         fix_cmake_exports()
         prepare_sources(src, root / "src")
         install = colcon_build(root, [], cmake=True, colcon_home=colcon_home)
         done.write_text("ok\n", encoding="utf-8")
+        if progress is not None:
+            progress(f"built in {time.monotonic() - started:.0f} s")
         return install
 
 
@@ -278,8 +291,12 @@ def main(argv: list[str]) -> int:
     if len(argv) != 2:
         print("usage: python -m td2adaptor.runtime.ros2build INTERFACES CACHE", file=sys.stderr)
         return 2
+
+    def say(message: str) -> None:
+        print(f"ros2build: {message}", file=sys.stderr, flush=True)
+
     try:
-        print(build_interfaces(Path(argv[0]), Path(argv[1])))
+        print(build_interfaces(Path(argv[0]), Path(argv[1]), progress=say if sys.stderr.isatty() else None))
     except BuildError as exc:
         print(f"ros2build: {exc}", file=sys.stderr)
         return 1

@@ -15,7 +15,7 @@ from tests.conftest import EXAMPLE
 
 def _run(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "td2adaptor.runtime.ros2build", *args], capture_output=True, text=True, timeout=60
+        [sys.executable, "-m", "td2adaptor.runtime.ros2build", *args], capture_output=True, text=True, timeout=300
     )
 
 
@@ -45,3 +45,51 @@ def test_a_folder_of_packages_or_one_package() -> None:
     assert packages_in(folder / "procedures_msgs") == [folder / "procedures_msgs"]
     with pytest.raises(BuildError):
         packages_in(folder / "procedures_msgs" / "msg")
+
+
+def _tiny_package(root: Path) -> Path:
+    src = root / "interfaces" / "tiny_msgs"
+    (src / "msg").mkdir(parents=True)
+    (src / "msg" / "Ping.msg").write_text("int32 n\n")
+    (src / "package.xml").write_text(
+        '<?xml version="1.0"?>\n<package format="3">\n  <name>tiny_msgs</name>\n  <version>0.0.1</version>\n'
+        "  <description>a test interface package</description>\n"
+        '  <maintainer email="tests@td2adaptor.invalid">tests</maintainer>\n  <license>Apache-2.0</license>\n'
+        "  <buildtool_depend>ament_cmake</buildtool_depend>\n"
+        "  <buildtool_depend>rosidl_default_generators</buildtool_depend>\n"
+        "  <exec_depend>rosidl_default_runtime</exec_depend>\n"
+        "  <member_of_group>rosidl_interface_packages</member_of_group>\n"
+        "  <export><build_type>ament_cmake</build_type></export>\n</package>\n"
+    )
+    return src.parent
+
+
+def test_a_build_shows_progress_on_a_terminal_and_is_quiet_in_a_log(tmp_path: Path) -> None:
+    pytest.importorskip("rclpy", reason="needs the ROS 2 wheels (bash .ci/setup-ros2.sh)")
+    import os
+    import pty
+
+    src = _tiny_package(tmp_path)
+    leader, follower = pty.openpty()  # stderr on a terminal, as for a user at a shell
+    try:
+        proc = subprocess.run(
+            [sys.executable, "-m", "td2adaptor.runtime.ros2build", str(src), str(tmp_path / "cache")],
+            stdout=subprocess.PIPE,
+            stderr=follower,
+            text=True,
+            timeout=300,
+        )
+        os.close(follower)
+        follower = -1
+        shown = os.read(leader, 65536).decode()
+    finally:
+        if follower >= 0:
+            os.close(follower)
+        os.close(leader)
+    assert proc.returncode == 0, shown
+    assert "ros2build: building tiny_msgs with CMake (once; cached in" in shown and "ros2build: built in" in shown
+    assert Path(proc.stdout.strip(), "share", "tiny_msgs").is_dir()
+    # the same build with stderr not a terminal (a CI log): not a word besides the prefix
+    quiet = _run(str(src), str(tmp_path / "cache-ci"))
+    assert quiet.returncode == 0 and quiet.stderr == "", quiet.stderr
+    assert Path(quiet.stdout.strip(), "share", "tiny_msgs").is_dir()

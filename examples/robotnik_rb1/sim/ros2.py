@@ -215,10 +215,14 @@ def ensure_interfaces(prefixes: Sequence[str]) -> str | None:
 
     repo = Path(__file__).resolve().parents[3]
     src, cache = repo / "examples" / "robotnik_rb1" / "interfaces", repo / ".cache" / "ros2-interfaces"
-    if not (cache / ros2build.definitions_hash(src) / "DONE").is_file():
-        print(f"building the RB-1 interfaces with CMake (once; cached in {cache}) ...", file=sys.stderr, flush=True)
+
+    def say(message: str) -> None:
+        print(f"sim: {message}", file=sys.stderr, flush=True)
+
     try:
-        prefix = ros2build.build_interfaces(src, cache, colcon_home=repo / ".cache" / "colcon-home")
+        prefix = ros2build.build_interfaces(
+            src, cache, colcon_home=repo / ".cache" / "colcon-home", progress=say if sys.stderr.isatty() else None
+        )
     except (ros2build.BuildError, RuntimeError, OSError, ImportError) as exc:
         return f"building the RB-1 interfaces failed: {str(exc)[:2000]}"
     use_prefix(prefix)
