@@ -69,6 +69,17 @@ def test_wheel_installs_and_validates_outside_the_repo(tmp_path: Path) -> None:
     assert (installed / "frontend" / "schemas" / "td-1.1.schema.json").is_file()
     assert (installed / "rostypes" / "interfaces" / "std_srvs" / "srv" / "Trigger.srv").is_file()
     assert (installed / "py.typed").is_file()
+    # the interface-build helper is part of the wheel and works from it (a folder with no package: one line)
+    (work / "empty").mkdir()
+    build = subprocess.run(
+        [str(py), "-m", "td2adaptor.runtime.ros2build", "empty", "cache"],
+        cwd=work,
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=60,
+    )
+    assert build.returncode == 1 and build.stderr.startswith("ros2build: no interface package in empty")
     # the demo needs the source checkout, and says so in one line
     demo = subprocess.run(
         [str(py), "-m", "td2adaptor", "demo", "warehouse"], cwd=work, capture_output=True, text=True, env=env
