@@ -133,7 +133,7 @@ def lower(
         )
         for g in groups
     )
-    return Model(thing, pkg, components, tables["ros1"], tables["ros2"])
+    return Model(thing, pkg, components, tables["ros1"], tables["ros2"], _standard_packages(tables, regs))
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -607,6 +607,16 @@ def _resolve_types(
             if name not in names:
                 diags.warning("ROS426", f"type {name!r} used by the interface definitions is not known for {d}")
     return tables
+
+
+def _standard_packages(tables: Mapping[str, TypeTable], regs: Mapping[str, TypeRegistry]) -> tuple[str, ...]:
+    """Packages of every type the adaptors use that resolves from a standard set in some distro."""
+    found: set[str] = set()
+    for distro, table in tables.items():
+        for name in [*(m.name for m in table.messages), *(s.name for s in table.services)]:
+            if regs[distro].is_standard(name):
+                found.add(name.split("/")[0])
+    return tuple(sorted(found))
 
 
 def _name_standard_packages(endpoints: Sequence[_Endpoint], reg: TypeRegistry, diags: Diagnostics) -> None:

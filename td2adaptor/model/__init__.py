@@ -349,6 +349,9 @@ class Model:
     components: tuple[Component, ...]
     ros1: TypeTable
     ros2: TypeTable
+    #: interface packages the adaptors import that come from the standard sets, not the user's interface
+    #: folders: the robot's software installs them (ROS 2 wheel ros-jazzy-<pkg>, Debian python3-<pkg>)
+    standard_packages: tuple[str, ...] = ()
 
     @property
     def namespaced(self) -> bool:

@@ -409,3 +409,10 @@ def test_a_rosclasses_name_used_twice_is_renamed_with_a_warning(tmp_path: Path) 
     assert renamed.file == str(path) and renamed.line is not None
     (component,) = result.model.components
     assert [t.name for t in component.topics] == ["door", "door2"]
+
+
+def test_the_model_knows_which_interface_packages_are_standard() -> None:
+    rb1 = td2adaptor.compile(EXAMPLE / "td.json", interfaces=[EXAMPLE / "interfaces"]).model
+    assert rb1 is not None and rb1.standard_packages == ("builtin_interfaces", "geometry_msgs", "std_msgs")
+    std = td2adaptor.compile(REPO / "tests" / "golden" / "cases" / "std_robot" / "td.json").model
+    assert std is not None and {"nav_msgs", "sensor_msgs", "std_srvs"} <= set(std.standard_packages)
