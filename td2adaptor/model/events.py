@@ -69,6 +69,9 @@ ERROR_CODES = (
     "call-failed",
     "unsupported",
     "internal",
+    "expired",
+    "from-the-future",
+    "id-reused",
 )
 
 

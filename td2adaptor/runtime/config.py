@@ -46,6 +46,9 @@ class RuntimeConfig:
     keepalive: int = 30
     ros_master_uri: str | None = None  # for the ROS 1 adapter
     ros_domain_id: int | None = None  # for the ROS 2 adapter
+    freshness_window: float = 300.0  # an inbound event older than this (by its `time`) is expired, not run
+    clock_skew: float = 30.0  # tolerated difference between the sender's clock and ours
+    state_dir: str | None = None  # where event ids are remembered (default: the user cache's state/; "" keeps none)
 
     def __post_init__(self) -> None:
         if not ROBOT_ID.match(self.robot) or self.robot == ALL_ROBOTS:
@@ -55,6 +58,8 @@ class RuntimeConfig:
         for name in ("poll_period", "call_timeout", "mission_timeout"):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"{name} must be positive")
+        if not self.freshness_window > 0 or self.clock_skew < 0:
+            raise ConfigError("freshness_window must be positive and clock_skew >= 0")
         if self.property_period < 0 or self.max_query_failures < 1 or self.max_event_bytes < 256:
             raise ConfigError("property_period >= 0, max_query_failures >= 1 and max_event_bytes >= 256 required")
         if not self.topic_root or any(c in self.topic_root for c in "+#\x00") or self.topic_root.startswith("/"):
@@ -71,6 +76,18 @@ class RuntimeConfig:
     @property
     def event_source(self) -> str:
         return self.source or f"td2adaptor/{self.robot}"
+
+    @property
+    def ids_file(self) -> Path | None:
+        """The file that remembers this robot's event ids across restarts; None keeps them in memory only."""
+        if self.state_dir == "":
+            return None
+        if self.state_dir is not None:
+            return Path(self.state_dir) / f"{self.robot}.ids.sqlite3"
+        from td2adaptor.support.cache import cache_dir
+
+        base = cache_dir()
+        return None if base is None else base / "state" / f"{self.robot}.ids.sqlite3"
 
 
 _FIELDS = {f.name: f for f in dataclasses.fields(RuntimeConfig)}

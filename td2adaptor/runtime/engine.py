@@ -11,7 +11,9 @@ Policies (documented in README of the generated events):
   terminal `failed` feedback (`reason: busy`) for its correlation — never queued, never silently dropped;
 * query and cancel use the mission id the robot returned; -1 (the robot's "last one") only when it gave none;
 * every failure of a robot call becomes failure feedback or an error event; nothing ends the process;
-* inbound events with an `id` already seen (QoS 1 redeliveries) are handled once;
+* inbound events are fresh and unique (replay.py): an `id` seen before on the same topic (a QoS 1
+  redelivery) is handled once, on another topic it is answered with an error, and an event older than the
+  freshness window is answered with an error instead of run; ids are remembered across restarts;
 * feedback carries `correlation` (the requester's, else the invoke event's id) and `payload.seq` 1, 2, ...
 """
 
@@ -20,9 +22,9 @@ from __future__ import annotations
 import json
 import logging
 import queue
+import sqlite3
 import threading
 import time
-from collections import OrderedDict
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -35,11 +37,28 @@ from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope, excerpt, salvage
 from td2adaptor.runtime.port import NoValue, PortError, RobotPort, StartResult
 from td2adaptor.runtime.procedures import ProcedureStatus, interpret
+from td2adaptor.runtime.replay import ReplayGuard, Verdict
 
 log = logging.getLogger("td2adaptor.runtime")
 
-_SEEN_IDS = 10_000
 _DEFAULT_MISSION_PATH = ("state", "header", "id")
+
+
+_REFUSALS = {
+    Verdict.EXPIRED: "not run: sent at {time}, more than {window:g} s ago (the freshness window)",
+    Verdict.FUTURE: "not run: sent at {time}, later than this node's clock allows",
+    Verdict.REUSED: "not run: event id {id!r} was already used on another topic",
+}
+
+
+def _guard(config: RuntimeConfig) -> ReplayGuard:
+    """The robot's replay guard: durable where the state directory can be written, else in memory."""
+    path = config.ids_file
+    try:
+        return ReplayGuard(path, window=config.freshness_window, skew=config.clock_skew)
+    except (OSError, sqlite3.Error) as exc:
+        log.warning("event ids kept in memory only (%s: %s): a restart forgets them", path, exc)
+        return ReplayGuard(None, window=config.freshness_window, skew=config.clock_skew)
 
 
 @dataclass
@@ -94,7 +113,7 @@ class Engine:
         self._inbox: queue.Queue[Message | None] = queue.Queue()
         self._active: dict[str, Mission] = {}
         self._last_mission: dict[str, int] = {}
-        self._seen: OrderedDict[str, None] = OrderedDict()
+        self.guard = _guard(config)
         self._stopping = threading.Event()
         self._threads: list[threading.Thread] = []
         self._missions: set[threading.Thread] = set()
@@ -143,6 +162,7 @@ class Engine:
         except BusError as exc:
             log.warning("could not publish the offline status: %s", exc)
         self.bus.close()
+        self.guard.close()
 
     def idle(self) -> bool:
         """No queued event and no mission in progress (tests, benchmarks)."""
@@ -246,15 +266,25 @@ class Engine:
             )
             return
         event_id = event.get("id")
-        if isinstance(event_id, str):
-            with self._lock:
-                if event_id in self._seen:
-                    self.stats["duplicates"] = self.stats.get("duplicates", 0) + 1
-                    log.info("duplicate event %s on %s ignored", event_id, msg.topic)
-                    return
-                self._seen[event_id] = None
-                if len(self._seen) > _SEEN_IDS:
-                    self._seen.popitem(last=False)
+        sent = event.get("time")
+        verdict = self.guard.check(
+            event_id if isinstance(event_id, str) else None, msg.topic, sent if isinstance(sent, str) else None
+        )
+        if verdict is Verdict.DUPLICATE:
+            self._count("duplicates")
+            log.info("duplicate event %s on %s ignored", event_id, msg.topic)
+            return
+        if verdict is not Verdict.NEW:
+            self._count("refused")
+            self._error(
+                verdict.value,
+                _REFUSALS[verdict].format(id=event_id, time=sent, window=self.config.freshness_window),
+                topic=msg.topic,
+                affordance=spec.affordance,
+                correlation=event.get("correlation") or (event_id if isinstance(event_id, str) else None),
+                mission=event.get("mission") if isinstance(event.get("mission"), int) else None,
+            )
+            return
         component = self.model.component(spec.component or "")
         assert spec.affordance is not None
         procedure = component.procedure_of(spec.affordance)

@@ -102,7 +102,9 @@ class EdgeNode:
 
     def describe(self) -> str:
         robots = ", ".join(f"{c.robot} (namespace {c.ros_namespace or '/'})" for c in self.configs)
-        bus = self.configs[0].bus
+        from td2adaptor.runtime.security import redact_url
+
+        bus = redact_url(self.configs[0].bus)
         how = self.link.description if self.link is not None else f"ROS {self.options.ros}"
         return f"serving {robots} on {bus} via {how}"
 

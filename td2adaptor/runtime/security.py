@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import ipaddress
 import os
+import re
 import socket
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -54,25 +55,40 @@ class ConnectionSecurity:
     schemes: tuple[str, ...] = ()
 
 
+_USERINFO = re.compile(r"^([A-Za-z][A-Za-z0-9+.-]*://)[^/?#]*@")
+
+
+def redact_url(url: str) -> str:
+    """`url` fit for a message: any `user:password@` replaced by `***@` (messages end up in logs)."""
+    return _USERINFO.sub(r"\1***@", url)
+
+
 def parse_broker_url(url: str) -> BrokerAddress:
-    """`mqtt://host[:port]` or `mqtts://host[:port]` (default ports 1883 / 8883); no credentials in URLs."""
-    parts = urlsplit(url)
+    """`mqtt://host[:port]` or `mqtts://host[:port]` (default ports 1883 / 8883); no credentials in URLs.
+
+    Every message names the URL redacted (`redact_url`): the one that refuses credentials in a URL must not
+    print them either."""
+    shown = redact_url(url)
+    try:
+        parts = urlsplit(url)
+    except ValueError as exc:
+        raise SecurityError(f"bus URL {shown!r}: {exc}") from None
     if parts.scheme not in ("mqtt", "mqtts", "tcp", "ssl"):
-        raise SecurityError(f"bus URL {url!r}: use mqtt://host:port, mqtts://host:port or 'local'")
+        raise SecurityError(f"bus URL {shown!r}: use mqtt://host:port, mqtts://host:port or 'local'")
     if parts.username or parts.password:
         raise SecurityError(
-            f"bus URL {url!r} carries credentials: give them in the configuration or in {ENV_USERNAME} / "
+            f"bus URL {shown!r} carries credentials: give them in the configuration or in {ENV_USERNAME} / "
             f"{ENV_PASSWORD} instead, so they do not show up in process lists and logs"
         )
     if not parts.hostname:
-        raise SecurityError(f"bus URL {url!r} has no host")
+        raise SecurityError(f"bus URL {shown!r} has no host")
     if parts.path not in ("", "/") or parts.query or parts.fragment:
-        raise SecurityError(f"bus URL {url!r}: only scheme, host and port are meaningful")
+        raise SecurityError(f"bus URL {shown!r}: only scheme, host and port are meaningful")
     tls = parts.scheme in ("mqtts", "ssl")
     try:
         port = parts.port or (8883 if tls else 1883)
     except ValueError as exc:
-        raise SecurityError(f"bus URL {url!r}: {exc}") from None
+        raise SecurityError(f"bus URL {shown!r}: {exc}") from None
     return BrokerAddress(parts.hostname, port, tls)
 
 

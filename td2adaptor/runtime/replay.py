@@ -1,0 +1,112 @@
+"""Commands are fresh and unique: the freshness window on an event's `time`, and event ids remembered durably.
+
+An MQTT broker delivers a QoS 1 message at least once, and a persistent session keeps what was published
+while the node was away; a recorded command can also be published again by anyone allowed to publish. So:
+
+* an event whose `time` is older than `freshness_window` (plus `clock_skew`), or more than `clock_skew` in
+  the future, is answered with an error event and not run (`expired` / `from-the-future`);
+* an event id is remembered for as long as an event carrying it could still be fresh, in a small SQLite file
+  per robot (so a restart forgets nothing that could still be replayed): the same id on the same topic is a
+  redelivery and handled once; the same id on another topic is answered with an error (`id-reused`).
+
+The store is bounded by the window, not by a count: ids older than the window are dropped as they age out.
+Events without `time` are accepted and remembered for the window from their arrival.
+"""
+
+from __future__ import annotations
+
+import re
+import sqlite3
+import threading
+import time
+from collections.abc import Callable
+from datetime import datetime, timezone
+from enum import Enum
+from pathlib import Path
+
+_RFC3339 = re.compile(r"^(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d(?:\.\d+)?)(Z|[+-]\d\d:\d\d)$", re.IGNORECASE)
+
+
+class Verdict(str, Enum):
+    NEW = "new"
+    DUPLICATE = "duplicate"  # the same id on the same topic: a redelivery, handled once
+    REUSED = "id-reused"  # the same id on another topic: answered with an error
+    EXPIRED = "expired"
+    FUTURE = "from-the-future"
+
+
+def parse_time(text: str) -> float | None:
+    """Seconds since the epoch of an RFC 3339 time, or None when it is not one."""
+    match = _RFC3339.match(text)
+    if match is None:
+        return None
+    zone = "+00:00" if match[2].upper() == "Z" else match[2]
+    try:
+        return datetime.fromisoformat(match[1] + zone).timestamp()
+    except ValueError:
+        return None
+
+
+class ReplayGuard:
+    """Decides whether an inbound event may run: fresh, and its id not seen (see the module docstring)."""
+
+    def __init__(
+        self,
+        path: Path | None,
+        *,
+        window: float,
+        skew: float,
+        clock: Callable[[], float] = time.time,
+    ) -> None:
+        self.window = window
+        self.skew = skew
+        self.clock = clock
+        self.durable = path is not None
+        self._lock = threading.Lock()
+        target = ":memory:"
+        if path is not None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            target = str(path)
+        self._db = sqlite3.connect(target, check_same_thread=False, isolation_level=None)
+        self._db.execute("PRAGMA journal_mode=WAL")
+        self._db.execute("PRAGMA synchronous=NORMAL")
+        self._db.execute("CREATE TABLE IF NOT EXISTS seen (id TEXT PRIMARY KEY, topic TEXT NOT NULL, until REAL)")
+        self._next_prune = 0.0
+
+    def check(self, event_id: str | None, topic: str, sent: str | None) -> Verdict:
+        """The verdict for an event; a NEW id is remembered until it could no longer be fresh."""
+        now = self.clock()
+        stamp = parse_time(sent) if sent is not None else None
+        if stamp is not None:
+            if stamp < now - self.window - self.skew:
+                return Verdict.EXPIRED
+            if stamp > now + self.skew:
+                return Verdict.FUTURE
+        if event_id is None:
+            return Verdict.NEW
+        until = (stamp if stamp is not None else now) + self.window + self.skew
+        with self._lock:
+            self._prune(now)
+            row = self._db.execute("SELECT topic FROM seen WHERE id = ?", (event_id,)).fetchone()
+            if row is not None:
+                return Verdict.DUPLICATE if row[0] == topic else Verdict.REUSED
+            self._db.execute("INSERT INTO seen (id, topic, until) VALUES (?, ?, ?)", (event_id, topic, until))
+        return Verdict.NEW
+
+    def _prune(self, now: float) -> None:
+        if now >= self._next_prune:
+            self._db.execute("DELETE FROM seen WHERE until < ?", (now,))
+            self._next_prune = now + min(60.0, self.window / 10 or 1.0)
+
+    def __len__(self) -> int:
+        with self._lock:
+            return int(self._db.execute("SELECT COUNT(*) FROM seen").fetchone()[0])
+
+    def close(self) -> None:
+        with self._lock:
+            self._db.close()
+
+
+def now_text(clock: Callable[[], float] = time.time) -> str:
+    """The current time as RFC 3339 (UTC), as events carry it."""
+    return datetime.fromtimestamp(clock(), tz=timezone.utc).isoformat().replace("+00:00", "Z")

@@ -1,0 +1,106 @@
+"""Commands are fresh and unique (issue 16, findings 3-5): a stale command is answered, not run; an id is
+handled once however many events come between and across a restart; an id reused on another topic is
+answered with an error."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+from td2adaptor.runtime import LocalBroker, RuntimeConfig, serve
+from td2adaptor.runtime.replay import ReplayGuard, Verdict, now_text, parse_time
+from td2adaptor.runtime.simport import SimPort
+from tests.runtime.rb1 import GOAL, LocalApp, check_outbound, rb1_model, sim, terminal
+
+ROBOT = "rb1_base_a"
+GOTO = f"td2adaptor/{ROBOT}/GoToComponent/gotoRun"
+QUERY = f"td2adaptor/{ROBOT}/GoToComponent/gotoQuery"
+
+
+class Clock:
+    def __init__(self, now: float) -> None:
+        self.now = now
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_the_guard_decides_by_time_id_and_topic(tmp_path: Path) -> None:
+    clock = Clock(parse_time("2026-11-23T12:00:00Z") or 0.0)
+    guard = ReplayGuard(tmp_path / "ids.sqlite3", window=300, skew=30, clock=clock)
+    assert guard.check("a", "t/1", "2026-11-23T11:59:00Z") is Verdict.NEW
+    assert guard.check("a", "t/1", "2026-11-23T11:59:00Z") is Verdict.DUPLICATE
+    assert guard.check("a", "t/2", "2026-11-23T11:59:00Z") is Verdict.REUSED
+    assert guard.check("old", "t/1", "2001-01-01T00:00:00Z") is Verdict.EXPIRED
+    assert guard.check("late", "t/1", "2026-11-23T11:54:31Z") is Verdict.NEW  # 329 s: inside window + skew
+    assert guard.check("ahead", "t/1", "2026-11-23T12:00:29+00:00") is Verdict.NEW  # within the skew
+    assert guard.check("future", "t/1", "2026-11-23T13:00:00+01:00") is Verdict.NEW  # the same instant
+    assert guard.check("future2", "t/1", "2026-11-23T12:01:00Z") is Verdict.FUTURE
+    assert guard.check(None, "t/1", None) is Verdict.NEW
+    # durable: a new guard on the same file (a restart) knows the ids
+    guard.close()
+    again = ReplayGuard(tmp_path / "ids.sqlite3", window=300, skew=30, clock=clock)
+    assert again.check("a", "t/1", "2026-11-23T11:59:00Z") is Verdict.DUPLICATE
+    # bounded by the window, not a count: once every remembered id is too old to be fresh, it is dropped
+    clock.now += 3600
+    assert again.check("b", "t/1", None) is Verdict.NEW
+    assert len(again) == 1
+    again.close()
+
+
+def test_many_events_do_not_push_an_id_out_while_it_could_be_fresh(tmp_path: Path) -> None:
+    guard = ReplayGuard(None, window=300, skew=30)
+    sent = now_text()
+    assert guard.check("replayed", "t/x", sent) is Verdict.NEW
+    for i in range(10_050):
+        assert guard.check(f"other-{i}", "t/x", sent) is Verdict.NEW
+    assert guard.check("replayed", "t/x", sent) is Verdict.DUPLICATE
+
+
+def _config(state: Path, **kw: Any) -> RuntimeConfig:
+    base: dict[str, Any] = {"robot": ROBOT, "poll_period": 0.02, "property_period": 0, "call_timeout": 1.0}
+    return RuntimeConfig(**{**base, "state_dir": str(state), **kw})
+
+
+def test_a_stale_command_is_answered_and_the_robot_does_not_move(tmp_path: Path) -> None:
+    broker, model, robot = LocalBroker(), rb1_model(), sim(0.1)
+    app = LocalApp(broker)
+    engine = serve(model, SimPort(model, robot), _config(tmp_path), broker=broker)
+    try:
+        app.send(GOTO, {"id": "stale", "correlation": "c1", "time": "2001-01-01T00:00:00Z", "payload": GOAL})
+        app.wait(lambda ev: bool(app.of("error", "c1")))
+        (error,) = app.of("error", "c1")
+        assert error["payload"]["code"] == "expired" and "freshness window" in error["payload"]["message"]
+        time.sleep(0.2)
+        assert (robot.x, robot.y) == (0.0, 0.0) and not app.of("feedback", "c1")
+    finally:
+        engine.stop()
+    check_outbound(app.events)
+
+
+def test_a_replay_after_a_restart_runs_once_and_a_reused_id_is_answered(tmp_path: Path) -> None:
+    broker, model, robot = LocalBroker(), rb1_model(), sim(0.05)
+    app = LocalApp(broker)
+    invoke = {"id": "once", "correlation": "c2", "time": now_text(), "payload": GOAL}
+    engine = serve(model, SimPort(model, robot), _config(tmp_path), broker=broker)
+    try:
+        app.send(GOTO, invoke)
+        app.wait(terminal("feedback", "c2"))
+    finally:
+        engine.stop()
+    runs = len(app.of("feedback", "c2"))
+    # the node restarts (same state directory) and the broker delivers the same invoke again, byte for byte
+    engine = serve(model, SimPort(model, robot), _config(tmp_path), broker=broker)
+    try:
+        app.send(GOTO, invoke)
+        app.send(QUERY, {"id": "once", "correlation": "c3", "time": now_text()})
+        app.wait(lambda ev: bool(app.of("error", "c3")))
+        (error,) = app.of("error", "c3")
+        assert error["payload"]["code"] == "id-reused" and "'once'" in error["payload"]["message"]
+        time.sleep(0.2)
+        assert len(app.of("feedback", "c2")) == runs  # no second mission
+        assert engine.stats.get("duplicates") == 1
+    finally:
+        engine.stop()
+    check_outbound(app.events)

@@ -1,0 +1,109 @@
+"""No secret in any output (issue 16, finding 1): every failure path that handles credentials — the bus URL,
+the configuration file, the environment, a broker that refuses them, one that is not there, a bad setting
+beside them — is swept for the secret, at the most talkative log level."""
+
+from __future__ import annotations
+
+import logging
+import os
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from td2adaptor.runtime.security import redact_url
+from tests.conftest import EXAMPLE, REPO
+from tests.runtime.broker import Mosquitto, free_port
+
+SECRET = "S3cr3t-Pa55w0rd"
+BASIC = {"basic_sc": {"scheme": "basic"}}
+
+
+@pytest.fixture
+def basic_td(tmp_path: Path) -> Path:
+    import json
+
+    td = json.loads((EXAMPLE / "td.json").read_text())
+    td["securityDefinitions"], td["security"] = BASIC, ["basic_sc"]
+    path = tmp_path / "td.json"
+    path.write_text(json.dumps(td))
+    return path
+
+
+@pytest.fixture
+def broker(tmp_path: Path) -> Iterator[Mosquitto]:
+    b = Mosquitto(tmp_path / "broker", users={"edge": "the-right-one"})
+    b.start()
+    yield b
+    b.stop()
+
+
+def _run(td: Path, *args: str, env: dict[str, str] | None = None) -> str:
+    environ = {k: v for k, v in os.environ.items() if not k.startswith("TD2ADAPTOR_MQTT")}
+    environ.update(env or {})
+    proc = subprocess.run(
+        [sys.executable, "-m", "td2adaptor", "run", str(td), "-I", str(EXAMPLE / "interfaces"), "--robot", "r1"]
+        + ["--log-level", "debug", *args],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        env=environ,
+        timeout=60,
+    )
+    out = proc.stdout + proc.stderr
+    assert proc.returncode != 0, out  # every case here is a failure path
+    assert "Traceback" not in out, out
+    return out
+
+
+def test_redact_url() -> None:
+    assert redact_url(f"mqtt://edge:{SECRET}@host:1883") == "mqtt://***@host:1883"
+    assert redact_url(f"mqtts://{SECRET}@host") == "mqtts://***@host"
+    assert redact_url("mqtt://host:1883") == "mqtt://host:1883"
+
+
+def test_no_secret_in_any_failure_output_of_the_command(basic_td: Path, broker: Mosquitto, tmp_path: Path) -> None:
+    config = tmp_path / "fleet.yaml"
+    config.write_text(f"bus: {broker.url}\nusername: edge\npassword: {SECRET}\n")
+    bad_setting = tmp_path / "bad.yaml"
+    bad_setting.write_text(f"bus: {broker.url}\nusername: edge\npassword: {SECRET}\npoll_period: -1\n")
+    env = {"TD2ADAPTOR_MQTT_USERNAME": "edge", "TD2ADAPTOR_MQTT_PASSWORD": SECRET}
+    cases = {
+        "credentials in the bus URL": _run(basic_td, "--bus", f"mqtt://edge:{SECRET}@127.0.0.1:{broker.port}"),
+        "a URL password only": _run(basic_td, "--bus", f"mqtt://{SECRET}@127.0.0.1:{broker.port}"),
+        "a malformed URL with a password": _run(basic_td, "--bus", f"mqtt://edge:{SECRET}@[::1"),
+        "a configuration file (then no adaptor package)": _run(basic_td, "--config", str(config)),
+        "a bad setting beside the password": _run(basic_td, "--config", str(bad_setting)),
+        "the environment (then no adaptor package)": _run(basic_td, "--bus", broker.url, env=env),
+    }
+    for what, out in cases.items():
+        assert SECRET not in out, f"{what}:\n{out}"
+        assert out.strip(), what  # each says why it stopped
+    assert (
+        "carries credentials" in cases["credentials in the bus URL"] and "***@" in cases["credentials in the bus URL"]
+    )
+    assert "poll_period" in cases["a bad setting beside the password"]
+
+
+def test_no_secret_when_the_broker_refuses_or_is_not_there(
+    broker: Mosquitto, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    from td2adaptor.runtime import BusError, RuntimeConfig, open_bus
+    from tests.runtime.rb1 import td_with_security
+
+    model = td_with_security(tmp_path, BASIC)
+    caplog.set_level(logging.DEBUG)  # paho's and ours, everything
+    closed = f"mqtt://127.0.0.1:{free_port()}"
+    said = []
+    for url in (broker.url, closed):
+        config = RuntimeConfig(robot="r1", bus=url, username="edge", password=SECRET)
+        assert SECRET not in repr(config)
+        with pytest.raises(BusError) as failure:
+            bus = open_bus(config, model, env={})
+            bus.connect()
+        said.append(str(failure.value))
+        assert SECRET not in str(failure.value) and SECRET not in repr(failure.value)
+    assert "refused user 'edge'" in said[0] and "127.0.0.1" in said[1]  # each says why, in words
+    assert SECRET not in caplog.text
