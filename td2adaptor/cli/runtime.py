@@ -65,6 +65,12 @@ if TYPE_CHECKING:
 @click.option("--property-period", type=float, help="Seconds between property events (0: none).")
 @click.option("--allow-insecure", is_flag=True, default=None, help="Allow nosec/plain connections to remote brokers.")
 @click.option(
+    "--allow-anonymous-broker",
+    is_flag=True,
+    default=None,
+    help="Run although the TD requires authentication and the broker accepts anonymous clients.",
+)
+@click.option(
     "--log-level",
     type=click.Choice(["debug", "info", "warning", "error"]),
     default="info",
@@ -96,6 +102,7 @@ def run(
     call_timeout: float | None,
     property_period: float | None,
     allow_insecure: bool | None,
+    allow_anonymous_broker: bool | None,
     log_level: str,
 ) -> None:
     """Run the edge node of a robot (or a fleet): bus events in, ROS calls out, feedback back.
@@ -131,6 +138,7 @@ def run(
         "call_timeout": call_timeout,
         "property_period": property_period,
         "allow_insecure": allow_insecure,
+        "allow_anonymous_broker": allow_anonymous_broker,
     }
     try:
         configs = load_fleet(config_file, overrides=overrides)

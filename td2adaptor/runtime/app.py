@@ -13,6 +13,7 @@ from td2adaptor.runtime.port import RobotPort
 from td2adaptor.runtime.security import (
     BrokerAddress,
     ConnectionSecurity,
+    SecurityError,
     TlsOptions,
     parse_broker_url,
     plan_security,
@@ -60,6 +61,16 @@ def open_bus(
     from td2adaptor.runtime.mqttbus import MqttBus  # paho only when it is used
 
     address, security = bus_security(config, model, env=env)
+    if security.username and not config.allow_anonymous_broker:
+        from td2adaptor.runtime.mqttbus import accepts_anonymous
+
+        if accepts_anonymous(address, security.tls):
+            raise SecurityError(
+                f"the MQTT broker at {address} accepts clients without credentials, although the Thing "
+                "Description requires authentication: anyone who reaches it could command the robot or forge "
+                "its feedback. Configure the broker to refuse anonymous clients (mosquitto: allow_anonymous "
+                "false; see docs/security.md), or run anyway with --allow-anonymous-broker"
+            )
     return MqttBus(
         address,
         security,

@@ -42,6 +42,7 @@ class RuntimeConfig:
     tls_cert_file: str | None = None
     tls_key_file: str | None = None
     allow_insecure: bool = False
+    allow_anonymous_broker: bool = False  # run although the TD requires authentication and the broker does not
     session_expiry: int = 3600
     keepalive: int = 30
     ros_master_uri: str | None = None  # for the ROS 1 adapter

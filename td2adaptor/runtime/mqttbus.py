@@ -9,6 +9,7 @@ The will (the retained `offline` status) is published by the broker when the con
 from __future__ import annotations
 
 import logging
+import os
 import socket
 import ssl
 import threading
@@ -285,3 +286,26 @@ class MqttBus:
         client.disconnect()  # a normal disconnect: the broker drops the will
         client.loop_stop()
         self._connected = False
+
+
+def accepts_anonymous(address: BrokerAddress, tls: TlsOptions | None, *, timeout: float = 5.0) -> bool:
+    """Whether the broker lets a client connect without credentials (with the same TLS settings).
+
+    A TD that requires authentication is only kept if the broker enforces it: otherwise anyone who can reach
+    the broker can command the robot or forge its feedback. An unreachable broker counts as refusing here;
+    the node's own connection reports it.
+    """
+    probe = MqttBus(
+        address,
+        ConnectionSecurity(None, None, tls, ()),
+        client_id=f"td2adaptor-probe-{os.urandom(4).hex()}",
+        clean_start=True,
+        session_expiry=0,
+        connect_timeout=timeout,
+    )
+    try:
+        probe.connect()
+    except BusError:
+        return False
+    probe.close()
+    return True

@@ -32,7 +32,12 @@ class Mosquitto:
     """One broker process; `restart()` keeps its port and its persisted sessions."""
 
     def __init__(
-        self, workdir: Path, *, users: dict[str, str] | None = None, tls: tuple[Path, Path, Path] | None = None
+        self,
+        workdir: Path,
+        *,
+        users: dict[str, str] | None = None,
+        tls: tuple[Path, Path, Path] | None = None,
+        anonymous: bool | None = None,
     ) -> None:
         self.dir = workdir
         self.dir.mkdir(parents=True, exist_ok=True)
@@ -63,7 +68,7 @@ class Mosquitto:
             passwd.touch(mode=0o600)
             for name, password in users.items():
                 subprocess.run(["mosquitto_passwd", "-b", str(passwd), name, password], check=True, capture_output=True)
-            lines += ["allow_anonymous false", f"password_file {passwd}"]
+            lines += [f"allow_anonymous {'true' if anonymous else 'false'}", f"password_file {passwd}"]
         self.conf.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
     @property

@@ -207,3 +207,24 @@ def test_a_thousand_malformed_events_over_mqtt(broker: Mosquitto) -> None:
     finally:
         engine.stop()
         app.close()
+
+
+def test_a_broker_that_lets_anyone_in_is_refused_when_the_td_requires_authentication(tmp_path: Path) -> None:
+    """Issue 16, finding 2: with `basic` security and a broker configured `allow_anonymous true`, an anonymous
+    client could command the robot; the node checks at start and refuses, unless told otherwise."""
+    broker = Mosquitto(tmp_path / "broker", users={"robot": "s3cret"}, anonymous=True)
+    broker.start()
+    try:
+        model = td_with_security(tmp_path, {"basic_sc": {"scheme": "basic"}})
+        port = SimPort(model, sim(0.1))
+        env = {"TD2ADAPTOR_MQTT_USERNAME": "robot", "TD2ADAPTOR_MQTT_PASSWORD": "s3cret"}
+        with pytest.raises(SecurityError, match="accepts clients without credentials.*--allow-anonymous-broker"):
+            serve(model, port, config(broker.url), env=env)
+        # the anonymous client that the check is about really gets in and could send a command
+        anonymous = AppClient(broker.url, [f"td2adaptor/{ROBOT}/#"])
+        anonymous.close()
+        engine = serve(model, port, config(broker.url, allow_anonymous_broker=True), env=env)
+        engine.stop()
+    finally:
+        broker.stop()
+    # a broker that refuses anonymous clients passes the check (test_credentials_from_the_td_security)
