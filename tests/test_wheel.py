@@ -65,6 +65,7 @@ def test_wheel_installs_and_validates_outside_the_repo(tmp_path: Path) -> None:
     assert gen.returncode == 0, gen.stderr
     for backend in ("rclpy", "rospy", "mros", "events"):
         assert (work / "out" / backend).is_dir(), backend
+    assert (work / "out" / "events" / "README.md").is_file()  # the index, from the wheel's index.md.j2
     installed = Path(target) / "td2adaptor"
     assert (installed / "frontend" / "schemas" / "td-1.1.schema.json").is_file()
     assert (installed / "rostypes" / "interfaces" / "std_srvs" / "srv" / "Trigger.srv").is_file()

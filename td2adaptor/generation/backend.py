@@ -4,6 +4,10 @@ A backend package provides `NAME`, `DISTRO` ("ros1", "ros2" or None), `ORDER` (i
 and `generate(model: Model, options: GenOptions, diags: Diagnostics) -> GeneratedTree`. Backends never write
 to disk (`generation.emit` does), never see dialects (only the model), and must be deterministic: same model
 and options, same bytes.
+
+A backend may also provide `finish(tree: GeneratedTree) -> GeneratedTree`: `build` calls it once per output
+directory with the trees of every TD merged (e.g. to add an index of the packages), and writes what it
+returns. It must not depend on the order of the TDs.
 """
 
 from __future__ import annotations

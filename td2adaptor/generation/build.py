@@ -116,10 +116,12 @@ class Outcome:
 def build(
     targets: Sequence[Target], diags: Diagnostics, *, use_cache: bool = True, parallel: bool = False
 ) -> dict[Path, GeneratedTree] | None:
-    """Compile every TD of every target and generate; trees merged per output directory `OUT/<backend>`."""
+    """Compile every TD of every target and generate; trees merged per output directory `OUT/<backend>`, then
+    finished by the backends that have a `finish` (see `generation.backend`)."""
     from td2adaptor.compiler.pipeline import compile
 
     merged: dict[Path, GeneratedTree] = {}
+    backends: dict[Path, str] = {}
     ok = True
     for target in targets:
         names, problem = resolve_backends(target.backends)
@@ -160,6 +162,7 @@ def build(
                 continue
             for name, tree in trees.items():
                 root = target.output / name
+                backends[root] = name
                 into = merged.setdefault(root, GeneratedTree())
                 for rel, data in tree:
                     if rel in into.files and into.files[rel] != data:
@@ -171,7 +174,13 @@ def build(
                         ok = False
                     into.files[rel] = data
                 into.executable |= tree.executable
-    return merged if ok else None
+    if not ok:
+        return None
+    for root, name in backends.items():
+        finish = getattr(backend_registry.load(name), "finish", None)
+        if finish is not None:
+            merged[root] = finish(merged[root])
+    return merged
 
 
 def compile_units(tds: Sequence[Path]) -> list[list[Path]]:

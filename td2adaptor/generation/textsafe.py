@@ -76,6 +76,18 @@ def xml_text(text: str) -> str:
     return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;").replace('"', "&quot;")
 
 
+def md_inline(text: str) -> str:
+    """Inline Markdown text (a heading, a table cell): one line, no table, link, code or HTML syntax of its own.
+
+    Control characters and line breaks become spaces (so the text cannot start a row or a block), and every
+    character Markdown gives a meaning inline is backslash-escaped.
+    """
+    text = " ".join(_CONTROL.sub(" ", text).split())
+    for ch in "\\`*_[]<>|#":
+        text = text.replace(ch, "\\" + ch)
+    return text
+
+
 # ---------------------------------------------------------------------------------------------------------
 # wrapping docstring text (measured as it will be written, escapes included)
 

@@ -95,9 +95,10 @@ class EventSpec:
 
     @property
     def schema_file(self) -> str:
-        """Path of the file holding the schema, relative to the events output directory: one file per
-        component (its events in `$defs`), one per robot-level event. Component names have no `.`, so a
-        component called `error` or `envelope` cannot collide with the robot-level files."""
+        """Path of the file holding the schema, relative to the package's folder of the events output
+        (`OUT/events/<package>/`, what the `$id`s below `EventCatalog.base` mirror): one file per component
+        (its events in `$defs`), one per robot-level event. Component names have no `.`, so a component
+        called `error` or `envelope` cannot collide with the robot-level files."""
         if self.component is None:
             return f"schemas/{self.kind.value}.schema.json"
         return f"schemas/{self.component}.events.schema.json"

@@ -52,7 +52,8 @@ def test_library_build_merges_config_files_and_points_backend_warnings_into_them
 def test_the_merged_config_is_one_package_whatever_the_order(tmp_path: Path, order: list[Path]) -> None:
     outcome = generate([target(order, backends=["events"], output=tmp_path, interfaces=IFACES)], use_cache=False)
     assert outcome.ok, [d.message for d in outcome.diagnostics]
-    schemas = sorted(p.name.split(".")[0] for p in (tmp_path / "events" / "schemas").glob("*Component.*"))
+    folder = tmp_path / "events" / "ros_edge_node_adaptor"  # one package: one folder of the events output
+    schemas = sorted(p.name.split(".")[0] for p in (folder / "schemas").glob("*Component.*"))
     assert schemas == [
         "Ar_pose_markerComponent",
         "AvailibilityComponent",

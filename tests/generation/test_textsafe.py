@@ -7,7 +7,7 @@ import ast
 from hypothesis import given
 from hypothesis import strategies as st
 
-from td2adaptor.generation.textsafe import c_comment, c_str, py_docstring, py_str, xml_text
+from td2adaptor.generation.textsafe import c_comment, c_str, md_inline, py_docstring, py_str, xml_text
 
 nasty = st.text(alphabet=st.sampled_from(list("\"'\\*/?\n\r\x00<>&#{}%\u2028 abc")), max_size=30)
 
@@ -50,6 +50,16 @@ def test_xml_text_has_no_markup(text: str) -> None:
     out = xml_text(text)
     assert "<" not in out and ">" not in out and '"' not in out
     assert "&" not in out.replace("&amp;", "").replace("&lt;", "").replace("&gt;", "").replace("&quot;", "")
+
+
+@given(nasty)
+def test_md_inline_is_one_line_of_plain_text(text: str) -> None:
+    out = md_inline(text)
+    assert "\n" not in out and "\r" not in out and "\u2028" not in out and "\x00" not in out
+    unescaped = out.replace("\\\\", "")  # every special character left is preceded by a backslash
+    for ch in "`*_[]<>|#":
+        assert ch not in unescaped.replace("\\" + ch, "")
+    assert out.replace("\\", "") == " ".join(text.replace("\x00", " ").split()).replace("\\", "")
 
 
 @given(st.text(alphabet=st.sampled_from('ab "\\\u00e9\u4e2d\n\t\x01'), max_size=200), st.integers(4, 30))

@@ -27,7 +27,7 @@ def _packages(backend: str) -> list[Path]:
 
 
 PYTHON = _packages("rclpy") + _packages("rospy")
-EVENTS = sorted(p for p in CASES.glob("*/expected/events") if p.is_dir())
+EVENTS = _packages("events")
 MROS = _packages("mros")
 
 

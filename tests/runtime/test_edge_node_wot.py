@@ -1,6 +1,7 @@
-"""A standard WoT client consumes the exposed TD (generated/events/td.mqtt.json): Eclipse Thingweb node-wot
-with its MQTT binding, from npm, invokes gotoRun, observes poseMarker and receives the feedback event of an
-edge node on a real mosquitto (the simulated robot behind a SimPort: the consumer side is under test).
+"""A standard WoT client consumes the exposed TD (generated/events/robotnik_rb_1_adaptor/td.mqtt.json):
+Eclipse Thingweb node-wot with its MQTT binding, from npm, invokes gotoRun, observes poseMarker and receives
+the feedback event of an edge node on a real mosquitto (the simulated robot behind a SimPort: the consumer
+side is under test).
 
 Optional: skipped, saying why, when node/npm are missing or the packages cannot be installed (offline).
 node-wot is installed once into .cache/node-wot with `npm install --ignore-scripts` (pure JavaScript).
@@ -59,7 +60,7 @@ def node_modules() -> Path:
 
 def consumable_td(port: int) -> dict[str, Any]:
     """The exposed TD for robot ROBOT on the test broker, each form's topic also in its href path."""
-    text = (REPO / "generated" / "events" / "td.mqtt.json").read_text(encoding="utf-8")
+    text = (REPO / "generated" / "events" / "robotnik_rb_1_adaptor" / "td.mqtt.json").read_text(encoding="utf-8")
     td: dict[str, Any] = json.loads(text.replace("{{robotName}}", ROBOT))
     for group in ("properties", "actions", "events"):
         for affordance in td.get(group, {}).values():

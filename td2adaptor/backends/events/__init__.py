@@ -5,10 +5,10 @@
 
 from __future__ import annotations
 
-from td2adaptor.backends.events.generator import generate
+from td2adaptor.backends.events.generator import finish, generate
 
 NAME = "events"
 DISTRO: str | None = None
 ORDER = 90
 
-__all__ = ["DISTRO", "NAME", "ORDER", "generate"]
+__all__ = ["DISTRO", "NAME", "ORDER", "finish", "generate"]

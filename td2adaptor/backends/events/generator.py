@@ -1,16 +1,21 @@
 """`--backend events`: the event contract of an adaptor, for applications that talk to robots over a bus.
 
-Writes, under OUT/events/:
+Writes, under OUT/events/<package>/ (one folder per adaptor package, so the robots of one system generate
+into one output side by side):
 
 * `schemas/<Component>.events.schema.json`: JSON Schema 2020-12 of every event of a component, each under
-  `$defs/<affordance>.<kind>` (see `events_catalog` for the topic scheme); `schemas/error.schema.json` and
+  `$defs/<affordance>.<kind>` (see `td2adaptor.model.events` for the topic scheme); `schemas/error.schema.json` and
   `schemas/status.schema.json` for the robot-level events; all refer to `schemas/envelope.schema.json` for
-  the shared fields;
+  the shared fields. Every `$id` is `https://td2adaptor.dev/events/<package>/schemas/<file>`: the layout of
+  OUT/events/ mirrors the ids, so relative references resolve between the files and no two packages share one;
 * `asyncapi.json`: an AsyncAPI 3.0 document (MQTT channels, operations, messages referring to the schemas);
 * `td.mqtt.json`: the robot's exposed Thing Description, the same Thing with W3C MQTT binding forms (`mqv:`),
   so a standard WoT consumer can invoke the actions, observe the properties and subscribe to the feedback;
   `{{robotName}}` in its topics is the robot id the runtime fills in;
 * `README.md`: the topic table.
+
+and, once all TDs are generated (`finish`), OUT/events/README.md: the packages, with links to their contracts,
+and what the adaptors of one system share (the broker, the topic tree, the robot ids).
 
 Invoke payloads follow the TD's input schema (the contract the Thing publishes, cross-checked against the ROS
 request type at validation time); where a TD gives none, the ROS request type's schema (`msgschema`).
@@ -27,11 +32,13 @@ import orjson
 
 from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.frontend.terms import DATA_SCHEMA
+from td2adaptor.generation import textsafe as ts
 from td2adaptor.generation.backend import GeneratedTree, GenOptions
 from td2adaptor.generation.templating import environment
 from td2adaptor.model import Model, thaw
 from td2adaptor.model.events import (
     ALL_ROBOTS,
+    SCHEMA_BASE,
     TOPIC_ROOT,
     EventCatalog,
     EventSpec,
@@ -314,14 +321,6 @@ def asyncapi(model: Model, catalog: EventCatalog | None = None, *, root: str = T
 # README
 
 
-def _md(text: str) -> str:
-    """Markdown-safe inline text: no line breaks, no table or HTML syntax from the TD."""
-    text = " ".join(text.split())
-    for ch in "\\`*_[]<>|#":
-        text = text.replace(ch, "\\" + ch)
-    return text
-
-
 def _readme(model: Model, catalog: EventCatalog) -> str:
     env = environment(TEMPLATES, trim=False)
     rows = [
@@ -334,17 +333,42 @@ def _readme(model: Model, catalog: EventCatalog) -> str:
         }
         for spec in catalog.specs
     ]
-    return env.get_template("README.md.j2").render(title=_md(model.thing.title), rows=rows, all_robots=ALL_ROBOTS)
+    return env.get_template("README.md.j2").render(
+        title=ts.md_inline(model.thing.title), package=catalog.package, rows=rows, all_robots=ALL_ROBOTS
+    )
 
 
 def generate(model: Model, options: GenOptions, diags: Diagnostics) -> GeneratedTree:
-    """Schemas, AsyncAPI document, exposed TD and README of `model`'s events."""
+    """Schemas, AsyncAPI document, exposed TD and README of `model`'s events, under `<package>/`."""
     del options, diags  # nothing to choose, nothing that can fail: every model has an event contract
     catalog = build_catalog(model)
+    folder = f"{catalog.package}/"
     tree = GeneratedTree()
-    tree.add("README.md", _readme(model, catalog))
-    tree.add("asyncapi.json", dump(asyncapi(model, catalog)))
-    tree.add("td.mqtt.json", dump(exposed_td(model, catalog)))
+    tree.add(folder + "README.md", _readme(model, catalog))
+    tree.add(folder + "asyncapi.json", dump(asyncapi(model, catalog)))
+    tree.add(folder + "td.mqtt.json", dump(exposed_td(model, catalog)))
     for path, document in catalog.files:
-        tree.add(path, dump(document))
+        tree.add(folder + path, dump(document))
     return tree
+
+
+INDEX = "README.md"
+
+
+def finish(tree: GeneratedTree) -> GeneratedTree:
+    """OUT/events/ with every TD's folder merged in: add the index of the packages (sorted by name, so the
+    order of the TDs does not matter) and what their adaptors share."""
+    packages = []
+    for path in sorted(tree.files):
+        package, _, rest = path.partition("/")
+        if rest != "td.mqtt.json":
+            continue
+        title = json.loads(tree.files[path]).get("title")
+        packages.append({"name": package, "title": ts.md_inline(title if isinstance(title, str) else package)})
+    env = environment(TEMPLATES, trim=False)
+    text = env.get_template("index.md.j2").render(
+        packages=packages, root=TOPIC_ROOT, all_robots=ALL_ROBOTS, schema_base=SCHEMA_BASE
+    )
+    out = GeneratedTree(dict(tree.files), set(tree.executable))
+    out.add(INDEX, text)
+    return out

@@ -28,7 +28,11 @@ ENVELOPE = {"robot": "rb1_base_a", "id": "e1", "time": "2026-01-31T12:00:00.123Z
 
 
 def tree_of(model: Model) -> dict[str, bytes]:
-    return dict(backend.generate(model, GenOptions(), Diagnostics()).files)
+    """The model's folder of the events output, OUT/events/<package>/: its paths relative to the folder."""
+    files = dict(backend.generate(model, GenOptions(), Diagnostics()).files)
+    prefix = model.package_name + "/"
+    assert all(path.startswith(prefix) for path in files), sorted(files)
+    return {path[len(prefix) :]: data for path, data in files.items()}
 
 
 @pytest.fixture(scope="module")
