@@ -22,6 +22,7 @@ from td2adaptor.model import (
     Role,
     RosName,
 )
+from tests import wot_corpus
 from tests.conftest import EXAMPLE, REPO
 
 INTERFACES = [EXAMPLE / "interfaces"]
@@ -177,13 +178,13 @@ def test_migrate_legacy_config_keeps_the_model(tmp_path: Path) -> None:
     assert after.component("GoToComponent").procedures[0].cancel == "gotoCancle"
 
 
-def test_migrated_td_passes_the_official_schema(tmp_path: Path, shared_dir: Path) -> None:
+def test_migrated_td_passes_the_official_schema(tmp_path: Path) -> None:
     import jsonschema
 
     before = compile_(EXAMPLE / "td.reference-dialect.json")
     assert before.model is not None and before.input is not None
     td = migrate(before.input, before.model, Diagnostics())
-    schema = json.loads((shared_dir / "wot" / "official" / "td-schema-v1.1.json").read_text())
+    schema = wot_corpus.official_json("td-schema-v1.1.json")
     validator = jsonschema.Draft7Validator(schema, format_checker=jsonschema.FormatChecker())
     assert [e.message for e in validator.iter_errors(td)] == []
     for name in ("td.json",):
@@ -312,8 +313,8 @@ def test_strict_turns_warnings_into_errors(tmp_path: Path) -> None:
     assert not [d for d in result.diagnostics if d.severity is Severity.WARNING]
 
 
-def test_no_ros_binding_is_a_warning_not_an_error(shared_dir: Path) -> None:
-    result = td2adaptor.compile(shared_dir / "wot" / "playground" / "valid" / "MinimalThing.json")
+def test_no_ros_binding_is_a_warning_not_an_error() -> None:
+    result = td2adaptor.compile(wot_corpus.require_corpus().file("valid/MinimalThing.json"))
     assert result.ok and "ROS400" in [d.code for d in result.diagnostics]
 
 

@@ -4,7 +4,6 @@ official W3C schemas (used here, in tests only, as an oracle)."""
 from __future__ import annotations
 
 import copy
-import csv
 import hashlib
 import json
 import re
@@ -21,11 +20,21 @@ from td2adaptor.frontend import conformance
 from td2adaptor.frontend.bundled import load_schema
 from td2adaptor.frontend.conformance import CODES, TD_SCHEMA, TM_SCHEMA, check_td, check_tm
 from td2adaptor.frontend.jsonsrc import JsonDocument, load_path, parse_json
-from tests.conftest import EXAMPLE, REPO, SHARED
+from tests import wot_corpus
+from tests.conftest import EXAMPLE, REPO
+from tests.wot_corpus import CorpusFile, corpus_files, params
 
-PLAYGROUND = SHARED / "wot" / "playground"
-OFFICIAL = SHARED / "wot" / "official"
 TD_FOLDERS = ("valid", "invalid", "warn", "notValidYet")
+# the manifest's `expected` for each corpus folder
+EXPECTED = {
+    "valid": "valid",
+    "invalid": "invalid",
+    "warn": "warning",
+    "notValidYet": "not-valid-yet(valid per spec, playground cannot check)",
+    "tm_valid": "valid-tm",
+    "tm_invalid": "invalid-tm",
+}
+OFFICIAL_COLUMN = "official_1.1_schema_python_jsonschema"
 SCHEMA_CODES = {f"TD10{i}" for i in range(7)}
 
 # sha256 prefixes of the official files, as listed in ../shared/reference/wot.md §1
@@ -42,17 +51,8 @@ NEEDS_LINKED_TM = "invalid/usingTM.json"
 # Needs tm:extends resolution of an unreachable parent (handled by the TM instantiation stage).
 NEEDS_PARENT_TM = "tm_invalid/unavailableParent.json"
 
-
-def _manifest() -> list[dict[str, str]]:
-    if not PLAYGROUND.is_dir():
-        return []
-    with (PLAYGROUND / "manifest.csv").open(encoding="utf-8", newline="") as fh:
-        return list(csv.DictReader(fh))
-
-
-MANIFEST = _manifest()
-TD_ROWS = [r for r in MANIFEST if r["path"].split("/")[0] in TD_FOLDERS]
-TM_ROWS = [r for r in MANIFEST if r["path"].startswith("tm_")]
+TD_FILES = corpus_files(*TD_FOLDERS)
+TM_FILES = corpus_files("tm_valid", "tm_invalid")
 
 
 def _run(check: Any, path: Path) -> tuple[JsonDocument | None, Diagnostics]:
@@ -124,15 +124,18 @@ def tm(**changes: Any) -> dict[str, Any]:
 # the reference material itself
 
 
-def test_official_files_are_the_pinned_versions(shared_dir: Path) -> None:
-    for name, prefix in OFFICIAL_SHA256.items():
-        digest = hashlib.sha256((shared_dir / "wot" / "official" / name).read_bytes()).hexdigest()
-        assert digest.startswith(prefix), name
+@pytest.mark.parametrize("name", sorted(OFFICIAL_SHA256))
+def test_official_files_are_the_pinned_versions(name: str) -> None:
+    # from ../shared byte for byte; from npm with its CRLF line ends made LF (so: otherwise the same bytes)
+    digest = hashlib.sha256(wot_corpus.official(name)).hexdigest()
+    assert digest.startswith(OFFICIAL_SHA256[name]), (name, wot_corpus.official_source(name))
 
 
-def test_manifest_covers_the_whole_corpus(shared_dir: Path) -> None:
+def test_manifest_covers_the_whole_corpus() -> None:
+    manifest = wot_corpus.manifest()
+    corpus = wot_corpus.require_shared_corpus("manifest.csv describes its files")
     counts: dict[str, int] = {}
-    for row in MANIFEST:
+    for row in manifest:
         counts[row["path"].split("/")[0]] = counts.get(row["path"].split("/")[0], 0) + 1
     assert counts == {
         "valid": 44,
@@ -142,24 +145,58 @@ def test_manifest_covers_the_whole_corpus(shared_dir: Path) -> None:
         "tm_valid": 13,
         "tm_invalid": 6,
     }
-    on_disk = {p.relative_to(PLAYGROUND).as_posix() for p in PLAYGROUND.glob("*/*.json")}
-    assert on_disk == {row["path"] for row in MANIFEST}
+    on_disk = {f.rel for f in corpus.files()}
+    assert on_disk == {row["path"] for row in manifest}
+    # the tests below take a file's expected verdict from its folder
+    assert all(row["expected"] == EXPECTED[row["path"].split("/")[0]] for row in manifest)
+
+
+def test_corpus_has_the_pinned_contents() -> None:
+    corpus = wot_corpus.require_corpus()
+    for kind in wot_corpus.KINDS:
+        assert len(corpus.files(kind)) == corpus.count(kind), (corpus.label, kind)
+
+
+def test_npm_data_differs_from_shared_only_where_listed() -> None:
+    """The npm packages against ../shared/wot: the schemas are the W3C files (CRLF line ends), the corpus is an
+    older snapshot whose differences wot_corpus lists (the tests that need the exact files skip on it)."""
+    missing = [n for n in wot_corpus.NPM_VERSIONS if wot_corpus.npm_package(n) is None]
+    if not (wot_corpus.SHARED_WOT / "playground").is_dir() or missing:
+        pytest.skip(f"needs both ../shared/wot and the pinned npm packages ({wot_corpus.SETUP})")
+    for name, (package_name, inner) in wot_corpus.OFFICIAL_IN_NPM.items():
+        path = wot_corpus.npm_package(package_name)
+        assert path is not None
+        raw = (path / inner).read_bytes()
+        assert raw.replace(b"\r\n", b"\n") == (wot_corpus.SHARED_WOT / "official" / name).read_bytes(), name
+    playground = wot_corpus.npm_package(wot_corpus.PLAYGROUND_PACKAGE)
+    assert playground is not None
+    shared = wot_corpus.SHARED_WOT / "playground"
+    npm = {f"{k}/{p.name}": p for k, d in wot_corpus.NPM_FOLDERS.items() for p in (playground / d).glob("*.json")}
+    ours = {f"{kind}/{p.name}": p for kind in wot_corpus.KINDS for p in (shared / kind).glob("*.json")}
+    assert set(ours) - set(npm) == wot_corpus.NPM_MISSING
+    assert set(npm) - set(ours) == wot_corpus.NPM_EXTRA
+    assert {k: len([r for r in npm if r.startswith(k + "/")]) for k in wot_corpus.KINDS} == wot_corpus.COUNTS["npm"]
+
+    def data(path: Path) -> Any:  # key order and duplicate keys kept
+        return json.loads(path.read_bytes(), object_pairs_hook=lambda pairs: ("object", pairs))
+
+    assert {rel for rel in set(npm) & set(ours) if data(npm[rel]) != data(ours[rel])} == wot_corpus.NPM_DIFFERENT
 
 
 # ---------------------------------------------------------------------------------------------------------
-# differential tests over the Playground corpus
+# differential tests over the Playground corpus (../shared's, else the npm snapshot)
 
 
-@pytest.mark.parametrize("row", TD_ROWS, ids=[r["path"] for r in TD_ROWS])
-def test_corpus_td_verdicts(row: dict[str, str]) -> None:
-    doc, diags = _run(check_td, PLAYGROUND / row["path"])
+@pytest.mark.parametrize("f", params(TD_FILES))
+def test_corpus_td_verdicts(f: CorpusFile) -> None:
+    doc, diags = _run(check_td, f.path)
     assert doc is not None
     errors = [f"{d.code} {d.pointer}: {d.message}" for d in diags.errors()]
-    if row["path"] == NEEDS_LINKED_TM:
+    if f.rel == NEEDS_LINKED_TM:
         # The Playground rejects it only after fetching the TM it links to (network); offline it must pass
         # our checks. The "linked TM not fetched" warning is the Thing Model stage's job, not this module's.
         assert errors == []
-    elif row["expected"] == "invalid":
+    elif f.kind == "invalid":
         assert errors, "an invalid TD was accepted"
     else:  # valid, warning, not-valid-yet (valid per spec)
         assert errors == []
@@ -169,7 +206,7 @@ def test_corpus_td_verdicts(row: dict[str, str]) -> None:
 def _official(name: str) -> Any:
     from jsonschema import Draft7Validator, FormatChecker  # type: ignore[import-untyped, unused-ignore]
 
-    return Draft7Validator(json.loads((OFFICIAL / name).read_text(encoding="utf-8")), format_checker=FormatChecker())
+    return Draft7Validator(wot_corpus.official_json(name), format_checker=FormatChecker())
 
 
 def _official_errors(name: str, data: Any) -> list[str]:
@@ -183,13 +220,16 @@ def _official_errors(name: str, data: Any) -> list[str]:
     return out
 
 
-@pytest.mark.parametrize("row", MANIFEST, ids=[r["path"] for r in MANIFEST])
-def test_official_schema_rejection_implies_ours(row: dict[str, str]) -> None:
+def _official_schema(rel: str) -> str:
+    return "tm-schema-v1.1.json" if rel.startswith("tm_") else "td-schema-v1.1.json"
+
+
+@pytest.mark.parametrize("f", params(corpus_files()))
+def test_official_schema_rejection_implies_ours(f: CorpusFile) -> None:
     """Oracle: what the official W3C schema rejects, our schema rejects too, at the same place or deeper."""
-    is_tm = row["path"].startswith("tm_")
-    data = json.loads((PLAYGROUND / row["path"]).read_text(encoding="utf-8"))
-    official = _official_errors("tm-schema-v1.1.json" if is_tm else "td-schema-v1.1.json", data)
-    assert (row["official_1.1_schema_python_jsonschema"] == "pass") == (not official)
+    is_tm = f.kind.startswith("tm_")
+    data = json.loads(f.path.read_text(encoding="utf-8"))
+    official = _official_errors(_official_schema(f.rel), data)
     ours = (tm_diags if is_tm else td_diags)(data)
     ours_schema = [d for d in ours if d.code in SCHEMA_CODES and d.severity is Severity.ERROR]
     if official:
@@ -198,30 +238,43 @@ def test_official_schema_rejection_implies_ours(row: dict[str, str]) -> None:
             assert any(d.pointer == pointer or d.pointer.startswith(pointer + "/") for d in ours_schema), pointer
 
 
-@pytest.mark.parametrize("row", [r for r in TM_ROWS if r["expected"] == "valid-tm"], ids=lambda r: r["path"])
-def test_corpus_valid_thing_models_pass(row: dict[str, str]) -> None:
-    doc, diags = _run(check_tm, PLAYGROUND / row["path"])
+def test_manifest_records_the_official_schema_verdicts() -> None:
+    manifest = wot_corpus.manifest()
+    corpus = wot_corpus.require_shared_corpus("manifest.csv records its files' official-schema verdicts")
+    wrong = []
+    for row in manifest:
+        data = json.loads(corpus.file(row["path"]).read_text(encoding="utf-8"))
+        official = _official_errors(_official_schema(row["path"]), data)
+        if (row[OFFICIAL_COLUMN] == "pass") != (not official):
+            wrong.append(f"{row['path']}: manifest {row[OFFICIAL_COLUMN]}, official schema errors at {official}")
+    assert wrong == []
+
+
+@pytest.mark.parametrize("f", params([f for f in TM_FILES if f.kind == "tm_valid"]))
+def test_corpus_valid_thing_models_pass(f: CorpusFile) -> None:
+    doc, diags = _run(check_tm, f.path)
     assert doc is not None
     assert [f"{d.code} {d.pointer}: {d.message}" for d in diags.errors()] == []
 
 
-@pytest.mark.parametrize("row", [r for r in TM_ROWS if r["expected"] == "invalid-tm"], ids=lambda r: r["path"])
-def test_corpus_invalid_thing_models(row: dict[str, str]) -> None:
-    doc, diags = _run(check_tm, PLAYGROUND / row["path"])
+@pytest.mark.parametrize("f", params([f for f in TM_FILES if f.kind == "tm_invalid"]))
+def test_corpus_invalid_thing_models(f: CorpusFile) -> None:
+    doc, diags = _run(check_tm, f.path)
     assert doc is not None
-    if row["path"] == NEEDS_PARENT_TM:
+    if f.rel == NEEDS_PARENT_TM:
         # Invalid only because its tm:extends parent cannot be loaded: that is checked when the model is
         # resolved/instantiated (another stage), not by the offline model conformance check.
         assert not diags.has_errors
     else:
-        assert row["official_1.1_schema_python_jsonschema"].startswith("fail")
+        # the official TM schema rejects it (what manifest.csv records: test_manifest_records_...)
+        assert _official_errors("tm-schema-v1.1.json", json.loads(f.path.read_text(encoding="utf-8")))
         assert diags.has_errors
 
 
-def test_corpus_messages_are_one_line_and_located(shared_dir: Path) -> None:
-    for row in MANIFEST:
-        check = check_tm if row["path"].startswith("tm_") else check_td
-        doc, diags = _run(check, PLAYGROUND / row["path"])
+def test_corpus_messages_are_one_line_and_located() -> None:
+    for f in wot_corpus.require_corpus().files():
+        check = check_tm if f.kind.startswith("tm_") else check_td
+        doc, diags = _run(check, f.path)
         assert doc is not None
         for d in diags:
             assert "\n" not in d.message and len(d.message) <= 200

@@ -22,6 +22,7 @@ from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.frontend import jsonld
 from td2adaptor.frontend.bundled import load_schema
 from td2adaptor.frontend.jsonsrc import JsonDocument, parse_json
+from tests import wot_corpus
 from tests.conftest import REPO
 
 TD = "https://www.w3.org/2019/wot/td#"
@@ -29,19 +30,19 @@ ROSV = "https://td2adaptor.dev/ns/rosv#"
 
 
 @pytest.fixture(scope="module")
-def official_context(shared_dir: Path) -> Any:
-    path = shared_dir / "wot" / "official" / "td-context-v1.1.jsonld"
-    raw = path.read_bytes()
+def official_context() -> Any:
+    raw = wot_corpus.official("td-context-v1.1.jsonld")  # only in ../shared: no registry package ships it
     # the oracle must be the W3C file the reference notes describe, not something edited since
     assert hashlib.sha256(raw).hexdigest().startswith("9298ddacce1d023e")
     return json.loads(raw)
 
 
 @pytest.fixture(scope="module")
-def corpus(shared_dir: Path) -> list[Path]:
-    base = shared_dir / "wot" / "playground"
-    files = sorted((base / "valid").glob("*.json")) + sorted((base / "warn").glob("*.json"))
-    assert len(files) == 50
+def corpus() -> list[Path]:
+    """The valid and warning TDs of the corpus (../shared's 50, else the npm snapshot's 47)."""
+    found = wot_corpus.require_corpus()
+    files = [f.path for f in found.files("valid", "warn")]
+    assert len(files) == found.count("valid", "warn")
     return files
 
 

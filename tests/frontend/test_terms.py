@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import copy
 import json
-from pathlib import Path
 from typing import Any
 
 import pytest
@@ -12,6 +11,7 @@ import pytest
 from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity
 from td2adaptor.frontend.jsonsrc import JsonDocument, load_path, parse_json
 from td2adaptor.frontend.terms import CODES, check_terms
+from tests import wot_corpus
 
 BASE: dict[str, Any] = {
     "@context": "https://www.w3.org/2022/wot/td/v1.1",
@@ -281,19 +281,28 @@ def test_odd_shapes_do_not_crash() -> None:
     assert [d.code for d in found] == ["TD201", "TD203"]
 
 
-def test_playground_corpus_findings(shared_dir: Path) -> None:
-    playground = shared_dir / "wot" / "playground"
+def _corpus_findings(files: list[wot_corpus.CorpusFile]) -> dict[str, set[tuple[str, str]]]:
     seen: dict[str, set[tuple[str, str]]] = {}
-    for path in sorted(playground.glob("*/*.json")):
+    for f in files:
         diags = Diagnostics()
-        doc = load_path(str(path), diags)
+        doc = load_path(str(f.path), diags)
         if doc is None:
             continue
         before = len(diags)
         check_terms(doc, diags)
         new = diags.items[before:]
-        assert all(d.severity is Severity.WARNING for d in new)
-        seen[path.relative_to(playground).as_posix()] = {(d.code, d.pointer) for d in new}
+        assert all(d.severity is Severity.WARNING for d in new), f.rel
+        seen[f.rel] = {(d.code, d.pointer) for d in new}
+    return seen
+
+
+def test_playground_corpus_findings_are_warnings() -> None:
+    corpus = wot_corpus.require_corpus()  # ../shared's, else the npm snapshot
+    assert len(_corpus_findings(corpus.files())) == corpus.count()
+
+
+def test_playground_corpus_findings() -> None:
+    seen = _corpus_findings(wot_corpus.require_corpus().exact())  # names the files of ../shared's 98
     assert len(seen) == 98
     assert seen["valid/simple.json"] == set()
     assert seen["tm_valid/optional.json"] == set()

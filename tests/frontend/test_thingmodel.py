@@ -24,6 +24,7 @@ from td2adaptor.frontend.thingmodel import (
     merge_patch,
     parse_set_options,
 )
+from tests import wot_corpus
 
 DATA = Path(__file__).parents[1] / "data" / "tm"
 RB1_VALUES = {"SERIAL": "0042", "MAX_SPEED": 1.5}
@@ -687,9 +688,9 @@ def test_versions_and_title() -> None:
     assert [d.code for d in diags.warnings()] == ["TM346", "TM344"]
 
 
-def test_not_a_thing_model(shared_dir: Path) -> None:
+def test_not_a_thing_model() -> None:
     diags = Diagnostics()
-    doc = load_path(str(shared_dir / "wot" / "playground" / "tm_invalid" / "absent_tm.json"), diags)
+    doc = load_path(str(wot_corpus.require_corpus().file("tm_invalid/absent_tm.json")), diags)
     assert doc is not None
     assert instantiate(doc, {}, diags) is None
     assert [d.code for d in diags.errors()] == ["TM300"]
@@ -705,10 +706,10 @@ def test_deep_nesting_is_a_diagnostic_not_a_crash() -> None:
     assert [d.code for d in diags.errors()] == ["TM309"]
 
 
-def test_the_robot_td_validates_against_the_official_schema(shared_dir: Path) -> None:
+def test_the_robot_td_validates_against_the_official_schema() -> None:
     """Oracle only: the official TD 1.1 schema, read from the reference material, not shipped."""
     td, _ = run("robot/rb1_base.tm.json", RB1_VALUES)
-    schema = json.loads((shared_dir / "wot" / "official" / "td-schema-v1.1.json").read_text(encoding="utf-8"))
+    schema = wot_corpus.official_json("td-schema-v1.1.json")
     validator = jsonschema.Draft7Validator(schema, format_checker=jsonschema.Draft7Validator.FORMAT_CHECKER)
     assert [e.message for e in validator.iter_errors(td)] == []
 
@@ -762,8 +763,9 @@ def test_td_linking_a_missing_local_model() -> None:
 @pytest.mark.parametrize(
     "rel", ["invalid/usingTM.json", "warn/unavailableDirectTm.json", "warn/unavailableRecursiveTm.json"]
 )
-def test_td_linking_a_remote_model_is_one_warning(shared_dir: Path, rel: str) -> None:
-    path = shared_dir / "wot" / "playground" / rel
+def test_td_linking_a_remote_model_is_one_warning(rel: str) -> None:
+    # any version of the file: the npm snapshot's link to an older URL of the same model will do
+    path = wot_corpus.require_corpus().file(rel, any_version=True)
     href = json.loads(path.read_text(encoding="utf-8"))["links"][0]["href"]
     diags = check(path)
     assert [(d.code, d.severity, d.message) for d in diags] == [
@@ -817,8 +819,10 @@ REMOTE = {
 }
 
 
-def playground(shared_dir: Path, folder: str) -> list[Path]:
-    files = sorted((shared_dir / "wot" / "playground" / folder).glob("*.json"))
+def playground(folder: str, *, exact: bool) -> list[Path]:
+    """The corpus folder's files; `exact` when the test's expectations name its exact contents."""
+    corpus = wot_corpus.require_corpus()
+    files = [f.path for f in (corpus.exact(folder) if exact else corpus.files(folder))]
     assert files
     return files
 
@@ -827,8 +831,8 @@ def placeholder_names(path: Path) -> set[str]:
     return {m.strip() for m in re.findall(r"\{\{([ -z|~]+)\}\}", path.read_text(encoding="utf-8"))}
 
 
-def test_playground_tm_valid_instantiate(shared_dir: Path) -> None:
-    files = playground(shared_dir, "tm_valid")
+def test_playground_tm_valid_instantiate() -> None:
+    files = playground("tm_valid", exact=True)  # REMOTE names the URLs
     assert len(files) == 13
     for path in files:
         names = placeholder_names(path)
@@ -857,9 +861,9 @@ def test_playground_tm_valid_instantiate(shared_dir: Path) -> None:
     assert any(placeholder_names(p) for p in files)
 
 
-def test_playground_tm_invalid(shared_dir: Path) -> None:
+def test_playground_tm_invalid() -> None:
     outcome: dict[str, list[str]] = {}
-    for path in playground(shared_dir, "tm_invalid"):
+    for path in playground("tm_invalid", exact=True):
         diags = Diagnostics()
         doc = load_path(str(path), diags)
         assert doc is not None
@@ -877,8 +881,8 @@ def test_playground_tm_invalid(shared_dir: Path) -> None:
     }
 
 
-def test_playground_unavailable_parent_cannot_be_resolved(shared_dir: Path) -> None:
-    td, diags = run(shared_dir / "wot" / "playground" / "tm_invalid" / "unavailableParent.json")
+def test_playground_unavailable_parent_cannot_be_resolved() -> None:
+    td, diags = run(wot_corpus.require_corpus().file("tm_invalid/unavailableParent.json"))
     assert td is None
     (error,) = diags.errors()
     assert error.code == "TM311" and error.pointer == "/links/0/href"
@@ -887,16 +891,16 @@ def test_playground_unavailable_parent_cannot_be_resolved(shared_dir: Path) -> N
     )
 
 
-def test_playground_schema_and_resolution_together_reject_every_tm_invalid(shared_dir: Path) -> None:
+def test_playground_schema_and_resolution_together_reject_every_tm_invalid() -> None:
     from td2adaptor.frontend.conformance import check_tm  # written in parallel; present once integrated
 
-    for path in playground(shared_dir, "tm_valid"):
+    for path in playground("tm_valid", exact=False):
         diags = Diagnostics()
         doc = load_path(str(path), diags)
         assert doc is not None
         check_tm(doc, diags)
         assert not diags.has_errors, (path.name, diags.errors())
-    for path in playground(shared_dir, "tm_invalid"):
+    for path in playground("tm_invalid", exact=True):  # names unavailableParent.json
         diags = Diagnostics()
         doc = load_path(str(path), diags)
         assert doc is not None

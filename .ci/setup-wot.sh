@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# The W3C WoT reference data the conformance tests use as an oracle when ../shared/wot is not beside the
+# repository: the official TD and TM 1.1 schemas and the Thingweb Playground corpus, pinned npm packages
+# (data only: --ignore-scripts) in .cache/wot. Called by .ci/setup.sh --test; idempotent and quiet.
+# Needs node and npm (Debian: nodejs npm). tests/wot_corpus.py says what the tests take from here.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+SUDO="${SUDO-}"
+PREFIX=.cache/wot
+PACKAGES=(
+  "wot-thing-description-types@1.1.0-12-March-2025"
+  "wot-thing-model-types@1.1.0-12-March-2025"
+  "@thing-description-playground/core@1.4.0"
+)
+
+if ! command -v npm >/dev/null || ! command -v node >/dev/null; then
+  if command -v apt-get >/dev/null; then
+    log="$(mktemp)"
+    if ! { $SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq \
+        --no-install-recommends nodejs npm; } >"$log" 2>&1; then
+      cat "$log" >&2; rm -f "$log"
+      echo "setup-wot: installing nodejs and npm failed" >&2
+      exit 1
+    fi
+    rm -f "$log"
+  else
+    echo "setup-wot: no apt-get; install node and npm yourself (the corpus tests skip without ../shared/wot)" >&2
+    exit 1
+  fi
+fi
+
+installed() {  # name@version -> is that exact version in $PREFIX?
+  local name="${1%@*}" version="${1##*@}" manifest
+  manifest="$PREFIX/node_modules/$name/package.json"
+  [ -f "$manifest" ] && [ "$(node -p "require('./$manifest').version" 2>/dev/null)" = "$version" ]
+}
+
+missing=0
+for pkg in "${PACKAGES[@]}"; do installed "$pkg" || missing=1; done
+[ "$missing" = 0 ] && exit 0
+
+mkdir -p "$PREFIX"
+log="$(mktemp)"
+if ! npm install --prefix "$PREFIX" --ignore-scripts --save-exact --no-audit --no-fund --silent "${PACKAGES[@]}" >"$log" 2>&1; then
+  cat "$log" >&2; rm -f "$log"
+  echo "setup-wot: npm install ${PACKAGES[*]} failed" >&2
+  exit 1
+fi
+rm -f "$log"
+for pkg in "${PACKAGES[@]}"; do
+  installed "$pkg" || { echo "setup-wot: $PREFIX has no $pkg after npm install" >&2; exit 1; }
+done
