@@ -88,6 +88,7 @@ class MqttBus:
         self.connect_timeout = connect_timeout
         self.reconnect_delay = reconnect_delay
         self.connects = 0  # successful CONNACKs, for tests and logs
+        self.probe = False  # a connection made only to learn what the broker allows: its refusal is no error
         self._handlers: list[tuple[str, Handler]] = []
         self._lock = threading.Condition()
         self._pending: set[int] = set()
@@ -185,7 +186,8 @@ class MqttBus:
         if reason.is_failure:
             self._refusal = reason
             self._connack.set()
-            log.error("MQTT broker %s refused the connection: %s", self.address, reason.getName())
+            if not self.probe:
+                log.error("MQTT broker %s refused the connection: %s", self.address, reason.getName())
             return
         self.connects += 1
         self._connected = True
@@ -303,6 +305,7 @@ def accepts_anonymous(address: BrokerAddress, tls: TlsOptions | None, *, timeout
         session_expiry=0,
         connect_timeout=timeout,
     )
+    probe.probe = True
     try:
         probe.connect()
     except BusError:

@@ -144,7 +144,7 @@ def test_snapshot_commands_run_in_a_scratch_copy(tmp_path: Path) -> None:
     )
     text = transcript(folder)
     assert text.startswith("$ td2adaptor gen td.json -b events -o out -I <repo>/examples\n")
-    assert "out/events: 10 written" in text and text.endswith("[exit 0]\n")
+    assert "out/events: 11 written" in text and text.endswith("[exit 0]\n")
     assert sorted(p.name for p in folder.iterdir()) == ["snapshot.toml", "td.json"]
     assert str(tmp_path) not in text and str(Path.cwd()) not in text
 

@@ -38,6 +38,7 @@ class Mosquitto:
         users: dict[str, str] | None = None,
         tls: tuple[Path, Path, Path] | None = None,
         anonymous: bool | None = None,
+        acl: Path | None = None,
     ) -> None:
         self.dir = workdir
         self.dir.mkdir(parents=True, exist_ok=True)
@@ -69,6 +70,8 @@ class Mosquitto:
             for name, password in users.items():
                 subprocess.run(["mosquitto_passwd", "-b", str(passwd), name, password], check=True, capture_output=True)
             lines += [f"allow_anonymous {'true' if anonymous else 'false'}", f"password_file {passwd}"]
+        if acl is not None:
+            lines.append(f"acl_file {acl}")
         self.conf.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
     @property

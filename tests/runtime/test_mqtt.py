@@ -228,3 +228,42 @@ def test_a_broker_that_lets_anyone_in_is_refused_when_the_td_requires_authentica
     finally:
         broker.stop()
     # a broker that refuses anonymous clients passes the check (test_credentials_from_the_td_security)
+
+
+def test_the_generated_acl_lets_only_the_node_and_the_application_publish(tmp_path: Path) -> None:
+    """Issue 16: the broker ACL `gen -b events` writes, on a real mosquitto: the edge node (user = robot id)
+    and the application work; forged feedback and commands from a user outside the ACL are dropped by the
+    broker, and the application cannot forge feedback either."""
+    from td2adaptor.backends.events.generator import generate as events
+    from td2adaptor.diagnostics import Diagnostics
+    from td2adaptor.generation.backend import GenOptions
+
+    model = td_with_security(tmp_path, {"basic_sc": {"scheme": "basic"}})
+    tree = events(model, GenOptions(), Diagnostics())
+    acl = tmp_path / "mosquitto.acl"
+    acl.write_bytes(tree.files[f"{model.package_name}/mosquitto.acl"])
+    users = {ROBOT: "node-pass", "application": "app-pass", "intruder": "intruder-pass"}
+    broker = Mosquitto(tmp_path / "broker", users=users, acl=acl)
+    broker.start()
+    robot = sim(0.05)
+    env = {"TD2ADAPTOR_MQTT_USERNAME": ROBOT, "TD2ADAPTOR_MQTT_PASSWORD": "node-pass"}
+    engine = serve(model, SimPort(model, robot), config(broker.url), env=env)
+    app = AppClient(broker.url, [f"td2adaptor/{ROBOT}/#"], username="application", password="app-pass")
+    intruder = AppClient(broker.url, [f"td2adaptor/{ROBOT}/#"], username="intruder", password="intruder-pass")
+    try:
+        forged = {"type": "feedback", "correlation": "forged", "payload": {"state": "finished", "terminal": True}}
+        intruder.send(f"{GOTO}/feedback", forged)
+        intruder.send(GOTO, {"correlation": "by-intruder", "payload": GOAL})
+        app.send(f"{GOTO}/feedback", {**forged, "correlation": "forged-by-app"})
+        app.send(GOTO, {"correlation": "legit", "payload": GOAL})
+        app.wait(terminal("feedback", "legit"))
+        time.sleep(0.3)  # anything the broker let through would have arrived by now
+        correlations = {e.get("correlation") for _, e in app.events}
+        assert "legit" in correlations
+        assert not correlations & {"forged", "forged-by-app", "by-intruder"}, correlations
+        assert engine.stats.get("missions") == 1
+    finally:
+        engine.stop()
+        app.close()
+        intruder.close()
+        broker.stop()

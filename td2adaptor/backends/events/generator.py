@@ -339,7 +339,7 @@ def _readme(model: Model, catalog: EventCatalog) -> str:
 
 
 def generate(model: Model, options: GenOptions, diags: Diagnostics) -> GeneratedTree:
-    """Schemas, AsyncAPI document, exposed TD and README of `model`'s events, under `<package>/`."""
+    """Schemas, AsyncAPI document, exposed TD, README and broker ACL of `model`'s events, under `<package>/`."""
     del options, diags  # nothing to choose, nothing that can fail: every model has an event contract
     catalog = build_catalog(model)
     folder = f"{catalog.package}/"
@@ -349,7 +349,25 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     tree.add(folder + "td.mqtt.json", dump(exposed_td(model, catalog)))
     for path, document in catalog.files:
         tree.add(folder + path, dump(document))
+    tree.add(folder + "mosquitto.acl", _acl(model, catalog))
     return tree
+
+
+def _acl(model: Model, catalog: EventCatalog) -> str:
+    """mosquitto's ACL for these events: each edge node (user = robot id) publishes only its robot's outbound
+    topics and reads its inbound ones; an `application` user publishes the inbound ones; nobody else."""
+    inbound = [s for s in catalog.specs if s.kind.inbound]
+    outbound = [s for s in catalog.specs if not s.kind.inbound]
+    env = environment(TEMPLATES, trim=True)
+    return env.get_template("mosquitto.acl.j2").render(
+        title=ts.py_comment(model.thing.title),
+        package=catalog.package,
+        root=TOPIC_ROOT,
+        all_robots=ALL_ROBOTS,
+        node_reads=[t for s in inbound for t in (s.topic("%u"), s.topic(ALL_ROBOTS))],
+        node_writes=[s.topic("%u") for s in outbound],
+        app_writes=[s.topic("+") for s in inbound],
+    )
 
 
 INDEX = "README.md"
