@@ -138,6 +138,9 @@ def test_tls_with_a_client_certificate(tmp_path: Path) -> None:
     try:
         with pytest.raises(BusError, match="TLS handshake .* failed: .*certificate verify failed"):
             serve(model, SimPort(model, sim()), config(url), env={})  # the system CAs do not know ours
+        other = make_certs(tmp_path / "other-ca")  # a CA of its own, but not the broker's
+        with pytest.raises(BusError, match="TLS handshake .* failed: .*certificate verify failed"):
+            serve(model, SimPort(model, sim()), config(url, tls_ca_file=str(other.ca)), env={})
         with pytest.raises(BusError, match="closed the connection before accepting it|TLS handshake"):
             serve(model, SimPort(model, sim()), config(url, tls_ca_file=str(certs.ca)), env={})  # no client cert
         engine = serve(
