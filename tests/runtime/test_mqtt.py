@@ -18,6 +18,7 @@ from tests.conftest import REPO
 from tests.runtime.broker import Mosquitto
 from tests.runtime.certs import make_certs
 from tests.runtime.client import AppClient
+from tests.runtime.edge import until
 from tests.runtime.rb1 import GOAL, check_outbound, rb1_model, sim, td_with_security, terminal
 
 ROBOT = "rb1_base_a"
@@ -270,3 +271,60 @@ def test_the_generated_acl_lets_only_the_node_and_the_application_publish(tmp_pa
         app.close()
         intruder.close()
         broker.stop()
+
+
+def test_three_robots_a_hundred_missions_each_through_a_broker_restart(broker: Mosquitto) -> None:
+    """The chaos figure kept as a test: 3 robots x 100 missions over one broker that restarts in the middle;
+    every mission ends with exactly one terminal event, its feedback numbered without a gap or a repeat."""
+    import threading
+
+    from td2adaptor.runtime import serve_fleet
+
+    robots, missions = ("chaos_a", "chaos_b", "chaos_c"), 100
+    model = rb1_model()
+    sims = {r: sim(0.02, queue_time=0.01) for r in robots}
+    configs = [config(broker.url, robot=r, poll_period=0.02) for r in robots]
+    engines = serve_fleet(model, lambda c: SimPort(model, sims[c.robot]), configs)
+    app = AppClient(broker.url, [f"td2adaptor/{r}/+/+/feedback" for r in robots], client_id="chaos-app")
+    halfway = threading.Barrier(len(robots) + 1)
+    failures: list[BaseException] = []
+
+    def drive(robot: str) -> None:
+        try:
+            for i in range(missions):
+                if i == missions // 2:
+                    halfway.wait(60)  # all robots halfway: the broker restarts now
+                    halfway.wait(60)
+                correlation = f"{robot}-{i}"
+                app.send(f"td2adaptor/{robot}/GoToComponent/gotoRun", {"correlation": correlation, "payload": GOAL})
+                app.wait(terminal("feedback", correlation), timeout=30)
+        except BaseException as exc:  # noqa: BLE001 - reported by the test thread
+            failures.append(exc)
+            halfway.abort()
+
+    threads = [threading.Thread(target=drive, args=(r,), daemon=True) for r in robots]
+    try:
+        for t in threads:
+            t.start()
+        halfway.wait(120)
+        broker.stop()
+        assert until(lambda: not app.connected.is_set(), 10.0), "the application did not notice the broker go"
+        broker.start()
+        # the application reconnects (its persistent session keeps its subscriptions), then the robots go on
+        assert until(lambda: app.connected.is_set() and app.client.is_connected(), 30.0)
+        halfway.wait(60)
+        for t in threads:
+            t.join(300)
+        assert not failures, failures
+        for robot in robots:
+            for i in range(missions):
+                got = {e["id"]: e["payload"] for _, e in app.events if e.get("correlation") == f"{robot}-{i}"}
+                seqs = sorted(p["seq"] for p in got.values())
+                assert seqs == list(range(1, len(seqs) + 1)), (robot, i, seqs)  # nothing lost, nothing twice
+                assert [p["terminal"] for p in sorted(got.values(), key=lambda p: p["seq"])][-1] is True
+                assert sum(p["terminal"] for p in got.values()) == 1
+        assert all(isinstance(e.bus, MqttBus) and e.bus.connects >= 2 for e in engines)
+    finally:
+        for engine in engines:
+            engine.stop()
+        app.close()
