@@ -328,3 +328,33 @@ def test_three_robots_a_hundred_missions_each_through_a_broker_restart(broker: M
         for engine in engines:
             engine.stop()
         app.close()
+
+
+def test_a_command_queued_while_the_node_was_away_runs_only_if_still_fresh(broker: Mosquitto) -> None:
+    """Issue 16, finding 4: the persistent session delivers what was published while the node was down; at
+    its return a command older than the freshness window is answered `expired`, a fresh one runs."""
+    model = rb1_model()
+    robot = sim(0.05)
+    cfg = config(broker.url, freshness_window=1.0, clock_skew=0.0, state_dir="")
+    engine = serve(model, SimPort(model, robot), cfg)
+    engine.stop()  # the node's session (and its subscriptions) stays with the broker
+    app = AppClient(broker.url, [f"td2adaptor/{ROBOT}/#"], client_id="away-app")
+    try:
+        app.send(GOTO, {"id": "stale-1", "correlation": "stale", "time": _now(), "payload": GOAL})
+        time.sleep(1.5)  # older than the window by the time the node is back
+        engine = serve(model, SimPort(model, robot), cfg)
+        app.wait(lambda ev: any(e.get("correlation") == "stale" and e.get("type") == "error" for _, e in ev))
+        (error,) = [e for _, e in app.events if e.get("correlation") == "stale" and e.get("type") == "error"]
+        assert error["payload"]["code"] == "expired"
+        app.send(GOTO, {"id": "fresh-1", "correlation": "fresh", "time": _now(), "payload": GOAL})
+        app.wait(terminal("feedback", "fresh"))
+        assert not [e for _, e in app.events if e.get("correlation") == "stale" and e.get("type") == "feedback"]
+    finally:
+        engine.stop()
+        app.close()
+
+
+def _now() -> str:
+    from td2adaptor.runtime.replay import now_text
+
+    return now_text()
