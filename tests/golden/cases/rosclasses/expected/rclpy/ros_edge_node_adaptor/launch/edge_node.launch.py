@@ -1,6 +1,6 @@
-"""The td2adaptor edge node of ros_edge_node_adaptor, as `ros2 run ros_edge_node_adaptor edge_node` with these settings:
+"""Launch the edge node of ros_edge_node_adaptor (console script edge_node) with its settings as arguments:
 
-    ros2 launch ros_edge_node_adaptor edge_node.launch.py td:=TD robot:=ID bus:=mqtt://HOST:PORT [interfaces:=DIR ...]
+    ros2 launch ros_edge_node_adaptor edge_node.launch.py td:=TD robot:=ID bus:=mqtt://HOST:PORT
 
 Optional arguments left empty are unset: the configuration file's value (config:=FILE), else the default. Broker
 credentials are never arguments: the node gets TD2ADAPTOR_MQTT_USERNAME and TD2ADAPTOR_MQTT_PASSWORD from the
@@ -18,12 +18,12 @@ ARGUMENTS = [
     ("td", None, "the robot's Thing Description (or Thing Model): a file or URL"),
     ("robot", None, "the robot's id on the bus"),
     ("namespace", "", "optional: ROS namespace of the robot; empty: the robot id"),
-    ("bus", "", "optional: mqtt://HOST:PORT, mqtts://HOST:PORT or local; empty: the config file's, else local"),
-    ("interfaces", "", "optional: folders of the TD's interface definitions (PKG/msg, PKG/srv), ':'-separated"),
+    ("bus", "", "optional: mqtt://HOST:PORT, mqtts://HOST:PORT or local; empty: config's, else local"),
+    ("interfaces", "", "optional: folders of the TD's interface definitions, ':'-separated"),
     ("config", "", "optional: YAML runtime configuration of the robot (or fleet)"),
     ("call_timeout", "", "optional: limit of one ROS call, seconds"),
     ("poll_period", "", "optional: seconds between queries of a running mission"),
-    ("allow_insecure", "", "optional: true: allow nosec/plain connections to a broker on another machine"),
+    ("allow_insecure", "", "optional: true: allow nosec/plain connections to a remote broker"),
     ("tls_ca_file", "", "optional: CA certificate file for mqtts://"),
     ("tls_cert_file", "", "optional: client certificate file, when the broker asks for one"),
     ("tls_key_file", "", "optional: the client certificate's key file"),
