@@ -9,7 +9,7 @@ PACKAGES=(
   python3-rospy python3-rosmaster python3-std-srvs python3-std-msgs
   python3-genpy python3-genmsg python3-catkin-pkg
   ros-std-msgs ros-geometry-msgs python3-geometry-msgs
-  catkin rosbash rospack-tools
+  catkin rosbash rospack-tools python3-roslaunch
 )
 
 if ! command -v apt-get >/dev/null; then
@@ -37,6 +37,6 @@ fi
 
 /usr/bin/python3 -c "import rospy, rosmaster, genpy, genmsg, catkin_pkg, std_msgs.msg, std_srvs.srv, geometry_msgs.msg" \
   || { echo "setup-ros1: Debian's rospy is not importable by /usr/bin/python3" >&2; exit 1; }
-for tool in rosmaster catkin_make rosrun; do
+for tool in rosmaster catkin_make rosrun roslaunch; do
   command -v "$tool" >/dev/null || { echo "setup-ros1: $tool is not on PATH" >&2; exit 1; }
 done

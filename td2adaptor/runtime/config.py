@@ -131,10 +131,12 @@ def _section(data: Any, where: str) -> dict[str, Any]:
 
 
 def from_env(env: Mapping[str, str]) -> dict[str, Any]:
+    """The settings of `TD2ADAPTOR_*` variables; an empty variable is unset (launch files leave optional
+    arguments empty), so it neither overrides the YAML file nor fails as a number."""
     out: dict[str, Any] = {}
     for key, value in env.items():
         name = _ENV_ALIASES.get(key) or (key[len(_ENV_PREFIX) :].lower() if key.startswith(_ENV_PREFIX) else "")
-        if name in _FIELDS:
+        if name in _FIELDS and value != "":
             out[name] = _coerce(name, value)
     return out
 

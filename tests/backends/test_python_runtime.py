@@ -96,7 +96,8 @@ def test_rospy_runtime_is_mypy_and_pyright_strict_clean_against_its_stubs(tmp_pa
 def test_generated_rclpy_package_is_pyright_strict_clean(tmp_path: Path) -> None:
     require_ros2()
     root = REPO / "generated" / "rclpy" / PACKAGE
-    _pyright({**STRICT, "include": [str(root / PACKAGE)], "stubPath": str(root / "stubs")}, tmp_path, sys.executable)
+    include = [str(root / PACKAGE), str(root / "launch")]  # the launch file against the launch/launch_ros stubs
+    _pyright({**STRICT, "include": include, "stubPath": str(root / "stubs")}, tmp_path, sys.executable)
 
 
 def test_generated_rospy_package_is_pyright_strict_clean(tmp_path: Path) -> None:

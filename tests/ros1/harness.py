@@ -36,7 +36,7 @@ def ros1_problem() -> str | None:
     )
     if probe.returncode != 0:
         return "Debian's rospy is not installed: run `SUDO= bash .ci/setup-ros1.sh` (or sudo)"
-    missing = [tool for tool in ("catkin_make", "rosrun") if shutil.which(tool) is None]
+    missing = [tool for tool in ("catkin_make", "rosrun", "roslaunch") if shutil.which(tool) is None]
     if missing:
         return f"{', '.join(missing)} not on PATH: run `SUDO= bash .ci/setup-ros1.sh` (or sudo)"
     return None

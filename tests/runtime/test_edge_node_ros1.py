@@ -6,12 +6,14 @@ serves a robot over a real mosquitto.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
 import subprocess
 import sys
 import time
+import xmlrpc.client
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -241,6 +243,94 @@ def test_rosrun_edge_node_serves_a_robot_over_mosquitto(
         app.wait(
             lambda ev: [e["payload"]["state"] for t, e in ev if t.endswith("/status")][-1:] == ["offline"], timeout=10
         )
+    finally:
+        run.close()
+        app.close()
+        broker.stop()
+    check_outbound(app.events)
+
+
+def _roslaunch_env(master: Master, workspace: Path) -> dict[str, str]:
+    """The environment of a ROS 1 user: the test's master, td2adaptor on PATH, the RB-1 message modules on
+    PYTHONPATH (where a workspace holding them would put them); the workspace is sourced by the command."""
+    environ = {k: v for k, v in os.environ.items() if not k.startswith("TD2ADAPTOR_")}
+    environ.update(
+        ROS_MASTER_URI=master.uri,
+        ROS_HOME=str(master.home),
+        ROS_LOG_DIR=str(master.home / "log"),
+        ROS_IP="127.0.0.1",
+        ROS_HOSTNAME="127.0.0.1",
+        PYTHONPATH=str(harness.interfaces_dir()),
+    )
+    environ["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{environ.get('PATH', '')}"  # td2adaptor
+    return environ
+
+
+def test_roslaunch_command_line_leaves_empty_settings_out(master: Master, workspace: Path) -> None:
+    # the command roslaunch builds for the node (its own `--args` code, which prints it unquoted), then
+    # what the rosrun script makes of it: the empty optional settings are gone, the TD path stays one argument
+    launch_file = workspace / "src" / PKG / "launch" / "edge_node.launch"
+    script = workspace / "src" / PKG / "src" / PKG / "edge_node.py"
+    code = (
+        "import json, runpy, sys\n"
+        "from roslaunch.node_args import get_node_args\n"
+        "launch_file, script = sys.argv[1:3]\n"
+        "sys.argv = ['roslaunch', *sys.argv[3:]]\n"
+        "command = get_node_args('edge_node', [launch_file])\n"
+        "ns = runpy.run_path(script)\n"
+        "at = next(i for i, a in enumerate(command) if a.endswith('/edge_node'))\n"
+        "print(json.dumps([command[:at], command[at], ns['launch_args'](ns['user_args'](command[at + 1:]))]))\n"
+    )
+    arguments = ["td:=/robots/my td.json", "robot:=r1", "interfaces:=/a:/b", "tls_ca_file:=/etc/ca.pem"]
+    source = f'source {workspace}/devel/setup.bash && exec {harness.SYSTEM_PYTHON} -c "$@"'
+    out = subprocess.run(
+        ["bash", "-c", source, "python", code, str(launch_file), str(script), *arguments],
+        env=_roslaunch_env(master, workspace), capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stdout + out.stderr
+    environment, executable, args = json.loads(out.stdout.strip().splitlines()[-1])
+    assert executable == f"{workspace}/devel/lib/{PKG}/edge_node"
+    assert sorted(environment) == [
+        'TD2ADAPTOR_ALLOW_INSECURE=""',
+        'TD2ADAPTOR_TLS_CA_FILE="/etc/ca.pem"',
+        'TD2ADAPTOR_TLS_CERT_FILE=""',
+        'TD2ADAPTOR_TLS_KEY_FILE=""',
+    ]
+    assert args == ["/robots/my td.json", "--robot=r1", "--interfaces=/a", "--interfaces=/b", "--log-level=info"]
+
+
+def test_roslaunch_edge_node_serves_a_robot_over_mosquitto_and_stops_on_sigint(
+    master: Master, sim: Sim, workspace: Path, tmp_path: Path
+) -> None:
+    # `roslaunch PKG edge_node.launch ...` (Debian's roslaunch, on the test's master: --wait never starts
+    # another) runs the rosrun script of the built workspace with the launch arguments; the optional ones
+    # left empty (namespace, config, TLS files, allow_insecure) fall back to their defaults
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    app = AppClient(broker.url, [f"td2adaptor/{ROBOT}/#"], client_id="edge-ros1-launch-app")
+    environ = _roslaunch_env(master, workspace)
+    environ["TD2ADAPTOR_PROPERTY_PERIOD"] = "0.05"  # a setting the launch file leaves to the environment
+    with xmlrpc.client.ServerProxy(master.uri) as proxy:  # what roscore sets and roslaunch --wait waits for
+        proxy.setParam("/test", "/run_id", "edge-ros1-launch")
+    roslaunch = f'source {workspace}/devel/setup.bash && exec roslaunch --wait {PKG} edge_node.launch "$@"'
+    arguments = [f"td:={EXAMPLE / 'td.json'}", f"robot:={ROBOT}", f"bus:={broker.url}"]
+    arguments += [f"interfaces:={EXAMPLE / 'interfaces'}", "poll_period:=0.05", "call_timeout:=5"]
+    run = RunProcess(arguments, env=environ, command=["bash", "-c", roslaunch, "roslaunch"], new_session=True)
+    try:
+        run.wait_ready()
+        assert f"serving {ROBOT} (namespace {ROBOT})" in run.output(), run.output()
+        assert "via ROS 1 via /usr/bin/python3" in run.output()
+        goal = {"procedure": {"goals": [{"pose": {"x": 2.0, "y": 1.0, "theta": 0.0}}]}}
+        app.send(f"td2adaptor/{ROBOT}/GoToComponent/gotoRun", {"correlation": "launch", "payload": goal})
+        app.wait(terminal("feedback", "launch"), timeout=20)
+        check_mission(app.events, "launch", ["queued", "running", "finished"])
+        # Ctrl-C to roslaunch alone: it stops the node with SIGINT, and the robot goes offline
+        assert run.terminate(signal.SIGINT, timeout=30) == 0, run.output()
+        assert "td2adaptor run: stopped" in run.output(), run.output()
+        app.wait(
+            lambda ev: [e["payload"]["state"] for t, e in ev if t.endswith("/status")][-1:] == ["offline"], timeout=10
+        )
+        assert not [pid for pid in _group_members(run.proc.pid)], "roslaunch left processes behind"
     finally:
         run.close()
         app.close()

@@ -8,14 +8,19 @@ other ROS 2 tests of the same worker.
 
 from __future__ import annotations
 
+import ast
 import json
 import os
+import py_compile
+import re
+import runpy
 import signal
 import sys
 import time
+import xml.etree.ElementTree as ET
 from collections.abc import Iterator
 from pathlib import Path
-from types import ModuleType
+from types import ModuleType, SimpleNamespace
 from typing import Any
 
 import pytest
@@ -31,6 +36,7 @@ from td2adaptor.runtime import (
 )
 from td2adaptor.runtime.genport import GeneratedPort
 from td2adaptor.runtime.mqttbus import MqttBus
+from tests.conftest import REPO
 from tests.ros2 import env
 from tests.ros2.common import EXAMPLE, PACKAGE, Process
 from tests.runtime.broker import Mosquitto
@@ -40,7 +46,7 @@ from tests.runtime.rb1 import GOAL, LocalApp, check_outbound, rb1_model, termina
 
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain, rb1_prefix, adaptor_build, adaptor, ros_node
 
-NAMESPACES = ("edge_port", "edge_mqtt", "edge_fleet_a", "edge_fleet_b", "edge_fleet_c")
+NAMESPACES = ("edge_port", "edge_mqtt", "edge_fleet_a", "edge_fleet_b", "edge_fleet_c", "edge_launch")
 DURATION = 1.0
 
 
@@ -259,6 +265,159 @@ def test_the_generated_entry_point_serves_a_fleet_from_the_thing_model_and_stops
         assert run.terminate(signal.SIGTERM) == 0, run.output()
         app.wait(lambda ev: all(statuses(ev, r)[-1:] == ["offline"] for r in robots), timeout=10)
         assert "td2adaptor run: stopped" in run.output()
+    finally:
+        run.close()
+        app.close()
+    check_outbound(app.events)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# the launch file (launch/edge_node.launch.py). ROS 2's launch and launch_ros are not in the PyPI wheels
+# this machine has, so `ros2 launch` cannot run here: the file is checked as source (it compiles, declares
+# the documented arguments, names the installed console script), and its generate_launch_description() runs
+# against minimal stand-ins of launch/launch_ros that only record what it builds (_stand_in_launch), to see
+# which arguments reach the node's command line and environment. Everything after that is real.
+
+
+def _launch_file(install: Path) -> Path:
+    return install / "share" / PACKAGE / "launch" / "edge_node.launch.py"
+
+
+def _documented_arguments(readme: str) -> list[str]:
+    section = readme.split("## Launch file", 1)[1].split("\n## ", 1)[0]
+    return re.findall(r"^\| `(\w+)` \|", section, re.MULTILINE)
+
+
+def test_the_launch_file_is_installed_and_names_the_entry_point_and_the_documented_arguments(
+    adaptor_build: tuple[Path, Path], tmp_path: Path
+) -> None:
+    src, install = adaptor_build
+    launch = _launch_file(install)
+    assert launch.read_bytes() == (src / "launch" / "edge_node.launch.py").read_bytes()
+    py_compile.compile(str(launch), cfile=str(tmp_path / "launch.pyc"), doraise=True)
+    tree = ast.parse(launch.read_text(encoding="utf-8"))
+    tables = {
+        target.id: ast.literal_eval(node.value)
+        for node in tree.body
+        if isinstance(node, ast.Assign)
+        for target in node.targets
+        if isinstance(target, ast.Name)
+    }
+    names = [name for name, _default, _text in tables["ARGUMENTS"]]
+    readme = (install / "share" / PACKAGE / "README.md").read_text(encoding="utf-8")
+    assert names == _documented_arguments(readme)
+    assert [name for name, default, _text in tables["ARGUMENTS"] if default is None] == ["td", "robot"]
+    assert sorted(["td", *tables["OPTIONS"], *tables["ENVIRONMENT"]]) == sorted(names)  # each reaches the node
+    # the same arguments as the ROS 1 package's launch file, in the same order
+    ros1 = ET.parse(REPO / "generated" / "rospy" / PACKAGE / "launch" / "edge_node.launch").getroot()
+    assert [arg.get("name") for arg in ros1.iter("arg")] == names
+    # Node(package=PACKAGE, executable="edge_node"): the console script colcon installed to lib/PACKAGE/
+    (node,) = [c for c in ast.walk(tree) if isinstance(c, ast.Call) and getattr(c.func, "id", "") == "Node"]
+    keywords = {k.arg: k.value for k in node.keywords}
+    assert ast.literal_eval(keywords["package"]) == PACKAGE
+    assert ast.literal_eval(keywords["executable"]) == "edge_node"
+    assert os.access(install / "lib" / PACKAGE / "edge_node", os.X_OK)
+    script = (install / "lib" / PACKAGE / "edge_node").read_text(encoding="utf-8")
+    assert "'console_scripts', 'edge_node'" in script  # setup.py's edge_node = PACKAGE.edge_node:main
+
+
+class _Substitution:
+    pass
+
+
+class _LaunchConfiguration(_Substitution):
+    def __init__(self, variable_name: str, *, default: Any = None) -> None:
+        self.name = variable_name
+
+
+class _Recorded:
+    """An action of the stand-in: what it was constructed with."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        self.args, self.kwargs = args, kwargs
+
+
+def _stand_in_launch(
+    launch: Path, given: dict[str, str], install: Path, monkeypatch: pytest.MonkeyPatch
+) -> tuple[list[str], dict[str, str]]:
+    """The node's command line and additional environment for launch arguments `given`, as launch_ros would
+    make them: the launch file's own generate_launch_description() against recording stand-ins of launch and
+    launch_ros (a stand-in: the real packages are not installable here), substitutions resolved by name."""
+    modules = {
+        "launch": SimpleNamespace(LaunchDescription=_Recorded),
+        "launch.actions": SimpleNamespace(DeclareLaunchArgument=_Recorded),
+        "launch.substitutions": SimpleNamespace(LaunchConfiguration=_LaunchConfiguration),
+        "launch_ros": SimpleNamespace(),
+        "launch_ros.actions": SimpleNamespace(Node=_Recorded),
+    }
+    for name, module in modules.items():
+        monkeypatch.setitem(sys.modules, name, module)
+    description = runpy.run_path(str(launch))["generate_launch_description"]()
+    (entities,) = description.args
+    declared = [e for e in entities if "default_value" in e.kwargs]
+    (node,) = [e for e in entities if "executable" in e.kwargs]
+    unknown = set(given) - {d.args[0] for d in declared}
+    assert not unknown, f"not arguments of the launch file: {unknown}"
+    values = {d.args[0]: given.get(d.args[0], d.kwargs["default_value"]) for d in declared}
+    missing = [name for name, value in values.items() if value is None]
+    assert not missing, f"required arguments not given: {missing}"
+
+    def text(item: Any) -> str:
+        if isinstance(item, str):
+            return item
+        if isinstance(item, _LaunchConfiguration):
+            return str(values[item.name])
+        return "".join(text(part) for part in item)
+
+    executable = install / "lib" / text(node.kwargs["package"]) / text(node.kwargs["executable"])
+    command = [str(executable), *(text(a) for a in node.kwargs["arguments"])]
+    environment = {text(k): text(v) for k, v in node.kwargs["additional_env"].items()}
+    return command, environment
+
+
+def test_the_launch_file_starts_the_entry_point_with_its_arguments_and_it_serves_the_robot(
+    adaptor_build: tuple[Path, Path],
+    rb1_prefix: Path,
+    edge_sim: Process,
+    broker: Mosquitto,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    robot = "edge_launch"  # no namespace argument: the robot id is the namespace
+    given = {"td": str(EXAMPLE / "td.json"), "robot": robot, "bus": broker.url, "poll_period": "0.05"}
+    given["interfaces"] = str(EXAMPLE / "interfaces")
+    command, environment = _stand_in_launch(_launch_file(adaptor_build[1]), given, adaptor_build[1], monkeypatch)
+    assert command[0] == str(adaptor_build[1] / "lib" / PACKAGE / "edge_node")
+    assert command[1:] == [
+        given["td"],
+        f"--robot={robot}",
+        "--namespace=",
+        f"--bus={broker.url}",
+        f"--interfaces={given['interfaces']}",
+        "--config=",
+        "--call-timeout=",
+        "--poll-period=0.05",
+        "--log-level=info",
+    ]
+    variables = ("TD2ADAPTOR_ALLOW_INSECURE", "TD2ADAPTOR_TLS_CA_FILE", "TD2ADAPTOR_TLS_CERT_FILE")
+    assert environment == dict.fromkeys((*variables, "TD2ADAPTOR_TLS_KEY_FILE"), "")
+    # from here on real: the installed entry point with that command line and environment (plus the ROS
+    # arguments launch_ros appends), on ROS 2 and mosquitto; the empty settings must not get in the way
+    app = AppClient(broker.url, [f"td2adaptor/{robot}/#"], client_id="edge-launch-app")
+    environ = {
+        k: v for k, v in env.child_env([rb1_prefix, adaptor_build[1]]).items() if not k.startswith("TD2ADAPTOR_")
+    }
+    environ["PATH"] = os.pathsep.join([str(Path(sys.executable).parent), environ["PATH"]])
+    environ.update(environment, TD2ADAPTOR_PROPERTY_PERIOD="0")
+    run = RunProcess([*command[1:], "--ros-args", "-r", "__node:=edge_node"], env=environ, command=command[:1])
+    try:
+        run.wait_ready()
+        assert f"serving {robot} (namespace {robot}) on {broker.url}" in run.output(), run.output()
+        app.send(goto_topic(robot), {"correlation": "launch", "payload": GOAL})
+        app.wait(terminal("feedback", "launch"), timeout=30)
+        check_mission(app.events, "launch", ["queued", "running", "finished"])
+        assert run.terminate(signal.SIGINT) == 0, run.output()
+        app.wait(lambda ev: [e["payload"]["state"] for t, e in ev if t.endswith("/status")][-1:] == ["offline"])
     finally:
         run.close()
         app.close()

@@ -34,3 +34,22 @@ def test_the_example_fleet_loads(tmp_path: Path) -> None:
     assert all(c.bus == "mqtt://broker.local:8883" and c.poll_period == 0.2 for c in configs)
     (only,) = load_fleet(path, env={}, overrides={"robot": "rb1_base_b"})
     assert only.robot == "rb1_base_b"
+
+
+def test_an_empty_variable_is_unset(tmp_path: Path) -> None:
+    path = tmp_path / "robot.yaml"
+    path.write_text("robot: rb1\nbus: mqtt://broker:1883\ncall_timeout: 3\nallow_insecure: true\n")
+    empty = {
+        "TD2ADAPTOR_BUS": "",
+        "TD2ADAPTOR_CALL_TIMEOUT": "",
+        "TD2ADAPTOR_ALLOW_INSECURE": "",
+        "TD2ADAPTOR_NAMESPACE": "",
+    }
+    assert from_env(empty) == {}
+    config = load_fleet(path, env=empty)[0]
+    assert (config.bus, config.call_timeout, config.allow_insecure, config.ros_namespace) == (
+        "mqtt://broker:1883",
+        3.0,
+        True,
+        "rb1",
+    )

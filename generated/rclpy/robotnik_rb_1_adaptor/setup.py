@@ -1,4 +1,5 @@
-"""Install the adaptor (ament_python): the Python package, its ament index marker, package.xml and the stubs."""
+"""Install the adaptor (ament_python): the Python package, its ament index marker, package.xml, the launch file
+and the stubs."""
 
 import os
 
@@ -32,6 +33,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml", "README.md"]),
+        ("share/" + package_name + "/launch", ["launch/edge_node.launch.py"]),
         *[(os.path.join("share", package_name, os.path.dirname(stub)), [stub]) for stub in stubs],
     ],
     install_requires=["setuptools"],

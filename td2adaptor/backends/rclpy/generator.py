@@ -4,9 +4,9 @@ Everything a template prints is computed here (the view model); the templates in
 print, and the run-time modules are copied unchanged (`verbatim/runtime.py`, and `common.py` and `errors.py`
 shared with the rospy backend in `backends/_python/verbatim/`). Every TD string reaches the output through
 `textsafe`. Output, under `<package>/`: package.xml, setup.py, setup.cfg (also the mypy configuration),
-ruff.toml, README.md, resource/<package>, `<package>/` (components, convert, runtime, common, errors, py.typed)
-and `stubs/` (typed stubs of the interface packages used, because rosidl's Python messages carry no type
-information).
+ruff.toml, README.md, resource/<package>, `<package>/` (components, convert, runtime, common, errors, py.typed,
+edge_node), `launch/edge_node.launch.py` and `stubs/` (typed stubs of the interface packages used, because
+rosidl's Python messages carry no type information, and of the parts of launch/launch_ros the launch file uses).
 """
 
 from __future__ import annotations
@@ -45,6 +45,14 @@ TEMPLATES = Path(__file__).parent / "templates"
 
 VERSION = re.compile(r"^[0-9]+\.[0-9]+\.[0-9]+$")
 VERBATIM = Path(__file__).parent / "verbatim"
+#: copied unchanged: the parts of ROS 2's launch and launch_ros that launch/edge_node.launch.py uses, typed
+_LAUNCH_STUBS = (
+    "launch/__init__.pyi",
+    "launch/actions.pyi",
+    "launch/substitutions.pyi",
+    "launch_ros/__init__.pyi",
+    "launch_ros/actions.pyi",
+)
 
 #: names generated modules must not give to message classes: what the runtime modules define, what the
 #: templates import besides them, keywords and builtins
@@ -725,7 +733,7 @@ class Builder:
                 ],
                 "",
             ),
-            exec_depends=sorted({n.split("/")[0] for n in stub_types} | {"rclpy"}),
+            exec_depends=sorted({n.split("/")[0] for n in stub_types} | {"rclpy", "launch_ros"}),
             components=components,
             component_imports=import_block(pairs),
             converters=converters,
@@ -773,4 +781,9 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     tree.add(f"{src}/py.typed", "")
     for module in view.stubs:
         tree.add(f"{root}/{module.path}", _render("stubs/module.pyi.j2", m=module, **ctx))
+    tree.add(f"{root}/launch/edge_node.launch.py", _render("launch/edge_node.launch.py.j2", **ctx))
+    taken = {m.path.split("/")[1] for m in view.stubs}  # an interface package named launch keeps its stubs
+    for name in _LAUNCH_STUBS:  # for mypy and pyright on the launch file only: not installed
+        if name.split("/")[0] not in taken:
+            tree.add(f"{root}/stubs/{name}", verbatim(VERBATIM, f"stubs/{name}"))
     return tree

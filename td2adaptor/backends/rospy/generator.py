@@ -4,7 +4,7 @@ Everything a template prints is computed here (the view model); templates only l
 modules and the rospy/genpy stubs are copied unchanged (`verbatim/`, and `common.py` and `errors.py` shared
 with the rclpy backend in `backends/_python/verbatim/`). Every TD string reaches the output through
 `textsafe`. Output: `<package>/` with package.xml, CMakeLists.txt, setup.py, README.md, mypy.ini, ruff.toml,
-`src/<package>/`, `scripts/edge_node` (rosrun) and `stubs/`.
+`src/<package>/`, `scripts/edge_node` (rosrun), `launch/edge_node.launch` (roslaunch) and `stubs/`.
 """
 
 from __future__ import annotations
@@ -588,6 +588,7 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     tree.add(src + "edge_node.py", _render("src/edge_node.py.j2", **context, script=False))
     # the same code as the rosrun script (catkin_install_python in CMakeLists.txt)
     tree.add(root + "scripts/edge_node", _render("src/edge_node.py.j2", **context, script=True), executable=True)
+    tree.add(root + "launch/edge_node.launch", _render("launch/edge_node.launch.j2", **context))
     for name in _FIXED_STUBS:
         tree.add(f"{root}stubs/{name}", verbatim(VERBATIM, f"stubs/{name}"))
     packages_done: set[str] = set()

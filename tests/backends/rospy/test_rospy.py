@@ -10,6 +10,7 @@ import importlib.machinery
 import importlib.util
 import json
 import os
+import re
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -141,7 +142,7 @@ def test_package_xml_is_valid_xml_with_every_dependency(rb1_tree: GeneratedTree)
         "robotnik_msgs",
         "std_msgs",
     }
-    assert {e.text for e in root.findall("exec_depend")} == expected
+    assert {e.text for e in root.findall("exec_depend")} == expected | {"roslaunch"}  # launch/edge_node.launch
     assert {e.text for e in root.findall("build_depend")} == expected
     assert [e.text for e in root.findall("buildtool_depend")] == ["catkin"]
 
@@ -212,7 +213,7 @@ def test_hostile_td_text_cannot_inject_code(rb1_tree: GeneratedTree, tmp_path: P
     root = ET.fromstring(tree.files[f"{PKG}/package.xml"])
     assert root.find("evil") is None and root.find("description/evil") is None
     assert "</description><evil/>" in (root.findtext("description") or "")
-    for rel in (f"{PKG}/setup.py", f"{PKG}/CMakeLists.txt", f"{PKG}/mypy.ini"):
+    for rel in (f"{PKG}/setup.py", f"{PKG}/CMakeLists.txt", f"{PKG}/mypy.ini", f"{PKG}/launch/edge_node.launch"):
         assert tree.files[rel] == rb1_tree.files[rel]
     _lint(write(tree, tmp_path / "out"))
 
@@ -252,3 +253,35 @@ def test_edge_node_module_and_rosrun_script_drop_remapping_arguments() -> None:
             "--robot",
             "a",
         ]
+        # the launch file's options: empty ones left out, --interfaces=A:B one option per folder, others kept
+        given = ["td.json", "--robot=a", "--namespace=", "--config=", "--interfaces=/i:/j", "--interfaces=", "-x="]
+        assert module.launch_args([*given, "--set", "k=", "--bus=mqtt://h:1"]) == [
+            "td.json",
+            "--robot=a",
+            "--interfaces=/i",
+            "--interfaces=/j",
+            "-x=",
+            "--set",
+            "k=",
+            "--bus=mqtt://h:1",
+        ]
+
+
+def test_launch_file_starts_the_rosrun_script_with_every_documented_argument(rb1_tree: GeneratedTree) -> None:
+    root = ET.fromstring(rb1_tree.files[f"{PKG}/launch/edge_node.launch"])
+    names = [arg.get("name") for arg in root.iter("arg")]
+    readme = bytes(rb1_tree.files[f"{PKG}/README.md"]).decode()
+    section = readme.split("## Launch file", 1)[1].split("\n## ", 1)[0]
+    assert names == re.findall(r"^\| `(\w+)` \|", section, re.MULTILINE)
+    assert [arg.get("name") for arg in root.iter("arg") if arg.get("default") is None] == ["td", "robot"]
+    (node,) = root.iter("node")
+    assert (node.get("pkg"), node.get("type")) == (PKG, "edge_node")
+    # every argument reaches the node, as an option or a TD2ADAPTOR_* variable; credentials are none of them
+    environment = {env.get("name"): env.get("value") for env in node.iter("env")}
+    used = re.findall(r"\$\(arg (\w+)\)", " ".join([node.get("args") or "", *map(str, environment.values())]))
+    assert sorted(used) == sorted(names)
+    assert all(name and name.startswith("TD2ADAPTOR_") and "PASSWORD" not in name for name in environment)
+    assert (
+        "install(DIRECTORY launch DESTINATION ${CATKIN_PACKAGE_SHARE_DESTINATION})"
+        in bytes(rb1_tree.files[f"{PKG}/CMakeLists.txt"]).decode()
+    )
