@@ -41,6 +41,7 @@ from td2adaptor.model import (
     TopicEndpoint,
     TypeTable,
 )
+from td2adaptor.rostypes.names import providers
 
 TEMPLATES = Path(__file__).parent / "templates"
 
@@ -564,6 +565,8 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
         "errors": sorted(py.error_classes()),
         "exports": sorted([v.name for v in views] + list(py.error_classes()) + ["LAST_MISSION", "Started"]),
         "interface_packages": packages,
+        "standard_debs": [providers(p)[1] for p in packages if p in model.standard_packages],
+        "own_interfaces": [p for p in packages if p not in model.standard_packages],
         "component_names": sorted(v.name for v in views),
         "xml_description": ts.xml_text(" ".join(description.split())),
         "version": _version(thing.version),
