@@ -9,21 +9,8 @@ VERSION=1.1.414
 PREFIX=.cache/pyright
 BIN="$PREFIX/node_modules/.bin/pyright"
 
-if ! command -v npm >/dev/null || ! command -v node >/dev/null; then
-  if command -v apt-get >/dev/null; then
-    log="$(mktemp)"
-    if ! { $SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq \
-        --no-install-recommends nodejs npm; } >"$log" 2>&1; then
-      cat "$log" >&2; rm -f "$log"
-      echo "setup-pyright: installing nodejs and npm failed" >&2
-      exit 1
-    fi
-    rm -f "$log"
-  else
-    echo "setup-pyright: no apt-get; install node and npm yourself (the pyright test skips without them)" >&2
-    exit 1
-  fi
-fi
+. .ci/node.sh
+ensure_node setup-pyright "the pyright test skips without them" || exit 1
 
 if [ -x "$BIN" ] && [ "$("$BIN" --version 2>/dev/null)" = "pyright $VERSION" ]; then
   exit 0

@@ -14,21 +14,8 @@ PACKAGES=(
   "@thing-description-playground/core@1.4.0"
 )
 
-if ! command -v npm >/dev/null || ! command -v node >/dev/null; then
-  if command -v apt-get >/dev/null; then
-    log="$(mktemp)"
-    if ! { $SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq \
-        --no-install-recommends nodejs npm; } >"$log" 2>&1; then
-      cat "$log" >&2; rm -f "$log"
-      echo "setup-wot: installing nodejs and npm failed" >&2
-      exit 1
-    fi
-    rm -f "$log"
-  else
-    echo "setup-wot: no apt-get; install node and npm yourself (the corpus tests skip without ../shared/wot)" >&2
-    exit 1
-  fi
-fi
+. .ci/node.sh
+ensure_node setup-wot "the corpus tests skip without ../shared/wot" || exit 1
 
 installed() {  # name@version -> is that exact version in $PREFIX?
   local name="${1%@*}" version="${1##*@}" manifest
