@@ -636,6 +636,8 @@ class Builder:
         selected: list[tuple[Component, list[ServiceEndpoint], list[TopicEndpoint]]] = []
         ok = True
         for comp in self.model.components:
+            for a in comp.actions:
+                self._skip(comp, a.name, a.pointer, "ROS 2 actions are not generated yet")
             services, topics = self.usable_services(comp), self.usable_topics(comp)
             ok = self.check_names(comp, services, topics) and ok
             selected.append((comp, services, topics))
