@@ -185,7 +185,12 @@ _ENTRIES: tuple[Entry, ...] = (
     Entry("ROS422", (_W,), "declared class name does not match the ROS type"),
     Entry("ROS423", (_E,), "unknown ROS type", "add its definition with --interfaces DIR"),
     Entry("ROS424", (_W,), "ROS type not known for one ROS version: that version's backends cannot use it"),
-    Entry("ROS425", (_E,), "ROS 2 actions are not generated yet", "bind the action's goal/cancel/status services"),
+    Entry(
+        "ROS425",
+        (_W,),
+        "ROS action on a ROS 1 robot: actionlib is not generated yet, only the rclpy backend generates it",
+        "the rospy and mros backends refuse it; --partial skips it",
+    ),
     Entry("ROS426", (_W,), "type used by the interface definitions not known for one ROS version"),
     Entry("ROS427", (_W,), "type written in a ROS 1 or rosjava spelling", "write pkg/msg/Name (srv, action)"),
     Entry(
@@ -306,6 +311,14 @@ _ENTRIES: tuple[Entry, ...] = (
     Entry("GEN840", (_E,), "rospy backend cannot express a message field"),
     Entry("GEN841", (_E,), "rospy backend: a component would define a name twice"),
     Entry("GEN842", (_E,), "rospy backend: ROS 1 types not found", "add their definitions with --interfaces"),
+    Entry(
+        "GEN843",
+        (_E, _W),
+        "rospy backend: ROS 1 actions (actionlib) are not generated yet",
+        "--partial skips the action; the rclpy backend generates ROS 2 actions",
+        "warning under --partial, which skips the action",
+    ),
+    Entry("GEN860", (_W,), "events backend: a ROS action is not in the event contract yet: skipped"),
     # -- CFG9: project configuration ---------------------------------------------------------------------
     Entry("CFG900", (_E,), "configuration file cannot be read"),
     Entry("CFG901", (_E,), "configuration file is not valid TOML"),
@@ -329,6 +342,13 @@ _ENTRIES: tuple[Entry, ...] = (
     Entry("MROS904", (_E,), "type name longer than mROS's 49 characters"),
     Entry("MROS905", (_W,), "more topics/publishers/subscribers than mROS's default tables; the table is raised"),
     Entry("MROS906", (_W,), "latched publisher requested; mROS 1 cannot latch"),
+    Entry(
+        "MROS907",
+        (_E, _W),
+        "TD action bound to a ROS action: mROS has no actions",
+        "pass --partial to skip it, or use the rclpy backend",
+        "warning under --partial, which skips the action",
+    ),
     Entry("MROS910", (_E,), "message larger than the largest allowed pool block", "raise mros.max_pool_block"),
     Entry("MROS911", (_I,), "unbounded strings/sequences: pool sized with the assumed capacities"),
     Entry("MROS912", (_E,), "invalid mros.* option"),

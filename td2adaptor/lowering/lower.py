@@ -22,6 +22,7 @@ from td2adaptor.lowering.rosnames import (
     split_namespace,
 )
 from td2adaptor.model import (
+    ActionEndpoint,
     Component,
     Interface,
     MessageDef,
@@ -111,6 +112,7 @@ def lower(
         )
     _check_unbound_actions(td, raws, diags)
     endpoints = [ep for ep in (_endpoint(raw, diags) for raw in raws) if ep is not None]
+    _check_ros1_actions(endpoints, thing.master_uri, diags)
     _check_duplicate_names(endpoints, diags)
     _check_relative_names(endpoints, diags)
     groups = _group(endpoints, diags)
@@ -127,9 +129,10 @@ def lower(
     components = tuple(
         Component(
             name=g.name,
-            services=tuple(_service(ep) for ep in g.endpoints if ep.raw.interface is not Interface.TOPIC),
+            services=tuple(_service(ep) for ep in g.endpoints if ep.raw.interface is Interface.SERVICE),
             topics=tuple(_topic(ep) for ep in g.endpoints if ep.raw.interface is Interface.TOPIC),
             procedures=procedures[g.name],
+            actions=tuple(_action(ep) for ep in g.endpoints if ep.raw.interface is Interface.ACTION),
         )
         for g in groups
     )
@@ -218,19 +221,26 @@ def _endpoint(raw: RawEndpoint, diags: Diagnostics) -> _Endpoint | None:
                 raw.type_name.pointer,
                 f"write {type_name!r}, the binding's form",
             )
-    if raw.interface is Interface.ACTION:
-        diags.error(
-            "ROS425",
-            f"{what}: ROS 2 actions are reserved in the binding but not generated yet",
-            raw.form_pointer,
-            "bind the action's goal/cancel/status services instead",
-        )
-        ok = False
     component = raw.component.value if raw.component else _default_component(raw.name)
     if type_name is None or type_name.split("/")[1] != kind:
         return None
     # other problems were reported; keep going so type resolution can report its own too
     return _Endpoint(raw, component, ros_name, type_name, errors=not ok)
+
+
+def _check_ros1_actions(endpoints: Sequence[_Endpoint], master_uri: str | None, diags: Diagnostics) -> None:
+    """A ROS action on a ROS 1 robot (a TD naming a ROS 1 master) is actionlib, which is not generated yet."""
+    if master_uri is None:
+        return
+    for ep in endpoints:
+        if ep.raw.interface is Interface.ACTION:
+            diags.warning(
+                "ROS425",
+                f"{ep.raw.kind} {ep.raw.name!r}: the TD names a ROS 1 master, and ROS 1 actions (actionlib) are "
+                "not generated yet: only the rclpy backend (ROS 2) generates this action",
+                ep.raw.form_pointer,
+                "the rospy and mros backends refuse it (--partial skips it)",
+            )
 
 
 def _check_relative_names(endpoints: Sequence[_Endpoint], diags: Diagnostics) -> None:
@@ -305,7 +315,7 @@ def _check_declared(raw: RawEndpoint, type_name: str, diags: Diagnostics) -> Non
 def _check_duplicate_names(endpoints: Sequence[_Endpoint], diags: Diagnostics) -> None:
     seen: dict[tuple[str, bool, str], _Endpoint] = {}
     for ep in endpoints:
-        space = "service" if ep.raw.interface is not Interface.TOPIC else "topic"
+        space = ep.raw.interface.value
         key = (space, ep.ros_name.namespaced, ep.ros_name.path)
         first = seen.setdefault(key, ep)
         if first is not ep and first.type_name != ep.type_name:
@@ -668,10 +678,11 @@ def _crosscheck(
     for ep in endpoints:
         raw = ep.raw
         pairs: list[tuple[Any, str, str]] = []
-        if raw.interface is Interface.SERVICE:
+        if raw.interface is not Interface.TOPIC:
+            halves = ("_Request", "_Response") if raw.interface is Interface.SERVICE else ("_Goal", "_Result")
             for schema, half, key in (
-                (raw.input_schema, "_Request", "input"),
-                (raw.output_schema, "_Response", "output"),
+                (raw.input_schema, halves[0], "input"),
+                (raw.output_schema, halves[1], "output"),
             ):
                 if isinstance(schema, Mapping):
                     pairs.append((schema, pointer_join(raw.pointer, key), ep.type_name + half))
@@ -710,6 +721,13 @@ def _service(ep: _Endpoint) -> ServiceEndpoint:
         raw.input_schema,
         raw.output_schema,
         raw.pointer,
+    )
+
+
+def _action(ep: _Endpoint) -> ActionEndpoint:
+    raw = ep.raw
+    return ActionEndpoint(
+        raw.name, ep.ros_name, ep.type_name, raw.text, raw.input_schema, raw.output_schema, raw.pointer
     )
 
 

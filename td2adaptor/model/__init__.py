@@ -162,6 +162,7 @@ class TypeTable:
         table.update({s.name: s for s in self.services})
         table.update({m.name: m for s in self.services for m in (s.request, s.response)})
         table.update({a.name: a for a in self.actions})
+        table.update({m.name: m for a in self.actions for m in (a.goal, a.result, a.feedback)})
         return table
 
     def message(self, name: str) -> MessageDef:
@@ -172,6 +173,11 @@ class TypeTable:
     def service(self, name: str) -> ServiceDef:
         found = self._by_name[name]
         assert isinstance(found, ServiceDef)
+        return found
+
+    def action(self, name: str) -> ActionDef:
+        found = self._by_name[name]
+        assert isinstance(found, ActionDef)
         return found
 
     def get(self, name: str) -> MessageDef | ServiceDef | ActionDef | None:
@@ -212,7 +218,7 @@ class RosName:
 class Interface(str, enum.Enum):
     SERVICE = "service"
     TOPIC = "topic"
-    ACTION = "action"  # ROS 2 actions: reserved in the binding, not generated yet
+    ACTION = "action"  # ROS 2 actions (rclpy backend); ROS 1 actionlib is not generated yet
 
 
 class Role(str, enum.Enum):
@@ -280,6 +286,21 @@ class ServiceEndpoint:
 
 
 @dataclass(frozen=True)
+class ActionEndpoint:
+    """A TD action bound to a ROS 2 action (`"rosv:interface": "action"`), a goal sent by the adaptor (client).
+
+    `input_schema` describes the goal, `output_schema` the result; the feedback has no TD schema."""
+
+    name: str  # the affordance key, e.g. "fibonacci"
+    ros_name: RosName
+    type_name: str  # canonical pkg/action/Name
+    text: Text = Text()
+    input_schema: Any = None  # frozen JSON
+    output_schema: Any = None
+    pointer: str = field(default="", compare=False)
+
+
+@dataclass(frozen=True)
 class TopicEndpoint:
     """A TD property bound to a ROS topic, subscribed or published by the adaptor."""
 
@@ -308,12 +329,13 @@ class Procedure:
 
 @dataclass(frozen=True)
 class Component:
-    """One generated class: services and topics grouped by the TD."""
+    """One generated class: services, topics and actions grouped by the TD."""
 
     name: str
     services: tuple[ServiceEndpoint, ...] = ()
     topics: tuple[TopicEndpoint, ...] = ()
     procedures: tuple[Procedure, ...] = ()
+    actions: tuple[ActionEndpoint, ...] = ()
 
     @property
     def subscribers(self) -> tuple[TopicEndpoint, ...]:
@@ -357,7 +379,8 @@ class Model:
     def namespaced(self) -> bool:
         """Whether any ROS name lives under the robot namespace (constructors then take one)."""
         services = any(s.ros_name.namespaced for c in self.components for s in c.services)
-        return services or any(t.ros_name.namespaced for c in self.components for t in c.topics)
+        actions = any(a.ros_name.namespaced for c in self.components for a in c.actions)
+        return services or actions or any(t.ros_name.namespaced for c in self.components for t in c.topics)
 
     def types_for(self, distro: str) -> TypeTable:
         return self.ros1 if distro == "ros1" else self.ros2

@@ -29,6 +29,7 @@ class StubClass:
     fields: list[StubField]
     request: str | None = None
     response: str | None = None
+    aliases: tuple[tuple[str, str], ...] = ()  # ROS 2 action classes: (Goal, Fibonacci_Goal), ...
 
 
 @dataclass(frozen=True)

@@ -340,7 +340,15 @@ def _readme(model: Model, catalog: EventCatalog) -> str:
 
 def generate(model: Model, options: GenOptions, diags: Diagnostics) -> GeneratedTree:
     """Schemas, AsyncAPI document, exposed TD, README and broker ACL of `model`'s events, under `<package>/`."""
-    del options, diags  # nothing to choose, nothing that can fail: every model has an event contract
+    del options  # nothing to choose, nothing that can fail: every model has an event contract
+    for comp in model.components:
+        for a in comp.actions:
+            diags.warning(
+                "GEN860",
+                f"events backend: {comp.name}.{a.name}: ROS action {a.ros_name.binding_form()} ({a.type_name}) is "
+                "not in the event contract yet: skipped",
+                a.pointer,
+            )
     catalog = build_catalog(model)
     folder = f"{catalog.package}/"
     tree = GeneratedTree()

@@ -184,6 +184,7 @@ class SkippedAction:
     name: str
     ros_name: str
     type_name: str
+    kind: str = "service"  # or "ROS action"
 
 
 #: prefix of the per-field capacity options: `mros.capacity.<pkg>/msg/<Type>.<field>` = bytes or elements
@@ -353,6 +354,21 @@ def _skip_actions(model: Model, partial: bool, diags: Diagnostics) -> list[Skipp
                     hint="pass --partial to generate the topics and skip the actions, or use the rospy backend",
                 )
             skipped.append(SkippedAction(s.name, s.ros_name.binding_form(), s.type_name))
+        for a in component.actions:
+            message = (
+                f"mros backend: action {a.name!r} ({component.name}, ROS action {a.ros_name.binding_form()} of type "
+                f"{a.type_name}) cannot be generated: mROS has no actions"
+            )
+            if partial:
+                diags.warning("MROS907", message + "; skipped (--partial)", a.pointer)
+            else:
+                diags.error(
+                    "MROS907",
+                    message,
+                    a.pointer,
+                    hint="pass --partial to generate the topics and skip the actions, or use the rclpy backend",
+                )
+            skipped.append(SkippedAction(a.name, a.ros_name.binding_form(), a.type_name, "ROS action"))
     return skipped
 
 

@@ -25,6 +25,8 @@ from td2adaptor.generation import textsafe as ts
 from td2adaptor.generation.backend import GeneratedTree, GenOptions
 from td2adaptor.generation.templating import render, verbatim
 from td2adaptor.model import (
+    ActionDef,
+    ActionEndpoint,
     ArrayKind,
     Component,
     FieldType,
@@ -169,6 +171,19 @@ class CallView:
 
 
 @dataclass
+class ActionView:
+    name: str
+    attr: str
+    action: str  # local class name of the action
+    goal: str  # `Fibonacci.Goal`
+    result: str
+    feedback: str
+    ros_name: str  # Python expression
+    construct: ConstructView
+    doc: str
+
+
+@dataclass
 class TopicView:
     name: str
     attr: str
@@ -187,6 +202,7 @@ class ComponentView:
     doc: str
     calls: list[CallView]
     topics: list[TopicView]
+    actions: list[ActionView]
     last_ids: list[str]
     value: TopicView | None  # the only subscribed property, for get_value()
     value_doc: str
@@ -225,9 +241,10 @@ class PackageView:
     wait_timeout: str
     standard_wheels: list[str]  # PyPI wheels of the standard interface packages it imports (Jazzy)
     own_interfaces: list[str]  # interface packages that come from the robot's own definitions
+    has_actions: bool = False
 
 
-_EXPORTS = ("LAST_MISSION", "Spinner", "Started", "spin_in_background")  # besides components and errors
+_EXPORTS = ("GoalHandle", "LAST_MISSION", "Spinner", "Started", "spin_in_background")  # besides components and errors
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -241,6 +258,15 @@ def _runtime_module(name: str) -> str:
 
 def _is(ftype: FieldType | None, base: str) -> bool:
     return ftype is not None and ftype.base == base and ftype.array is ArrayKind.NONE and not ftype.is_message
+
+
+def _parts(d: MessageDef | ServiceDef | ActionDef) -> list[MessageDef]:
+    """The messages a type is made of: a service's request and response, an action's goal, result, feedback."""
+    if isinstance(d, ServiceDef):
+        return [d.request, d.response]
+    if isinstance(d, ActionDef):
+        return [d.goal, d.result, d.feedback]
+    return [d]
 
 
 def _import_name(full: str, local: str) -> str:
@@ -288,6 +314,17 @@ class Builder:
                 out.append(svc)
         return out
 
+    def usable_actions(self, comp: Component) -> list[ActionEndpoint]:
+        out = []
+        for action in comp.actions:
+            if isinstance(self.types.get(action.type_name), ActionDef):
+                out.append(action)
+            else:
+                self._skip(
+                    comp, action.name, action.pointer, f"type {action.type_name} does not resolve for ROS 2 (Jazzy)"
+                )
+        return out
+
     def usable_topics(self, comp: Component) -> list[TopicEndpoint]:
         out = []
         for topic in comp.topics:
@@ -299,7 +336,13 @@ class Builder:
                 )
         return out
 
-    def check_names(self, comp: Component, services: list[ServiceEndpoint], topics: list[TopicEndpoint]) -> bool:
+    def check_names(
+        self,
+        comp: Component,
+        services: list[ServiceEndpoint],
+        topics: list[TopicEndpoint],
+        actions: Sequence[ActionEndpoint] = (),
+    ) -> bool:
         """Generated method names must not clash (e.g. an action and a property of the same name)."""
         fixed = {"register", "robot_name", "node", "timeout", "wait_timeout"}
         members: dict[str, str] = {}
@@ -307,6 +350,8 @@ class Builder:
         wanted: list[tuple[str, str]] = []
         for s in services:
             wanted += [(m, s.name) for m in (f"construct_{s.name}_Msg", f"call_{s.name}", f"call_{s.name}_async")]
+        for a in actions:
+            wanted += [(m, a.name) for m in (f"construct_{a.name}_Goal", f"send_{a.name}")]
         subscribers = 0
         for t in topics:
             if t.role is Role.SUBSCRIBER:
@@ -496,6 +541,38 @@ class Builder:
             mission_field=mission_field,
         )
 
+    def action_view(self, action: ActionEndpoint, namer: Namer) -> ActionView:
+        adef = self.types.action(action.type_name)
+        self.msg_used.add(action.type_name)
+        self.runtime_used |= {"ActionGoalClient", "GoalHandle"}
+        local = namer[action.type_name]
+        goal, result, feedback = f"{local}.Goal", f"{local}.Result", f"{local}.Feedback"
+        body = [
+            *text_paragraphs(action.text, action.name),
+            f"ROS 2 action {self.ros_name_doc(action.ros_name)} ({action.type_name}).",
+            f"Sends goal (None sends construct_{action.name}_Goal(), all ROS defaults) and returns the accepted "
+            "goal's GoalHandle: goal_id, status, on_feedback(callback), feedback(timeout=...) to iterate over the "
+            "feedback until the goal ends, result(timeout=...) and cancel(timeout=...). Its waits default to timeout "
+            "(default: the component's).",
+            "Raises ServiceUnavailable when no action server appears within wait_timeout, CallTimeout when the "
+            "server does not answer within timeout, GoalRejected when it refuses the goal; result() raises "
+            "GoalAborted or GoalCanceled when the goal does not succeed.",
+        ]
+        construct = self.construct(
+            f"construct_{action.name}_Goal", adef.goal, goal, namer, f"the goal of {action.name}"
+        )
+        return ActionView(
+            name=action.name,
+            attr=f"self._{action.name}",
+            action=local,
+            goal=goal,
+            result=result,
+            feedback=feedback,
+            ros_name=self.ros_name_expr(action.ros_name),
+            construct=construct,
+            doc=docstring(body, "        "),
+        )
+
     def topic_view(self, topic: TopicEndpoint, namer: Namer) -> TopicView:
         self.msg_used.add(topic.type_name)
         self.runtime_used.add("qos_profile")
@@ -537,11 +614,17 @@ class Builder:
         )
 
     def component_view(
-        self, comp: Component, services: list[ServiceEndpoint], topics: list[TopicEndpoint], namer: Namer
+        self,
+        comp: Component,
+        services: list[ServiceEndpoint],
+        topics: list[TopicEndpoint],
+        actions: list[ActionEndpoint],
+        namer: Namer,
     ) -> ComponentView:
         parts = []
-        if services:
-            parts.append(("actions " if len(services) > 1 else "action ") + ", ".join(s.name for s in services))
+        named = [s.name for s in services] + [a.name for a in actions]
+        if named:
+            parts.append(("actions " if len(named) > 1 else "action ") + ", ".join(named))
         if topics:
             parts.append(("properties " if len(topics) > 1 else "property ") + ", ".join(t.name for t in topics))
         doc = docstring(
@@ -556,6 +639,7 @@ class Builder:
         )
         calls = [self.call_view(comp, s, namer) for s in services]
         tviews = [self.topic_view(t, namer) for t in topics]
+        aviews = [self.action_view(a, namer) for a in actions]
         last_ids = sorted({c.last_attr for c in calls if c.run_id and c.last_attr})
         subs = [t for t in tviews if t.subscriber]
         value = subs[0] if len(subs) == 1 else None
@@ -566,7 +650,7 @@ class Builder:
             if value is not None
             else ""
         )
-        return ComponentView(comp.name, doc, calls, tviews, last_ids, value, value_doc)
+        return ComponentView(comp.name, doc, calls, tviews, aviews, last_ids, value, value_doc)
 
     # -- stubs
 
@@ -578,15 +662,15 @@ class Builder:
         out = []
         for module in sorted(by_module):
             pkg, kind = module.split(".")
-            defs: list[MessageDef | ServiceDef] = []
+            defs: list[MessageDef | ServiceDef | ActionDef] = []
             for name in sorted(by_module[module]):
                 found = self.types.get(name)
-                assert isinstance(found, (MessageDef, ServiceDef))
+                assert isinstance(found, (MessageDef, ServiceDef, ActionDef))
                 defs.append(found)
             own: set[str] = set()
             refs: set[str] = set()
             for d in defs:
-                parts = [d.request, d.response] if isinstance(d, ServiceDef) else [d]
+                parts = _parts(d)
                 own |= {d.name, *(m.name for m in parts)}
                 refs |= {f.type.base for m in parts for f in m.fields if f.type.is_message}
             namer = Namer(sorted(refs - own), {module_of(n)[1] for n in own} | RESERVED)
@@ -602,9 +686,16 @@ class Builder:
                             module_of(d.name)[1], [], [], module_of(d.request.name)[1], module_of(d.response.name)[1]
                         )
                     )
+                elif isinstance(d, ActionDef):
+                    classes += [self.stub_class(m, local, plain, extra) for m in (d.goal, d.result, d.feedback)]
+                    aliases = tuple(
+                        (alias, module_of(m.name)[1])
+                        for alias, m in (("Goal", d.goal), ("Result", d.result), ("Feedback", d.feedback))
+                    )
+                    classes.append(StubClass(module_of(d.name)[1], [], [], aliases=aliases))
                 else:
                     classes.append(self.stub_class(d, local, plain, extra))
-            what = "services" if kind == "srv" else "messages"
+            what = {"srv": "services", "action": "actions"}.get(kind, "messages")
             doc = ts.py_docstring(
                 f"The {pkg} {what} {self.package} uses, typed (generated by td2adaptor; partial).", ""
             )
@@ -644,19 +735,24 @@ class Builder:
     # -- the whole package
 
     def build(self) -> PackageView | None:
-        selected: list[tuple[Component, list[ServiceEndpoint], list[TopicEndpoint]]] = []
+        selected: list[tuple[Component, list[ServiceEndpoint], list[TopicEndpoint], list[ActionEndpoint]]] = []
         ok = True
         for comp in self.model.components:
             services, topics = self.usable_services(comp), self.usable_topics(comp)
-            ok = self.check_names(comp, services, topics) and ok
-            selected.append((comp, services, topics))
+            actions = self.usable_actions(comp)
+            ok = self.check_names(comp, services, topics, actions) and ok
+            selected.append((comp, services, topics, actions))
         if not ok or any(d.severity is Severity.ERROR for d in self.diags):
             return None
 
         # every interface type components.py may name, with clash-free local names
         candidates: set[str] = set()
         roots: set[str] = set()  # message types of constructor parameters
-        for _comp, services, topics in selected:
+        for _comp, services, topics, actions in selected:
+            for a in actions:
+                adef = self.types.action(a.type_name)
+                candidates.add(a.type_name)
+                roots |= {f.type.base for f in adef.goal.fields if f.type.is_message}
             for s in services:
                 sdef = self.types.service(s.type_name)
                 candidates |= {s.type_name, sdef.request.name, sdef.response.name}
@@ -665,8 +761,8 @@ class Builder:
                 candidates.add(t.type_name)
                 if t.role is Role.PUBLISHER:
                     roots |= {f.type.base for f in self.message(t.type_name).fields if f.type.is_message}
-        namer = Namer(candidates | roots, RESERVED | {c.name for c, _, _ in selected})
-        components = [self.component_view(c, s, t, namer) for c, s, t in selected]
+        namer = Namer(candidates | roots, RESERVED | {c[0].name for c in selected})
+        components = [self.component_view(c, s, t, a, namer) for c, s, t, a in selected]
         pairs = [(module_of(f)[0], _import_name(f, namer[f])) for f in sorted(self.msg_used)]
         pairs += [(".convert", c) for c in sorted(self.conv_used)]
         pairs += [(_runtime_module(n), n) for n in sorted(self.runtime_used)]
@@ -703,6 +799,10 @@ class Builder:
             if isinstance(found, ServiceDef):
                 stub_types.add(name)
                 for m in (found.request, found.response):
+                    stub_types |= set(self.reachable(f.type.base for f in m.fields if f.type.is_message))
+            elif isinstance(found, ActionDef):
+                stub_types.add(name)
+                for m in (found.goal, found.result, found.feedback):
                     stub_types |= set(self.reachable(f.type.base for f in m.fields if f.type.is_message))
             elif isinstance(found, MessageDef) and "/msg/" in name:
                 stub_types |= set(self.reachable([name]))
@@ -751,6 +851,7 @@ class Builder:
             example=components[0].name if components else "",
             timeout=py.constant("DEFAULT_TIMEOUT"),
             wait_timeout=py.constant("DEFAULT_WAIT_TIMEOUT"),
+            has_actions=any(c.actions for c in components),
         )
 
 

@@ -530,6 +530,24 @@ def _render(template: str, **context: object) -> str:
     return render(TEMPLATES, template, **context)
 
 
+def _refuse_actions(model: Model, partial: bool, diags: Diagnostics) -> bool:
+    """ROS actions are not generated for ROS 1 yet (actionlib): an error each, or a warning each under
+    --partial (the action is then left out). True when generation can go on."""
+    ok = True
+    for comp in model.components:
+        for a in comp.actions:
+            message = (
+                f"rospy backend: {comp.name}.{a.name}: ROS action {a.ros_name.binding_form()} ({a.type_name}) "
+                "cannot be generated: ROS 1 actions (actionlib) are not generated yet"
+            )
+            if partial:
+                diags.warning("GEN843", message + "; skipped (--partial)", a.pointer)
+            else:
+                diags.error("GEN843", message, a.pointer, hint="--partial skips it; the rclpy backend generates it")
+                ok = False
+    return ok
+
+
 def generate(model: Model, options: GenOptions, diags: Diagnostics) -> GeneratedTree:
     """The catkin package for `model` (see the module docstring)."""
     tree = GeneratedTree()
@@ -540,6 +558,8 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
             f"rospy backend: ROS 1 types not found: {', '.join(types.missing)}",
             hint="add their definitions with --interfaces, or pick another backend",
         )
+        return tree
+    if not _refuse_actions(model, options.partial, diags):
         return tree
     pkg = options.package_name or model.package_name
     taken = set(_RESERVED) | {c.name for c in model.components}

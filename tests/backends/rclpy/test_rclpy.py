@@ -164,6 +164,7 @@ def test_hostile_titles_and_descriptions_stay_text(tmp_path: Path) -> None:
     }
     allowed_imports = {
         "__future__",
+        "collections",
         "collections.abc",
         "typing",
         "re",
@@ -173,6 +174,7 @@ def test_hostile_titles_and_descriptions_stay_text(tmp_path: Path) -> None:
         "dataclasses",
         "types",
         "rclpy.node",
+        "rclpy.action.client",
         "rclpy.callback_groups",
         "rclpy.client",
         "rclpy.executors",

@@ -1,4 +1,4 @@
-"""Run-time support of the adaptor: spinning, service calls with deadlines, latest messages.
+"""Run-time support of the adaptor: spinning, service calls with deadlines, latest messages, action goals.
 
 rclpy completes a service call or delivers a message only while an executor spins the node in some thread.
 The blocking methods of the components therefore need one, in another thread than the caller's:
@@ -15,10 +15,12 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable, Generator
+from collections import deque
+from collections.abc import Callable, Generator, Iterator
 from types import TracebackType
 from typing import Any, Generic, Protocol, TypeVar, cast
 
+from rclpy.action.client import ActionClient
 from rclpy.callback_groups import CallbackGroup, MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.client import Client
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
@@ -28,8 +30,17 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.subscription import Subscription
 from rclpy.task import Future
 
-from .common import Callbacks
-from .errors import CallFailed, CallTimeout, ExecutorError, NoMessage, ServiceUnavailable
+from .common import Callbacks, check_timeout
+from .errors import (
+    CallFailed,
+    CallTimeout,
+    ExecutorError,
+    GoalAborted,
+    GoalCanceled,
+    GoalRejected,
+    NoMessage,
+    ServiceUnavailable,
+)
 
 #: how often a wait for a service re-checks whether a server appeared (rclpy's own wait uses 0.25 s)
 POLL_PERIOD = 0.02
@@ -40,6 +51,9 @@ _REGISTER_LOCK = threading.Lock()
 RequestT = TypeVar("RequestT")
 ResponseT = TypeVar("ResponseT")
 MessageT = TypeVar("MessageT")
+GoalT = TypeVar("GoalT")
+ResultT = TypeVar("ResultT")
+FeedbackT = TypeVar("FeedbackT")
 
 
 class _Future(Protocol):
@@ -440,3 +454,276 @@ class TopicPublisher(Generic[MessageT]):
         if self.publisher is None:
             self.register()
         cast(Publisher, self.publisher).publish(msg)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# actions
+
+#: action_msgs/GoalStatus codes → the status a GoalHandle reports
+GOAL_STATUS = {
+    0: "unknown",
+    1: "accepted",
+    2: "executing",
+    3: "canceling",
+    4: "succeeded",
+    5: "canceled",
+    6: "aborted",
+}
+
+#: how many feedback messages a goal handle keeps for iterators that fall behind (older ones are dropped)
+FEEDBACK_BUFFER = 1000
+
+
+class _ClientGoalHandle(Protocol):
+    """The part of `rclpy.action.client.ClientGoalHandle` the adaptor uses, typed."""
+
+    @property
+    def accepted(self) -> bool: ...
+
+    @property
+    def goal_id(self) -> Any: ...
+
+    @property
+    def status(self) -> int: ...
+
+    def get_result_async(self) -> Any: ...
+
+    def cancel_goal_async(self) -> Any: ...
+
+
+class _ActionClientApi(Protocol):
+    """The `rclpy.action.ActionClient` methods the adaptor calls, typed (rclpy leaves them unannotated)."""
+
+    def server_is_ready(self) -> bool: ...
+
+    def send_goal_async(self, goal: Any, feedback_callback: Callable[[Any], None] | None = None) -> Any: ...
+
+
+def _wait(future: _Future, timeout: float) -> bool:
+    """Wait at most `timeout` seconds for `future` (completed by the executor's thread); whether it is done."""
+    done = threading.Event()
+    future.add_done_callback(lambda _future: done.set())
+    return future.done() or done.wait(timeout)
+
+
+class GoalHandle(Generic[ResultT, FeedbackT]):
+    """One goal sent to a ROS 2 action server and accepted by it.
+
+    `goal_id` is the goal's UUID (hex), `status` its latest status ("accepted", "executing", "canceling",
+    "succeeded", "canceled", "aborted"; "unknown" before the first report). Feedback arrives in the
+    executor's thread: `on_feedback(callback)` calls a callback with each message, `feedback(timeout=...)`
+    iterates over them in the caller's thread until the goal ends. `result(timeout=...)` waits for the end;
+    `cancel(timeout=...)` asks the server to cancel the goal. No method waits longer than its timeout.
+    """
+
+    def __init__(self, action: str, handle: _ClientGoalHandle, node: Node, timeout: float) -> None:
+        self.action = action
+        self.node = node
+        self.timeout = timeout
+        self._handle = handle
+        self.goal_id: str = bytes(handle.goal_id.uuid).hex()
+        self._cond = threading.Condition()
+        self._feedback: deque[FeedbackT] = deque(maxlen=FEEDBACK_BUFFER)
+        self._received = 0  # feedback messages received so far (also those dropped from the buffer)
+        self._callbacks: Callbacks[FeedbackT] = Callbacks()
+        self._final: int | None = None  # the GoalStatus code the goal ended with
+        self._result: Any = None
+        self._error: BaseException | None = None
+        self._result_future = cast(_Future, handle.get_result_async())
+        self._result_future.add_done_callback(self._finished)
+
+    # called in the executor's thread
+
+    def deliver(self, feedback: FeedbackT) -> None:
+        """Take one feedback message (called by ActionGoalClient in the executor's thread)."""
+        with self._cond:
+            self._feedback.append(feedback)
+            self._received += 1
+            self._cond.notify_all()
+        outer = _this_thread.executor
+        _this_thread.executor = self.node.executor
+        try:
+            for callback in self._callbacks.current():
+                callback(feedback)
+        finally:
+            _this_thread.executor = outer
+
+    def _finished(self, future: Any) -> None:
+        done = cast(_Future, future)
+        with self._cond:
+            error = done.exception()
+            if error is not None:
+                self._error = error
+                self._final = 0
+            else:
+                response = done.result()
+                self._final = int(response.status)
+                self._result = response.result
+            self._cond.notify_all()
+
+    # the caller's side
+
+    @property
+    def status(self) -> str:
+        """The goal's latest status (see the class docstring)."""
+        with self._cond:
+            code = self._final if self._final is not None else int(self._handle.status)
+        return GOAL_STATUS.get(code, "unknown")
+
+    @property
+    def done(self) -> bool:
+        """Whether the goal has ended (succeeded, canceled or aborted)."""
+        with self._cond:
+            return self._final is not None
+
+    def on_feedback(self, callback: Callable[[FeedbackT], None]) -> Callable[[], None]:
+        """Call `callback` with every feedback message from now on, in the executor's thread; returns a
+        function that removes it again."""
+        return self._callbacks.add(callback)
+
+    def feedback(self, timeout: float | None = None) -> Iterator[FeedbackT]:
+        """The goal's feedback messages, from the first one received, until the goal ends.
+
+        Waits at most `timeout` seconds (default: the component's timeout) for each next message or for the
+        end; raises CallTimeout when neither came by then. Messages arrived while the loop body ran are not
+        lost (up to FEEDBACK_BUFFER of them).
+        """
+        wait = check_timeout(self.timeout if timeout is None else timeout, "timeout")
+        position = 0
+        while True:
+            with self._cond:
+                if position >= self._received and self._final is None:
+                    ensure_can_block(self.node, self.action)
+                    self._wait_beyond(position, wait)
+                if position < self._received:
+                    oldest = self._received - len(self._feedback)
+                    position = max(position, oldest)
+                    item = self._feedback[position - oldest]
+                    position += 1
+                elif self._final is not None:
+                    return
+                else:
+                    raise CallTimeout(self.action, wait)
+            yield item
+
+    def _wait_beyond(self, position: int, wait: float) -> None:
+        """Wait at most `wait` seconds for a feedback message after `position`, or for the end (lock held)."""
+        self._cond.wait_for(lambda: position < self._received or self._final is not None, wait)
+
+    def result(self, timeout: float | None = None) -> ResultT:
+        """Wait at most `timeout` seconds (default: the component's timeout) for the goal to end; its result.
+
+        Raises GoalAborted or GoalCanceled when it did not succeed (the result the server sent is the error's
+        `response`), CallTimeout when it did not end in time (the goal goes on: wait again or cancel()).
+        """
+        wait = check_timeout(self.timeout if timeout is None else timeout, "timeout")
+        with self._cond:
+            if self._final is None:
+                ensure_can_block(self.node, self.action)
+                self._cond.wait_for(lambda: self._final is not None, wait)
+            if self._final is None:
+                raise CallTimeout(self.action, wait)
+            if self._error is not None:
+                raise CallFailed(self.action, f"{type(self._error).__name__}: {self._error}") from self._error
+            if self._final == 6:
+                raise GoalAborted(self.action, self._result)
+            if self._final == 5:
+                raise GoalCanceled(self.action, self._result)
+            if self._final != 4:
+                raise CallFailed(self.action, f"the goal ended with status {self._final}", self._result)
+            return cast(ResultT, self._result)
+
+    def cancel(self, timeout: float | None = None) -> bool:
+        """Ask the server to cancel the goal and wait at most `timeout` seconds (default: the component's) for
+        its answer; whether it accepted to cancel (False: the goal had already ended, or the server refuses).
+        The goal then ends canceled (result() raises GoalCanceled) unless it ended otherwise first."""
+        wait = check_timeout(self.timeout if timeout is None else timeout, "timeout")
+        if self.done:
+            return False
+        ensure_can_block(self.node, self.action)
+        future = cast(_Future, self._handle.cancel_goal_async())
+        if not _wait(future, wait):
+            raise CallTimeout(self.action + " (cancel)", wait)
+        error = future.exception()
+        if error is not None:
+            raise CallFailed(self.action, f"cancel: {type(error).__name__}: {error}") from error
+        return len(future.result().goals_canceling) > 0
+
+
+class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
+    """One ROS 2 action client (`rclpy.action.ActionClient`) that never waits forever.
+
+    `send` waits at most `wait_timeout` for a server (ServiceUnavailable), then at most `timeout` for the
+    server to accept the goal (CallTimeout; GoalRejected when it refuses), and returns a GoalHandle.
+    """
+
+    def __init__(self, node: Node, action_type: Any, name: str) -> None:
+        self.node = node
+        self.action_type = action_type
+        self.name = name
+        self.client: ActionClient | None = None
+        self._group = ReentrantCallbackGroup()
+
+    def register(self) -> None:
+        with _REGISTER_LOCK:
+            if self.client is None:
+                new_client = cast("Callable[..., ActionClient]", ActionClient)
+                self.client = new_client(self.node, self.action_type, self.name, callback_group=self._group)
+
+    def _client(self) -> ActionClient:
+        if self.client is None:
+            self.register()
+        return cast(ActionClient, self.client)
+
+    def send(self, goal: GoalT, timeout: float, wait_timeout: float) -> GoalHandle[ResultT, FeedbackT]:
+        """Send `goal` (see the class docstring); feedback is collected from the first message on."""
+        client = self._client()
+        ensure_can_block(self.node, self.name)
+        api = cast(_ActionClientApi, client)
+        server_is_ready = api.server_is_ready
+        deadline = time.monotonic() + wait_timeout
+        while not server_is_ready():
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise ServiceUnavailable(self.name, f"no action server within {wait_timeout:g} s")
+            time.sleep(min(POLL_PERIOD, remaining))
+        early: list[FeedbackT] = []
+        holder: list[GoalHandle[ResultT, FeedbackT]] = []
+        lock = threading.Lock()
+
+        def on_feedback(message: Any) -> None:
+            feedback = cast(FeedbackT, message.feedback)
+            with lock:
+                if not holder:
+                    early.append(feedback)
+                    return
+                handle = holder[0]
+            handle.deliver(feedback)
+
+        future = cast(_Future, api.send_goal_async(goal, feedback_callback=on_feedback))
+        if not _wait(future, timeout):
+            future.add_done_callback(self._cancel_late)
+            if not server_is_ready():
+                raise ServiceUnavailable(self.name, f"the server went away within {timeout:g} s")
+            raise CallTimeout(self.name, timeout)
+        error = future.exception()
+        if error is not None:
+            raise CallFailed(self.name, f"{type(error).__name__}: {error}") from error
+        raw = cast(_ClientGoalHandle, future.result())
+        if not raw.accepted:
+            raise GoalRejected(self.name)
+        handle: GoalHandle[ResultT, FeedbackT] = GoalHandle(self.name, raw, self.node, timeout)
+        with lock:
+            for feedback in early:
+                handle.deliver(feedback)
+            holder.append(handle)
+        return handle
+
+    @staticmethod
+    def _cancel_late(future: Any) -> None:
+        """A goal accepted after send() gave up waiting: nobody follows it, so cancel it."""
+        done = cast(_Future, future)
+        if done.exception() is None:
+            raw = cast(_ClientGoalHandle, done.result())
+            if raw.accepted:
+                raw.cancel_goal_async()

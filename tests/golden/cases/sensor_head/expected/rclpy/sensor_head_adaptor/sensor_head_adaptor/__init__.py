@@ -12,13 +12,16 @@ from .errors import (
     CallFailed,
     CallTimeout,
     ExecutorError,
+    GoalAborted,
+    GoalCanceled,
+    GoalRejected,
     InvalidMessage,
     InvalidRobotName,
     NoMessage,
     NotInitialized,
     ServiceUnavailable,
 )
-from .runtime import Spinner, spin_in_background
+from .runtime import GoalHandle, Spinner, spin_in_background
 
 __all__ = [
     "ImuComponent",
@@ -27,11 +30,15 @@ __all__ = [
     "CallFailed",
     "CallTimeout",
     "ExecutorError",
+    "GoalAborted",
+    "GoalCanceled",
+    "GoalRejected",
     "InvalidMessage",
     "InvalidRobotName",
     "NoMessage",
     "NotInitialized",
     "ServiceUnavailable",
+    "GoalHandle",
     "LAST_MISSION",
     "Spinner",
     "Started",

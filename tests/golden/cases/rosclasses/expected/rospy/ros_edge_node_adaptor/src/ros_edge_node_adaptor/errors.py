@@ -73,3 +73,24 @@ class ExecutorError(AdaptorError):
 
 class NotInitialized(AdaptorError, RuntimeError):
     """ROS 1: rospy.init_node() has not been called in this process yet."""
+
+
+class GoalRejected(CallFailed):
+    """ROS 2 action: the action server refused the goal (nothing was started)."""
+
+    def __init__(self, action: str) -> None:
+        super().__init__(action, "the goal was rejected")
+
+
+class GoalAborted(CallFailed):
+    """ROS 2 action: the goal ended aborted by the robot; `response` is the result it sent."""
+
+    def __init__(self, action: str, result: Any = None) -> None:
+        super().__init__(action, "the goal was aborted", result)
+
+
+class GoalCanceled(CallFailed):
+    """ROS 2 action: the goal ended canceled (by cancel() or by anyone else); `response` is the result sent."""
+
+    def __init__(self, action: str, result: Any = None) -> None:
+        super().__init__(action, "the goal was canceled", result)

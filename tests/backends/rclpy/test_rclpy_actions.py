@@ -1,0 +1,287 @@
+"""ROS 2 actions in the generated rclpy adaptor, against real ROS 2 Jazzy: no mocks.
+
+The adaptor is generated from tests.lowering.test_actions.action_td (test_msgs/action/Fibonacci, whose Python
+types come from the `ros-jazzy-test-msgs` wheel) and imported from its source. The action server is a real
+`rclpy.action.ActionServer` on a node of this process, spun by its own multi-threaded executor, so that it
+executes goals while it answers cancel requests. What the server does depends on the goal's `order`:
+negative → rejected; 77 → aborted after two feedback messages; otherwise one feedback message per step
+(`STEP` seconds apart) and the sequence as the result, ending canceled when a cancel was requested.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import pytest
+
+from tests.lowering.test_actions import INTERFACES, action_td
+from tests.ros2.common import require_ros2
+
+pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain, ros_node
+
+ROBOT = "fibo_robot"
+STEP = 0.05
+ABORT = 77
+
+
+def _sequence(order: int) -> list[int]:
+    seq = [0, 1]
+    while len(seq) < order + 1:
+        seq.append(seq[-1] + seq[-2])
+    return seq[: order + 1]
+
+
+@pytest.fixture(scope="session")
+def fibo_adaptor(ros2_domain: int, tmp_path_factory: pytest.TempPathFactory) -> ModuleType:
+    require_ros2()
+    import td2adaptor
+    from td2adaptor.diagnostics import Diagnostics, Severity
+    from td2adaptor.generation.backend import GenOptions
+    from td2adaptor.generation.registry import load as load_backend
+
+    base = tmp_path_factory.mktemp("fibo")
+    td = base / "td.json"
+    td.write_text(json.dumps(action_td()), encoding="utf-8")
+    result = td2adaptor.compile(td, interfaces=[INTERFACES])
+    assert result.model is not None, [d.message for d in result.diagnostics]
+    diags = Diagnostics()
+    tree = load_backend("rclpy").generate(result.model, GenOptions(), diags)
+    assert not [d for d in diags if d.severity is Severity.ERROR], [d.message for d in diags]
+    for rel, data in tree:
+        path = base / "src" / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(data)
+    src = base / "src" / result.model.package_name
+    sys.path.insert(0, str(src))
+    return importlib.import_module(result.model.package_name)
+
+
+class FiboServer:
+    """The action server (see the module docstring); `goals` counts the goals it executed."""
+
+    def __init__(self, context: Any, name: str) -> None:
+        import rclpy
+        from rclpy.action import ActionServer, CancelResponse, GoalResponse
+        from rclpy.callback_groups import ReentrantCallbackGroup
+        from rclpy.executors import MultiThreadedExecutor
+        from test_msgs.action import Fibonacci
+
+        self.node: Any = rclpy.create_node("fibo_server", context=context)
+        self.goals = 0
+        self.canceled = threading.Event()
+
+        def on_goal(goal: Any) -> Any:
+            return GoalResponse.REJECT if goal.order < 0 else GoalResponse.ACCEPT
+
+        def execute(handle: Any) -> Any:
+            self.goals += 1
+            order = handle.request.order
+            result = Fibonacci.Result()
+            for i in range(1, order + 1):
+                if handle.is_cancel_requested:
+                    handle.canceled()
+                    self.canceled.set()
+                    result.sequence = _sequence(i - 1)
+                    return result
+                feedback = Fibonacci.Feedback()
+                feedback.sequence = _sequence(i)
+                handle.publish_feedback(feedback)
+                if order == ABORT and i == 2:
+                    handle.abort()
+                    result.sequence = _sequence(i)
+                    return result
+                time.sleep(STEP)
+            handle.succeed()
+            result.sequence = _sequence(order)
+            return result
+
+        self.server = ActionServer(
+            self.node,
+            Fibonacci,
+            name,
+            execute_callback=execute,
+            goal_callback=on_goal,
+            cancel_callback=lambda _handle: CancelResponse.ACCEPT,
+            callback_group=ReentrantCallbackGroup(),
+        )
+        self.executor = MultiThreadedExecutor(num_threads=4, context=context)
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+
+    def stop(self) -> None:
+        self.executor.shutdown(timeout_sec=5)
+        self.thread.join(5)
+        self.server.destroy()
+        self.node.destroy_node()
+
+
+@pytest.fixture(scope="module")
+def fibo_server(ros_node: Any) -> Iterator[FiboServer]:
+    server = FiboServer(ros_node.context, f"/{ROBOT}/fibonacci")
+    try:
+        yield server
+    finally:
+        server.stop()
+
+
+@pytest.fixture
+def fibo(fibo_adaptor: ModuleType, ros_node: Any, fibo_server: FiboServer) -> Any:
+    return fibo_adaptor.MathComponent(ros_node, ROBOT, timeout=10.0, wait_timeout=15.0)
+
+
+def test_goal_accepted_feedback_by_callback_and_iterator_then_result(fibo_adaptor: ModuleType, fibo: Any) -> None:
+    handle = fibo.send_fibonacci(fibo.construct_fibonacci_Goal(order=6))
+    assert isinstance(handle, fibo_adaptor.GoalHandle)
+    assert len(handle.goal_id) == 32 and int(handle.goal_id, 16) >= 0
+    by_callback: list[list[int]] = []
+    remove = handle.on_feedback(lambda fb: by_callback.append(list(fb.sequence)))
+    iterated = [list(fb.sequence) for fb in handle.feedback(timeout=5.0)]
+    # the iterator sees every feedback message from the first one, in order, and ends with the goal
+    assert iterated == [_sequence(i) for i in range(1, 7)]
+    result = handle.result(timeout=5.0)
+    assert list(result.sequence) == _sequence(6)
+    assert handle.status == "succeeded" and handle.done
+    assert by_callback and by_callback == iterated[-len(by_callback) :]
+    remove()
+
+
+def test_callback_sees_every_feedback_when_registered_at_once(fibo: Any) -> None:
+    handle = fibo.send_fibonacci(fibo.construct_fibonacci_Goal(order=8))
+    seen: list[int] = []
+    handle.on_feedback(lambda fb: seen.append(len(fb.sequence)))
+    handle.result(timeout=5.0)
+    assert seen and seen == sorted(seen) and seen[-1] == 9
+
+
+def test_cancel_mid_goal(fibo_adaptor: ModuleType, fibo: Any, fibo_server: FiboServer) -> None:
+    handle = fibo.send_fibonacci(fibo.construct_fibonacci_Goal(order=200))
+    first = next(iter(handle.feedback(timeout=5.0)))
+    assert list(first.sequence) == _sequence(1)
+    assert handle.status in ("accepted", "executing")
+    assert handle.cancel(timeout=5.0) is True
+    with pytest.raises(fibo_adaptor.GoalCanceled) as caught:
+        handle.result(timeout=5.0)
+    assert isinstance(caught.value, fibo_adaptor.CallFailed)
+    assert len(caught.value.response.sequence) < 201
+    assert handle.status == "canceled"
+    assert handle.cancel(timeout=5.0) is False  # already over
+    assert fibo_server.canceled.is_set()
+
+
+def test_goal_rejected(fibo_adaptor: ModuleType, fibo: Any) -> None:
+    with pytest.raises(fibo_adaptor.GoalRejected, match="rejected"):
+        fibo.send_fibonacci(fibo.construct_fibonacci_Goal(order=-1))
+
+
+def test_goal_aborted(fibo_adaptor: ModuleType, fibo: Any) -> None:
+    handle = fibo.send_fibonacci(fibo.construct_fibonacci_Goal(order=ABORT))
+    assert len(list(handle.feedback(timeout=5.0))) == 2
+    with pytest.raises(fibo_adaptor.GoalAborted) as caught:
+        handle.result(timeout=5.0)
+    assert list(caught.value.response.sequence) == _sequence(2)
+    assert handle.status == "aborted"
+
+
+def test_timeouts_never_block_forever(fibo_adaptor: ModuleType, fibo: Any) -> None:
+    handle = fibo.send_fibonacci(fibo.construct_fibonacci_Goal(order=100))
+    start = time.monotonic()
+    with pytest.raises(fibo_adaptor.CallTimeout):
+        handle.result(timeout=0.3)
+    assert time.monotonic() - start < 2.0
+    assert not handle.done  # the goal goes on
+    items = handle.feedback(timeout=0.001)
+    with pytest.raises(fibo_adaptor.CallTimeout):
+        for _ in range(1000):  # faster than the server: some wait must time out
+            next(items)
+            time.sleep(0)
+    with pytest.raises(ValueError):
+        handle.result(timeout=float("inf"))
+    assert handle.cancel(timeout=5.0)
+    with pytest.raises(fibo_adaptor.GoalCanceled):
+        handle.result(timeout=5.0)
+
+
+def test_server_absent(fibo_adaptor: ModuleType, ros_node: Any) -> None:
+    lonely = fibo_adaptor.MathComponent(ros_node, "no_such_robot", timeout=1.0, wait_timeout=0.5)
+    start = time.monotonic()
+    with pytest.raises(fibo_adaptor.ServiceUnavailable, match="no_such_robot/fibonacci"):
+        lonely.send_fibonacci()
+    assert time.monotonic() - start < 3.0
+
+
+def test_blocking_from_a_callback_is_refused(fibo_adaptor: ModuleType, fibo: Any) -> None:
+    handle = fibo.send_fibonacci(fibo.construct_fibonacci_Goal(order=5))
+    errors: list[BaseException] = []
+
+    def blocking(_fb: Any) -> None:
+        try:
+            handle.result(timeout=1.0)
+        except fibo_adaptor.ExecutorError as exc:
+            errors.append(exc)
+
+    handle.on_feedback(blocking)
+    handle.result(timeout=5.0)
+    assert errors
+
+
+def test_generated_action_api_passes_ruff_and_mypy_strict(fibo_adaptor: ModuleType, tmp_path: Path) -> None:
+    """The package (runtime, components, stubs of test_msgs/action) and user code against it type-check
+    strictly: good use passes, misuse of the goal, the handle and the result is caught."""
+    import shutil
+    import subprocess
+
+    pkg = Path(fibo_adaptor.__file__ or "").parents[1]
+    copy = tmp_path / pkg.name
+    shutil.copytree(pkg, copy)
+    bin_dir = Path(sys.executable).parent
+    for args in (["check", "--no-cache", "."], ["format", "--check", "--no-cache", "."]):
+        proc = subprocess.run([str(bin_dir / "ruff"), *args], cwd=copy, capture_output=True, text=True)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+    name = fibo_adaptor.__name__
+    (copy / "use_ok.py").write_text(
+        "from collections.abc import Callable\n"
+        "from rclpy.node import Node\n"
+        f"from {name} import GoalCanceled, GoalHandle, MathComponent\n"
+        "from test_msgs.action import Fibonacci\n\n\n"
+        "def run(node: Node) -> list[int]:\n"
+        "    fibo = MathComponent(node, 'r', timeout=2.0)\n"
+        "    handle: GoalHandle[Fibonacci.Result, Fibonacci.Feedback] = fibo.send_fibonacci(\n"
+        "        fibo.construct_fibonacci_Goal(order=5), timeout=1.0\n"
+        "    )\n"
+        "    remove: Callable[[], None] = handle.on_feedback(lambda fb: print(len(fb.sequence)))\n"
+        "    remove()\n"
+        "    firsts = [fb.sequence[0] for fb in handle.feedback(timeout=1.0)]\n"
+        "    goal_id: str = handle.goal_id\n"
+        "    status: str = handle.status\n"
+        "    try:\n"
+        "        return list(handle.result(timeout=3.0).sequence) + firsts + [len(goal_id + status)]\n"
+        "    except GoalCanceled:\n"
+        "        return [] if handle.cancel() else [1]\n",
+        encoding="utf-8",
+    )
+    (copy / "use_bad.py").write_text(
+        "from rclpy.node import Node\n"
+        f"from {name} import MathComponent\n\n\n"
+        "def run(node: Node) -> str:\n"
+        "    fibo = MathComponent(node)\n"
+        "    fibo.construct_fibonacci_Goal(order='five')\n"
+        "    fibo.send_fibonacci(fibo.construct_fibonacci_Goal(), 2.0)\n"
+        "    return fibo.send_fibonacci().result().sequence\n",
+        encoding="utf-8",
+    )
+    mypy = [str(bin_dir / "mypy"), "--cache-dir", str(tmp_path / "mypy-cache")]
+    proc = subprocess.run(mypy, cwd=copy, capture_output=True, text=True)  # setup.cfg: strict, stubs/
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    proc = subprocess.run([*mypy, "use_ok.py", "use_bad.py"], cwd=copy, capture_output=True, text=True)
+    lines = [line for line in proc.stdout.splitlines() if ": error:" in line]
+    assert all(line.startswith("use_bad.py") for line in lines), proc.stdout
+    assert len(lines) == 3, proc.stdout

@@ -1,0 +1,169 @@
+"""TD actions bound to ROS 2 actions (`"rosv:interface": "action"`): type resolution, lowering, and what the
+backends that cannot generate them (rospy, mros, events) say."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import td2adaptor
+from td2adaptor.diagnostics import Diagnostics, Severity
+from td2adaptor.generation.backend import GenOptions
+from td2adaptor.generation.registry import load as load_backend
+from td2adaptor.model import ActionEndpoint, Model
+from td2adaptor.rostypes.registry import TypeRegistry
+
+INTERFACES = Path(__file__).resolve().parents[1] / "data" / "actions"
+
+
+def action_td(**extra: Any) -> dict[str, Any]:
+    """A TD with one action bound to test_msgs/action/Fibonacci and one property."""
+    td: dict[str, Any] = {
+        "@context": ["https://www.w3.org/2022/wot/td/v1.1", "https://td2adaptor.dev/ns/rosv/v1"],
+        "@type": "Thing",
+        "title": "Fibo Bot",
+        "securityDefinitions": {"nosec_sc": {"scheme": "nosec"}},
+        "security": ["nosec_sc"],
+        "actions": {
+            "fibonacci": {
+                "rosv:component": "MathComponent",
+                "input": {"type": "object", "properties": {"order": {"type": "integer"}}},
+                "output": {
+                    "type": "object",
+                    "properties": {"sequence": {"type": "array", "items": {"type": "integer"}}},
+                },
+                "forms": [
+                    {
+                        "href": "ros:fibonacci",
+                        "op": "invokeaction",
+                        "rosv:name": "/{{robotName}}/fibonacci",
+                        "rosv:type": "test_msgs/action/Fibonacci",
+                        "rosv:interface": "action",
+                    }
+                ],
+            }
+        },
+        "properties": {
+            "chatter": {
+                "rosv:component": "MathComponent",
+                "observable": True,
+                "readOnly": True,
+                "forms": [
+                    {
+                        "href": "ros:chatter",
+                        "op": ["readproperty", "observeproperty"],
+                        "rosv:name": "/{{robotName}}/chatter",
+                        "rosv:type": "std_msgs/msg/String",
+                    }
+                ],
+            }
+        },
+    }
+    td.update(extra)
+    return td
+
+
+def compile_td(tmp_path: Path, td: dict[str, Any]) -> td2adaptor.compiler.pipeline.Result:  # type: ignore[name-defined]
+    path = tmp_path / "td.json"
+    path.write_text(json.dumps(td), encoding="utf-8")
+    return td2adaptor.compile(path, interfaces=[INTERFACES])
+
+
+def codes(result: Any, severity: Severity | None = None) -> list[str]:
+    return [d.code for d in result.diagnostics if severity is None or d.severity is severity]
+
+
+def test_action_types_resolve_from_interface_folders() -> None:
+    for distro in ("ros1", "ros2"):
+        reg = TypeRegistry(distro, [INTERFACES])  # type: ignore[arg-type]
+        table = reg.table(["test_msgs/action/Fibonacci"])
+        assert not table.missing
+        adef = table.action("test_msgs/action/Fibonacci")
+        assert [f.name for f in adef.goal.fields] == ["order"]
+        assert [f.name for f in adef.result.fields] == ["sequence"]
+        assert [f.name for f in adef.feedback.fields] == ["sequence"]
+        assert table.message("test_msgs/action/Fibonacci_Goal") is adef.goal
+
+
+def test_action_lowers_to_an_action_endpoint(tmp_path: Path) -> None:
+    result = compile_td(tmp_path, action_td())
+    assert result.model is not None, [d.message for d in result.diagnostics]
+    assert "ROS425" not in codes(result)
+    comp = result.model.component("MathComponent")
+    assert comp.services == ()
+    (action,) = comp.actions
+    assert isinstance(action, ActionEndpoint)
+    assert action.name == "fibonacci"
+    assert action.type_name == "test_msgs/action/Fibonacci"
+    assert action.ros_name.namespaced and action.ros_name.path == "fibonacci"
+    assert result.model.namespaced
+
+
+def test_goal_and_result_are_cross_checked(tmp_path: Path) -> None:
+    td = action_td()
+    td["actions"]["fibonacci"]["input"] = {"type": "object", "properties": {"order": {"type": "string"}}}
+    td["actions"]["fibonacci"]["output"] = {"type": "object", "properties": {"sequense": {"type": "array"}}}
+    result = compile_td(tmp_path, td)
+    found = [d for d in result.diagnostics if d.code.startswith("XC6")]
+    pointers = {d.pointer for d in found}
+    assert "/actions/fibonacci/input/properties/order/type" in pointers, [(d.code, d.pointer) for d in found]
+    assert any(p.startswith("/actions/fibonacci/output") for p in pointers), [(d.code, d.pointer) for d in found]
+
+
+def test_unknown_action_type_is_reported(tmp_path: Path) -> None:
+    td = action_td()
+    td["actions"]["fibonacci"]["forms"][0]["rosv:type"] = "test_msgs/action/Fibonaci"
+    result = compile_td(tmp_path, td)
+    assert result.model is None
+    assert "ROS423" in codes(result, Severity.ERROR)
+
+
+def test_action_type_for_a_service_binding_is_refused(tmp_path: Path) -> None:
+    td = action_td()
+    del td["actions"]["fibonacci"]["forms"][0]["rosv:interface"]
+    result = compile_td(tmp_path, td)
+    assert result.model is None
+    assert "ROS421" in codes(result, Severity.ERROR)
+
+
+def test_ros1_robot_is_warned(tmp_path: Path) -> None:
+    result = compile_td(tmp_path, action_td(**{"rosv:masterURI": "http://localhost:11311"}))
+    assert result.model is not None, [d.message for d in result.diagnostics]
+    assert "ROS425" in codes(result, Severity.WARNING)
+
+
+def _model(tmp_path: Path) -> Model:
+    result = compile_td(tmp_path, action_td())
+    assert result.model is not None
+    return result.model
+
+
+@pytest.mark.parametrize(("backend", "code"), [("rospy", "GEN843"), ("mros", "MROS907")])
+def test_backends_without_actions_refuse_or_skip(tmp_path: Path, backend: str, code: str) -> None:
+    model = _model(tmp_path)
+    diags = Diagnostics()
+    load_backend(backend).generate(model, GenOptions(), diags)
+    errors = [d for d in diags if d.severity is Severity.ERROR]
+    assert [d.code for d in errors] == [code], [d.message for d in diags]
+    assert "fibonacci" in errors[0].message and errors[0].pointer == "/actions/fibonacci"
+
+    diags = Diagnostics()
+    tree = load_backend(backend).generate(model, GenOptions(partial=True), diags)
+    assert not [d for d in diags if d.severity is Severity.ERROR], [d.message for d in diags]
+    assert code in [d.code for d in diags if d.severity is Severity.WARNING]
+    assert tree.files  # the property is still generated
+    text = b"".join(tree.files.values()).decode("utf-8")
+    assert "chatter" in text
+
+
+def test_events_backend_skips_actions_with_a_warning(tmp_path: Path) -> None:
+    model = _model(tmp_path)
+    diags = Diagnostics()
+    tree = load_backend("events").generate(model, GenOptions(), diags)
+    (found,) = list(diags)
+    assert found.code == "GEN860" and found.severity is Severity.WARNING and found.pointer == "/actions/fibonacci"
+    text = b"".join(tree.files.values()).decode("utf-8")
+    assert "fibonacci" not in text and "chatter" in text
