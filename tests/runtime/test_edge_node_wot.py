@@ -1,4 +1,4 @@
-"""A standard WoT client consumes the exposed TD (generated/events/robotnik_rb_1_adaptor/td.mqtt.json):
+"""A standard WoT client consumes the exposed TD of a robot (`exposed_td`, what `td2adaptor expose` writes):
 Eclipse Thingweb node-wot with its MQTT binding, from npm, invokes gotoRun, observes poseMarker and receives
 the feedback event of an edge node on a real mosquitto (the simulated robot behind a SimPort: the consumer
 side is under test).
@@ -6,8 +6,8 @@ side is under test).
 Optional: skipped, saying why, when node/npm are missing or the packages cannot be installed (offline).
 node-wot is installed once into .cache/node-wot with `npm install --ignore-scripts` (pure JavaScript).
 
-node-wot 0.8 takes the MQTT topic from the form's href path and ignores `mqv:topic`, so the test fills the
-TD's placeholders (robot id, broker address) and also puts each form's topic into its href path.
+node-wot 0.8 takes the MQTT topic from the form's href path and ignores `mqv:topic`/`mqv:filter`: the exposed
+TD puts it in both, and node-wot consumes the TD as generated, nothing rewritten.
 """
 
 from __future__ import annotations
@@ -18,10 +18,10 @@ import shutil
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import pytest
 
+from td2adaptor.backends.events.generator import dump, exposed_td
 from td2adaptor.runtime import RuntimeConfig, serve
 from td2adaptor.runtime.ros2build import file_lock
 from td2adaptor.runtime.simport import SimPort
@@ -58,18 +58,6 @@ def node_modules() -> Path:
     return modules
 
 
-def consumable_td(port: int) -> dict[str, Any]:
-    """The exposed TD for robot ROBOT on the test broker, each form's topic also in its href path."""
-    text = (REPO / "generated" / "events" / "robotnik_rb_1_adaptor" / "td.mqtt.json").read_text(encoding="utf-8")
-    td: dict[str, Any] = json.loads(text.replace("{{robotName}}", ROBOT))
-    for group in ("properties", "actions", "events"):
-        for affordance in td.get(group, {}).values():
-            for form in affordance.get("forms", []):
-                assert form["href"] == "mqtt://localhost:1883", form
-                form["href"] = f"mqtt://127.0.0.1:{port}/{form['mqv:topic']}"
-    return td
-
-
 @pytest.fixture
 def broker(tmp_path: Path) -> Iterator[Mosquitto]:
     b = Mosquitto(tmp_path / "broker")
@@ -81,8 +69,9 @@ def broker(tmp_path: Path) -> Iterator[Mosquitto]:
 def test_node_wot_invokes_observes_and_gets_feedback(broker: Mosquitto, tmp_path: Path) -> None:
     modules = node_modules()
     td_path = tmp_path / "td.json"
-    td_path.write_text(json.dumps(consumable_td(broker.port)), encoding="utf-8")
     model = rb1_model()
+    # the robot's TD exactly as generated: node-wot reads each topic from the form's href path
+    td_path.write_text(dump(exposed_td(model, robot=ROBOT, broker=broker.url)), encoding="utf-8")
     config = RuntimeConfig(robot=ROBOT, bus=broker.url, poll_period=0.05, property_period=0.1)
     engine = serve(model, SimPort(model, sim(0.3)), config)
     try:
