@@ -12,6 +12,10 @@ Topic scheme (every level but the robot id is a validated identifier, so no leve
     td2adaptor/<robot>/<Component>/<run>/state         answer to a query or cancel event            (out)
     td2adaptor/<robot>/error                           error events                                 (out)
     td2adaptor/<robot>/status                          online/offline, retained, last will          (out)
+    td2adaptor/<robot>/td                              the robot's Thing Description, retained      (out)
+
+The last one is no event: the edge node publishes there the robot's TD (what `td2adaptor expose` writes) as
+soon as it is online and clears it (an empty retained message) when it stops.
 
 `<robot>` is the robot id; the reserved id `all` addresses every robot (inbound events only).
 """
@@ -34,6 +38,8 @@ ALL_ROBOTS = "all"
 ROBOT_ID = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]{0,127}$")
 ROBOT_ID_PATTERN = ROBOT_ID.pattern
 SCHEMA_BASE = "https://td2adaptor.dev/events/"
+#: the topic level under which each robot's edge node keeps its Thing Description (retained)
+TD_LEVEL = "td"
 DRAFT = "https://json-schema.org/draft/2020-12/schema"
 _TIME_PATTERN = r"^\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2}(\.\d{1,9})?(Z|[+-]\d{2}:\d{2})$"
 
@@ -188,6 +194,11 @@ class EventCatalog:
             return None
         spec = self._routes.get(tuple(levels[2:]))
         return None if spec is None else (spec, levels[1])
+
+
+def td_topic(robot: str, root: str = TOPIC_ROOT) -> str:
+    """Where robot `robot`'s edge node keeps its Thing Description, retained, while it runs."""
+    return f"{root}/{robot}/{TD_LEVEL}"
 
 
 # ---------------------------------------------------------------------------------------------------------

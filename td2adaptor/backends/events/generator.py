@@ -47,6 +47,7 @@ from td2adaptor.model.events import (
     EventSpec,
     Kind,
     build_catalog,
+    td_topic,
 )
 
 TEMPLATES = Path(__file__).parent / "templates"
@@ -406,7 +407,7 @@ def _acl(model: Model, catalog: EventCatalog) -> str:
         root=TOPIC_ROOT,
         all_robots=ALL_ROBOTS,
         node_reads=[t for s in inbound for t in (s.topic("%u"), s.topic(ALL_ROBOTS))],
-        node_writes=[s.topic("%u") for s in outbound],
+        node_writes=[*(s.topic("%u") for s in outbound), td_topic("%u")],
         app_writes=[s.topic("+") for s in inbound],
     )
 
