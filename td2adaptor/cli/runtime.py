@@ -1,4 +1,5 @@
-"""The edge node (`run`) and the demonstrations (`demo warehouse`, from a source checkout)."""
+"""The edge node (`run`), a robot's Thing Description (`expose`) and the demonstrations (`demo warehouse`, from a
+source checkout)."""
 
 from __future__ import annotations
 
@@ -34,6 +35,11 @@ if TYPE_CHECKING:
 @click.option("--robot", help="Robot id on the bus (default: TD2ADAPTOR_ROBOT or the configuration file).")
 @click.option("--namespace", help="ROS namespace of the robot ({{robotName}}); default: the robot id.")
 @click.option("--bus", help="mqtt://host:port, mqtts://host:port or local (default: local).")
+@click.option(
+    "--broker",
+    help="Broker URL the robot's published Thing Description names (default: the --bus URL; with a local bus, "
+    "no TD is published).",
+)
 @click.option(
     "--config",
     "config_file",
@@ -89,6 +95,7 @@ def run(
     robot: str | None,
     namespace: str | None,
     bus: str | None,
+    broker: str | None,
     config_file: Path | None,
     ros: str,
     package: str | None,
@@ -109,8 +116,9 @@ def run(
 
     The generated adaptor package must be importable: source the colcon/catkin install space it was built
     into, or give --package-path (its source directory) and, for ROS 2, --prefix (the built interfaces).
-    Precedence of settings: options > TD2ADAPTOR_* environment > --config file. SIGINT/SIGTERM stop it
-    cleanly (the robot's status becomes offline).
+    Precedence of settings: options > TD2ADAPTOR_* environment > --config file. Once online, each robot's
+    Thing Description (what `td2adaptor expose` writes) is retained on td2adaptor/<robot>/td. SIGINT/SIGTERM
+    stop it cleanly (the TD is cleared, the robot's status becomes offline).
     """
     import logging
     import signal
@@ -131,6 +139,7 @@ def run(
         "robot": robot,
         "namespace": namespace,
         "bus": bus,
+        "td_broker": broker,
         "ros_domain_id": domain_id,
         "ros_master_uri": master_uri,
         "poll_period": poll_period,
@@ -180,6 +189,61 @@ def run(
     finally:
         node.stop()
         click.echo("td2adaptor run: stopped", err=True)
+    sys.exit(EXIT_OK)
+
+
+@cli.command()
+@click.argument("source", metavar="TD")
+@_input_options
+@click.option("--robot", required=True, help="Robot id on the bus (as `run --robot`).")
+@click.option("--broker", required=True, help="mqtt://host:port or mqtts://host:port of the broker the robot uses.")
+@click.option(
+    "--output",
+    "-o",
+    default="-",
+    show_default=True,
+    help="Where to write the Thing Description ('-': stdout).",
+)
+def expose(
+    source: str,
+    interfaces: tuple[Path, ...],
+    sets: tuple[str, ...],
+    values_file: Path | None,
+    strict: bool,
+    no_cache: bool,
+    max_bytes: int,
+    max_affordances: int,
+    robot: str,
+    broker: str,
+    output: str,
+) -> None:
+    """Write the Thing Description of one robot as its edge node exposes it on the broker.
+
+    The robot's affordances with W3C MQTT binding forms on the topics `td2adaptor run --robot ROBOT` serves
+    (the topic in each href's path too), its id unique per robot; `run` publishes the same text, retained, on
+    td2adaptor/<robot>/td while it runs. (`gen -b events` writes the fleet's Thing Model, td.mqtt.json.)
+    """
+    from td2adaptor.backends.events.generator import dump, exposed_td
+    from td2adaptor.model.events import ALL_ROBOTS, ROBOT_ID
+    from td2adaptor.runtime.security import SecurityError, parse_broker_url
+
+    if not ROBOT_ID.match(robot) or robot == ALL_ROBOTS:
+        _fail("expose", f"robot id {robot!r} must be 1-128 letters, digits, '_', '.', '-' (and not {ALL_ROBOTS!r})")
+    try:
+        url = parse_broker_url(broker).url
+    except SecurityError as exc:
+        _fail("expose", str(exc))
+    result = _compile([source], interfaces, sets, values_file, strict, max_bytes, None, no_cache, max_affordances)
+    if result.model is None:
+        report(result.diagnostics, "human", label=_label([source]))
+        sys.exit(EXIT_INVALID)
+    text = dump(exposed_td(result.model, robot=robot, broker=url))
+    if output == "-":
+        click.echo(text, nl=False)
+    else:
+        from td2adaptor.support.fsutil import write_atomic
+
+        write_atomic(Path(output), text.encode("utf-8"))
     sys.exit(EXIT_OK)
 
 

@@ -12,6 +12,10 @@ Topic scheme (every level but the robot id is a validated identifier, so no leve
     td2adaptor/<robot>/<Component>/<run>/state         answer to a query or cancel event            (out)
     td2adaptor/<robot>/error                           error events                                 (out)
     td2adaptor/<robot>/status                          online/offline, retained, last will          (out)
+    td2adaptor/<robot>/td                              the robot's Thing Description, retained      (out)
+
+The last one is no event: the edge node publishes there the robot's TD (what `td2adaptor expose` writes) as
+soon as it is online and clears it (an empty retained message) when it stops.
 
 `<robot>` is the robot id; the reserved id `all` addresses every robot (inbound events only).
 """
@@ -34,6 +38,8 @@ ALL_ROBOTS = "all"
 ROBOT_ID = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]{0,127}$")
 ROBOT_ID_PATTERN = ROBOT_ID.pattern
 SCHEMA_BASE = "https://td2adaptor.dev/events/"
+#: the topic level under which each robot's edge node keeps its Thing Description (retained)
+TD_LEVEL = "td"
 DRAFT = "https://json-schema.org/draft/2020-12/schema"
 _TIME_PATTERN = r"^\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2}(\.\d{1,9})?(Z|[+-]\d{2}:\d{2})$"
 
@@ -190,6 +196,11 @@ class EventCatalog:
         return None if spec is None else (spec, levels[1])
 
 
+def td_topic(robot: str, root: str = TOPIC_ROOT) -> str:
+    """Where robot `robot`'s edge node keeps its Thing Description, retained, while it runs."""
+    return f"{root}/{robot}/{TD_LEVEL}"
+
+
 # ---------------------------------------------------------------------------------------------------------
 # schemas
 
@@ -233,6 +244,46 @@ def data_schema(value: Any) -> Any:
             out[key] = [data_schema(s) for s in sub]
         else:
             out[key] = sub
+    return typed(out)
+
+
+def json_type(value: Any) -> str:
+    """The JSON Schema type of a JSON value (`integer` for whole numbers written without a fraction)."""
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return "boolean"
+    if isinstance(value, int):
+        return "integer"
+    if isinstance(value, float):
+        return "number"
+    if isinstance(value, str):
+        return "string"
+    return "array" if isinstance(value, list) else "object"
+
+
+def typed(schema: dict[str, Any]) -> dict[str, Any]:
+    """`schema` with a `type` wherever it has `const` or `enum` but none (consumers such as wotpy 0.18 need one).
+
+    The type is the values' own; an `enum` mixing types becomes an `anyOf` of one typed `enum` per type (a TD
+    data schema's `type` is a single name), integers joining numbers."""
+    if "type" in schema or ("const" not in schema and not isinstance(schema.get("enum"), list)):
+        return schema
+    values = [schema["const"]] if "const" in schema else list(schema["enum"])
+    types = list(dict.fromkeys(json_type(v) for v in values))
+    if "number" in types and "integer" in types:
+        types.remove("integer")
+    if len(types) <= 1:
+        return {**schema, "type": types[0] if types else "null"}
+    groups = [
+        {"type": t, "enum": [v for v in values if json_type(v) == t or (t == "number" and json_type(v) == "integer")]}
+        for t in types
+    ]
+    out = {k: v for k, v in schema.items() if k != "enum"}
+    if "anyOf" in out:
+        out["allOf"] = [*out.get("allOf", []), {"anyOf": groups}]
+    else:
+        out["anyOf"] = groups
     return out
 
 
@@ -266,7 +317,7 @@ def _envelope(base: str) -> dict[str, Any]:
         ),
         "type": "object",
         "properties": {
-            "type": {"description": "The kind of event.", "enum": [k.value for k in Kind]},
+            "type": {"description": "The kind of event.", "type": "string", "enum": [k.value for k in Kind]},
             "affordance": {
                 "description": "The TD affordance the event is about (for feedback and state: the run action).",
                 "type": "string",
@@ -324,13 +375,13 @@ def _event_schema(
     required: list[str],
     extra: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
-    props: dict[str, Any] = {"type": {"const": kind.value}}
+    props: dict[str, Any] = {"type": {"type": "string", "const": kind.value}}
     if affordance is not None:
-        props["affordance"] = {"const": affordance}
+        props["affordance"] = {"type": "string", "const": affordance}
     else:
         props["affordance"] = False
     if not kind.inbound:
-        props["robot"] = {"not": {"const": ALL_ROBOTS}}
+        props["robot"] = {"not": {"type": "string", "const": ALL_ROBOTS}}
     props.update(extra or {})
     props["payload"] = payload
     # robot-level events are files of their own; a component's events sit in its file's $defs, where the
@@ -350,7 +401,7 @@ def _event_schema(
 
 def _state_payload(*, feedback: bool, output: Any = None) -> dict[str, Any]:
     props: dict[str, Any] = {
-        "state": {"description": "Procedure state.", "enum": list(STATES)},
+        "state": {"description": "Procedure state.", "type": "string", "enum": list(STATES)},
         "terminal": {"description": "Whether this is the mission's last event.", "type": "boolean"},
     }
     if feedback:
@@ -364,7 +415,7 @@ def _state_payload(*, feedback: bool, output: Any = None) -> dict[str, Any]:
             "result": {"description": "The robot's result code (e.g. ok, error).", "type": "string"},
             "message": {"description": "The robot's or the adaptor's message.", "type": "string"},
             "last_event": {"description": "The robot's last procedure event (e.g. start, finish).", "type": "string"},
-            "reason": {"description": "Why the mission failed.", "enum": list(FAILURE_REASONS)},
+            "reason": {"description": "Why the mission failed.", "type": "string", "enum": list(FAILURE_REASONS)},
         }
     )
     if output is not None:
@@ -381,7 +432,7 @@ def _error_payload() -> dict[str, Any]:
     return {
         "type": "object",
         "properties": {
-            "code": {"enum": list(ERROR_CODES)},
+            "code": {"type": "string", "enum": list(ERROR_CODES)},
             "message": {"type": "string"},
             "topic": {"description": "Topic the offending event arrived on.", "type": "string"},
             "event": {"description": "The start of the offending event, as text.", "type": "string", "maxLength": 1024},
@@ -406,7 +457,7 @@ def _status_payload() -> dict[str, Any]:
     return {
         "type": "object",
         "properties": {
-            "state": {"enum": ["online", "offline"]},
+            "state": {"type": "string", "enum": ["online", "offline"]},
             "thing": {"description": "Title of the Thing this adaptor serves.", "type": "string"},
         },
         "required": ["state"],

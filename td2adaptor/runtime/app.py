@@ -5,7 +5,8 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 
 from td2adaptor.model import Model
-from td2adaptor.runtime.bus import Bus
+from td2adaptor.model.events import td_topic
+from td2adaptor.runtime.bus import Bus, Message
 from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.engine import Engine, status_event
 from td2adaptor.runtime.localbus import LocalBroker, LocalBus
@@ -43,21 +44,42 @@ def bus_security(
     return address, security
 
 
+def td_broker(config: RuntimeConfig) -> str | None:
+    """The broker URL the robot's published TD names (`td_broker`, else the bus); None on a local bus without
+    one. Raises `SecurityError` for a URL that is no broker's (or carries credentials)."""
+    url = config.td_broker or (None if config.bus == "local" else config.bus)
+    return None if url is None else parse_broker_url(url).url
+
+
+def td_message(config: RuntimeConfig, model: Model) -> Message | None:
+    """The robot's Thing Description as the retained message the edge node publishes when it is online (the
+    text `td2adaptor expose` writes for the same robot and broker); None when there is no broker to name."""
+    broker = td_broker(config)
+    if broker is None:
+        return None
+    from td2adaptor.backends.events.generator import dump, exposed_td
+
+    text = dump(exposed_td(model, robot=config.robot, broker=broker, root=config.topic_root))
+    return Message(td_topic(config.robot, config.topic_root), text.encode("utf-8"), retain=True)
+
+
 def open_bus(
     config: RuntimeConfig,
     model: Model,
     *,
     broker: LocalBroker | None = None,
     env: Mapping[str, str] | None = None,
+    announce: Sequence[Message] = (),
 ) -> Bus:
-    """`local` (the process-wide in-process broker, or `broker`) or MQTT, secured as the TD says.
+    """`local` (the process-wide in-process broker, or `broker`) or MQTT, secured as the TD says; `announce`
+    (retained messages) is published on every connection, before the online status.
 
     Raises `SecurityError` when the configuration does not satisfy the TD's security definitions.
     """
     will = status_event(config, model, "offline")
     birth = status_event(config, model, "online")
     if config.bus == "local":
-        return LocalBus(broker, config.mqtt_client_id, will=will, birth=birth)
+        return LocalBus(broker, config.mqtt_client_id, will=will, birth=birth, announce=announce)
     from td2adaptor.runtime.mqttbus import MqttBus  # paho only when it is used
 
     address, security = bus_security(config, model, env=env)
@@ -77,6 +99,7 @@ def open_bus(
         client_id=config.mqtt_client_id,
         will=will,
         birth=birth,
+        announce=announce,
         session_expiry=config.session_expiry,
         keepalive=config.keepalive,
     )
@@ -90,8 +113,11 @@ def serve(
     broker: LocalBroker | None = None,
     env: Mapping[str, str] | None = None,
 ) -> Engine:
-    """Connect and start serving; `Engine.stop()` ends it."""
-    engine = Engine(model, port, open_bus(config, model, broker=broker, env=env), config)
+    """Connect and start serving (the robot's TD published, retained, with the online status); `Engine.stop()`
+    ends it (and clears the TD)."""
+    td = td_message(config, model)
+    announce = () if td is None else (td,)
+    engine = Engine(model, port, open_bus(config, model, broker=broker, env=env, announce=announce), config, td=td)
     engine.start()
     return engine
 

@@ -27,6 +27,7 @@ class RuntimeConfig:
     robot: str
     namespace: str | None = None  # ROS namespace ({{robotName}}); default: the robot id
     bus: str = "local"  # "local" or mqtt://host:port / mqtts://host:port
+    td_broker: str | None = None  # the broker URL the robot's published TD names; default: bus (local: no TD)
     client_id: str | None = None  # default td2adaptor-<robot>
     source: str | None = None  # `source` of emitted events; default td2adaptor/<robot>
     topic_root: str = TOPIC_ROOT

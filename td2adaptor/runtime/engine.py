@@ -100,6 +100,7 @@ class Engine:
         *,
         catalog: EventCatalog | None = None,
         clock: Callable[[], float] = time.monotonic,
+        td: Message | None = None,
     ) -> None:
         self.model = model
         self.port = port
@@ -108,6 +109,7 @@ class Engine:
         self.catalog = catalog or build_catalog(model)
         self.validator = EventValidator(self.catalog)
         self.clock = clock
+        self.td = td  # the robot's TD as the bus announces it on connecting: cleared on stop
         self.stats: dict[str, int] = {}
         self._lock = threading.Lock()
         self._inbox: queue.Queue[Message | None] = queue.Queue()
@@ -139,7 +141,8 @@ class Engine:
         self._threads.append(thread)
 
     def stop(self, timeout: float = 5.0) -> None:
-        """Stop taking events, publish the offline status and disconnect. Missions go on on the robot."""
+        """Stop taking events, clear the TD, publish the offline status and disconnect. Missions go on on the
+        robot."""
         if self._stopping.is_set():
             return
         self._stopping.set()
@@ -156,6 +159,8 @@ class Engine:
         for thread in runners:
             thread.join(timeout)
         try:
+            if self.td is not None:  # an empty retained message removes the TD from the broker
+                self.bus.publish(self.td.topic, b"", retain=True)
             offline = status_event(self.config, self.model, "offline")
             self.bus.publish(offline.topic, offline.payload, retain=True)
             self.bus.flush(timeout)

@@ -14,6 +14,7 @@ import logging
 import threading
 import uuid
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from td2adaptor.runtime.bus import BusError, Handler, Message, topic_matches, valid_filter, valid_topic
@@ -113,6 +114,7 @@ class LocalBus:
         *,
         will: Message | None = None,
         birth: Message | None = None,
+        announce: Sequence[Message] = (),
         clean_start: bool = False,
         attempts: int = 3,
     ) -> None:
@@ -120,6 +122,7 @@ class LocalBus:
         self.client_id = client_id or f"local-{uuid.uuid4().hex[:12]}"
         self.will = will
         self.birth = birth
+        self.announce = tuple(announce)
         self.clean_start = clean_start
         self.attempts = attempts
         self._handlers: list[tuple[str, Handler]] = []
@@ -137,6 +140,8 @@ class LocalBus:
         self._thread.start()
         for pattern, _ in self._handlers:
             self.broker.subscribe(self._session, pattern)
+        for message in self.announce:
+            self.broker.publish(message)
         if self.birth is not None:
             self.broker.publish(self.birth)
 

@@ -13,6 +13,7 @@ import os
 import socket
 import ssl
 import threading
+from collections.abc import Sequence
 from typing import Any
 
 import paho.mqtt.client as mqtt
@@ -71,6 +72,7 @@ class MqttBus:
         client_id: str,
         will: Message | None = None,
         birth: Message | None = None,
+        announce: Sequence[Message] = (),
         clean_start: bool = False,
         session_expiry: int = 3600,
         keepalive: int = 30,
@@ -82,6 +84,7 @@ class MqttBus:
         self.client_id = client_id
         self.will = will
         self.birth = birth
+        self.announce = tuple(announce)
         self.clean_start = clean_start
         self.session_expiry = session_expiry
         self.keepalive = keepalive
@@ -195,8 +198,8 @@ class MqttBus:
             patterns = list(dict.fromkeys(p for p, _ in self._handlers))
         if patterns:
             client.subscribe([(p, 1) for p in patterns])
-        if self.birth is not None:
-            self._send(client, self.birth.topic, self.birth.payload, self.birth.retain)
+        for message in (*self.announce, *([self.birth] if self.birth is not None else [])):
+            self._send(client, message.topic, message.payload, message.retain)
         if self.connects > 1:
             log.info("reconnected to %s (session present: %s)", self.address, flags.session_present)
         self._connack.set()

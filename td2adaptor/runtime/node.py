@@ -1,7 +1,8 @@
 """`td2adaptor run`: one edge node process serving one robot, or a whole fleet, on ROS and an event bus.
 
 The command line compiles the TD and loads the configuration; `EdgeNode` connects the generated package
-to ROS (`ros.connect`), serves every robot (`app.serve_fleet`) and, on `stop()`, stops the engines (each
+to ROS (`ros.connect`), serves every robot (`app.serve_fleet`: each robot's Thing Description retained on
+`td2adaptor/<robot>/td`, then its `online` status) and, on `stop()`, stops the engines (each clears its TD,
 publishes its retained `offline` status and flushes the bus) before it leaves the ROS graph. The MQTT will
 publishes the same `offline` status when the process dies without stopping.
 """
@@ -17,7 +18,7 @@ from pathlib import Path
 from types import FrameType
 
 from td2adaptor.model import Model
-from td2adaptor.runtime.app import bus_security, serve_fleet
+from td2adaptor.runtime.app import bus_security, serve_fleet, td_broker
 from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.engine import Engine
 from td2adaptor.runtime.localbus import LocalBroker
@@ -62,6 +63,7 @@ class EdgeNode:
     def check_bus(self) -> None:
         """Refuse a bus the TD's security does not allow before anything connects (raises `SecurityError`)."""
         for config in self.configs:
+            td_broker(config)  # the broker its TD names: a URL of a broker, without credentials
             if config.bus != "local":
                 bus_security(config, self.model)
 

@@ -37,6 +37,12 @@ class BrokerAddress:
     def __str__(self) -> str:
         return f"{'mqtts' if self.tls else 'mqtt'}://{self.host}:{self.port}"
 
+    @property
+    def url(self) -> str:
+        """`mqtt(s)://host:port` as a URI (an IPv6 address in brackets), e.g. for a TD's hrefs."""
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"{'mqtts' if self.tls else 'mqtt'}://{host}:{self.port}"
+
 
 @dataclass(frozen=True)
 class TlsOptions:

@@ -218,3 +218,25 @@ def test_a_name_too_long_for_a_file_is_refused_at_validate_and_nothing_is_writte
     result = runner.invoke(cli, ["gen", str(td), *IFACE, "--partial", "-o", str(out), "--no-cache"])
     assert result.exit_code == 1 and "internal error" not in result.output
     assert not out.exists()
+
+
+def test_expose_writes_the_td_of_one_robot(runner: CliRunner, tmp_path: Path) -> None:
+    """No placeholder left, the id names the robot, the hrefs the broker given; the Thing Model of the fleet
+    (`{{robotName}}`, `{{mqttBroker}}`) works as well as the TD; bad robot ids and broker URLs are refused."""
+    out = tmp_path / "rb1_a.td.json"
+    args = ["--robot", "rb1_a", "--broker", "mqtt://10.0.0.5:1884"]
+    result = runner.invoke(cli, ["expose", TD, *IFACE, *args, "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    text = out.read_text(encoding="utf-8")
+    td = json.loads(text)
+    assert "{{" not in text and td["@type"] == "Thing" and td["id"] == "urn:dev:wot:robotnik:rb1:rb1_a"
+    hrefs = {f["href"] for s in ("properties", "actions", "events") for a in td[s].values() for f in a["forms"]}
+    assert all(h.startswith("mqtt://10.0.0.5:1884/td2adaptor/rb1_a/") for h in hrefs)
+    other = runner.invoke(cli, ["expose", str(EXAMPLE / "rb1.tm.json"), *IFACE, "--robot", "rb1_b", *args[2:]])
+    assert other.exit_code == 0, other.output
+    assert json.loads(other.output)["id"] != td["id"] and "{{" not in other.output
+    validated = runner.invoke(cli, ["validate", str(out)])
+    assert validated.exit_code == 0, validated.output
+    for bad in (["--robot", "all"], ["--robot", "{{robotName}}"], ["--broker", "mqtt://u:p@h:1"], ["--broker", "x"]):
+        refused = runner.invoke(cli, ["expose", TD, *IFACE, *args, *bad])
+        assert refused.exit_code == 1 and "td2adaptor expose:" in refused.output, (bad, refused.output)

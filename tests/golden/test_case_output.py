@@ -16,6 +16,7 @@ from jsonschema import Draft202012Validator
 import td2adaptor
 from td2adaptor.backends.mros import lint as mros_lint
 from td2adaptor.diagnostics import Severity
+from tests.backends.events.schemawalk import untyped
 from tests.backends.mros import build as mros_build
 from tests.golden.goldens import CASES
 
@@ -49,6 +50,9 @@ def test_python_package_passes_ruff(pkg: Path) -> None:
         assert proc.returncode == 0, f"ruff {' '.join(args)} in {pkg}:\n{proc.stdout}{proc.stderr}"
 
 
+TM_VALUES = {"robotName": "rb1_base_a", "mqttBroker": "mqtt://127.0.0.1:1883"}
+
+
 @pytest.mark.parametrize("out", EVENTS, ids=[_id(p) for p in EVENTS])
 def test_event_schemas_and_exposed_td_are_valid(out: Path) -> None:
     schemas = sorted((out / "schemas").glob("*.json"))
@@ -56,9 +60,17 @@ def test_event_schemas_and_exposed_td_are_valid(out: Path) -> None:
     for path in schemas:
         Draft202012Validator.check_schema(json.loads(path.read_text(encoding="utf-8")))
     assert json.loads((out / "asyncapi.json").read_text(encoding="utf-8"))["asyncapi"].startswith("3.")
-    result = td2adaptor.compile(out / "td.mqtt.json")
+    # the Thing Model of the fleet, instantiated for one robot on one broker
+    result = td2adaptor.compile(out / "td.mqtt.json", values=TM_VALUES)
     errors = [(d.code, d.message, d.pointer) for d in result.diagnostics if d.severity is Severity.ERROR]
     assert not errors
+    # every const or enum has a type (wotpy 0.18 refuses one without), in the schemas and in the model
+    model = json.loads((out / "td.mqtt.json").read_text(encoding="utf-8"))
+    for path in schemas:
+        assert untyped(json.loads(path.read_text(encoding="utf-8"))) == [], path
+    for section in ("properties", "actions", "events"):
+        for name, affordance in model.get(section, {}).items():
+            assert untyped(affordance) == [], f"{section}/{name}"
 
 
 @pytest.mark.skipif(not mros_build.have(mros_build.HOST_CXX), reason="g++ not installed (.ci/setup-mros.sh)")

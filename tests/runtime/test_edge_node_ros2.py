@@ -253,6 +253,9 @@ def test_the_generated_entry_point_serves_a_fleet_from_the_thing_model_and_stops
         assert "serving fleet_1 (namespace edge_fleet_a), fleet_2" in run.output()
         assert f"package {PACKAGE}" in run.output()
 
+        def tds_of(ev: list[tuple[str, dict[str, Any]]], robot: str) -> list[dict[str, Any]]:
+            return [e for t, e in ev if t == f"td2adaptor/{robot}/td"]
+
         def statuses(ev: list[tuple[str, dict[str, Any]]], robot: str) -> list[str]:
             return [e["payload"]["state"] for t, e in ev if t == f"td2adaptor/{robot}/status"]
 
@@ -265,6 +268,12 @@ def test_the_generated_entry_point_serves_a_fleet_from_the_thing_model_and_stops
         assert run.terminate(signal.SIGTERM) == 0, run.output()
         app.wait(lambda ev: all(statuses(ev, r)[-1:] == ["offline"] for r in robots), timeout=10)
         assert "td2adaptor run: stopped" in run.output()
+        # each robot's TD was retained while it ran (its own id, the bus as broker), then cleared
+        for robot in robots:
+            tds = app.wait(lambda ev, r=robot: tds_of(ev, r)[-1:] == [{"raw": ""}], timeout=10)
+            (td,) = [e for e in tds_of(tds, robot) if e != {"raw": ""}][:1]
+            assert td["@type"] == "Thing" and td["id"].endswith(f":{robot}")
+            assert td["actions"]["gotoRun"]["forms"][0]["href"] == f"{broker.url}/{goto_topic(robot)}"
     finally:
         run.close()
         app.close()

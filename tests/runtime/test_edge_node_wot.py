@@ -1,13 +1,14 @@
-"""A standard WoT client consumes the exposed TD (generated/events/robotnik_rb_1_adaptor/td.mqtt.json):
-Eclipse Thingweb node-wot with its MQTT binding, from npm, invokes gotoRun, observes poseMarker and receives
-the feedback event of an edge node on a real mosquitto (the simulated robot behind a SimPort: the consumer
-side is under test).
+"""A standard WoT client uses a robot as a Thing: Eclipse Thingweb node-wot with its MQTT binding, from npm,
+fetches the robot's TD where the edge node publishes it (retained on td2adaptor/<robot>/td, the text
+`td2adaptor expose` writes), consumes it as published, reads and observes poseMarker, invokes gotoRun and
+receives its feedback event, on a real mosquitto (the simulated robot behind a SimPort: the consumer side is
+under test).
 
 Optional: skipped, saying why, when node/npm are missing or the packages cannot be installed (offline).
 node-wot is installed once into .cache/node-wot with `npm install --ignore-scripts` (pure JavaScript).
 
-node-wot 0.8 takes the MQTT topic from the form's href path and ignores `mqv:topic`, so the test fills the
-TD's placeholders (robot id, broker address) and also puts each form's topic into its href path.
+node-wot 0.8 takes the MQTT topic from the form's href path and ignores `mqv:topic`/`mqv:filter`: the exposed
+TD puts it in both, and node-wot consumes the TD as generated, nothing rewritten.
 """
 
 from __future__ import annotations
@@ -18,10 +19,10 @@ import shutil
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import pytest
 
+from td2adaptor.backends.events.generator import dump, exposed_td
 from td2adaptor.runtime import RuntimeConfig, serve
 from td2adaptor.runtime.ros2build import file_lock
 from td2adaptor.runtime.simport import SimPort
@@ -58,18 +59,6 @@ def node_modules() -> Path:
     return modules
 
 
-def consumable_td(port: int) -> dict[str, Any]:
-    """The exposed TD for robot ROBOT on the test broker, each form's topic also in its href path."""
-    text = (REPO / "generated" / "events" / "robotnik_rb_1_adaptor" / "td.mqtt.json").read_text(encoding="utf-8")
-    td: dict[str, Any] = json.loads(text.replace("{{robotName}}", ROBOT))
-    for group in ("properties", "actions", "events"):
-        for affordance in td.get(group, {}).values():
-            for form in affordance.get("forms", []):
-                assert form["href"] == "mqtt://localhost:1883", form
-                form["href"] = f"mqtt://127.0.0.1:{port}/{form['mqv:topic']}"
-    return td
-
-
 @pytest.fixture
 def broker(tmp_path: Path) -> Iterator[Mosquitto]:
     b = Mosquitto(tmp_path / "broker")
@@ -78,16 +67,14 @@ def broker(tmp_path: Path) -> Iterator[Mosquitto]:
     b.stop()
 
 
-def test_node_wot_invokes_observes_and_gets_feedback(broker: Mosquitto, tmp_path: Path) -> None:
+def test_node_wot_consumes_the_published_td_reads_observes_invokes_and_gets_feedback(broker: Mosquitto) -> None:
     modules = node_modules()
-    td_path = tmp_path / "td.json"
-    td_path.write_text(json.dumps(consumable_td(broker.port)), encoding="utf-8")
     model = rb1_model()
     config = RuntimeConfig(robot=ROBOT, bus=broker.url, poll_period=0.05, property_period=0.1)
     engine = serve(model, SimPort(model, sim(0.3)), config)
     try:
         out = subprocess.run(
-            ["node", str(CLIENT), str(td_path), "wot-1"],
+            ["node", str(CLIENT), broker.url, ROBOT, "wot-1"],
             env={**os.environ, "NODE_PATH": str(modules)},
             capture_output=True,
             text=True,
@@ -97,8 +84,13 @@ def test_node_wot_invokes_observes_and_gets_feedback(broker: Mosquitto, tmp_path
         engine.stop()
     lines = [json.loads(line) for line in out.stdout.splitlines() if line.startswith("{")]
     assert out.returncode == 0, out.stdout + out.stderr
+    # node-wot consumed the TD the edge node published, byte for byte what `td2adaptor expose` writes
+    (td,) = [line["value"] for line in lines if line["kind"] == "td"]
+    assert td == dump(exposed_td(model, robot=ROBOT, broker=broker.url))
     kinds = [line["kind"] for line in lines]
-    assert kinds.index("subscribed") < kinds.index("invoked") and kinds[-1] == "done", kinds
+    assert kinds.index("read") < kinds.index("subscribed") < kinds.index("invoked") and kinds[-1] == "done", kinds
+    (read,) = [line["value"] for line in lines if line["kind"] == "read"]  # the retained value
+    assert read["type"] == "property" and read["affordance"] == "poseMarker" and read["robot"] == ROBOT
     feedback = [line["value"] for line in lines if line["kind"] == "feedback"]
     mine = [e for e in feedback if e["correlation"] == "wot-1"]
     states = [e["payload"]["state"] for e in mine]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 import time
@@ -358,3 +359,68 @@ def _now() -> str:
     from td2adaptor.runtime.replay import now_text
 
     return now_text()
+
+
+def test_the_robot_td_is_retained_while_online_and_cleared_on_stop(broker: Mosquitto) -> None:
+    """`run` publishes the TD `expose` writes, byte for byte, retained before the online status; a clean stop
+    clears it (an empty retained message) before the offline status."""
+    from td2adaptor.backends.events.generator import dump, exposed_td
+
+    model = rb1_model()
+    public = "mqtt://robots.example:1883"  # what clients are told, not the address the node connects to
+    engine = serve(model, SimPort(model, sim(0.2)), config(broker.url, td_broker=public))
+    expected = dump(exposed_td(model, robot=ROBOT, broker=public)).encode("utf-8")
+    try:
+        late = AppClient(broker.url, [f"td2adaptor/{ROBOT}/td", f"td2adaptor/{ROBOT}/status"])
+        late.wait(lambda ev: len(ev) == 2)  # retained, so a client that comes later gets both
+        (td,) = [e for t, e in late.events if t.endswith("/td")]
+        assert td == json.loads(expected) and td["id"].endswith(f":{ROBOT}")
+        assert {f["href"].split("/td2adaptor/")[0] for f in _forms(td)} == {public}
+        late.close()
+        got = _retained(broker.url, f"td2adaptor/{ROBOT}/td")
+        assert got == expected
+    finally:
+        engine.stop()
+    assert _retained(broker.url, f"td2adaptor/{ROBOT}/td", timeout=1.0) is None
+    status = _retained(broker.url, f"td2adaptor/{ROBOT}/status")
+    assert status is not None and json.loads(status)["payload"]["state"] == "offline"
+
+
+def test_a_td_broker_with_credentials_is_refused() -> None:
+    with pytest.raises(SecurityError, match="credentials"):
+        serve(rb1_model(), SimPort(rb1_model(), sim()), config("local", td_broker="mqtt://u:secret@h:1883"))
+
+
+def _forms(td: dict[str, Any]) -> list[dict[str, Any]]:
+    return [f for section in ("properties", "actions", "events") for a in td[section].values() for f in a["forms"]]
+
+
+def _retained(url: str, topic: str, timeout: float = 5.0) -> bytes | None:
+    """The retained message on `topic` as bytes (None if there is none), with a fresh clean-session client."""
+    import threading
+    import uuid
+
+    import paho.mqtt.client as mqtt
+    from paho.mqtt.enums import CallbackAPIVersion, MQTTProtocolVersion
+
+    host, port = url.removeprefix("mqtt://").rsplit(":", 1)
+    got: list[bytes] = []
+    done = threading.Event()
+    client = mqtt.Client(
+        CallbackAPIVersion.VERSION2, client_id=f"probe-{uuid.uuid4().hex[:8]}", protocol=MQTTProtocolVersion.MQTTv5
+    )
+
+    def on_message(_c: Any, _u: Any, msg: Any) -> None:
+        got.append(bytes(msg.payload))
+        done.set()
+
+    client.on_message = on_message
+    client.on_connect = lambda c, *_: c.subscribe(topic, qos=1)
+    client.connect(host, int(port), 30)
+    client.loop_start()
+    try:
+        done.wait(timeout)
+    finally:
+        client.disconnect()
+        client.loop_stop()
+    return got[0] if got else None

@@ -9,9 +9,11 @@ into one output side by side):
   the shared fields. Every `$id` is `https://td2adaptor.dev/events/<package>/schemas/<file>`: the layout of
   OUT/events/ mirrors the ids, so relative references resolve between the files and no two packages share one;
 * `asyncapi.json`: an AsyncAPI 3.0 document (MQTT channels, operations, messages referring to the schemas);
-* `td.mqtt.json`: the robot's exposed Thing Description, the same Thing with W3C MQTT binding forms (`mqv:`),
-  so a standard WoT consumer can invoke the actions, observe the properties and subscribe to the feedback;
-  `{{robotName}}` in its topics is the robot id the runtime fills in;
+* `td.mqtt.json`: the Thing Model of the robots' exposed Thing Descriptions: the same Thing with W3C MQTT
+  binding forms (`mqv:`, the topic also in the href path), so a standard WoT consumer can invoke the actions,
+  observe the properties and subscribe to the feedback; `{{robotName}}` stands for the robot id and
+  `{{mqttBroker}}` for the broker URL. `td2adaptor expose` writes the TD of one robot and `td2adaptor run`
+  publishes it, retained, on `td2adaptor/<robot>/td`;
 * `README.md`: the topic table.
 
 and, once all TDs are generated (`finish`), OUT/events/README.md: the packages, with links to their contracts,
@@ -27,6 +29,7 @@ import json
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
+from urllib.parse import quote
 
 import orjson
 
@@ -44,6 +47,7 @@ from td2adaptor.model.events import (
     EventSpec,
     Kind,
     build_catalog,
+    td_topic,
 )
 
 TEMPLATES = Path(__file__).parent / "templates"
@@ -52,7 +56,9 @@ TEMPLATES = Path(__file__).parent / "templates"
 TD_CONTEXT = "https://www.w3.org/2022/wot/td/v1.1"
 MQV_NAMESPACE = "http://www.example.org/mqtt-binding#"
 ROBOT_PLACEHOLDER = "{{robotName}}"
-DEFAULT_BROKER = "mqtt://localhost:1883"
+BROKER_PLACEHOLDER = "{{mqttBroker}}"
+#: the runtime publishes and subscribes with QoS 1 (the binding's `mqv:qos` is a string)
+MQTT_QOS = "1"
 SCHEMA_FORMAT = "application/schema+json;version=draft-2020-12"
 MQTT_BINDING_VERSION = "0.2.0"
 
@@ -119,34 +125,67 @@ def standalone(spec: EventSpec, catalog: EventCatalog) -> dict[str, Any]:
     return dict(td_schema(schema))
 
 
-def _form(broker: str, topic: str, op: str | list[str], packet: str, **extra: Any) -> dict[str, Any]:
-    form: dict[str, Any] = {"href": broker, "op": op, "contentType": "application/json", "mqv:topic": topic}
+def topic_href(broker: str, topic: str, *, model: bool = False) -> str:
+    """`broker` with `topic` as its path, percent-encoded where a URI needs it (in a Thing Model the
+    `{{...}}` placeholders stay as written, to be filled in textually): clients such as node-wot 0.8 take the
+    topic from the href, others from `mqv:topic` / `mqv:filter`."""
+    return f"{broker.rstrip('/')}/{quote(topic, safe='/{}' if model else '/')}"
+
+
+def _form(
+    broker: str,
+    topic: str,
+    op: str | list[str],
+    packet: str,
+    *,
+    model: bool,
+    retain: bool = False,
+) -> dict[str, Any]:
+    """A form of the W3C MQTT binding: the topic in the href path and in `mqv:topic` (publish) or `mqv:filter`
+    (subscribe, unsubscribe); QoS 1 as the runtime uses; `mqv:retain` where the runtime retains."""
+    form: dict[str, Any] = {"href": topic_href(broker, topic, model=model), "op": op, "contentType": "application/json"}
     form["mqv:controlPacket"] = packet
-    form.update(extra)
+    form["mqv:topic" if packet == "publish" else "mqv:filter"] = topic
+    if packet != "unsubscribe":
+        form["mqv:qos"] = MQTT_QOS
+    if retain:
+        form["mqv:retain"] = True
     return form
+
+
+def thing_id(model: Model, robot: str) -> str:
+    """The exposed Thing's id: the TD's own with the robot id appended, else a URN of package and robot."""
+    if model.thing.id:
+        return f"{model.thing.id}:{robot}"
+    return f"urn:td2adaptor:{model.package_name}:{robot}"
 
 
 def exposed_td(
     model: Model,
     catalog: EventCatalog | None = None,
     *,
-    robot: str = ROBOT_PLACEHOLDER,
-    broker: str = DEFAULT_BROKER,
+    robot: str | None = None,
+    broker: str | None = None,
     root: str = TOPIC_ROOT,
 ) -> dict[str, Any]:
-    """The robot's Thing Description with MQTT forms on the adaptor's topics."""
+    """The Thing Description of robot `robot` on `broker` (`mqtt://host:port`): the robot's affordances with
+    MQTT forms on the adaptor's topics. Without them, the Thing Model of the fleet: `{{robotName}}` and
+    `{{mqttBroker}}` stand for the robot id and the broker URL."""
     catalog = catalog or build_catalog(model)
+    is_model = robot is None or broker is None
+    robot = ROBOT_PLACEHOLDER if robot is None else robot
+    broker = BROKER_PLACEHOLDER if broker is None else broker
     thing = model.thing
-    td: dict[str, Any] = {"@context": [TD_CONTEXT, {"mqv": MQV_NAMESPACE}], "@type": "Thing"}
-    if thing.id:
-        td["id"] = f"{thing.id}:{robot}" if robot != ROBOT_PLACEHOLDER else thing.id
+    context: list[Any] = [TD_CONTEXT, {"mqv": MQV_NAMESPACE}]
+    td: dict[str, Any] = {"@context": context, "@type": "tm:ThingModel" if is_model else "Thing"}
+    td["id"] = thing_id(model, robot)
     td["title"] = thing.title
     description = f"{thing.title} ({robot}) through its td2adaptor event adaptor."
     if thing.description:
         description = f"{thing.description} {description}"
     td["description"] = description
     if thing.version:
-        td["version"] = {"instance": thing.version}
+        td["version"] = {"model" if is_model else "instance": thing.version}
     security = thaw(thing.security) if isinstance(thing.security, Mapping) and thing.security else None
     if not security:
         security = {"nosec_sc": {"scheme": "nosec"}}
@@ -155,6 +194,10 @@ def exposed_td(
     properties: dict[str, Any] = {}
     actions: dict[str, Any] = {}
     events: dict[str, Any] = {}
+
+    def form(topic: str, op: str | list[str], packet: str, retain: bool = False) -> dict[str, Any]:
+        return _form(broker, topic, op, packet, model=is_model, retain=retain)
+
     for spec in catalog.specs:
         topic = spec.topic(robot, root)
         data = standalone(spec, catalog)
@@ -162,13 +205,13 @@ def exposed_td(
         if spec.kind is Kind.PROPERTY and spec.affordance:
             prop = {**data, "readOnly": True, "writeOnly": False, "observable": True}
             prop["forms"] = [
-                _form(broker, topic, ["readproperty", "observeproperty"], "mqv:subscribe", **{"mqv:retain": True}),
-                _form(broker, topic, "unobserveproperty", "mqv:unsubscribe"),
+                form(topic, ["readproperty", "observeproperty"], "subscribe", retain=True),
+                form(topic, "unobserveproperty", "unsubscribe"),
             ]
             properties[spec.affordance] = prop
         elif spec.kind is Kind.WRITE and spec.affordance:
             prop = {**data, "readOnly": False, "writeOnly": True, "observable": False}
-            prop["forms"] = [_form(broker, topic, "writeproperty", "mqv:publish")]
+            prop["forms"] = [form(topic, "writeproperty", "publish")]
             properties[spec.affordance] = prop
         elif spec.kind in (Kind.INVOKE, Kind.QUERY, Kind.CANCEL) and spec.affordance:
             action: dict[str, Any] = {"title": data.pop("title")}
@@ -178,7 +221,7 @@ def exposed_td(
             action["safe"] = spec.kind is Kind.QUERY
             action["idempotent"] = spec.kind is not Kind.INVOKE
             action["synchronous"] = False
-            action["forms"] = [_form(broker, topic, "invokeaction", "mqv:publish")]
+            action["forms"] = [form(topic, "invokeaction", "publish")]
             actions[spec.affordance] = action
         else:
             name = {Kind.FEEDBACK: "Feedback", Kind.STATE: "State"}.get(spec.kind, "")
@@ -187,10 +230,9 @@ def exposed_td(
             if "description" in data:
                 event["description"] = data.pop("description")
             event["data"] = data
-            retain = {"mqv:retain": True} if spec.kind is Kind.STATUS else {}
             event["forms"] = [
-                _form(broker, topic, "subscribeevent", "mqv:subscribe", **retain),
-                _form(broker, topic, "unsubscribeevent", "mqv:unsubscribe"),
+                form(topic, "subscribeevent", "subscribe", retain=spec.kind is Kind.STATUS),
+                form(topic, "unsubscribeevent", "unsubscribe"),
             ]
             events[key] = event
     for name, section in (("properties", properties), ("actions", actions), ("events", events)):
@@ -373,7 +415,7 @@ def _acl(model: Model, catalog: EventCatalog) -> str:
         root=TOPIC_ROOT,
         all_robots=ALL_ROBOTS,
         node_reads=[t for s in inbound for t in (s.topic("%u"), s.topic(ALL_ROBOTS))],
-        node_writes=[s.topic("%u") for s in outbound],
+        node_writes=[*(s.topic("%u") for s in outbound), td_topic("%u")],
         app_writes=[s.topic("+") for s in inbound],
     )
 

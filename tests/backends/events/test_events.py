@@ -21,7 +21,8 @@ from td2adaptor.generation.backend import GenOptions
 from td2adaptor.model import Model
 from td2adaptor.model.events import ALL_ROBOTS, Kind, build_catalog, data_schema
 from td2adaptor.runtime.events import EventValidator
-from tests.conftest import EXAMPLE
+from tests.backends.events.schemawalk import subschemas, untyped
+from tests.conftest import EXAMPLE, REPO
 from tests.runtime.rb1 import GOAL, compile_td, rb1_catalog, rb1_model, rb1_validator
 
 ENVELOPE = {"robot": "rb1_base_a", "id": "e1", "time": "2026-01-31T12:00:00.123Z", "source": "test"}
@@ -235,45 +236,164 @@ def test_asyncapi_document(files: dict[str, bytes]) -> None:
     assert "receive.GoToComponent.gotoRun.invoke.all" in receive
 
 
+ROBOT = "rb1_base_a"
+BROKER = "mqtt://127.0.0.1:1883"
+TM_VALUES = {"robotName": ROBOT, "mqttBroker": BROKER}
+OFFICIAL = REPO.parent / "shared" / "wot" / "official"
+BINDINGS = REPO.parent / "shared" / "wot" / "bindings"
+
+
+def robot_td() -> dict[str, Any]:
+    return backend.exposed_td(rb1_model(), robot=ROBOT, broker=BROKER)
+
+
 def test_exposed_td_passes_our_validator(files: dict[str, bytes], tmp_path: Path) -> None:
-    for name, td in (
-        ("template", doc(files, "td.mqtt.json")),
-        ("concrete", backend.exposed_td(rb1_model(), robot="rb1_base_a", broker="mqtt://127.0.0.1:1883")),
+    for name, td, values in (
+        ("model", doc(files, "td.mqtt.json"), TM_VALUES),  # the fleet's Thing Model, instantiated
+        ("robot", robot_td(), None),
     ):
         path = tmp_path / f"{name}.json"
         path.write_text(json.dumps(td), encoding="utf-8")
-        result = td2adaptor.compile(path)
+        result = td2adaptor.compile(path, values=values)
         errors = [d for d in result.diagnostics if d.severity is Severity.ERROR]
         assert not errors, [(d.code, d.message, d.pointer) for d in errors]
         warnings = {d.code for d in result.diagnostics}
-        assert warnings <= {"ROS400"}, warnings  # no ROS binding left: expected, it is the MQTT view
+        assert warnings <= {"ROS400", "TM302"}, warnings  # no ROS binding left: expected, it is the MQTT view
+
+
+def _official(name: str) -> Any:
+    path = OFFICIAL / name
+    if not path.is_file():
+        pytest.skip(f"the official W3C schemas are not in {OFFICIAL} (a checkout without ../shared/wot)")
+    return json.loads(path.read_text(encoding="utf-8"))
+
+
+def _errors(schema: Any, instance: Any, registry: Any = None) -> list[str]:
+    from jsonschema import Draft7Validator, FormatChecker
+
+    kw = {} if registry is None else {"registry": registry}
+    validator = Draft7Validator(schema, format_checker=FormatChecker(), **kw)
+    return [f"{'/'.join(map(str, e.absolute_path))}: {e.message[:200]}" for e in validator.iter_errors(instance)]
+
+
+def test_robot_td_passes_the_official_td_schema_and_the_model_the_tm_schema(files: dict[str, bytes]) -> None:
+    assert _errors(_official("td-schema-v1.1.json"), robot_td()) == []
+    model = doc(files, "td.mqtt.json")
+    assert model["@type"] == "tm:ThingModel"
+    assert _errors(_official("tm-schema-v1.1.json"), model) == []
+
+
+def test_robot_td_passes_the_w3c_mqtt_binding_schema() -> None:
+    path = BINDINGS / "mqtt.schema.json"
+    if not path.is_file():
+        pytest.skip(f"the W3C MQTT binding template's schema is not in {BINDINGS}")
+    from referencing import Registry, Resource
+    from referencing.jsonschema import DRAFT7
+
+    binding = json.loads(path.read_text(encoding="utf-8"))
+    td_uri = binding["anyOf"][0]["$ref"]  # the official TD schema by URL: resolved offline
+    registry = Registry().with_resource(td_uri, Resource.from_contents(_official("td-schema-v1.1.json"), DRAFT7))
+    assert _errors(binding, robot_td(), registry) == []
+    # the schema does check the binding's vocabulary: the old values are refused
+    old = robot_td()
+    old["actions"]["gotoRun"]["forms"][0]["mqv:controlPacket"] = "mqv:publish"
+    old["properties"]["poseMarker"]["forms"][0]["mqv:qos"] = 1
+    refused = _errors(binding, old, registry)
+    assert {e.rpartition(": ")[0].rpartition(": ")[0] or e.partition(": ")[0] for e in refused} == {
+        "actions/gotoRun/forms/0/mqv:controlPacket",
+        "properties/poseMarker/forms/0/mqv:qos",
+    }
+
+
+def _forms(td: dict[str, Any]) -> list[dict[str, Any]]:
+    return [f for section in ("properties", "actions", "events") for a in td[section].values() for f in a["forms"]]
 
 
 def test_exposed_td_forms(files: dict[str, bytes]) -> None:
-    td = doc(files, "td.mqtt.json")
+    td = robot_td()
     assert {"mqv": "http://www.example.org/mqtt-binding#"} in td["@context"]
-    topics = {s.topic("{{robotName}}") for s in rb1_catalog().specs}
+    assert td["@type"] == "Thing" and td["id"] == f"urn:dev:wot:robotnik:rb1:{ROBOT}"
+    assert "{{" not in json.dumps(td)
+    topics = {s.topic(ROBOT) for s in rb1_catalog().specs}
     seen = set()
-    for section in ("properties", "actions", "events"):
-        for affordance in td[section].values():
-            for form in affordance["forms"]:
-                assert form["href"] == "mqtt://localhost:1883" and form["contentType"] == "application/json"
-                assert form["mqv:controlPacket"] in ("mqv:publish", "mqv:subscribe", "mqv:unsubscribe")
-                seen.add(form["mqv:topic"])
+    for form in _forms(td):
+        packet = form["mqv:controlPacket"]
+        assert packet in ("publish", "subscribe", "unsubscribe") and form["contentType"] == "application/json"
+        topic = form["mqv:topic"] if packet == "publish" else form["mqv:filter"]
+        assert ("mqv:topic" in form) == (packet == "publish") and ("mqv:filter" in form) == (packet != "publish")
+        assert form["href"] == f"{BROKER}/{topic}"  # node-wot 0.8 reads the topic from the href path
+        assert form.get("mqv:qos") == (None if packet == "unsubscribe" else "1")  # the runtime's QoS 1
+        seen.add(topic)
     assert seen == topics
     goto = td["actions"]["gotoRun"]
-    assert goto["forms"][0]["op"] == "invokeaction" and goto["forms"][0]["mqv:controlPacket"] == "mqv:publish"
+    assert goto["forms"][0]["op"] == "invokeaction" and goto["forms"][0]["mqv:controlPacket"] == "publish"
+    assert "mqv:retain" not in goto["forms"][0]
     assert goto["input"]["required"] == ["payload"]
     assert goto["input"]["properties"]["payload"]["properties"]["procedure"]["type"] == "object"
     availability = td["properties"]["availability"]
     assert availability["forms"][0]["op"] == ["readproperty", "observeproperty"] and availability["observable"]
-    assert availability["forms"][0]["mqv:retain"] is True
+    assert availability["forms"][0]["mqv:retain"] is True  # property values are retained, as is the status
+    assert td["events"]["status"]["forms"][0]["mqv:retain"] is True
+    assert "mqv:retain" not in td["events"]["gotoRunFeedback"]["forms"][0]
     assert td["properties"]["door"]["writeOnly"] is True
     assert td["properties"]["door"]["forms"][0]["mqv:topic"].endswith("/door/write")
     feedback = td["events"]["gotoRunFeedback"]
     assert feedback["forms"][0]["op"] == "subscribeevent"
     assert feedback["data"]["properties"]["payload"]["properties"]["state"]["enum"][-1] == "cancelled"
     assert set(td["events"]) >= {"gotoRunFeedback", "gotoRunState", "error", "status"}
+    # the fleet's model: the same with placeholders for the robot and the broker
+    model = doc(files, "td.mqtt.json")
+    text = json.dumps(model).replace("{{robotName}}", ROBOT).replace("{{mqttBroker}}", BROKER)
+    instantiated = json.loads(text)
+    assert _forms(instantiated) == _forms(td)
+    assert instantiated["id"] == td["id"]
+
+
+def test_hrefs_percent_encode_the_topic() -> None:
+    assert backend.topic_href("mqtt://h:1", "a b/c%d/é") == "mqtt://h:1/a%20b/c%25d/%C3%A9"
+    assert backend.topic_href("mqtt://h:1", "t/{{robotName}}/x", model=True) == "mqtt://h:1/t/{{robotName}}/x"
+    td = backend.exposed_td(rb1_model(), robot="r.1-a", broker="mqtts://[::1]:8883", root="my root")
+    forms = _forms(td)
+    assert forms[0]["href"].startswith("mqtts://[::1]:8883/my%20root/r.1-a/")
+    assert forms[0]["mqv:filter"].startswith("my root/r.1-a/")
+
+
+def test_every_const_or_enum_has_a_type(files: dict[str, bytes]) -> None:
+    """wotpy 0.18 refuses a data schema with `const` or `enum` and no `type` (ValueError: Unknown type: None)."""
+    schemas = {p: doc(files, p) for p in files if p.endswith(".schema.json")}
+    checked = 0
+    for path, schema in schemas.items():
+        assert untyped(schema) == [], path
+        checked += sum(1 for _, s in subschemas(schema) if "const" in s or "enum" in s)
+    for td in (robot_td(), doc(files, "td.mqtt.json")):
+        for section in ("properties", "actions", "events"):
+            for name, affordance in td[section].items():
+                assert untyped(affordance) == [], f"{section}/{name}"
+                checked += sum(1 for _, s in subschemas(affordance) if "const" in s or "enum" in s)
+    assert checked > 50
+
+
+def test_a_td_schema_without_types_gets_them() -> None:
+    schema = {
+        "type": "object",
+        "properties": {
+            "mode": {"enum": ["a", "b"]},
+            "n": {"enum": [1, 2.5]},
+            "one": {"const": True},
+            "mixed": {"enum": ["x", 1, None]},
+            "typed": {"type": "string", "enum": ["kept"]},
+        },
+    }
+    out = data_schema(schema)["properties"]
+    assert out["mode"] == {"enum": ["a", "b"], "type": "string"}
+    assert out["n"]["type"] == "number" and out["one"]["type"] == "boolean"
+    assert out["mixed"] == {
+        "anyOf": [{"type": "string", "enum": ["x"]}, {"type": "integer", "enum": [1]}, {"type": "null", "enum": [None]}]
+    }
+    assert out["typed"] == {"type": "string", "enum": ["kept"]}
+    validator = Draft202012Validator(data_schema(schema))
+    assert validator.is_valid({"mixed": None}) and validator.is_valid({"mixed": 1})
+    assert not validator.is_valid({"mixed": "1"})
 
 
 def test_generation_is_deterministic(files: dict[str, bytes]) -> None:
@@ -305,7 +425,8 @@ def test_hostile_td_text_stays_data(tmp_path: Path) -> None:
     assert api["info"]["title"] == f"{evil} events"  # JSON escaping keeps the text as it was
     exposed = tmp_path / "exposed.json"
     exposed.write_bytes(files["td.mqtt.json"])
-    assert not [d for d in td2adaptor.compile(exposed).diagnostics if d.severity is Severity.ERROR]
+    diagnostics = td2adaptor.compile(exposed, values=TM_VALUES).diagnostics
+    assert not [d for d in diagnostics if d.severity is Severity.ERROR]
     # the runtime's validators never look anything up
     EventValidator(build_catalog(result.model))
 
@@ -321,7 +442,7 @@ def test_data_schema_keeps_data_and_drops_references() -> None:
     out = data_schema(schema)
     assert out == {
         "type": "object",
-        "properties": {"$odd": {"type": "string"}, "n": {"enum": [{"$ref": "kept as data"}]}},
+        "properties": {"$odd": {"type": "string"}, "n": {"enum": [{"$ref": "kept as data"}], "type": "object"}},
         "items": [1],
     }
 

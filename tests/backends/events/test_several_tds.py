@@ -120,7 +120,7 @@ def test_every_reference_and_link_resolves_from_the_files(files: dict[str, bytes
 def test_the_door_exposed_td_passes_our_validator(files: dict[str, bytes], tmp_path: Path) -> None:
     path = tmp_path / "door.mqtt.json"
     path.write_bytes(files["warehouse_door_adaptor/td.mqtt.json"])
-    result = td2adaptor.compile(path)
+    result = td2adaptor.compile(path, values={"robotName": "door1", "mqttBroker": "mqtt://127.0.0.1:1883"})
     assert not [(d.code, d.message) for d in result.diagnostics if d.severity is Severity.ERROR]
 
 
