@@ -131,8 +131,12 @@ def test_bridge_ports_drive_the_ros1_sim_and_a_mission_runs_through_the_engine(
             engine.stop()
         check_outbound(app.events)
 
-        status: Any = port.read_property("AvailabilityComponent", "availability", 5.0)
-        assert status["robot_id"] == ROBOT and status["robot_status"]["pose"]["pose"]["x"] == 1.5
+        def status() -> Any:
+            return port.read_property("AvailabilityComponent", "availability", 5.0)
+
+        # the latest Status may still be one published before the move ended: wait for the new pose
+        assert until(lambda: status()["robot_status"]["pose"]["pose"]["x"] == 1.5, 10.0)
+        assert status()["robot_id"] == ROBOT
         # the bridge dies: calls fail as unreachable, and the next call after the restart period restarts it
         pid = bridge.pid
         assert pid is not None
