@@ -252,9 +252,18 @@ def test_the_generated_acl_lets_only_the_node_and_the_application_publish(tmp_pa
     broker.start()
     robot = sim(0.05)
     env = {"TD2ADAPTOR_MQTT_USERNAME": ROBOT, "TD2ADAPTOR_MQTT_PASSWORD": "node-pass"}
-    engine = serve(model, SimPort(model, robot), config(broker.url), env=env)
-    app = AppClient(broker.url, [f"td2adaptor/{ROBOT}/#"], username="application", password="app-pass")
-    intruder = AppClient(broker.url, [f"td2adaptor/{ROBOT}/#"], username="intruder", password="intruder-pass")
+    try:
+        engine = serve(model, SimPort(model, robot), config(broker.url), env=env)
+    except BaseException:
+        broker.stop()
+        raise
+    try:
+        app = AppClient(broker.url, [f"td2adaptor/{ROBOT}/#"], username="application", password="app-pass")
+        intruder = AppClient(broker.url, [f"td2adaptor/{ROBOT}/#"], username="intruder", password="intruder-pass")
+    except BaseException:
+        engine.stop()
+        broker.stop()
+        raise
     try:
         forged = {"type": "feedback", "correlation": "forged", "payload": {"state": "finished", "terminal": True}}
         intruder.send(f"{GOTO}/feedback", forged)
