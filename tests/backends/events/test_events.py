@@ -239,7 +239,6 @@ def test_asyncapi_document(files: dict[str, bytes]) -> None:
 ROBOT = "rb1_base_a"
 BROKER = "mqtt://127.0.0.1:1883"
 TM_VALUES = {"robotName": ROBOT, "mqttBroker": BROKER}
-OFFICIAL = REPO.parent / "shared" / "wot" / "official"
 BINDINGS = REPO.parent / "shared" / "wot" / "bindings"
 
 
@@ -262,10 +261,10 @@ def test_exposed_td_passes_our_validator(files: dict[str, bytes], tmp_path: Path
 
 
 def _official(name: str) -> Any:
-    path = OFFICIAL / name
-    if not path.is_file():
-        pytest.skip(f"the official W3C schemas are not in {OFFICIAL} (a checkout without ../shared/wot)")
-    return json.loads(path.read_text(encoding="utf-8"))
+    """The W3C schema: from ../shared/wot, else the pinned npm package (tests/wot_corpus.py), else a skip."""
+    from tests.wot_corpus import official_json
+
+    return official_json(name)
 
 
 def _errors(schema: Any, instance: Any, registry: Any = None) -> list[str]:
