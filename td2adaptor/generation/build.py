@@ -57,7 +57,7 @@ def generate_trees(
             diags.error("GEN800", f"package name {package_name!r} {problem}")
             return None
         model = replace(model, package_name=package_name)
-    known = backend_registry.available()
+    known = backend_registry.available() if backend_options else []  # imports every backend: only when needed
     problems = [key for key, _ in backend_options if key.split(".", 1)[0] not in known or "." not in key]
     for key in problems:  # options of a known backend that is not generated this time are left alone
         diags.error(
@@ -299,10 +299,12 @@ def target(
     partial: bool = False,
     strict: bool = False,
 ) -> Target:
-    """A Target from plain arguments (what the library functions and the CLI build)."""
+    """A Target for `tds` from plain arguments, built by `targets.targets` as the CLI and `td2adaptor.generate`
+    build theirs (a shorthand for scripts and tests that call `generate`/`check` here directly)."""
+    from td2adaptor.generation.targets import Options, targets
+
     paths = [tds] if isinstance(tds, (str, Path)) else list(tds)
-    return Target(
-        tds=tuple(Path(p) for p in paths),
+    options = Options(
         backends=tuple(backends),
         output=Path(output),
         interfaces=tuple(Path(p) for p in interfaces),
@@ -311,3 +313,6 @@ def target(
         partial=partial,
         strict=strict,
     )
+    found = targets([Path(p) for p in paths], options, Diagnostics())
+    assert found is not None and len(found) == 1  # with TDs given, targets() makes exactly one and cannot fail
+    return found[0]
