@@ -1,0 +1,1 @@
+"""Stubs of the nav_base_msgs interfaces nav_base_adaptor uses (partial)."""

@@ -1,0 +1,1 @@
+"""Stubs of the std_msgs interfaces nav_base_adaptor uses (partial)."""

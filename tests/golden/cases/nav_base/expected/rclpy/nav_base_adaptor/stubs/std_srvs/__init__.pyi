@@ -1,0 +1,1 @@
+"""Stubs of the std_srvs interfaces nav_base_adaptor uses (partial)."""

@@ -1,0 +1,29 @@
+# The parts of genpy that the generated adaptor and its message stubs use.
+from typing import Any, ClassVar
+
+class Message:
+    _type: ClassVar[str]
+    _md5sum: ClassVar[str]
+    _full_text: ClassVar[str]
+    _has_header: ClassVar[bool]
+    _slot_types: ClassVar[list[str]]
+    _connection_header: dict[str, str]
+    def __init__(self, *args: Any, **kwds: Any) -> None: ...
+    def serialize(self, buff: Any) -> None: ...
+    def deserialize(self, str: bytes) -> Message: ...
+
+class TVal:
+    secs: int
+    nsecs: int
+    def __init__(self, secs: int = 0, nsecs: int = 0) -> None: ...
+    def to_sec(self) -> float: ...
+    def to_nsec(self) -> int: ...
+    def is_zero(self) -> bool: ...
+
+class Time(TVal):
+    @staticmethod
+    def from_sec(float_secs: float) -> Time: ...
+
+class Duration(TVal):
+    @staticmethod
+    def from_sec(float_seconds: float) -> Duration: ...
