@@ -1,13 +1,19 @@
 """The warehouse's Robot Behaviour Service: moves carts with robots it reaches only through bus events.
 
 It never talks ROS. Per robot, a worker takes the next cart from a task table shared in SQLite (atomically:
-`BEGIN IMMEDIATE`, so two workers, threads or processes, can never take the same cart), then runs
+`BEGIN IMMEDIATE`, so two workers, threads or processes, can never take the same cart), then runs, with RB-1s
+(`kind="rb1"`, procedures on services),
 
     goto picking point → check the cart's marker → pick → goto the door → open the door → goto the zone → place
 
+or with nav_base robots (`kind="nav_base"`, ROS actions: a docking fails when the cart is not there)
+
+    navigateToPose picking point → dockRobot (the cart) → navigateToPose the door → open the door
+    → navigateToPose the zone → undockRobot
+
 sending one invoke (or write) event per step and waiting for the step's answer: the terminal feedback of a
-mission, the marker in the robot's `poseMarker` property events, the door's `position` property. It marks the
-cart moved and takes the next, until none is left. A failed step marks the cart failed and stops the robot
+mission (or goal), the marker in the robot's `poseMarker` property events, the door's `position` property. It
+marks the cart moved and takes the next, until none is left. A failed step marks the cart failed and stops the robot
 (the reference behaviour stopped its mission cycle on `unknown`). Every bus message is counted per action.
 """
 
@@ -30,6 +36,7 @@ from td2adaptor.runtime.bus import Bus, Message
 from td2adaptor.runtime.events import envelope, loads
 
 SOURCE = "warehouse/behaviour"
+KINDS = ("rb1", "nav_base")  # the example robots the behaviour can drive
 
 
 @dataclass(frozen=True)
@@ -167,7 +174,11 @@ class BehaviourService:
         mission_timeout: float = 60.0,
         topic_root: str = "td2adaptor",
         log: Callable[[str], None] = lambda _line: None,
+        kind: str = "rb1",
     ) -> None:
+        if kind not in KINDS:
+            raise ValueError(f"robot kind {kind!r}: one of {', '.join(KINDS)}")
+        self.kind = kind
         self.bus = bus
         self.robots = list(robots)
         self.door = door
@@ -190,8 +201,10 @@ class BehaviourService:
         r = self.root
         for pattern in (f"{r}/+/status", f"{r}/+/+/+/feedback", f"{r}/+/error"):
             self.bus.subscribe(pattern, self._on_message)
-        for robot in self.robots:
-            self.bus.subscribe(self.robot_events.find(Kind.PROPERTY, "poseMarker").topic(robot, r), self._on_message)
+        if self.kind == "rb1":
+            for robot in self.robots:
+                marker = self.robot_events.find(Kind.PROPERTY, "poseMarker")
+                self.bus.subscribe(marker.topic(robot, r), self._on_message)
         self.bus.subscribe(self.door_events.find(Kind.PROPERTY, "position").topic(self.door, r), self._on_message)
         self.bus.connect()
 
@@ -325,7 +338,20 @@ class BehaviourService:
         if not ok:
             raise StepFailed(f"door {self.door} did not open within {self.mission_timeout:g} s")
 
+    def navigate(self, robot: str, where: tuple[float, float]) -> None:
+        """A nav_base's NavigateToPose goal (a PoseStamped in the map frame), to its terminal feedback."""
+        pose = {"position": {"x": float(where[0]), "y": float(where[1])}, "orientation": {"w": 1.0}}
+        self._mission(robot, "navigateToPose", {"pose": {"header": {"frame_id": "map"}, "pose": pose}})
+
     def move(self, robot: str, cart: Cart) -> None:
+        if self.kind == "nav_base":
+            self.navigate(robot, cart.pick)
+            self._mission(robot, "dockRobot", {"use_dock_id": True, "dock_id": cart.id})
+            self.navigate(robot, self.door_front)
+            self.open_door()
+            self.navigate(robot, cart.place)
+            self._mission(robot, "undockRobot", {})
+            return
         frame = {"pick_frame_id": f"{robot}_cart{cart.marker}_contact"}
         self.goto(robot, cart.pick)
         self.check_marker(robot, cart.marker)

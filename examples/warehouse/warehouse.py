@@ -1,16 +1,18 @@
-"""`td2adaptor demo warehouse`: the BRAIN-IoT warehouse use case on ROS 2 Jazzy with the simulated RB-1.
+"""`td2adaptor demo warehouse`: the BRAIN-IoT warehouse use case on ROS 2 Jazzy with simulated robots.
 
 What runs (everything on one private-by-default, localhost-only ROS graph):
 
-* the simulated RB-1 (`examples/robotnik_rb1/sim/ros2.py`), one process serving rb1_base_a/b/c;
+* the simulated robots, one process serving three: RB-1s (`examples/robotnik_rb1/sim/ros2.py`, rb1_base_a/b/c:
+  procedures on services) or, with `--robot-kind nav_base`, Nav2-style bases (`examples/nav_base/sim/ros2.py`,
+  nav_base_a/b/c: ROS actions);
 * a simulated door controller (`examples.warehouse.doorsim`) for door1;
-* the edge nodes: the robots' (from the RB-1 TD) and the door's (from `door.td.json`), through adaptors
+* the edge nodes: the robots' (from their example's TD) and the door's (from `door.td.json`), through adaptors
   generated on the fly with the rclpy backend — in this process on the in-process bus (`--bus local`), or
   each robot's and the door's in its own `td2adaptor run` process on an MQTT broker (`--bus mqtt://...`);
 * the behaviour service (`behaviour.py`), which talks only events over the bus and moves three carts from
   their picking points through the door into storage zones A, B and C.
 
-It builds the RB-1 interfaces with CMake on first use (cached in `.cache/ros2-interfaces` of the source
+It builds the robots' interfaces with CMake on first use (cached in `.cache/ros2-interfaces` of the source
 checkout, shared with the tests) and needs the source checkout for the example robot and its simulation.
 """
 
@@ -47,6 +49,31 @@ HERE = Path(__file__).resolve().parent
 DOOR_TD = HERE / "door.td.json"
 
 
+@dataclass(frozen=True)
+class RobotKind:
+    """An example robot the demo can run with: its folder under examples/, robot ids and simulation."""
+
+    name: str
+    label: str
+    example: str
+    robot_ids: tuple[str, ...]
+    sim_module: str
+
+    def sim_args(self, duration: float) -> list[str]:
+        """The simulation's pace: RB-1 procedures take `duration`; a nav_base drives 3 m and docks in that time."""
+        if self.name == "nav_base":
+            return ["--speed", f"{3.0 / duration:g}", "--dock-time", f"{duration:g}"]
+        return ["--duration", str(duration)]
+
+
+KINDS = {
+    "rb1": RobotKind("rb1", "RB-1", "robotnik_rb1", ROBOT_IDS, "examples.robotnik_rb1.sim.ros2"),
+    "nav_base": RobotKind(
+        "nav_base", "nav_base", "nav_base", ("nav_base_a", "nav_base_b", "nav_base_c"), "examples.nav_base.sim.ros2"
+    ),
+}
+
+
 class DemoError(Exception):
     """The demo cannot run here (missing ROS 2, checkout, broker, ...); the message says what to do."""
 
@@ -60,20 +87,21 @@ class WarehouseOptions:
     cache_dir: Path | None = None
     allow_insecure: bool = False
     verbose: bool = False
+    robot_kind: str = "rb1"  # a key of KINDS
 
 
 # ---------------------------------------------------------------------------------------------------------
 # set-up
 
 
-def checkout() -> Path:
-    """The source checkout's RB-1 example (TD, interfaces, simulation)."""
-    example = HERE.parents[1] / "examples" / "robotnik_rb1"
+def checkout(kind: RobotKind = KINDS["rb1"]) -> Path:
+    """The source checkout's example of the robot kind (TD, interfaces, simulation)."""
+    example = HERE.parents[1] / "examples" / kind.example
     needed = [example / "td.json", example / "interfaces", example / "sim" / "ros2.py"]
     if not all(p.exists() for p in needed):
         raise DemoError(
-            f"the warehouse demo runs from a source checkout of td2adaptor: {example} (the RB-1 example and its "
-            "simulation) was not found"
+            f"the warehouse demo runs from a source checkout of td2adaptor: {example} (the {kind.label} example "
+            "and its simulation) was not found"
         )
     return example
 
@@ -125,18 +153,18 @@ def generate_rclpy(model: Model, out: Path) -> Path:
     return out / model.package_name
 
 
-def build_interfaces(example: Path, cache: Path | None, say: Callable[[str], None]) -> Path:
+def build_interfaces(example: Path, cache: Path | None, say: Callable[[str], None], label: str = "RB-1") -> Path:
     from td2adaptor.runtime import ros2build
 
     root = HERE.parents[1] / ".cache"
     cache = cache or root / "ros2-interfaces"
     src = example / "interfaces"
-    if not (cache / ros2build.definitions_hash(src) / "DONE").is_file():
-        say(f"building the RB-1 interfaces with CMake (once; cached in {cache}) ...")
+    if not (cache.resolve() / ros2build.definitions_hash(src.resolve()) / "DONE").is_file():
+        say(f"building the {label} interfaces with CMake (once; cached in {cache}) ...")
     try:
         return ros2build.build_interfaces(src, cache, colcon_home=root / "colcon-home")
     except (RuntimeError, OSError, subprocess.SubprocessError) as exc:
-        raise DemoError(f"building the RB-1 interfaces failed: {str(exc)[:2000]}") from None
+        raise DemoError(f"building the {label} interfaces failed: {str(exc)[:2000]}") from None
 
 
 class Child:
@@ -217,10 +245,18 @@ class Setup:
     door_src: Path
 
 
+def robot_kind(options: WarehouseOptions) -> RobotKind:
+    kind = KINDS.get(options.robot_kind)
+    if kind is None:
+        raise DemoError(f"--robot-kind {options.robot_kind!r}: one of {', '.join(KINDS)}")
+    return kind
+
+
 def prepare(options: WarehouseOptions, work: Path, say: Callable[[str], None]) -> Setup:
-    example = checkout()
+    kind = robot_kind(options)
+    example = checkout(kind)
     ros_environment()
-    prefix = build_interfaces(example, options.cache_dir, say)
+    prefix = build_interfaces(example, options.cache_dir, say, kind.label)
     robot_model = compile_td(example / "td.json", [example / "interfaces"])
     door_model = compile_td(DOOR_TD, [])
     robot_src = generate_rclpy(robot_model, work / "src")
@@ -243,16 +279,17 @@ class Timings:
 
 @contextmanager
 def simulations(setup: Setup, robots: Sequence[str], options: WarehouseOptions) -> Iterator[list[Child]]:
-    """The simulated RB-1s (one process) and the door controller, started together."""
+    """The simulated robots (one process) and the door controller, started together."""
     repo = setup.example.parents[1]
-    sim_args = [sys.executable, "-m", "examples.robotnik_rb1.sim.ros2", "--duration", str(options.duration)]
+    kind = robot_kind(options)
+    sim_args = [sys.executable, "-m", kind.sim_module, *kind.sim_args(options.duration)]
     limit = str(options.timeout + 120)  # the simulations end by themselves should this process be killed
     sim_args += ["--prefix", str(setup.prefix), "--run-for", limit]
     for robot in robots:
         sim_args += ["--namespace", robot]
     children: list[Child] = []
     try:
-        children.append(Child("the simulated RB-1", sim_args, repo, setup.work / "sim.log"))
+        children.append(Child(f"the simulated {kind.label}", sim_args, repo, setup.work / "sim.log"))
         door_args = [sys.executable, "-m", "examples.warehouse.doorsim", "--door", DOOR, "--run-for", limit]
         children.append(Child("the simulated door", door_args, repo, setup.work / "doorsim.log"))
         for child in children:
@@ -378,7 +415,8 @@ def clear_retained(bus: Any, setup: Setup, robots: Sequence[str]) -> None:
 def run_warehouse(options: WarehouseOptions, out: Callable[[str], None] = print) -> bool:
     """Run the demo and print its summary; True when every cart was stored."""
     started = time.monotonic()
-    robots = list(ROBOT_IDS[: options.robots])
+    kind = robot_kind(options)
+    robots = list(kind.robot_ids[: options.robots])
     if options.bus != "local" and not options.bus.startswith(("mqtt://", "mqtts://")):
         raise DemoError(f"--bus {options.bus!r}: use local or mqtt://host:port")
     logging.basicConfig(level=logging.INFO if options.verbose else logging.ERROR, stream=sys.stderr)
@@ -396,8 +434,8 @@ def run_warehouse(options: WarehouseOptions, out: Callable[[str], None] = print)
             behaviour_bus = open_behaviour_bus(options, setup.robot_model, broker)
             stack.callback(behaviour_bus.close)
             out(
-                f"warehouse: {len(robots)} robot(s) ({', '.join(robots)}), door {DOOR}, {len(CARTS)} carts, "
-                f"bus {options.bus}, procedures of {options.duration:g} s"
+                f"warehouse: {len(robots)} {kind.label} robot(s) ({', '.join(robots)}), door {DOOR}, "
+                f"{len(CARTS)} carts, bus {options.bus}, procedures of {options.duration:g} s"
             )
             if options.bus != "local":
                 clear_retained(behaviour_bus, setup, robots)
@@ -419,6 +457,7 @@ def run_warehouse(options: WarehouseOptions, out: Callable[[str], None] = print)
                 door_front=DOOR_FRONT,
                 mission_timeout=Timings.of(options).mission_timeout,
                 log=say if options.verbose else (lambda _line: None),
+                kind=kind.name,
             )
             behaviour.connect()
             missing = behaviour.wait_online(60.0)

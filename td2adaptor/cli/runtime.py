@@ -256,12 +256,19 @@ def demo() -> None:
 @click.option("--bus", default="local", show_default=True, help="local, or mqtt://host:port of a running broker.")
 @click.option("--robots", type=click.IntRange(1, 3), default=3, show_default=True, help="How many robots.")
 @click.option(
+    "--robot-kind",
+    type=click.Choice(["rb1", "nav_base"]),
+    default="rb1",
+    show_default=True,
+    help="The example robot: RB-1 (procedures on services) or nav_base (Nav2-style ROS actions).",
+)
+@click.option(
     "--duration",
     type=float,
     default=1.0,
     show_default=True,
     callback=_positive,
-    help="Seconds each simulated procedure takes.",
+    help="Seconds each simulated procedure takes (nav_base: a 3 m drive, a docking).",
 )
 @click.option(
     "--timeout", type=float, default=120.0, show_default=True, callback=_positive, help="Give up after this long."
@@ -275,9 +282,17 @@ def demo() -> None:
 @click.option("--allow-insecure", is_flag=True, help="Allow a broker that is not on this machine.")
 @click.option("-v", "--verbose", is_flag=True, help="Log what the edge nodes do.")
 def warehouse(
-    bus: str, robots: int, duration: float, timeout: float, cache_dir: Path | None, allow_insecure: bool, verbose: bool
+    bus: str,
+    robots: int,
+    robot_kind: str,
+    duration: float,
+    timeout: float,
+    cache_dir: Path | None,
+    allow_insecure: bool,
+    verbose: bool,
 ) -> None:
-    """Three RB-1s move three carts through a door into storage zones A/B/C (ROS 2 Jazzy, simulated).
+    """Three robots (RB-1s, or nav_base) move three carts through a door into storage zones A/B/C (ROS 2 Jazzy,
+    simulated).
 
     A behaviour service that talks only events over the bus takes carts from a shared SQLite task table and
     drives the robots through their edge nodes; with --bus mqtt://... every edge node is its own process.
@@ -287,8 +302,8 @@ def warehouse(
     if demo_module is None:
         _fail(
             "demo warehouse",
-            "the demo runs from a source checkout of td2adaptor (it needs examples/: the RB-1 robot, its "
-            "simulation and the warehouse); this installation has none",
+            "the demo runs from a source checkout of td2adaptor (it needs examples/: the example robots, their "
+            "simulations and the warehouse); this installation has none",
         )
     DemoError, WarehouseOptions, run_warehouse = (
         demo_module.DemoError,
@@ -298,6 +313,7 @@ def warehouse(
     options = WarehouseOptions(
         bus=bus,
         robots=robots,
+        robot_kind=robot_kind,
         duration=duration,
         timeout=timeout,
         cache_dir=cache_dir,
