@@ -10,13 +10,18 @@ Every test drives a base of its own (tests/examples/nav_base.py: BASES), so none
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
 import time
 from collections.abc import Callable
+from pathlib import Path
 from types import ModuleType
 from typing import Any
 
 import pytest
 
+from tests.conftest import REPO
 from tests.examples.nav_base import BASES, SPEED
 from tests.ros2.common import Process
 
@@ -207,3 +212,18 @@ def test_topics_cmd_vel_odom_battery_scan(nav_adaptor: ModuleType, make_base: Ca
         return b.position()[0] > 0.05
 
     assert until(driven)
+
+
+def test_the_readme_simulator_command_works_as_written(nav_prefix: Path) -> None:
+    # examples/nav_base/README.md: `.venv/bin/python -m examples.nav_base.sim.ros2 --namespace nav_base_a` (no
+    # prefix: the simulation finds the checkout's build of nav_base_msgs itself, as nav_prefix made it)
+    out = subprocess.run(
+        [sys.executable, "-m", "examples.nav_base.sim.ros2", "--namespace", "nav_base_a", "--run-for", "1"],
+        cwd=REPO,
+        env={k: v for k, v in os.environ.items() if k != "PYTHONPATH"},
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert out.returncode == 0 and "Traceback" not in out.stderr, out.stderr
+    assert '"event": "ready"' in out.stdout

@@ -93,3 +93,21 @@ def test_a_build_shows_progress_on_a_terminal_and_is_quiet_in_a_log(tmp_path: Pa
     quiet = _run(str(src), str(tmp_path / "cache-ci"))
     assert quiet.returncode == 0 and quiet.stderr == "", quiet.stderr
     assert Path(quiet.stdout.strip(), "share", "tiny_msgs").is_dir()
+
+
+def test_relative_paths_as_the_readme_writes_them(tmp_path: Path) -> None:
+    # `ros2build examples/robotnik_rb1/interfaces .cache/ros2-interfaces`: colcon runs in the build folder, so
+    # relative paths once built nothing there, marked the build done and printed a prefix that did not exist
+    pytest.importorskip("rclpy", reason="needs the ROS 2 wheels (bash .ci/setup-ros2.sh)")
+    _tiny_package(tmp_path)
+    proc = subprocess.run(
+        [sys.executable, "-m", "td2adaptor.runtime.ros2build", "interfaces", "cache"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path,
+    )
+    assert proc.returncode == 0, proc.stderr
+    prefix = Path(proc.stdout.strip())
+    assert prefix.is_absolute() and prefix.is_relative_to(tmp_path / "cache")
+    assert (prefix / "share" / "tiny_msgs").is_dir()
