@@ -118,8 +118,9 @@ class Task:
         return min(1.0, max(0.0, (end - self.started) / self.seconds))
 
     def elapsed(self) -> float:
+        """Seconds the task has run (at most its planned time, however late someone asks)."""
         end = self.ended if self.ended is not None else self.base.clock()
-        return max(0.0, end - self.started)
+        return min(self.seconds, max(0.0, end - self.started))
 
     def pose(self) -> tuple[float, float, float]:
         """Where the base is on this task's way (the start for docking and undocking, which do not move it)."""
