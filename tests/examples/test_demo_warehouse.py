@@ -123,3 +123,15 @@ def test_demo_warehouse_with_nav_base_robots(ros2_domain: int, nav_prefix: Path)
 def test_demo_warehouse_with_nav_base_robots_over_mqtt(ros2_domain: int, nav_prefix: Path, broker: Mosquitto) -> None:
     require_edge_node_actions()
     check_nav_base_summary(demo("--robot-kind", "nav_base", "--bus", broker.url), broker.url)
+
+
+def test_an_unknown_robot_kind_is_a_usage_error() -> None:
+    out = subprocess.run(
+        [sys.executable, "-m", "td2adaptor", "demo", "warehouse", "--robot-kind", "tugbot"],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert out.returncode == 2 and "Traceback" not in out.stderr, out.stderr
+    assert "'tugbot' is not one of 'rb1', 'nav_base'" in out.stderr, out.stderr
