@@ -37,7 +37,11 @@ class MathComponent:
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
-        self._fibonacci: ActionGoalClient[Fibonacci.Goal, Fibonacci.Result, Fibonacci.Feedback] = ActionGoalClient(
+        self._fibonacci: ActionGoalClient[
+            Fibonacci.Goal,
+            Fibonacci.Result,
+            Fibonacci.Feedback,
+        ] = ActionGoalClient(
             node,
             Fibonacci,
             in_namespace("fibonacci", self._namespace),

@@ -50,7 +50,11 @@ class NavigationComponent:
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
-        self._navigateToPose: ActionGoalClient[NavigateToPose.Goal, NavigateToPose.Result, NavigateToPose.Feedback] = ActionGoalClient(
+        self._navigateToPose: ActionGoalClient[
+            NavigateToPose.Goal,
+            NavigateToPose.Result,
+            NavigateToPose.Feedback,
+        ] = ActionGoalClient(
             node,
             NavigateToPose,
             in_namespace("navigate_to_pose", self._namespace),
@@ -142,12 +146,20 @@ class DockingComponent:
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
         self._registered = False
-        self._dockRobot: ActionGoalClient[DockRobot.Goal, DockRobot.Result, DockRobot.Feedback] = ActionGoalClient(
+        self._dockRobot: ActionGoalClient[
+            DockRobot.Goal,
+            DockRobot.Result,
+            DockRobot.Feedback,
+        ] = ActionGoalClient(
             node,
             DockRobot,
             in_namespace("dock_robot", self._namespace),
         )
-        self._undockRobot: ActionGoalClient[UndockRobot.Goal, UndockRobot.Result, UndockRobot.Feedback] = ActionGoalClient(
+        self._undockRobot: ActionGoalClient[
+            UndockRobot.Goal,
+            UndockRobot.Result,
+            UndockRobot.Feedback,
+        ] = ActionGoalClient(
             node,
             UndockRobot,
             in_namespace("undock_robot", self._namespace),
