@@ -227,3 +227,47 @@ def test_the_readme_simulator_command_works_as_written(nav_prefix: Path) -> None
     )
     assert out.returncode == 0 and "Traceback" not in out.stderr, out.stderr
     assert '"event": "ready"' in out.stdout
+
+
+def test_generated_package_and_user_code_pass_mypy_strict(nav_adaptor: ModuleType, tmp_path: Path) -> None:
+    """The package's own check (setup.cfg: strict, with the stubs of nav_base_msgs' actions) and user code: good
+    use of goals, feedback and results passes, misuse is caught."""
+    import shutil
+
+    pkg = Path(nav_adaptor.__file__ or "").parents[1]
+    copy = tmp_path / pkg.name
+    shutil.copytree(pkg, copy)
+    (copy / "use_ok.py").write_text(
+        "from rclpy.node import Node\n"
+        "from nav_base_adaptor import DockingComponent, GoalAborted, NavigationComponent\n\n\n"
+        "def run(node: Node) -> float:\n"
+        "    nav = NavigationComponent(node, 'nav_base_a', timeout=2.0)\n"
+        "    goal = nav.construct_navigateToPose_Goal(pose={'pose': {'position': {'x': 1.0}}})\n"
+        "    handle = nav.send_navigateToPose(goal)\n"
+        "    left = [fb.distance_remaining + fb.navigation_time.sec for fb in handle.feedback(timeout=1.0)]\n"
+        "    code: int = handle.result(timeout=3.0).error_code\n"
+        "    dock = DockingComponent(node, 'nav_base_a')\n"
+        "    try:\n"
+        "        dock.send_dockRobot(dock.construct_dockRobot_Goal(use_dock_id=True, dock_id='c')).result()\n"
+        "    except GoalAborted as exc:\n"
+        "        print(exc.response.error_msg, exc.response.error_code + 1)\n"
+        "    return sum(left) + code\n",
+        encoding="utf-8",
+    )
+    (copy / "use_bad.py").write_text(
+        "from rclpy.node import Node\n"
+        "from nav_base_adaptor import DockingComponent, NavigationComponent\n\n\n"
+        "def run(node: Node) -> str:\n"
+        "    NavigationComponent(node).construct_navigateToPose_Goal(behavior_tree=3)\n"
+        "    dock = DockingComponent(node)\n"
+        "    dock.send_dockRobot(dock.construct_undockRobot_Goal())\n"
+        "    return dock.send_undockRobot().result().error_code\n",
+        encoding="utf-8",
+    )
+    mypy = [str(Path(sys.executable).parent / "mypy"), "--cache-dir", str(tmp_path / "mypy-cache")]
+    proc = subprocess.run(mypy, cwd=copy, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    proc = subprocess.run([*mypy, "use_ok.py", "use_bad.py"], cwd=copy, capture_output=True, text=True)
+    lines = [line for line in proc.stdout.splitlines() if ": error:" in line]
+    assert all(line.startswith("use_bad.py") for line in lines), proc.stdout
+    assert len(lines) == 3, proc.stdout
