@@ -29,10 +29,10 @@ class Header:  # the shape of a genpy message
         self.seq, self.stamp, self.frame_id = 7, Time(3, 4), "map"
 
 
-def test_to_plain_gives_json_with_the_tds_field_names() -> None:
+def test_to_plain_gives_json_with_the_robots_own_field_names() -> None:
     value = to_plain({"h": Header(), "a": array.array("d", [1.0, float("nan")]), "b": b"\x01\x02", "t": (1, 2)})
     assert value == {
-        "h": {"seq": 7, "stamp": {"sec": 3, "nanosec": 4}, "frame_id": "map"},
+        "h": {"seq": 7, "stamp": {"secs": 3, "nsecs": 4}, "frame_id": "map"},  # a ROS 1 time, as ROS 1 names it
         "a": [1.0, None],  # NaN is no JSON number: null, and the rest of the message still goes out
         "b": [1, 2],
         "t": [1, 2],
