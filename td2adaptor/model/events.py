@@ -372,6 +372,7 @@ def _envelope(base: str) -> dict[str, Any]:
 
 
 _OUT_REQUIRED = ["type", "robot", "id", "time", "source", "payload"]
+_ENVELOPE_MEMBERS = tuple(_envelope("")["properties"])
 
 
 def _event_schema(
@@ -386,13 +387,17 @@ def _event_schema(
     required: list[str],
     extra: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
-    props: dict[str, Any] = {"type": {"type": "string", "const": kind.value}}
+    # every envelope member by reference, then this event's own constraints in place of the shared ones (each
+    # self-sufficient), closed with additionalProperties: the same meaning in JSON Schema draft-07 and
+    # 2020-12, so that AsyncAPI tools, which check draft-07 payloads, check these too
+    props: dict[str, Any] = {name: {"$ref": f"envelope.schema.json#/properties/{name}"} for name in _ENVELOPE_MEMBERS}
+    props["type"] = {"type": "string", "const": kind.value}
     if affordance is not None:
         props["affordance"] = {"type": "string", "const": affordance}
     else:
         props["affordance"] = False
     if not kind.inbound:
-        props["robot"] = {"not": {"type": "string", "const": ALL_ROBOTS}}
+        props["robot"] = {"type": "string", "pattern": ROBOT_ID_PATTERN, "not": {"type": "string", "const": ALL_ROBOTS}}
     props.update(extra or {})
     props["payload"] = payload
     # robot-level events are files of their own; a component's events sit in its file's $defs, where the
@@ -403,10 +408,9 @@ def _event_schema(
         "title": title,
         "description": description,
         "type": "object",
-        "allOf": [{"$ref": "envelope.schema.json"}],
         "properties": props,
         "required": required,
-        "unevaluatedProperties": False,
+        "additionalProperties": False,
     }
 
 

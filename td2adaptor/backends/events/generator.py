@@ -60,7 +60,9 @@ ROBOT_PLACEHOLDER = "{{robotName}}"
 BROKER_PLACEHOLDER = "{{mqttBroker}}"
 #: the runtime publishes and subscribes with QoS 1 (the binding's `mqv:qos` is a string)
 MQTT_QOS = "1"
-SCHEMA_FORMAT = "application/schema+json;version=draft-2020-12"
+#: the schema files declare JSON Schema 2020-12 (what the runtime validates with) and use only keywords that mean
+#: the same in draft-07, the newest format AsyncAPI tools (@asyncapi/parser 3) register and so check
+SCHEMA_FORMAT = "application/schema+json;version=draft-07"
 MQTT_BINDING_VERSION = "0.2.0"
 
 
@@ -127,7 +129,7 @@ def standalone(spec: EventSpec, catalog: EventCatalog) -> dict[str, Any]:
         if own is False:
             continue
         merged = dict(sub)
-        if isinstance(own, Mapping):
+        if isinstance(own, Mapping) and "$ref" not in own:  # a reference is to `sub` itself
             merged.update({k: v for k, v in own.items() if k != "not"})
             if "const" in own:
                 merged.pop("enum", None)
