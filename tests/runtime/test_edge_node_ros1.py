@@ -121,7 +121,10 @@ def test_bridge_ports_drive_the_ros1_sim_and_a_mission_runs_through_the_engine(
             assert fb[-1]["payload"]["message"] == "Perfect"
             app.wait(
                 lambda ev: any(
-                    t.endswith("/poseMarker") and [m["id"] for m in e["payload"]["markers"]] == [3] for t, e in ev
+                    t.endswith("/PoseMarkerComponent/poseMarker")
+                    and "wot-thing" not in t
+                    and [m["id"] for m in e["payload"]["markers"]] == [3]
+                    for t, e in ev
                 ),
                 timeout=10,
             )

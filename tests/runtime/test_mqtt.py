@@ -13,26 +13,17 @@ from typing import Any
 import pytest
 
 from td2adaptor.runtime import BusError, RuntimeConfig, SecurityError, open_bus, serve
-from td2adaptor.runtime.bus import Bus
-from td2adaptor.runtime.engine import Engine
 from td2adaptor.runtime.mqttbus import MqttBus
 from td2adaptor.runtime.simport import SimPort
-from td2adaptor.runtime.thingbus import ThingBus
 from tests.conftest import REPO
 from tests.runtime.broker import Mosquitto
 from tests.runtime.certs import make_certs
 from tests.runtime.client import AppClient
-from tests.runtime.edge import until
+from tests.runtime.edge import bus_of, until
 from tests.runtime.rb1 import GOAL, check_outbound, rb1_model, sim, td_with_security, terminal
 
 ROBOT = "rb1_base_a"
 GOTO = f"td2adaptor/{ROBOT}/GoToComponent/gotoRun"
-
-
-def mqtt_of(engine: Engine) -> Bus:
-    """The engine's MQTT bus, under the WoT adapter `serve` wraps it in."""
-    bus = engine.bus
-    return bus.bus if isinstance(bus, ThingBus) else bus
 
 
 def config(url: str, **kw: Any) -> RuntimeConfig:
@@ -158,8 +149,8 @@ def test_tls_with_a_client_certificate(tmp_path: Path) -> None:
             model, SimPort(model, sim(0.1)), config(url, tls_key_file=str(certs.client_key), **remote_ok), env={}
         )
         try:
-            assert isinstance(mqtt_of(engine), MqttBus) and mqtt_of(engine).connected
-            mqtt_of(engine).publish(GOTO, b'{"correlation": "tls", "payload": {"procedure": {}}}')
+            assert isinstance(bus_of(engine), MqttBus) and bus_of(engine).connected
+            bus_of(engine).publish(GOTO, b'{"correlation": "tls", "payload": {"procedure": {}}}')
             deadline = time.monotonic() + 10
             while engine.stats.get("out.feedback", 0) < 2 and time.monotonic() < deadline:
                 time.sleep(0.02)
@@ -189,9 +180,7 @@ def test_broker_restart_mid_mission_loses_no_feedback(broker: Mosquitto) -> None
         broker.stop()
         time.sleep(1.8)  # the mission finishes while the broker is down: its feedback waits in the client
         assert robot.components["GoToComponent"].active() is None
-        assert (
-            isinstance(mqtt_of(engine), MqttBus) and not mqtt_of(engine).connected
-        )  # "finished" was sent into the void
+        assert isinstance(bus_of(engine), MqttBus) and not bus_of(engine).connected  # "finished" was sent into the void
         broker.start()
         app.wait(terminal("feedback", "through"), timeout=20)
         got = states(app, "through")
@@ -202,7 +191,7 @@ def test_broker_restart_mid_mission_loses_no_feedback(broker: Mosquitto) -> None
         # subscriptions survived: the next action is served
         app.send(GOTO, {"correlation": "after", "payload": GOAL})
         app.wait(terminal("feedback", "after"), timeout=20)
-        assert isinstance(mqtt_of(engine), MqttBus) and mqtt_of(engine).connects >= 2
+        assert isinstance(bus_of(engine), MqttBus) and bus_of(engine).connects >= 2
     finally:
         engine.stop()
         app.close()
@@ -344,7 +333,7 @@ def test_three_robots_a_hundred_missions_each_through_a_broker_restart(broker: M
                 assert seqs == list(range(1, len(seqs) + 1)), (robot, i, seqs)  # nothing lost, nothing twice
                 assert [p["terminal"] for p in sorted(got.values(), key=lambda p: p["seq"])][-1] is True
                 assert sum(p["terminal"] for p in got.values()) == 1
-        assert all(isinstance(mqtt_of(e), MqttBus) and mqtt_of(e).connects >= 2 for e in engines)
+        assert all(isinstance(bus_of(e), MqttBus) and bus_of(e).connects >= 2 for e in engines)
     finally:
         for engine in engines:
             engine.stop()
