@@ -69,7 +69,7 @@ def _port_error(exc: BaseException) -> PortError:
     names = {cls.__name__ for cls in type(exc).__mro__}
     response = getattr(exc, "response", None)
     plain = to_plain(response) if response is not None else None
-    message = str(exc) or type(exc).__name__
+    message = str(exc).strip()  # may be empty: the error event then says the kind in words (runtime/words.py)
     if "ServiceUnavailable" in names:
         return PortUnavailable(message)
     if "CallTimeout" in names:
