@@ -19,7 +19,7 @@ from tests.conftest import REPO
 from tests.runtime.broker import Amqtt, Broker, Mosquitto
 from tests.runtime.certs import make_certs
 from tests.runtime.client import AppClient
-from tests.runtime.edge import until
+from tests.runtime.edge import bus_of, until
 from tests.runtime.rb1 import GOAL, check_outbound, rb1_model, sim, td_with_security, terminal
 
 ROBOT = "rb1_base_a"
@@ -154,8 +154,8 @@ def test_tls_with_a_client_certificate(tmp_path: Path) -> None:
             model, SimPort(model, sim(0.1)), config(url, tls_key_file=str(certs.client_key), **remote_ok), env={}
         )
         try:
-            assert isinstance(engine.bus, MqttBus) and engine.bus.connected
-            engine.bus.publish(GOTO, b'{"correlation": "tls", "payload": {"procedure": {}}}')
+            assert isinstance(bus_of(engine), MqttBus) and bus_of(engine).connected
+            bus_of(engine).publish(GOTO, b'{"correlation": "tls", "payload": {"procedure": {}}}')
             deadline = time.monotonic() + 10
             while engine.stats.get("out.feedback", 0) < 2 and time.monotonic() < deadline:
                 time.sleep(0.02)
@@ -185,7 +185,7 @@ def test_broker_restart_mid_mission_loses_no_feedback(broker: Broker) -> None:
         broker.stop()
         time.sleep(1.8)  # the mission finishes while the broker is down: its feedback waits in the client
         assert robot.components["GoToComponent"].active() is None
-        assert isinstance(engine.bus, MqttBus) and not engine.bus.connected  # "finished" was sent into the void
+        assert isinstance(bus_of(engine), MqttBus) and not bus_of(engine).connected  # "finished" was sent into the void
         broker.start()
         app.wait(terminal("feedback", "through"), timeout=20)
         got = states(app, "through")
@@ -196,7 +196,7 @@ def test_broker_restart_mid_mission_loses_no_feedback(broker: Broker) -> None:
         # subscriptions survived: the next action is served
         app.send(GOTO, {"correlation": "after", "payload": GOAL})
         app.wait(terminal("feedback", "after"), timeout=20)
-        assert isinstance(engine.bus, MqttBus) and engine.bus.connects >= 2
+        assert isinstance(bus_of(engine), MqttBus) and bus_of(engine).connects >= 2
     finally:
         engine.stop()
         app.close()
@@ -338,7 +338,7 @@ def test_three_robots_a_hundred_missions_each_through_a_broker_restart(broker: B
                 assert seqs == list(range(1, len(seqs) + 1)), (robot, i, seqs)  # nothing lost, nothing twice
                 assert [p["terminal"] for p in sorted(got.values(), key=lambda p: p["seq"])][-1] is True
                 assert sum(p["terminal"] for p in got.values()) == 1
-        assert all(isinstance(e.bus, MqttBus) and e.bus.connects >= 2 for e in engines)
+        assert all(isinstance(bus_of(e), MqttBus) and bus_of(e).connects >= 2 for e in engines)
     finally:
         for engine in engines:
             engine.stop()
