@@ -257,6 +257,35 @@ def test_result_timeout_leaves_the_goal_running(master: Master, path: list[Path]
     }
 
 
+def test_server_killed_mid_goal(master: Master, interfaces: Path, path: list[Path]) -> None:
+    """The robot dies during a goal: waits end with ServiceUnavailable once its connections drop, not at their
+    (long) timeout."""
+    with harness.run_server(master, interfaces, "fibonacci_server.py", "fibo_doomed", str(STEP)) as doomed:
+        out = harness.run_client(
+            master,
+            path,
+            "import os, signal\n"
+            f"from {PKG} import *\n"
+            "c = MathComponent('fibo_doomed')\n"
+            "goal = c.send_fibonacci(c.construct_fibonacci_Goal(order=1000))\n"
+            "next(goal.feedback(timeout=10))\n"
+            f"os.kill({doomed.pid}, signal.SIGKILL)\n"
+            "errors = []\n"
+            "start = time.monotonic()\n"
+            "for wait in (lambda: goal.result(timeout=60), lambda: list(goal.feedback(timeout=60))):\n"
+            "    try:\n"
+            "        wait()\n"
+            "    except ServiceUnavailable as e:\n"
+            "        errors.append(str(e))\n"
+            "emit({'errors': errors, 'early': time.monotonic() - start < 30, 'done': goal.done})\n",
+        )
+    assert out == {
+        "errors": ["service /fibo_doomed/fibonacci is not available (the action server went away during the goal)"] * 2,
+        "early": True,
+        "done": False,
+    }
+
+
 def test_server_absent(master: Master, path: list[Path]) -> None:
     out = harness.run_client(
         master,

@@ -37,6 +37,8 @@ FeedbackT = TypeVar("FeedbackT")
 
 #: how often a wait for an action server re-checks its connections
 POLL_PERIOD = 0.02
+#: how often a wait on a goal checks that the action server is still connected
+LIVENESS_PERIOD = 0.1
 
 #: actionlib_msgs/GoalStatus codes → the status a GoalHandle reports (the ROS 2 adaptor's words where they
 #: exist; ROS 1 adds "pending": received, not started, may still be rejected; "rejected" and "lost")
@@ -68,12 +70,14 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
     Feedback arrives in rospy's receive thread: `on_feedback(callback)` calls a callback with each message,
     `feedback(timeout=...)` iterates over them in the caller's thread until the goal ends. `result(timeout=...)`
     waits for the end; `cancel(timeout=...)` asks the server to cancel the goal. No method waits longer than
-    its timeout.
+    its timeout, and a wait ends early with ServiceUnavailable when the action server goes away (ROS 1 would
+    not tell otherwise: a dead server just stops publishing).
     """
 
-    def __init__(self, action: str, timeout: float) -> None:
+    def __init__(self, action: str, timeout: float, server_alive: Callable[[], bool] = lambda: True) -> None:
         self.action = action
         self.timeout = timeout
+        self._server_alive = server_alive
         self.goal_id = ""
         self._handle: actionlib.ClientGoalHandle | None = None  # set once sent
         self._cond = threading.Condition()
@@ -162,18 +166,33 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
 
     def _wait_beyond(self, position: int, wait: float) -> None:
         """Wait at most `wait` seconds for a feedback message after `position`, or for the end (lock held)."""
-        self._cond.wait_for(lambda: position < self._received or self._done, wait)
+        self._wait_until(lambda: position < self._received or self._done, wait)
+
+    def _wait_until(self, predicate: Callable[[], bool], wait: float) -> None:
+        """Wait (lock held) at most `wait` seconds for `predicate`; ServiceUnavailable when the server is seen
+        gone twice in a row meanwhile (once could be a connection being remade)."""
+        deadline = time.monotonic() + wait
+        missing = 0
+        while not predicate():
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return
+            self._cond.wait(min(remaining, LIVENESS_PERIOD))
+            missing = 0 if predicate() or self._server_alive() else missing + 1
+            if missing >= 2:
+                raise ServiceUnavailable(self.action, "the action server went away during the goal")
 
     def result(self, timeout: float | None = None) -> ResultT:
         """Wait at most `timeout` seconds (default: the component's timeout) for the goal to end; its result.
 
         Raises GoalAborted or GoalCanceled when it did not succeed (the result the server sent is the error's
         `response`, its status text the `message`), GoalRejected when the server rejected a goal it had left
-        pending, CallTimeout when it did not end in time (the goal goes on: wait again or cancel()).
+        pending, CallTimeout when it did not end in time (the goal goes on: wait again or cancel()),
+        ServiceUnavailable when the action server went away meanwhile.
         """
         wait = check_timeout(self.timeout if timeout is None else timeout, "timeout")
         with self._cond:
-            self._cond.wait_for(lambda: self._done, wait)
+            self._wait_until(lambda: self._done, wait)
             if not self._done:
                 raise CallTimeout(self.action, wait)
             code, text, result = self._code, self._text, self._result
@@ -197,7 +216,7 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
         self._handle.cancel()  # never under self._cond: actionlib calls _transition under its own lock
         canceling = (_PREEMPTING, _RECALLING, _PREEMPTED, _RECALLED)
         with self._cond:
-            self._cond.wait_for(lambda: self._code in canceling or self._done, wait)
+            self._wait_until(lambda: self._code in canceling or self._done, wait)
             if self._code in canceling:
                 return True
             if self._done:
@@ -264,6 +283,13 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
         parts = (client.pub_goal, client.pub_cancel, client.status_sub, client.result_sub, client.feedback_sub)
         return all(part.get_num_connections() > 0 for part in parts)
 
+    def server_connected(self) -> bool:
+        """Whether an action server is still connected (its status and result publishers)."""
+        client = self._client
+        return client is not None and (
+            client.status_sub.get_num_connections() > 0 or client.result_sub.get_num_connections() > 0
+        )
+
     def send(self, goal: GoalT, timeout: float, wait_timeout: float) -> GoalHandle[ResultT, FeedbackT]:
         """Send `goal` (see the class docstring); feedback is collected from the first message on."""
         if not isinstance(goal, self._goal_class):
@@ -278,7 +304,7 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
             if remaining <= 0:
                 raise ServiceUnavailable(self.name, f"no action server within {wait_timeout:g} s")
             time.sleep(min(POLL_PERIOD, remaining))
-        handle: GoalHandle[ResultT, FeedbackT] = GoalHandle(self.name, timeout)
+        handle: GoalHandle[ResultT, FeedbackT] = GoalHandle(self.name, timeout, self.server_connected)
         client = self._client
         if client is None:  # closed by another thread meanwhile
             raise ServiceUnavailable(self.name, "the client was closed")
