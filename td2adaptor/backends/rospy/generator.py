@@ -563,7 +563,8 @@ def stub_modules(types: TypeTable, diags: Diagnostics) -> list[StubModule]:
     for act in types.actions:
         module = class_location(act.name)[0]
         actions.setdefault(module, []).append(act)
-        by_module.setdefault(module, []).extend([act.goal, act.result, act.feedback])
+        listed = {m.name for m in by_module.get(module, [])}  # a genaction message may have brought them in
+        by_module.setdefault(module, []).extend(m for m in (act.goal, act.result, act.feedback) if m.name not in listed)
     out = []
     for module in sorted(by_module):
         classes = []

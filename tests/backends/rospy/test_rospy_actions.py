@@ -5,7 +5,9 @@ pending, server absent and timeouts. test_msgs/Fibonacci comes from tests/data/a
 
 from __future__ import annotations
 
+import json
 import os
+import shutil
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -107,6 +109,41 @@ def test_generated_package_with_an_action_is_lint_format_and_mypy_strict_clean(p
     ):
         out = subprocess.run(cmd, cwd=package, capture_output=True, text=True)
         assert out.returncode == 0, f"{' '.join(cmd[:2])}:\n{out.stdout}\n{out.stderr}"
+
+
+def test_generated_package_with_an_action_is_pyright_strict_clean(package: Path, tmp_path: Path) -> None:
+    from tests.backends.test_python_runtime import STRICT, _pyright
+
+    copy = tmp_path / PKG
+    shutil.copytree(package, copy, ignore=shutil.ignore_patterns(".mypy"))
+    _pyright({**STRICT, "include": [f"{PKG}/src"], "stubPath": f"{PKG}/stubs"}, tmp_path, sys.executable)
+
+
+def test_ros1_action_messages_as_topic_types(tmp_path: Path) -> None:
+    """genaction's messages are ROS 1 messages: a property may observe an action's feedback topic with them."""
+    td = json.loads((CASE / "td.json").read_text(encoding="utf-8"))
+    form = td["properties"]["chatter"]["forms"][0]
+    form["rosv:name"] = "/{{robotName}}/fibonacci/feedback"
+    form["rosv:type"] = "test_msgs/FibonacciActionFeedback"
+    (tmp_path / "td.json").write_text(json.dumps(td), encoding="utf-8")
+    result = td2adaptor.compile(tmp_path / "td.json", interfaces=[INTERFACES])
+    assert result.model is not None, [d.message for d in result.diagnostics]
+    assert "ROS424" in [d.code for d in result.diagnostics]  # ROS 2 has no such message
+    tree = backend.generate(result.model, GenOptions(), Diagnostics())
+    for rel, data in tree:
+        (tmp_path / "out" / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / "out" / rel).write_bytes(data)
+    stub = (tmp_path / "out" / PKG / "stubs" / "test_msgs" / "msg" / "__init__.pyi").read_text()
+    assert "class FibonacciActionFeedback(genpy.Message):" in stub
+    assert "    status: actionlib_msgs.msg.GoalStatus\n    feedback: FibonacciFeedback\n" in stub
+    bindir = Path(sys.executable).parent
+    out = subprocess.run(
+        [str(bindir / "mypy"), "--config-file", "mypy.ini", "--cache-dir", str(tmp_path / ".mypy")],
+        cwd=tmp_path / "out" / PKG,
+        capture_output=True,
+        text=True,
+    )
+    assert out.returncode == 0, out.stdout
 
 
 def test_action_stubs_catch_type_errors(package: Path, tmp_path: Path) -> None:
