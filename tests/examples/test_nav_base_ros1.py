@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import os
 import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -31,8 +32,6 @@ SPEED = 2.0
 
 @pytest.fixture(scope="module")
 def ros1() -> None:
-    if not (harness.HERE / "build_actions.py").is_file():
-        pytest.skip("the rospy backend does not generate ROS 1 actions yet (issue 12)")
     problem = harness.ros1_problem()
     if problem:
         if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
@@ -238,3 +237,15 @@ def test_server_absent(master: Master, genpy: Path, package: Path) -> None:
         "    emit([str(e), time.monotonic() - started < 3.0])\n",
     )
     assert "no_such_base/navigate_to_pose" in out[0] and out[1] is True, json.dumps(out)
+
+
+def test_generated_package_is_lint_format_and_mypy_strict_clean(package: Path) -> None:
+    """With three actions whose goals, results and feedback nest geometry_msgs and durations (ROS 1 stubs)."""
+    bindir = Path(sys.executable).parent
+    for cmd in (
+        [str(bindir / "ruff"), "check", "--no-cache", "."],
+        [str(bindir / "ruff"), "format", "--check", "--no-cache", "."],
+        [str(bindir / "mypy"), "--config-file", "mypy.ini", "--cache-dir", str(package.parent / ".mypy")],
+    ):
+        out = subprocess.run(cmd, cwd=package, capture_output=True, text=True)
+        assert out.returncode == 0, f"{' '.join(cmd[:2])}:\n{out.stdout}\n{out.stderr}"

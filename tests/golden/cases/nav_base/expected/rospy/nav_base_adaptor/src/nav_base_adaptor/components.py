@@ -11,11 +11,26 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from geometry_msgs.msg import Twist, Vector3
+from geometry_msgs.msg import PoseStamped, Twist, Vector3
+from nav_base_msgs.msg import (
+    DockRobotAction,
+    DockRobotFeedback,
+    DockRobotGoal,
+    DockRobotResult,
+    NavigateToPoseAction,
+    NavigateToPoseFeedback,
+    NavigateToPoseGoal,
+    NavigateToPoseResult,
+    UndockRobotAction,
+    UndockRobotFeedback,
+    UndockRobotGoal,
+    UndockRobotResult,
+)
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import BatteryState, LaserScan
 from std_srvs.srv import SetBool, SetBoolRequest, SetBoolResponse, Trigger, TriggerRequest, TriggerResponse
 
+from ._actions import ActionGoalClient, GoalHandle
 from ._runtime import ServiceClient, TopicPublisher, TopicSubscriber, require_node, to_msg
 from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, check_robot_name, check_timeout, in_namespace
 from .errors import CallFailed
@@ -29,7 +44,7 @@ __all__ = [
 
 
 class NavigationComponent:
-    """The robot's NavigationComponent: nothing.
+    """The robot's NavigationComponent: navigateToPose.
 
     Call rospy.init_node() once in the process first (rospy has one node per process, and it is the caller's), then
     register() (or just use the methods: they register what they need).
@@ -51,20 +66,71 @@ class NavigationComponent:
         self.robot_name = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
+        self._act_navigateToPose = ActionGoalClient(
+            in_namespace("navigate_to_pose", self.robot_name),
+            NavigateToPoseAction,
+            NavigateToPoseGoal,
+            NavigateToPoseResult,
+            NavigateToPoseFeedback,
+        )
 
     def register(self) -> None:
         """Create every service proxy, publisher and subscriber of this component (idempotent)."""
         require_node()
+        self._act_navigateToPose.register()
 
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
+        self._act_navigateToPose.close()
+
+    def construct_navigateToPose_Goal(
+        self,
+        *,
+        pose: PoseStamped | Mapping[str, Any] | None = None,
+        behavior_tree: str = "",
+    ) -> NavigateToPoseGoal:
+        """The goal of navigateToPose.
+
+        Keyword arguments are the goal's fields; nested messages may also be mappings of their fields.
+        """
+        return NavigateToPoseGoal(
+            pose=pose if isinstance(pose, PoseStamped) else to_msg(PoseStamped, pose),
+            behavior_tree=behavior_tree,
+        )
+
+    def send_navigateToPose(
+        self,
+        goal: NavigateToPoseGoal | None = None,
+        *,
+        timeout: float | None = None,
+    ) -> GoalHandle[NavigateToPoseResult, NavigateToPoseFeedback]:
+        """Navigate to pose: Drive to a goal pose (PoseStamped in the map frame), avoiding obstacles. A ROS action:
+        feedback while driving (current pose, distance remaining), refused while another navigation runs or when the
+        pose is outside the map, cancellable.
+
+        Send a goal to ROS action /{{robotName}}/navigate_to_pose (nav_base_msgs/NavigateToPose, actionlib:
+        /{{robotName}}/navigate_to_pose/goal, cancel, status, feedback, result).
+
+        goal=None sends construct_navigateToPose_Goal() (all fields zero). Returns the goal's GoalHandle: goal_id,
+        status, on_feedback(callback), feedback(timeout=...) to iterate over the feedback until the goal ends,
+        result(timeout=...) and cancel(timeout=...). Its waits default to timeout (default: self.timeout).
+
+        Raises ServiceUnavailable when no action server is connected within wait_timeout, GoalRejected when the
+        server rejects the goal, CallTimeout when it does not take the goal up within timeout (the goal is then
+        cancelled); result() raises GoalAborted or GoalCanceled when the goal does not succeed.
+        """
+        return self._act_navigateToPose.send(
+            self.construct_navigateToPose_Goal() if goal is None else goal,
+            self._timeout(timeout),
+            self.wait_timeout,
+        )
 
     def _timeout(self, timeout: float | None) -> float:
         return self.timeout if timeout is None else check_timeout(timeout, "timeout")
 
 
 class DockingComponent:
-    """The robot's DockingComponent: nothing.
+    """The robot's DockingComponent: dockRobot, undockRobot.
 
     Call rospy.init_node() once in the process first (rospy has one node per process, and it is the caller's), then
     register() (or just use the methods: they register what they need).
@@ -86,13 +152,120 @@ class DockingComponent:
         self.robot_name = check_robot_name(robot_name)
         self.timeout = check_timeout(timeout, "timeout")
         self.wait_timeout = check_timeout(wait_timeout, "wait_timeout")
+        self._act_dockRobot = ActionGoalClient(
+            in_namespace("dock_robot", self.robot_name),
+            DockRobotAction,
+            DockRobotGoal,
+            DockRobotResult,
+            DockRobotFeedback,
+        )
+        self._act_undockRobot = ActionGoalClient(
+            in_namespace("undock_robot", self.robot_name),
+            UndockRobotAction,
+            UndockRobotGoal,
+            UndockRobotResult,
+            UndockRobotFeedback,
+        )
 
     def register(self) -> None:
         """Create every service proxy, publisher and subscriber of this component (idempotent)."""
         require_node()
+        self._act_dockRobot.register()
+        self._act_undockRobot.register()
 
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
+        self._act_dockRobot.close()
+        self._act_undockRobot.close()
+
+    def construct_dockRobot_Goal(
+        self,
+        *,
+        use_dock_id: bool = False,
+        dock_id: str = "",
+        dock_pose: PoseStamped | Mapping[str, Any] | None = None,
+        dock_type: str = "",
+        max_staging_time: float = 0.0,
+        navigate_to_staging_pose: bool = False,
+    ) -> DockRobotGoal:
+        """The goal of dockRobot.
+
+        Keyword arguments are the goal's fields; nested messages may also be mappings of their fields.
+        """
+        return DockRobotGoal(
+            use_dock_id=use_dock_id,
+            dock_id=dock_id,
+            dock_pose=dock_pose if isinstance(dock_pose, PoseStamped) else to_msg(PoseStamped, dock_pose),
+            dock_type=dock_type,
+            max_staging_time=max_staging_time,
+            navigate_to_staging_pose=navigate_to_staging_pose,
+        )
+
+    def send_dockRobot(
+        self,
+        goal: DockRobotGoal | None = None,
+        *,
+        timeout: float | None = None,
+    ) -> GoalHandle[DockRobotResult, DockRobotFeedback]:
+        """Dock: Dock under the cart (or at the dock) `dock_id` where the base stands, so it carries it. A ROS action;
+        fails with FAILED_TO_DETECT_DOCK when no such cart is in front of the base.
+
+        Send a goal to ROS action /{{robotName}}/dock_robot (nav_base_msgs/DockRobot, actionlib:
+        /{{robotName}}/dock_robot/goal, cancel, status, feedback, result).
+
+        goal=None sends construct_dockRobot_Goal() (all fields zero). Returns the goal's GoalHandle: goal_id,
+        status, on_feedback(callback), feedback(timeout=...) to iterate over the feedback until the goal ends,
+        result(timeout=...) and cancel(timeout=...). Its waits default to timeout (default: self.timeout).
+
+        Raises ServiceUnavailable when no action server is connected within wait_timeout, GoalRejected when the
+        server rejects the goal, CallTimeout when it does not take the goal up within timeout (the goal is then
+        cancelled); result() raises GoalAborted or GoalCanceled when the goal does not succeed.
+        """
+        return self._act_dockRobot.send(
+            self.construct_dockRobot_Goal() if goal is None else goal,
+            self._timeout(timeout),
+            self.wait_timeout,
+        )
+
+    def construct_undockRobot_Goal(
+        self,
+        *,
+        dock_type: str = "",
+        max_undocking_time: float = 0.0,
+    ) -> UndockRobotGoal:
+        """The goal of undockRobot.
+
+        Keyword arguments are the goal's fields; nested messages may also be mappings of their fields.
+        """
+        return UndockRobotGoal(
+            dock_type=dock_type,
+            max_undocking_time=max_undocking_time,
+        )
+
+    def send_undockRobot(
+        self,
+        goal: UndockRobotGoal | None = None,
+        *,
+        timeout: float | None = None,
+    ) -> GoalHandle[UndockRobotResult, UndockRobotFeedback]:
+        """Undock: Leave the carried cart where the base stands. A ROS action.
+
+        Send a goal to ROS action /{{robotName}}/undock_robot (nav_base_msgs/UndockRobot, actionlib:
+        /{{robotName}}/undock_robot/goal, cancel, status, feedback, result).
+
+        goal=None sends construct_undockRobot_Goal() (all fields zero). Returns the goal's GoalHandle: goal_id,
+        status, on_feedback(callback), feedback(timeout=...) to iterate over the feedback until the goal ends,
+        result(timeout=...) and cancel(timeout=...). Its waits default to timeout (default: self.timeout).
+
+        Raises ServiceUnavailable when no action server is connected within wait_timeout, GoalRejected when the
+        server rejects the goal, CallTimeout when it does not take the goal up within timeout (the goal is then
+        cancelled); result() raises GoalAborted or GoalCanceled when the goal does not succeed.
+        """
+        return self._act_undockRobot.send(
+            self.construct_undockRobot_Goal() if goal is None else goal,
+            self._timeout(timeout),
+            self.wait_timeout,
+        )
 
     def _timeout(self, timeout: float | None) -> float:
         return self.timeout if timeout is None else check_timeout(timeout, "timeout")
