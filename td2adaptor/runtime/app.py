@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING
 
 from td2adaptor.model import Model
 from td2adaptor.model.events import td_topic
@@ -19,6 +21,11 @@ from td2adaptor.runtime.security import (
     parse_broker_url,
     plan_security,
 )
+
+if TYPE_CHECKING:
+    from td2adaptor.runtime.discovery import Registration
+
+log = logging.getLogger("td2adaptor.runtime")
 
 
 def bus_security(
@@ -113,13 +120,35 @@ def serve(
     broker: LocalBroker | None = None,
     env: Mapping[str, str] | None = None,
 ) -> Engine:
-    """Connect and start serving (the robot's TD published, retained, with the online status); `Engine.stop()`
-    ends it (and clears the TD)."""
+    """Connect and start serving (the robot's TD published, retained, with the online status, and registered
+    with the configured TD directory); `Engine.stop()` ends it (and clears the TD, here and there)."""
     td = td_message(config, model)
     announce = () if td is None else (td,)
     engine = Engine(model, port, open_bus(config, model, broker=broker, env=env, announce=announce), config, td=td)
     engine.start()
+    registration = register(config, td)
+    if registration is not None:
+        engine.on_stop.append(registration.stop)
     return engine
+
+
+def register(config: RuntimeConfig, td: Message | None) -> Registration | None:
+    """Start keeping the robot's TD registered with `config.directory` (None when none is configured)."""
+    if config.directory is None:
+        return None
+    if td is None:
+        log.warning(
+            "robot %s: no Thing Description to register with the directory (a local bus names no broker; "
+            "set td_broker)",
+            config.robot,
+        )
+        return None
+    from td2adaptor.runtime.discovery import Directory, Registration
+
+    directory = Directory(config.directory, token=config.directory_token, ca_file=config.directory_ca_file)
+    registration = Registration(directory, td.payload, robot=config.robot, ttl=config.directory_ttl)
+    registration.start()
+    return registration
 
 
 def serve_fleet(

@@ -110,6 +110,7 @@ class Engine:
         self.validator = EventValidator(self.catalog)
         self.clock = clock
         self.td = td  # the robot's TD as the bus announces it on connecting: cleared on stop
+        self.on_stop: list[Callable[[], None]] = []  # run first by stop() (e.g. leaving a TD directory)
         self.stats: dict[str, int] = {}
         self._lock = threading.Lock()
         self._inbox: queue.Queue[Message | None] = queue.Queue()
@@ -146,6 +147,8 @@ class Engine:
         if self._stopping.is_set():
             return
         self._stopping.set()
+        for hook in self.on_stop:
+            hook()
         self._inbox.put(None)
         with self._lock:
             missions = list(self._active.values())
