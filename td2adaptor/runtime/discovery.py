@@ -14,6 +14,7 @@ waits for one short `DELETE` at most. Plain HTTP(S) with the standard library: n
 
 from __future__ import annotations
 
+import http.client
 import json
 import logging
 import ssl
@@ -117,9 +118,9 @@ class Directory:
                 return int(exc.code)
             detail = _answer(exc)
             raise DirectoryError(f"{where}: the directory answered HTTP {exc.code} {exc.reason}{detail}") from None
-        except (urllib.error.URLError, OSError) as exc:
+        except (urllib.error.URLError, OSError, http.client.HTTPException) as exc:
             reason = exc.reason if isinstance(exc, urllib.error.URLError) else exc
-            raise DirectoryError(f"{where}: no answer ({reason})") from None
+            raise DirectoryError(f"{where}: no answer ({reason or type(exc).__name__})") from None
 
     def put(self, thing_id: str, document: Mapping[str, Any], timeout: float = PUT_TIMEOUT) -> int:
         """Create or replace the TD `thing_id` (201 created, 204 replaced)."""

@@ -148,7 +148,10 @@ class Engine:
             return
         self._stopping.set()
         for hook in self.on_stop:
-            hook()
+            try:
+                hook()
+            except Exception:  # a hook must not keep the robot from going offline cleanly
+                log.exception("while stopping robot %s", self.config.robot)
         self._inbox.put(None)
         with self._lock:
             missions = list(self._active.values())

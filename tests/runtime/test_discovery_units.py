@@ -85,3 +85,29 @@ def test_a_robot_without_a_published_td_is_not_registered(caplog: pytest.LogCapt
         assert register(config, None) is None
     assert "robot r1: no Thing Description to register" in caplog.text
     assert register(RuntimeConfig(robot="r1"), None) is None  # no directory: nothing to say
+
+
+def test_a_server_that_answers_no_http_is_a_directory_error() -> None:
+    """Something else on the directory's port (it answers, but not HTTP): reported like no answer at all."""
+    import socket
+    import threading
+
+    from td2adaptor.runtime.discovery import DirectoryError
+
+    server = socket.create_server(("127.0.0.1", 0))
+    port = server.getsockname()[1]
+
+    def answer() -> None:
+        conn, _ = server.accept()
+        with conn:
+            conn.recv(65536)
+            conn.sendall(b"SSH-2.0-OpenSSH_9.2\r\n")
+
+    thread = threading.Thread(target=answer, daemon=True)
+    thread.start()
+    try:
+        with pytest.raises(DirectoryError, match=rf"PUT http://127.0.0.1:{port}/things/urn%3Ax: no answer \("):
+            Directory(f"http://127.0.0.1:{port}").put("urn:x", {"id": "urn:x"}, timeout=10)
+    finally:
+        thread.join(10)
+        server.close()
