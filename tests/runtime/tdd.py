@@ -6,8 +6,9 @@ Oxigraph rather than rdflib-endpoint: Domus sends every SPARQL request with a fi
 rdflib-endpoint spends ~10 s of CPU parsing the update that stores the RB-1's TD (2,139 triples), so a robot
 could never register; Oxigraph's /sparql endpoint takes queries and updates on one URL as Domus needs, in well
 under a second. Domus 1.0.2 hands a stored TD's N-Triples to node as one command-line argument to frame it
-as JSON again, so it cannot give back a TD whose N-Triples exceed Linux's 128 KiB argument limit (the full
-RB-1's are ~195 KiB): the round-trip tests use a robot with fewer affordances (`small_robot_td`).
+as JSON again, so it cannot give back as JSON a TD whose N-Triples exceed Linux's 128 KiB argument limit (the
+full RB-1's: ~260 KiB): the JSON round-trip tests use a robot with fewer affordances (`small_robot_td`), and
+the full RB-1's registration is read back as RDF (`triples`).
 """
 
 from __future__ import annotations
@@ -150,6 +151,19 @@ class TddServer:
         # after its sweep of an expired TD, Domus 1.0.2 answers an empty shell (no id: only its own
         # registration data), having left the TD's metadata behind
         return value if isinstance(value, dict) and "id" in value else None
+
+    def triples(self, thing_id: str) -> str | None:
+        """GET /things/{id} as N-Triples (the stored RDF, which Domus gives back whatever the TD's size), or None
+        for a 404."""
+        url = f"{self.url}/things/{quote(thing_id, safe='')}"
+        req = urllib.request.Request(url, headers={"Accept": "application/n-triples"})
+        try:
+            with urllib.request.urlopen(req, timeout=60) as resp:
+                return str(resp.read().decode("utf-8"))
+        except urllib.error.HTTPError as exc:
+            if exc.code == 404:
+                return None
+            raise
 
 
 def small_robot_td(tmp: Path) -> Path:

@@ -22,7 +22,7 @@ from tests.conftest import REPO
 from tests.runtime.broker import Mosquitto, free_port
 from tests.runtime.client import AppClient
 from tests.runtime.edge import until
-from tests.runtime.rb1 import GOAL, compile_td, sim, terminal
+from tests.runtime.rb1 import GOAL, compile_td, rb1_model, sim, terminal
 from tests.runtime.tdd import TddServer, as_registered, semantic, small_robot_td
 
 ROBOT = "rb1_disco"  # each test its own robot, so that none sees another's registration
@@ -87,6 +87,36 @@ def test_the_robot_td_is_registered_listed_given_back_as_published_and_removed_o
         app.close()
     assert thing not in directory.ids()
     assert directory.thing(thing) is None
+
+
+def test_the_whole_rb1_registers_too_and_the_directory_holds_every_form_of_it(
+    directory: TddServer, broker: Mosquitto
+) -> None:
+    """The full RB-1 TD: Domus stores it, but cannot frame it as JSON again (tests/runtime/tdd.py), so what it
+    holds is read as RDF: the Thing, and every form's href and topic of the TD on the broker."""
+    robot = ROBOT + "_full"
+    thing = thing_id(robot)
+    model = rb1_model()
+    engine = serve(model, SimPort(model, sim()), config(broker.url, robot, directory=directory.url))
+    app = AppClient(broker.url, [f"td2adaptor/{robot}/td"])
+    try:
+        td = published_td(app, robot)
+        assert until(lambda: directory.triples(thing) is not None, 60), directory.output()
+        triples = directory.triples(thing) or ""
+        assert (
+            f"<{thing}> <http://www.w3.org/1999/02/22-rdf-syntax-ns#type> <https://www.w3.org/2019/wot/td#Thing>"
+            in triples
+        )
+        forms = [f for kind in ("properties", "actions", "events") for a in td[kind].values() for f in a["forms"]]
+        assert len(forms) >= 30
+        for form in forms:
+            assert f'"{form["href"]}"' in triples or f"<{form['href']}>" in triples, form["href"]
+            topic = form.get("mqv:topic") or form["mqv:filter"]
+            assert f'"{topic}"' in triples, topic
+    finally:
+        engine.stop()
+        app.close()
+    assert directory.triples(thing) is None
 
 
 def node(
