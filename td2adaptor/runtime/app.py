@@ -146,7 +146,11 @@ def register(config: RuntimeConfig, td: Message | None) -> Registration | None:
     from td2adaptor.runtime.discovery import Directory, Registration
 
     directory = Directory(config.directory, token=config.directory_token, ca_file=config.directory_ca_file)
-    registration = Registration(directory, td.payload, robot=config.robot, ttl=config.directory_ttl)
+    try:
+        registration = Registration(directory, td.payload, robot=config.robot, ttl=config.directory_ttl)
+    except ValueError as exc:  # a TD without id: logged, the robot is served all the same
+        log.error("%s", exc)
+        return None
     registration.start()
     return registration
 

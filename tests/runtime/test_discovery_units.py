@@ -111,3 +111,13 @@ def test_a_server_that_answers_no_http_is_a_directory_error() -> None:
     finally:
         thread.join(10)
         server.close()
+
+
+def test_a_td_without_id_is_reported_and_not_registered(caplog: pytest.LogCaptureFixture) -> None:
+    from td2adaptor.runtime.bus import Message
+
+    config = RuntimeConfig(robot="r1", directory="http://127.0.0.1:9")
+    td = Message("td2adaptor/r1/td", json.dumps({"title": "no id"}).encode(), retain=True)
+    with caplog.at_level(logging.ERROR, logger="td2adaptor.runtime"):
+        assert register(config, td) is None
+    assert "robot r1: its Thing Description has no id, so a directory cannot hold it" in caplog.text
