@@ -111,6 +111,7 @@ class Engine:
         self.validator = EventValidator(self.catalog)
         self.clock = clock
         self.td = td  # the robot's TD as the bus announces it on connecting: cleared on stop
+        self.on_stop: list[Callable[[], None]] = []  # run first by stop() (e.g. leaving a TD directory)
         self.stats: dict[str, int] = {}
         self._lock = threading.Lock()
         self._inbox: queue.Queue[Message | None] = queue.Queue()
@@ -147,6 +148,11 @@ class Engine:
         if self._stopping.is_set():
             return
         self._stopping.set()
+        for hook in self.on_stop:
+            try:
+                hook()
+            except Exception:  # a hook must not keep the robot from going offline cleanly
+                log.exception("while stopping robot %s", self.config.robot)
         self._inbox.put(None)
         with self._lock:
             missions = list(self._active.values())
