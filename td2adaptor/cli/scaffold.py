@@ -17,10 +17,6 @@ if TYPE_CHECKING:
 
 
 def _read_source(source: str, diags: Diagnostics, opts: dict[str, Any]) -> Graph | None:
-    if source == "ros2":
-        from td2adaptor.scaffold import ros2graph
-
-        return ros2graph.read(diags, wait=opts["wait"], settle=opts["settle"], domain_id=opts["domain_id"])
     if source == "ros1":
         from td2adaptor.scaffold import ros1graph
 
@@ -104,18 +100,25 @@ def scaffold(
 
     diags = Diagnostics()
     existing = _existing(merge_into, diags) if merge_into is not None else None
-    opts = {"wait": wait, "settle": settle, "domain_id": domain_id, "master_uri": master_uri}
-    graph = None if diags.has_errors else _read_source(source, diags, opts)
+    opts = {"wait": wait, "master_uri": master_uri}
+    options = Options(
+        Filters(namespaces, nodes, include, exclude, keep),
+        robot_namespaces,
+        "node" if group == "node" else "prefix",
+        title,
+        interfaces,
+    )
     doc = None
-    if graph is not None:
-        options = Options(
-            Filters(namespaces, nodes, include, exclude, keep),
-            robot_namespaces,
-            "node" if group == "node" else "prefix",
-            title,
-            interfaces,
-        )
-        doc = build(graph, options, diags)
+    if diags.has_errors:
+        pass
+    elif source == "ros2":
+        from td2adaptor.scaffold import ros2graph
+
+        with ros2graph.opened(diags, wait=wait, settle=settle, domain_id=domain_id) as graph:
+            doc = None if graph is None else build(graph, options, diags)
+    else:
+        graph = _read_source(source, diags, opts)
+        doc = None if graph is None else build(graph, options, diags)
     if doc is not None and existing is not None:
         from td2adaptor.scaffold.merge import merge
 

@@ -47,6 +47,9 @@ def scaffold(graph: Graph, options: Options, diags: Diagnostics) -> dict[str, An
         kind = "robot namespaces (a fleet: a Thing Model)" if len(namespaces) > 1 else "robot namespace"
         diags.info("SCF105", f"{kind}: {', '.join(namespaces)} written as {{{{robotName}}}}")
     layout = plan(endpoints, namespaces, options.group, diags)
+    if graph.complete is not None:
+        for p in layout.plans:
+            p.endpoint = graph.complete(p.endpoint)
     return write(
         layout, Schemas(options.interfaces, diags), diags, title=options.title or graph.title, label=graph.label
     )

@@ -8,7 +8,7 @@ Infrastructure (logging, parameters, type descriptions, hidden names) is dropped
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -57,6 +57,8 @@ class Graph:
     endpoints: list[Endpoint] = field(default_factory=list)
     distro: Literal["ros1", "ros2"] = "ros2"
     title: str | None = None
+    #: fills in what is costly to read for every endpoint (ROS 2 QoS), for those the TD describes
+    complete: Callable[[Endpoint], Endpoint] | None = None
 
 
 def is_infrastructure(kind: Kind, name: str, keep: Iterable[str] = ()) -> bool:

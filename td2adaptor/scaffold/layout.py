@@ -66,8 +66,17 @@ def _relative(ep: Endpoint, ns: str) -> str:
     return ep.name[len(ns) + 2 :]
 
 
-def _signature(endpoints: Sequence[Endpoint], ns: str) -> frozenset[tuple[str, str, str, str]]:
-    return frozenset((e.kind, _relative(e, ns), e.type, e.role) for e in endpoints if _first(e.name) == ns)
+Signature = frozenset[tuple[str, str, str, str]]
+
+
+def _signatures(endpoints: Sequence[Endpoint]) -> dict[str, Signature]:
+    """What each first name segment holds, as (kind, name below it, type, role): one pass over the graph."""
+    found: dict[str, set[tuple[str, str, str, str]]] = defaultdict(set)
+    for e in endpoints:
+        ns = _first(e.name)
+        if ns is not None:
+            found[ns].add((e.kind, _relative(e, ns), e.type, e.role))
+    return {ns: frozenset(items) for ns, items in found.items()}
 
 
 def robot_namespaces(endpoints: Sequence[Endpoint], given: Sequence[str], diags: Diagnostics) -> list[str]:
@@ -76,10 +85,11 @@ def robot_namespaces(endpoints: Sequence[Endpoint], given: Sequence[str], diags:
     if given:
         return [g.strip("/") for g in given if g.strip("/")]
     counts = Counter(ns for e in endpoints if (ns := _first(e.name)) is not None)
-    groups: dict[frozenset[tuple[str, str, str, str]], list[str]] = defaultdict(list)
+    signatures = _signatures(endpoints)
+    groups: dict[Signature, list[str]] = defaultdict(list)
     for ns in counts:
         if counts[ns] >= 2:
-            groups[_signature(endpoints, ns)].append(ns)
+            groups[signatures[ns]].append(ns)
     fleets = sorted((sorted(nss) for nss in groups.values() if len(nss) > 1), key=lambda g: (-len(g), g))
     if fleets:
         return fleets[0]
@@ -93,9 +103,10 @@ def robot_namespaces(endpoints: Sequence[Endpoint], given: Sequence[str], diags:
 def _fleet_endpoints(endpoints: Sequence[Endpoint], namespaces: list[str], diags: Diagnostics) -> list[Endpoint]:
     """Endpoints of the first robot that every robot has, plus those outside every robot namespace."""
     first = namespaces[0]
-    common = _signature(endpoints, first)
+    signatures = _signatures(endpoints)
+    common = signatures.get(first, frozenset())
     for ns in namespaces[1:]:
-        other = _signature(endpoints, ns)
+        other = signatures.get(ns, frozenset())
         if other != common:
             differ = sorted(n for _, n, _, _ in common ^ other)
             diags.warning(
@@ -105,7 +116,8 @@ def _fleet_endpoints(endpoints: Sequence[Endpoint], namespaces: list[str], diags
             )
             common &= other
     kept = [e for e in endpoints if _first(e.name) == first and (e.kind, _relative(e, first), e.type, e.role) in common]
-    return kept + [e for e in endpoints if _first(e.name) not in namespaces]
+    robots = set(namespaces)
+    return kept + [e for e in endpoints if _first(e.name) not in robots]
 
 
 def words(text: str) -> list[str]:

@@ -8,10 +8,13 @@ from __future__ import annotations
 
 import importlib.util
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import replace
 from typing import Any
 
 from td2adaptor.diagnostics import Diagnostics
-from td2adaptor.scaffold.graph import Endpoint, Graph, qos_of
+from td2adaptor.scaffold.graph import Endpoint, Graph, Kind, Role, qos_of
 
 NODE_NAME = "td2adaptor_scaffold"
 
@@ -42,28 +45,39 @@ def _snapshot(node: Any) -> Snapshot:
     return tuple(out)
 
 
-def _qos(node: Any, topic: str, role: str, full: str) -> tuple[dict[str, Any] | None, bool]:
+QosInfo = dict[str, tuple[dict[str, Any] | None, bool]]
+
+
+def _qos_by_node(node: Any, topic: str, role: str) -> QosInfo:
+    """QoS (as `rosv:qos`) and transient-local durability of every `role` endpoint of `topic`, by node."""
     fetch = node.get_publishers_info_by_topic if role == "publisher" else node.get_subscriptions_info_by_topic
+    out: QosInfo = {}
     for info in fetch(topic):
-        if _full(info.node_name, info.node_namespace) != full:
-            continue
         profile = info.qos_profile
         reliability = profile.reliability.name.lower()
         durability = profile.durability.name.lower()
         depth = int(profile.depth) if profile.history.name.lower() == "keep_last" else None
-        return qos_of(reliability, durability, depth), durability == "transient_local"
-    return None, False
+        out.setdefault(
+            _full(info.node_name, info.node_namespace),
+            (qos_of(reliability, durability, depth), durability == "transient_local"),
+        )
+    return out
 
 
-def read(diags: Diagnostics, *, wait: float = 10.0, settle: float = 1.0, domain_id: int | None = None) -> Graph | None:
-    """The graph as rclpy sees it; None (SCF101) without rclpy."""
+@contextmanager
+def opened(
+    diags: Diagnostics, *, wait: float = 10.0, settle: float = 1.0, domain_id: int | None = None
+) -> Iterator[Graph | None]:
+    """The graph as rclpy sees it, usable inside the `with` (its QoS is read on demand, for the endpoints
+    that become affordances, while the node is up); None (SCF101) without rclpy."""
     if importlib.util.find_spec("rclpy") is None:
         diags.error(
             "SCF101",
             "cannot read a ROS 2 graph: rclpy is not installed",
             hint="bash .ci/setup-ros2.sh, or pip install 'td2adaptor[ros2]'",
         )
-        return None
+        yield None
+        return
     import rclpy
     from rclpy.context import Context
 
@@ -73,8 +87,7 @@ def read(diags: Diagnostics, *, wait: float = 10.0, settle: float = 1.0, domain_
     try:
         node = rclpy.create_node(NODE_NAME, context=context, start_parameter_services=False)
         try:
-            snap = _settled(node, wait, settle)
-            return _graph(node, snap)
+            yield graph_of(node, _settled(node, wait, settle))
         finally:
             node.destroy_node()  # type: ignore[no-untyped-call]
     finally:
@@ -97,18 +110,31 @@ def _settled(node: Any, wait: float, settle: float) -> Snapshot:
         time.sleep(0.05)
 
 
-def _graph(node: Any, snap: Snapshot) -> Graph:
-    graph = Graph("the ROS 2 graph", distro="ros2")
+def graph_of(node: Any, snap: Snapshot) -> Graph:
+    """The endpoints of a snapshot. QoS is not read here: rmw answers each per-topic query by scanning the
+    whole graph, so reading it for every topic would cost topics x endpoints; `Graph.complete` reads it,
+    once per topic and role, for the endpoints the TD describes."""
+    cache: dict[tuple[str, str], QosInfo] = {}
+
+    def complete(ep: Endpoint) -> Endpoint:
+        if ep.kind != "topic":
+            return ep
+        key = (ep.role, ep.name)
+        if key not in cache:
+            cache[key] = _qos_by_node(node, ep.name, ep.role)
+        qos, transient = next((cache[key][n] for n in ep.nodes if n in cache[key]), (None, False))
+        return replace(ep, qos=qos, latch=transient and ep.role == "subscriber")
+
+    graph = Graph("the ROS 2 graph", distro="ros2", complete=complete)
+    kinds: dict[str, tuple[Kind, Role]] = {
+        "action": ("action", "server"),
+        "service": ("service", "server"),
+        "publisher": ("topic", "publisher"),
+        "subscriber": ("topic", "subscriber"),
+    }
     for full, entries in snap:
         for role, name, types in entries:
-            if not types:
-                continue
-            if role == "action":
-                graph.endpoints.append(Endpoint("action", name, types[0], "server", (full,)))
-            elif role == "service":
-                graph.endpoints.append(Endpoint("service", name, types[0], "server", (full,)))
-            else:
-                qos, transient = _qos(node, name, role, full)
-                latch = transient and role == "subscriber"
-                graph.endpoints.append(Endpoint("topic", name, types[0], role, (full,), qos, latch))  # type: ignore[arg-type]
+            if types:
+                kind, ep_role = kinds[role]
+                graph.endpoints.append(Endpoint(kind, name, types[0], ep_role, (full,)))
     return graph
