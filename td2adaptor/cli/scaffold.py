@@ -109,12 +109,13 @@ def scaffold(
         interfaces,
     )
     doc = None
+    wanted = options.filters.wanted(diags)  # invalid expressions are reported here, before any waiting
     if diags.has_errors:
         pass
     elif source == "ros2":
         from td2adaptor.scaffold import ros2graph
 
-        with ros2graph.opened(diags, wait=wait, settle=settle, domain_id=domain_id) as graph:
+        with ros2graph.opened(diags, wait=wait, settle=settle, domain_id=domain_id, wanted=wanted) as graph:
             doc = None if graph is None else build(graph, options, diags)
     else:
         graph = _read_source(source, diags, opts)

@@ -95,6 +95,27 @@ class Filters:
                     ok = False
         return out if ok else None
 
+    def wanted(self, diags: Diagnostics) -> Callable[[str, str, str], bool] | None:
+        """Whether (node, role, name) is asked about: the filters without the type checks of `select`;
+        None when an expression is invalid (reported)."""
+        patterns = self.compiled(diags)
+        if patterns is None:
+            return None
+        include, exclude = patterns
+        nodes = {"/" + n.strip("/") for n in self.nodes}
+
+        def check(node: str, role: str, name: str) -> bool:
+            kind: Kind = "topic" if role in ("publisher", "subscriber") else "action" if role == "action" else "service"
+            return (
+                not is_infrastructure(kind, name, self.keep)
+                and (not self.namespaces or any(_under(name, ns) for ns in self.namespaces))
+                and (not nodes or node in nodes)
+                and (not include or any(p.search(name) for p in include))
+                and not any(p.search(name) for p in exclude)
+            )
+
+        return check
+
 
 def _under(name: str, namespace: str) -> bool:
     ns = "/" + namespace.strip("/")

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import importlib.util
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import replace
 from typing import Any
@@ -66,7 +66,12 @@ def _qos_by_node(node: Any, topic: str, role: str) -> QosInfo:
 
 @contextmanager
 def opened(
-    diags: Diagnostics, *, wait: float = 10.0, settle: float = 1.0, domain_id: int | None = None
+    diags: Diagnostics,
+    *,
+    wait: float = 10.0,
+    settle: float = 1.0,
+    domain_id: int | None = None,
+    wanted: Callable[[str, str, str], bool] | None = None,
 ) -> Iterator[Graph | None]:
     """The graph as rclpy sees it, usable inside the `with` (its QoS is read on demand, for the endpoints
     that become affordances, while the node is up); None (SCF101) without rclpy."""
@@ -87,23 +92,32 @@ def opened(
     try:
         node = rclpy.create_node(NODE_NAME, context=context, start_parameter_services=False)
         try:
-            yield graph_of(node, _settled(node, wait, settle))
+            yield graph_of(node, _settled(node, wait, settle, wanted))
         finally:
             node.destroy_node()  # type: ignore[no-untyped-call]
     finally:
         rclpy.shutdown(context=context)
 
 
-def _settled(node: Any, wait: float, settle: float) -> Snapshot:
+def _wanted(snap: Snapshot, wanted: Callable[[str, str, str], bool]) -> Snapshot:
+    """The part of a snapshot the user asked about (node, role, name)."""
+    kept = ((node, tuple(e for e in entries if wanted(node, e[0], e[1]))) for node, entries in snap)
+    return tuple((node, entries) for node, entries in kept if entries)
+
+
+def _settled(node: Any, wait: float, settle: float, wanted: Callable[[str, str, str], bool] | None) -> Snapshot:
+    """A snapshot whose wanted part is not empty and has not changed for `settle` seconds (or the last one
+    after `wait`): other robots on the domain being stable says nothing about the one asked for."""
     deadline = time.monotonic() + wait
     last: Snapshot | None = None
     since = time.monotonic()
     while True:
         snap = _snapshot(node)
+        part = snap if wanted is None else _wanted(snap, wanted)
         now = time.monotonic()
-        if snap != last:
-            last, since = snap, now
-        elif snap and now - since >= settle:
+        if part != last:
+            last, since = part, now
+        elif part and now - since >= settle:
             return snap
         if now >= deadline:
             return snap
