@@ -186,12 +186,18 @@ def plan(endpoints: Sequence[Endpoint], namespaces: list[str], group: Group, dia
     chosen = [e for e in endpoints if not (e.kind == "topic" and e.role == "subscriber" and e.name in published)]
     services = {e.name: e for e in chosen if e.kind == "service"}
     procedures: dict[str, tuple[str, str, str]] = {}  # service name -> (prefix, stem, role in procedure)
-    for name in services:
-        prefix = name.rsplit("/", 1)[0]
+    stems_used: Counter[str] = Counter()
+    numbered: dict[str, int] = {}  # stems given a number, and the number
+    for prefix in sorted({name.rsplit("/", 1)[0] for name in services}):
         for run, query, cancel in _PROCEDURE_LEAVES:
             trio = (f"{prefix}/{run}", f"{prefix}/{query}", f"{prefix}/{cancel}")
-            if all(t in services for t in trio):
+            if all(t in services for t in trio) and not any(t in procedures for t in trio):
                 stem = "".join(words(prefix.rsplit("/", 1)[-1].removesuffix("Component"))).lower() or "procedure"
+                stems_used[stem] += 1
+                if stems_used[stem] > 1:  # the same last segment under two prefixes
+                    n = stems_used[stem]
+                    stem = f"{stem}{n}"
+                    numbered[stem] = n
                 for part, full in zip(("Run", "Query", "Cancel"), trio, strict=True):
                     procedures[full] = (prefix, stem, part)
 
@@ -210,6 +216,8 @@ def plan(endpoints: Sequence[Endpoint], namespaces: list[str], group: Group, dia
             prefix, stem, part = procedures[p.endpoint.name]
             p.name = stem + part
             p.component = _component_name(prefix.rsplit("/", 1)[-1])
+            if stem in numbered:  # a second procedure of that name: its own component too
+                p.component = f"{p.component.removesuffix('Component')}{numbered[stem]}Component"
             p.safe = part == "Query"
             if part == "Run":
                 p.procedure = {"query": stem + "Query", "cancel": stem + "Cancel"}

@@ -130,3 +130,18 @@ def test_namespaces_with_the_same_interfaces_are_a_fleet_and_given_ones_that_dif
 def test_nothing_left_is_an_error() -> None:
     doc, diags = run([topic("/rosout")])
     assert doc is None and diags.codes() == ["SCF102"]
+
+
+def test_two_procedures_with_the_same_last_segment_get_their_own_names_and_components() -> None:
+    trios = [
+        service(f"/robot/{arm}/Grip/{leaf}") for arm in ("left", "right") for leaf in ("add", "query_state", "cancel")
+    ]
+    doc, _ = run(trios)
+    assert doc is not None
+    actions = doc["actions"]
+    assert sorted(actions) == sorted(["gripRun", "gripQuery", "gripCancel", "grip2Run", "grip2Query", "grip2Cancel"])
+    assert {actions["gripRun"]["rosv:component"], actions["grip2Run"]["rosv:component"]} == {
+        "GripComponent",
+        "Grip2Component",
+    }
+    assert actions["grip2Run"]["rosv:procedure"] == {"query": "grip2Query", "cancel": "grip2Cancel"}

@@ -110,3 +110,25 @@ def _door(app: AppClient, sim: Sim) -> bool:
     except AssertionError:
         return False
     return True
+
+
+def test_a_service_whose_server_is_gone_is_left_out_with_a_warning(master: Master, sim: Sim, tmp_path: Path) -> None:
+    import xmlrpc.client
+
+    from tests.ros1.harness import free_port
+
+    # registered at the master by a node that then died: its rosrpc port answers nobody
+    gone = f"rosrpc://127.0.0.1:{free_port()}"
+    with xmlrpc.client.ServerProxy(master.uri) as proxy:
+        code, _, _ = proxy.registerService("/ghost_node", f"/{ROBOT}/ghost", gone, f"http://127.0.0.1:{free_port()}/")
+        assert code == 1
+    try:
+        done = scaffold(
+            ["ros1", "--master-uri", master.uri, "-I", str(INTERFACES), "--wait", "3"], tmp_path / "td.json"
+        )
+        assert done.code == 0, done.stderr
+        assert "SCF107" in done.stderr and f"/{ROBOT}/ghost" in done.stderr
+        assert done.doc is not None and len(done.doc["actions"]) == 9
+    finally:
+        with xmlrpc.client.ServerProxy(master.uri) as proxy:
+            proxy.unregisterService("/ghost_node", f"/{ROBOT}/ghost", gone)
