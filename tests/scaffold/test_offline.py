@@ -103,7 +103,6 @@ def test_merge_keeps_annotations_updates_the_binding_and_adds_what_is_new(tmp_pa
 
 def _status(store: Any, robot: str) -> Any:
     """A real robot_local_control_msgs/Status, every nested message built from the typestore's classes."""
-    from rosbags.typesys.stores import Stores  # noqa: F401 - the typestore below is the registry's
 
     def build(name: str) -> Any:
         cls = store.types[name]
@@ -135,41 +134,52 @@ def _default(store: Any, desc: Any, build: Any) -> Any:
     raise AssertionError(desc)
 
 
-def _write_bags(tmp: Path) -> tuple[Path, Path]:
+def _write_bag(tmp: Path, kind: str) -> Path:
+    """A bag of `kind` (ros1: .bag; ros2: a db3 bag folder; mcap: the .mcap file of a bag folder)."""
     from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
     from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.rosbag2 import StoragePlugin
     from rosbags.rosbag2 import Writer as Writer2
 
     from td2adaptor.rostypes.registry import TypeRegistry
 
     ros1 = TypeRegistry("ros1", [INTERFACES]).typestore()
     ros2 = TypeRegistry("ros2", [INTERFACES]).typestore()
-    bag1 = tmp / "rb1.bag"
-    with Writer1(bag1) as writer:
-        conn = writer.add_connection("/rb1_bag/robot_local_control/state", "robot_local_control_msgs/msg/Status",
-                                     typestore=ros1)  # fmt: skip
-        door = writer.add_connection("/rb1_bag/door_state", "std_msgs/msg/Float64", typestore=ros1, latching=1)
-        writer.write(conn, 1, ros1.serialize_ros1(_status(ros1, "rb1_bag"), "robot_local_control_msgs/msg/Status"))
-        float64 = ros1.types["std_msgs/msg/Float64"]
-        writer.write(door, 2, ros1.serialize_ros1(float64(data=0.5), "std_msgs/msg/Float64"))
+    if kind == "ros1":
+        return _write_bag1(tmp, ros1, Writer1)
     bag2 = tmp / "rb1_ros2"
+    plugin = StoragePlugin.MCAP if kind == "mcap" else StoragePlugin.SQLITE3
     zero = QosTime(0, 0)
     latched = Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL, zero, zero,
                   QosLiveliness.AUTOMATIC, zero, False)  # fmt: skip
-    with Writer2(bag2, version=9) as writer:
+    with Writer2(bag2, version=9, storage_plugin=plugin) as writer:
         conn = writer.add_connection("/rb1_bag/robot_local_control/state", "robot_local_control_msgs/msg/Status",
                                      typestore=ros2)  # fmt: skip
         door = writer.add_connection("/rb1_bag/door_state", "std_msgs/msg/Float64", typestore=ros2,
                                      offered_qos_profiles=[latched])  # fmt: skip
         writer.write(conn, 1, ros2.serialize_cdr(_status(ros2, "rb1_bag"), "robot_local_control_msgs/msg/Status"))
         writer.write(door, 2, ros2.serialize_cdr(ros2.types["std_msgs/msg/Float64"](data=0.5), "std_msgs/msg/Float64"))
-    return bag1, bag2
+    if kind == "mcap":
+        (found,) = bag2.glob("*.mcap")
+        return found
+    return bag2
 
 
-@pytest.mark.parametrize("kind", ["ros1", "ros2"])
+def _write_bag1(tmp: Path, ros1: Any, writer_class: Any) -> Path:
+    bag1 = tmp / "rb1.bag"
+    with writer_class(bag1) as writer:
+        conn = writer.add_connection("/rb1_bag/robot_local_control/state", "robot_local_control_msgs/msg/Status",
+                                     typestore=ros1)  # fmt: skip
+        door = writer.add_connection("/rb1_bag/door_state", "std_msgs/msg/Float64", typestore=ros1, latching=1)
+        writer.write(conn, 1, ros1.serialize_ros1(_status(ros1, "rb1_bag"), "robot_local_control_msgs/msg/Status"))
+        float64 = ros1.types["std_msgs/msg/Float64"]
+        writer.write(door, 2, ros1.serialize_ros1(float64(data=0.5), "std_msgs/msg/Float64"))
+    return bag1
+
+
+@pytest.mark.parametrize("kind", ["ros1", "ros2", "mcap"])
 def test_a_bag_gives_read_properties_with_the_message_schemas(kind: str, tmp_path: Path) -> None:
-    bag1, bag2 = _write_bags(tmp_path)
-    bag = bag1 if kind == "ros1" else bag2
+    bag = _write_bag(tmp_path, kind)
     done = scaffold([str(bag), "-I", str(INTERFACES)], tmp_path / "td.json")
     assert done.code == 0, done.stderr
     doc = done.doc
