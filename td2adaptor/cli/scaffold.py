@@ -64,9 +64,20 @@ def _existing(path: Path, diags: Diagnostics) -> dict[str, Any] | None:
     multiple=True,
     help="The robot namespace(s) written as {{robotName}} (default: found; several: a Thing Model).",
 )
-@click.option("--group", type=click.Choice(["prefix", "node"]), default="prefix", show_default=True)
+@click.option(
+    "--group",
+    type=click.Choice(["prefix", "node"]),
+    default="prefix",
+    show_default=True,
+    help="Components: by shared name prefix, or by the node serving each endpoint.",
+)
 @click.option("--title", help="The Thing's title (the generated package name derives from it).")
-@click.option("--merge", "merge_into", type=click.Path(dir_okay=False, path_type=Path), help="Update this TD.")
+@click.option(
+    "--merge",
+    "merge_into",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Update this TD (keeps its names and texts); write the result with -o.",
+)
 @click.option("--master-uri", help="ROS 1 master (SOURCE ros1; default: ROS_MASTER_URI).")
 @click.option("--domain-id", type=click.IntRange(0, 232), help="ROS 2 domain id (default: ROS_DOMAIN_ID).")
 @click.option("--wait", type=float, default=10.0, show_default=True, help="Longest wait for the graph, seconds.")

@@ -193,6 +193,7 @@ def plan(endpoints: Sequence[Endpoint], namespaces: list[str], group: Group, dia
             trio = (f"{prefix}/{run}", f"{prefix}/{query}", f"{prefix}/{cancel}")
             if all(t in services for t in trio) and not any(t in procedures for t in trio):
                 stem = "".join(words(prefix.rsplit("/", 1)[-1].removesuffix("Component"))).lower() or "procedure"
+                stem = "n" + stem if stem[0].isdigit() else stem
                 stems_used[stem] += 1
                 if stems_used[stem] > 1:  # the same last segment under two prefixes
                     n = stems_used[stem]
