@@ -8,8 +8,8 @@ endpoints (4 publishers, 3 subscribers, 3 services; every node also has rclpy's 
 * layout + write: selection, names, components, the QoS of the endpoints described, schemas, the document:
   as a fleet (the N namespaces have the same interfaces: one Thing Model of 10 affordances), and as one TD
   describing all 10 x N endpoints (`--robot-namespace bench_n000`: the worst case, every topic's QoS read);
-* CLI: `td2adaptor scaffold ros2` end to end in a fresh process (interpreter start and the discovery settle
-  window of `--settle 0.5` included).
+* CLI: `td2adaptor scaffold ros2` end to end in a fresh process (interpreter start, DDS discovery and the
+  default 2 s settle window included).
 
 Target: under 5 s for 100 nodes, and linear (time(100) / time(10) near 10). Needs the ROS 2 extra.
 Run: `.venv/bin/python bench/scaffold.py [--runs N]`.
@@ -123,7 +123,7 @@ def measure(n: int, runs: int) -> dict[str, float]:
         for _ in range(max(1, runs // 2)):
             began = time.perf_counter()
             cli = subprocess.run(
-                [sys.executable, "-m", "td2adaptor", "scaffold", "ros2", "--include", "^/bench_", "--settle", "0.5",
+                [sys.executable, "-m", "td2adaptor", "scaffold", "ros2", "--include", "^/bench_",
                  "-o", str(out)],
                 cwd=REPO, capture_output=True, text=True, timeout=300,
             )  # fmt: skip

@@ -81,7 +81,9 @@ def _existing(path: Path, diags: Diagnostics) -> dict[str, Any] | None:
 @click.option("--master-uri", help="ROS 1 master (SOURCE ros1; default: ROS_MASTER_URI).")
 @click.option("--domain-id", type=click.IntRange(0, 232), help="ROS 2 domain id (default: ROS_DOMAIN_ID).")
 @click.option("--wait", type=float, default=10.0, show_default=True, help="Longest wait for the graph, seconds.")
-@click.option("--settle", type=float, default=1.0, show_default=True, help="ROS 2: graph unchanged this long.")
+@click.option(
+    "--settle", type=float, default=2.0, show_default=True, help="ROS 2: the part asked about unchanged this long."
+)
 @_format_option
 def scaffold(
     source: str,

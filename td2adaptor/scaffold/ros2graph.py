@@ -69,7 +69,7 @@ def opened(
     diags: Diagnostics,
     *,
     wait: float = 10.0,
-    settle: float = 1.0,
+    settle: float = 2.0,
     domain_id: int | None = None,
     wanted: Callable[[str, str, str], bool] | None = None,
 ) -> Iterator[Graph | None]:

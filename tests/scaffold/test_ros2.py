@@ -49,27 +49,41 @@ def started(args: list[str], environ: dict[str, str]) -> Process:
     return process
 
 
-@pytest.fixture(scope="module")
-def robots(rb1_prefix: Path) -> Iterator[Process]:
-    """The simulated RB-1 (examples/robotnik_rb1/sim/ros2.py): one robot and a fleet of three, one process."""
+def sim(prefix: Path, namespaces: tuple[str, ...]) -> Process:
+    """The simulated RB-1 (examples/robotnik_rb1/sim/ros2.py) serving `namespaces` (the first one's node
+    also subscribes to the door)."""
     args = [sys.executable, "-m", "examples.robotnik_rb1.sim.ros2", "--duration", "0.5"]
-    for ns in (ROBOT, *FLEET):
+    for ns in namespaces:
         args += ["--namespace", ns]
-    process = started(args, env.child_env([rb1_prefix]))
+    return started(args, env.child_env([prefix]))
+
+
+@pytest.fixture(scope="module")
+def robot(rb1_prefix: Path) -> Iterator[Process]:
+    process = sim(rb1_prefix, (ROBOT,))
+    yield process
+    process.stop()
+
+
+@pytest.fixture(scope="module")
+def fleet(rb1_prefix: Path) -> Iterator[Process]:
+    process = sim(rb1_prefix, FLEET)
     yield process
     process.stop()
 
 
 def _only(*namespaces: str) -> list[str]:
-    """Filters to these robots and the door (other tests' robots may share the domain)."""
-    return [arg for ns in (*namespaces, "door1") for arg in ("--namespace", f"/{ns}")]
+    """The robots' own nodes: other tests' nodes on the domain (an adaptor publishing the door, say) are
+    not the robot."""
+    return [arg for ns in namespaces for arg in ("--node", f"/{ns}/rb1_sim")]
 
 
 @pytest.fixture(scope="module")
-def scaffolded(robots: Process, tmp_path_factory: pytest.TempPathFactory) -> Path:
+def scaffolded(robot: Process, tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("scaffold-ros2") / "td.json"
     done = scaffold(["ros2", "-I", str(INTERFACES), "--title", "Scaffolded RB-1", *_only(ROBOT)], out)
     assert done.code == 0, done.stderr
+    assert "robot namespace: scaf_rb1" in done.stderr, done.stderr
     return out
 
 
@@ -127,11 +141,11 @@ def test_the_scaffolded_td_is_generated_and_run_and_a_mission_goes_end_to_end(
         broker.stop()
 
 
-def test_three_namespaced_robots_give_one_thing_model(robots: Process, tmp_path: Path) -> None:
+def test_three_namespaced_robots_give_one_thing_model(fleet: Process, tmp_path: Path) -> None:
     done = scaffold(["ros2", "-I", str(INTERFACES), "--title", "Robotnik RB-1", *_only(*FLEET)], tmp_path / "tm.json")
     assert done.code == 0, done.stderr
     tm = done.doc
-    assert tm is not None and tm["@type"] == "tm:ThingModel"
+    assert tm is not None and tm["@type"] == "tm:ThingModel", (done.stderr, tm)
     assert "scaf_fleet_a, scaf_fleet_b, scaf_fleet_c" in done.stderr
     model = json.loads((EXAMPLE / "rb1.tm.json").read_text(encoding="utf-8"))
     compare_with_example(tm, model, "ros2")
