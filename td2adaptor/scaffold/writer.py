@@ -22,6 +22,28 @@ TD_CONTEXT = "https://www.w3.org/2022/wot/td/v1.1"
 ROSV_CONTEXT = "https://td2adaptor.dev/ns/rosv/v1"
 
 
+#: what an event-contract schema adds that a TD's data schema leaves to the contract (which lays the message's
+#: own schema over the TD's anyway): closed objects and required fields
+_CONTRACT_ONLY = ("additionalProperties", "required")
+
+
+def td_style(schema: Any) -> Any:
+    """A message schema as a TD writes it: structure, types, ranges and bounds, without `_CONTRACT_ONLY`."""
+    if isinstance(schema, list):
+        return [td_style(s) for s in schema]
+    if not isinstance(schema, dict):
+        return schema
+    out = {}
+    for key, value in schema.items():
+        if key in _CONTRACT_ONLY:
+            continue
+        if key == "properties" and isinstance(value, dict):
+            out[key] = {name: td_style(sub) for name, sub in value.items()}
+        else:
+            out[key] = td_style(value)
+    return out
+
+
 class Schemas:
     """JSON Schemas of interface types, from the ROS 2 registry first, then ROS 1 (each built once)."""
 
@@ -50,11 +72,11 @@ class Schemas:
                 continue
             found = table.get(type_name)
             if isinstance(found, MessageDef):
-                return [message_schema(found, table)]
+                return [td_style(message_schema(found, table))]
             if isinstance(found, ServiceDef):
-                return [message_schema(found.request, table), message_schema(found.response, table)]
+                return [td_style(message_schema(m, table)) for m in (found.request, found.response)]
             if isinstance(found, ActionDef):
-                return [message_schema(m, table) for m in (found.goal, found.result, found.feedback)]
+                return [td_style(message_schema(m, table)) for m in (found.goal, found.result, found.feedback)]
         return None
 
 

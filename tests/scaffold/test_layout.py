@@ -145,3 +145,26 @@ def test_two_procedures_with_the_same_last_segment_get_their_own_names_and_compo
         "Grip2Component",
     }
     assert actions["grip2Run"]["rosv:procedure"] == {"query": "grip2Query", "cancel": "grip2Cancel"}
+
+
+def test_td_style_leaves_the_contract_only_members_to_the_event_contract() -> None:
+    from td2adaptor.scaffold.writer import td_style
+
+    strict = {
+        "type": "object",
+        "properties": {
+            "required": {"type": "boolean"},  # a field called so stays
+            "pose": {"type": "object", "properties": {"x": {"type": "number"}}, "additionalProperties": False},
+            "list": {"type": "array", "items": {"type": "object", "properties": {}, "required": []}},
+        },
+        "additionalProperties": False,
+        "required": ["required", "pose"],
+    }
+    assert td_style(strict) == {
+        "type": "object",
+        "properties": {
+            "required": {"type": "boolean"},
+            "pose": {"type": "object", "properties": {"x": {"type": "number"}}},
+            "list": {"type": "array", "items": {"type": "object", "properties": {}}},
+        },
+    }
