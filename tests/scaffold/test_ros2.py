@@ -1,7 +1,7 @@
 """`td2adaptor scaffold ros2` on real ROS 2 Jazzy (PyPI wheels): the simulated RB-1 scaffolds to the example's
 affordances; the scaffolded TD, untouched, is generated (rclpy) and served by `td2adaptor run`, and a
 mission goes end to end over a real mosquitto; three namespaced robots give one Thing Model; a Fibonacci
-action server (rclpy ActionServer) gives a ROS 2 action.
+action server (rclpy ActionServer) gives a ROS 2 action that the generated rclpy adaptor then drives.
 """
 
 from __future__ import annotations
@@ -162,25 +162,63 @@ def test_three_namespaced_robots_give_one_thing_model(fleet: Process, tmp_path: 
     assert td["@type"] == "Thing" and sorted(td["actions"]) == sorted(model["actions"])
 
 
-def test_a_ros2_action_server_scaffolds_to_a_td_action(ros2_domain: int, tmp_path: Path) -> None:
+def test_a_ros2_action_server_scaffolds_to_a_td_action_the_generated_adaptor_drives(
+    ros2_domain: int, tmp_path: Path
+) -> None:
     server = started([sys.executable, "-m", "tests.scaffold.fibonacci_server", "scaf_fibo"], env.child_env([]))
     try:
-        done = scaffold(["ros2", "-I", str(ACTIONS), "--namespace", "/scaf_fibo"], tmp_path / "td.json")
+        args = ["ros2", "-I", str(ACTIONS), "--namespace", "/scaf_fibo", "--title", "Scaffolded Fibo"]
+        done = scaffold(args, tmp_path / "td.json")
+        assert done.code == 0, done.stderr
+        doc = done.doc
+        assert doc is not None and "properties" not in doc  # the action's hidden topics and services left out
+        assert list(doc["actions"]) == ["fibonacci"]
+        action = doc["actions"]["fibonacci"]
+        form = action["forms"][0]
+        assert (form["rosv:interface"], form["rosv:type"]) == ("action", "test_msgs/action/Fibonacci")
+        assert form["rosv:name"] == "/scaf_fibo/fibonacci"  # one endpoint: no robot namespace is guessed
+        assert action["input"] == {
+            "type": "object",
+            "properties": {"order": {"type": "integer", "minimum": -2147483648, "maximum": 2147483647}},
+        }
+        assert action["output"]["properties"]["sequence"]["type"] == "array"
+        assert compiled_errors(doc, tmp_path, [ACTIONS]) == []
+        assert w3c_errors(doc) == []
+        # the scaffolded TD, untouched, generates an rclpy adaptor whose action client reaches the server
+        assert _fibonacci(tmp_path / "td.json", tmp_path / "gen", 6) == [0, 1, 1, 2, 3, 5, 8]
     finally:
         server.stop()
-    assert done.code == 0, done.stderr
-    doc = done.doc
-    assert doc is not None and list(doc) and "properties" not in doc  # the action's hidden topics left out
-    (name,) = doc["actions"]
-    action = doc["actions"][name]
-    assert name == "fibonacci"
-    form = action["forms"][0]
-    assert (form["rosv:interface"], form["rosv:type"]) == ("action", "test_msgs/action/Fibonacci")
-    assert form["rosv:name"] == "/scaf_fibo/fibonacci"
-    assert action["input"] == {
-        "type": "object",
-        "properties": {"order": {"type": "integer", "minimum": -2147483648, "maximum": 2147483647}},
-    }
-    assert action["output"]["properties"]["sequence"]["type"] == "array"
-    assert compiled_errors(doc, tmp_path, [ACTIONS]) == []
-    assert w3c_errors(doc) == []
+
+
+def _fibonacci(td: Path, out: Path, order: int) -> list[int]:
+    """Generate the rclpy adaptor of `td`, import it from its source and run one goal through it."""
+    import importlib
+
+    import rclpy
+    from rclpy.context import Context
+
+    from td2adaptor.diagnostics import Diagnostics, Severity
+    from td2adaptor.generation.backend import GenOptions
+    from td2adaptor.generation.registry import load as load_backend
+
+    result = td2adaptor.compile(td, interfaces=[ACTIONS])
+    assert result.model is not None
+    diags = Diagnostics()
+    for rel, data in load_backend("rclpy").generate(result.model, GenOptions(), diags):
+        (out / rel).parent.mkdir(parents=True, exist_ok=True)
+        (out / rel).write_bytes(data)
+    assert not [d for d in diags if d.severity is Severity.ERROR], [d.message for d in diags]
+    sys.path.insert(0, str(out / result.model.package_name))
+    adaptor: Any = importlib.import_module(result.model.package_name)
+    context = Context()
+    rclpy.init(context=context)
+    node: Any = rclpy.create_node("scaffold_fibo_client", context=context)
+    spinner = adaptor.spin_in_background(node)
+    try:
+        component = adaptor.FibonacciComponent(node, "", timeout=10.0, wait_timeout=20.0)
+        handle = component.send_fibonacci(component.construct_fibonacci_Goal(order=order))
+        return list(handle.result(timeout=10.0).sequence)
+    finally:
+        spinner.stop()
+        node.destroy_node()
+        rclpy.shutdown(context=context)
