@@ -153,7 +153,42 @@ def select(graph: Graph, filters: Filters, diags: Diagnostics) -> list[Endpoint]
         else:
             nodes = tuple(sorted(set(old.nodes) | set(ep.nodes)))
             merged[key] = Endpoint(ep.kind, ep.name, ep.type, ep.role, nodes, old.qos or ep.qos, old.latch or ep.latch)
-    return sorted(merged.values(), key=lambda e: (e.name, e.kind, e.role))
+    return fold_actionlib(list(merged.values()))
+
+
+#: the topics of a ROS 1 (actionlib) action server `X`: leaf -> (the server's role, type suffix or full type)
+_ACTIONLIB: dict[str, tuple[Role, str]] = {
+    "goal": ("subscriber", "ActionGoal"),
+    "cancel": ("subscriber", "actionlib_msgs/msg/GoalID"),
+    "status": ("publisher", "actionlib_msgs/msg/GoalStatusArray"),
+    "feedback": ("publisher", "ActionFeedback"),
+    "result": ("publisher", "ActionResult"),
+}
+
+
+def fold_actionlib(endpoints: Sequence[Endpoint]) -> list[Endpoint]:
+    """ROS 1 actions: the five topics of an actionlib server (`X/goal` typed `pkg/msg/NameActionGoal`,
+    `X/cancel`, `X/status`, `X/feedback`, `X/result`) become one action `X` of type `pkg/action/Name`."""
+    topics = {(e.name, e.role): e for e in endpoints if e.kind == "topic"}
+    folded: set[tuple[str, str]] = set()
+    actions: list[Endpoint] = []
+    for goal in endpoints:
+        if goal.kind != "topic" or goal.role != "subscriber" or not goal.name.endswith("/goal"):
+            continue
+        package, _, message = goal.type.partition("/msg/")
+        if not message.endswith("ActionGoal"):
+            continue
+        base, name = goal.name[: -len("/goal")], message.removesuffix("ActionGoal")
+        keys = {(f"{base}/{leaf}", role) for leaf, (role, _) in _ACTIONLIB.items()}
+        found = {leaf: topics.get((f"{base}/{leaf}", role)) for leaf, (role, _) in _ACTIONLIB.items()}
+        expected = {
+            leaf: want if "/" in want else f"{package}/msg/{name}{want}" for leaf, (_, want) in _ACTIONLIB.items()
+        }
+        if all(ep is not None and ep.type == expected[leaf] for leaf, ep in found.items()):
+            folded |= keys
+            actions.append(Endpoint("action", base, f"{package}/action/{name}", "server", goal.nodes))
+    kept = [e for e in endpoints if e.kind != "topic" or (e.name, e.role) not in folded]
+    return sorted(kept + actions, key=lambda e: (e.name, e.kind, e.role))
 
 
 def node_namespace(node: str) -> str:

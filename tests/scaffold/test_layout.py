@@ -168,3 +168,17 @@ def test_td_style_leaves_the_contract_only_members_to_the_event_contract() -> No
             "list": {"type": "array", "items": {"type": "object", "properties": {}}},
         },
     }
+
+
+def test_the_five_topics_of_an_actionlib_server_are_one_action_and_four_of_them_are_not() -> None:
+    five = [
+        topic("/r/move/goal", "subscriber", type_="nav_msgs/msg/MoveActionGoal"),
+        topic("/r/move/cancel", "subscriber", type_="actionlib_msgs/msg/GoalID"),
+        topic("/r/move/status", type_="actionlib_msgs/msg/GoalStatusArray"),
+        topic("/r/move/feedback", type_="nav_msgs/msg/MoveActionFeedback"),
+        topic("/r/move/result", type_="nav_msgs/msg/MoveActionResult"),
+    ]
+    folded = select(Graph("g", five), Filters(), Diagnostics())
+    assert [(e.kind, e.name, e.type) for e in folded] == [("action", "/r/move", "nav_msgs/action/Move")]
+    partial = select(Graph("g", five[:4]), Filters(), Diagnostics())
+    assert [e.kind for e in partial] == ["topic"] * 4

@@ -132,3 +132,30 @@ def test_a_service_whose_server_is_gone_is_left_out_with_a_warning(master: Maste
     finally:
         with xmlrpc.client.ServerProxy(master.uri) as proxy:
             proxy.unregisterService("/ghost_node", f"/{ROBOT}/ghost", gone)
+
+
+def test_actionlib_servers_scaffold_to_td_actions(master: Master, tmp_path: Path) -> None:
+    """Real actionlib servers (tests/ros1/fibonacci_server.py: fibonacci, picky, stuck) show as five topics
+    each on the master; the scaffold folds them into ROS 1 actions."""
+    actions = REPO / "tests" / "data" / "actions"
+    modules = tmp_path / "genpy"
+    built = subprocess.run(
+        [harness.SYSTEM_PYTHON, str(harness.HERE / "build_actions.py"), str(actions), str(modules)],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert built.returncode == 0, built.stderr
+    with harness.run_server(master, modules, "fibonacci_server.py", "scaf_fibo1", "0.01"):
+        args = ["ros1", "--master-uri", master.uri, "-I", str(actions), "--namespace", "/scaf_fibo1"]
+        done = scaffold(args, tmp_path / "td.json")
+    assert done.code == 0, done.stderr
+    doc = done.doc
+    assert doc is not None and "properties" not in doc, doc  # no goal/cancel/status/feedback/result topics
+    assert sorted(doc["actions"]) == ["fibonacci", "picky", "stuck"]
+    for name, action in doc["actions"].items():
+        form = action["forms"][0]
+        assert form["rosv:name"] == f"/{{{{robotName}}}}/{name}" and form["rosv:interface"] == "action"
+        assert form["rosv:type"] == "test_msgs/action/Fibonacci"
+        assert set(action["input"]["properties"]) == {"order"}
+        assert set(action["output"]["properties"]) == {"sequence"}
+    assert compiled_errors(doc, tmp_path, [actions]) == []
+    assert w3c_errors(doc) == []
