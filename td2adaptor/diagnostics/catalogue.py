@@ -318,7 +318,6 @@ _ENTRIES: tuple[Entry, ...] = (
         "--partial skips the action; the rclpy backend generates ROS 2 actions",
         "warning under --partial, which skips the action",
     ),
-    Entry("GEN860", (_W,), "events backend: a ROS action is not in the event contract yet: skipped"),
     # -- CFG9: project configuration ---------------------------------------------------------------------
     Entry("CFG900", (_E,), "configuration file cannot be read"),
     Entry("CFG901", (_E,), "configuration file is not valid TOML"),

@@ -35,6 +35,7 @@ from td2adaptor.model.events import ALL_ROBOTS, EventCatalog, EventSpec, Kind, b
 from td2adaptor.runtime.bus import Bus, BusError, Message
 from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope, excerpt, salvage
+from td2adaptor.runtime.goals import GoalRunner
 from td2adaptor.runtime.port import NoValue, PortError, RobotPort, StartResult
 from td2adaptor.runtime.procedures import ProcedureStatus, interpret
 from td2adaptor.runtime.replay import ReplayGuard, Verdict
@@ -75,6 +76,7 @@ class Mission:
     done: bool = False
     cancels: list[str | None] = field(default_factory=list)
     wake: threading.Event = field(default_factory=threading.Event)
+    goal: str | None = None  # a ROS action goal: its id, once the server accepted it
 
 
 def status_event(config: RuntimeConfig, model: Model, state: str) -> Message:
@@ -120,6 +122,7 @@ class Engine:
         self._threads: list[threading.Thread] = []
         self._missions: set[threading.Thread] = set()
         self._pool = ThreadPoolExecutor(max_workers=4, thread_name_prefix=f"td2adaptor-{config.robot}-call")
+        self._goals = GoalRunner(self)
 
     # -- life cycle ----------------------------------------------------------------------------------------
 
@@ -211,15 +214,32 @@ class Engine:
         event = self._event(Kind.ERROR, payload, affordance=affordance, correlation=correlation, mission=mission)
         self._publish(self.catalog.find(Kind.ERROR), event)
 
-    def _state(self, run: str, status: ProcedureStatus, correlation: str | None, mission: int | None) -> None:
-        payload = {**status.payload(), "terminal": status.terminal}
+    def _state(
+        self,
+        run: str,
+        status: ProcedureStatus,
+        correlation: str | None,
+        mission: int | None,
+        extra: Mapping[str, Any] | None = None,
+    ) -> None:
+        payload = {**status.payload(), "terminal": status.terminal, **(extra or {})}
         event = self._event(Kind.STATE, payload, affordance=run, correlation=correlation, mission=mission)
         self._publish(self.catalog.find(Kind.STATE, run), event)
 
-    def _feedback(self, m: Mission, status: ProcedureStatus, *, terminal: bool, output: Any = None) -> None:
+    def _feedback(
+        self,
+        m: Mission,
+        status: ProcedureStatus,
+        *,
+        terminal: bool,
+        output: Any = None,
+        extra: Mapping[str, Any] | None = None,
+    ) -> None:
         m.seq += 1
         m.state = status.state
-        payload: dict[str, Any] = {**status.payload(), "terminal": terminal, "seq": m.seq}
+        payload: dict[str, Any] = {**status.payload(), "terminal": terminal, "seq": m.seq, **(extra or {})}
+        if m.goal is not None:
+            payload["goal"] = m.goal
         if output is not None:
             payload["output"] = output
         event = self._event(
@@ -293,7 +313,14 @@ class Engine:
         component = self.model.component(spec.component or "")
         assert spec.affordance is not None
         procedure = component.procedure_of(spec.affordance)
-        if spec.kind is Kind.INVOKE and procedure is not None and procedure.run == spec.affordance:
+        if any(a.name == spec.affordance for a in component.actions):
+            if spec.kind is Kind.INVOKE:
+                self._invoke(spec, Procedure(spec.affordance), event, msg.topic, goal=True)
+            elif spec.kind is Kind.CANCEL:
+                self._goals.cancel(spec, event)
+            elif spec.kind is Kind.QUERY:
+                self._pool.submit(self._goals.query, spec, event)
+        elif spec.kind is Kind.INVOKE and procedure is not None and procedure.run == spec.affordance:
             self._invoke(spec, procedure, event, msg.topic)
         elif spec.kind is Kind.INVOKE:
             self._pool.submit(self._plain_call, spec, event)
@@ -306,12 +333,14 @@ class Engine:
 
     # -- missions ------------------------------------------------------------------------------------------
 
-    def _invoke(self, spec: EventSpec, procedure: Procedure, event: dict[str, Any], topic: str) -> None:
+    def _invoke(
+        self, spec: EventSpec, procedure: Procedure, event: dict[str, Any], topic: str, *, goal: bool = False
+    ) -> None:
         component = spec.component or ""
         correlation = event.get("correlation") or event.get("id")
         mission = Mission(component, procedure.run, procedure, correlation, event.get("payload") or {}, self.clock())
         thread = threading.Thread(
-            target=self._run_mission, args=(mission,), name=f"mission-{procedure.run}", daemon=True
+            target=self._run_mission, args=(mission, goal), name=f"mission-{procedure.run}", daemon=True
         )
         with self._lock:
             busy = self._active.get(component)
@@ -333,7 +362,7 @@ class Engine:
         self._count("missions")
         thread.start()
 
-    def _finish(self, m: Mission, status: ProcedureStatus) -> None:
+    def _finish(self, m: Mission, status: ProcedureStatus, output: Any = None) -> None:
         """The one terminal feedback; the component is free again before it is published."""
         with self._lock:
             if m.done:
@@ -344,16 +373,20 @@ class Engine:
             if m.mission_id is not None:
                 self._last_mission[m.action] = m.mission_id
             late, m.cancels = m.cancels, []
-        self._feedback(m, status, terminal=True)
+        self._feedback(m, status, terminal=True, output=output)
+        extra = {"goal": m.goal} if m.goal is not None else None
         for correlation in late:  # cancels that came as the mission ended: its end is their answer
-            self._state(m.action, status, correlation, m.mission_id)
+            self._state(m.action, status, correlation, m.mission_id, extra)
 
     def _path(self, procedure: Procedure) -> tuple[str, ...]:
         return procedure.mission_id or _DEFAULT_MISSION_PATH
 
-    def _run_mission(self, m: Mission) -> None:
+    def _run_mission(self, m: Mission, goal: bool = False) -> None:
         try:
-            self._follow(m)
+            if goal:
+                self._goals.follow(m)
+            else:
+                self._follow(m)
         except Exception as exc:  # the last line of defence: report, never crash
             log.exception("mission %s failed internally", m.action)
             self._finish(m, ProcedureStatus("failed", message=f"internal error: {exc!r}", reason="call-failed"))

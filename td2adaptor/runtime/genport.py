@@ -18,6 +18,7 @@ from __future__ import annotations
 import importlib
 import math
 import threading
+import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from types import ModuleType
@@ -25,13 +26,22 @@ from typing import Any
 
 from td2adaptor.model import Model, ProcedureRole
 from td2adaptor.runtime.port import (
+    GoalProgress,
     NoValue,
     PortCallFailed,
     PortError,
+    PortRejected,
     PortTimeout,
     PortUnavailable,
     StartResult,
 )
+
+#: how long a goal's feedback pump waits in one go (it re-checks whether it was told to stop in between)
+PUMP_WAIT = 1.0
+#: after a goal ended, how long feedback may still trail its result (a different ROS channel) and be kept
+FEEDBACK_GRACE = 0.1
+#: feedback messages a goal keeps for a caller that has not read them yet (older ones are dropped)
+FEEDBACK_KEEP = 1000
 
 
 def to_plain(value: Any) -> Any:
@@ -69,6 +79,8 @@ def _port_error(exc: BaseException) -> PortError:
     response = getattr(exc, "response", None)
     plain = to_plain(response) if response is not None else None
     message = str(exc) or type(exc).__name__
+    if "GoalRejected" in names:
+        return PortRejected(message)
     if "ServiceUnavailable" in names:
         return PortUnavailable(message)
     if "CallTimeout" in names:
@@ -99,6 +111,82 @@ class Layout:
         return cls(tuple(str(c) for c in data["components"]), frozenset((str(c), str(a)) for c, a in runs))
 
 
+class GoalTrack:
+    """One goal followed through a generated `GoalHandle`: its feedback as dicts, its status and its end.
+
+    A pump thread iterates over the handle's feedback (the handle buffers what arrives before anyone reads),
+    so no message is lost between sending the goal and the first `progress` call; when the goal ended it
+    waits `FEEDBACK_GRACE` for feedback that trails the result, then takes the result.
+    """
+
+    def __init__(self, handle: Any) -> None:
+        self.handle = handle
+        self.goal_id = str(handle.goal_id)
+        self._cond = threading.Condition()
+        self._items: list[Any] = []
+        self._dropped = 0
+        self._done = False
+        self._status = "accepted"
+        self._result: Any = None
+        self._closed = False
+        self._thread = threading.Thread(target=self._pump, name=f"goal-{self.goal_id[:8]}", daemon=True)
+        self._thread.start()
+
+    def _take(self, consumed: int) -> int:
+        """Read the handle's feedback from the start, keeping what comes after the first `consumed`."""
+        for i, message in enumerate(self.handle.feedback(timeout=PUMP_WAIT)):
+            if i >= consumed:
+                with self._cond:
+                    self._items.append(to_plain(message))
+                    if len(self._items) > FEEDBACK_KEEP:
+                        del self._items[0]
+                        self._dropped += 1
+                    self._cond.notify_all()
+                consumed = i + 1
+        return consumed
+
+    def _pump(self) -> None:
+        consumed = 0
+        while not self._closed:
+            try:
+                consumed = self._take(consumed)
+                break  # the goal ended
+            except Exception as exc:  # noqa: BLE001 - CallTimeout: nothing new yet; anything else ends it
+                if "CallTimeout" not in {c.__name__ for c in type(exc).__mro__}:
+                    break
+        if self._closed:
+            return
+        time.sleep(FEEDBACK_GRACE)
+        try:
+            self._take(consumed)
+        except Exception:  # noqa: BLE001 - what trailed is best effort
+            pass
+        try:
+            result = to_plain(self.handle.result(timeout=PUMP_WAIT))
+        except Exception as exc:  # noqa: BLE001 - GoalAborted / GoalCanceled carry the server's result
+            response = getattr(exc, "response", None)
+            result = to_plain(response) if response is not None else None
+        with self._cond:
+            self._status = str(self.handle.status)
+            self._result = result if isinstance(result, Mapping) else None
+            self._done = True
+            self._cond.notify_all()
+
+    def progress(self, since: int | None, wait: float) -> GoalProgress:
+        with self._cond:
+            if since is not None:
+                self._cond.wait_for(lambda: self._done or self._dropped + len(self._items) > since, wait)
+            received = self._dropped + len(self._items)
+            new: tuple[Any, ...] = ()
+            if since is not None:
+                new = tuple(self._items[max(0, since - self._dropped) :])
+            status = self._status if self._done else str(self.handle.status)
+            return GoalProgress(new, received, status, self._done, self._result)
+
+    def close(self) -> None:
+        self._closed = True
+
+
 class GeneratedPort:
     """Drive one robot through a generated adaptor package (`package` is the imported module or its name).
 
@@ -126,6 +214,8 @@ class GeneratedPort:
         module = importlib.import_module(package) if isinstance(package, str) else package
         self.components: dict[str, Any] = {}
         self._locks: dict[str, threading.Lock] = {}
+        self._goals: dict[tuple[str, str, str], GoalTrack] = {}
+        self._goals_lock = threading.Lock()
         for name in self.layout.components:
             cls = getattr(module, name, None)
             if cls is None:
@@ -198,7 +288,45 @@ class GeneratedPort:
         fields = value if isinstance(value, Mapping) else {"data": value}
         self._guarded(component, lambda: publish(construct(**fields)))
 
+    # -- ROS actions (the `GoalPort` protocol) --------------------------------------------------------------
+
+    def send_goal(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> str:
+        construct = self._method(component, f"construct_{action}_Goal")
+        send = self._method(component, f"send_{action}")
+        handle = self._guarded(component, lambda: send(construct(**payload), timeout=timeout))
+        track = GoalTrack(handle)
+        with self._goals_lock:
+            self._goals[(component, action, track.goal_id)] = track
+        return track.goal_id
+
+    def _track(self, component: str, action: str, goal: str) -> GoalTrack:
+        with self._goals_lock:
+            track = self._goals.get((component, action, goal))
+        if track is None:
+            raise PortCallFailed(f"{component}.{action}: no goal {goal} is followed here")
+        return track
+
+    def goal_progress(self, component: str, action: str, goal: str, since: int | None, wait: float) -> GoalProgress:
+        return self._track(component, action, goal).progress(since, wait)
+
+    def cancel_goal(self, component: str, action: str, goal: str, timeout: float) -> bool:
+        track = self._track(component, action, goal)
+        try:
+            return bool(track.handle.cancel(timeout=timeout))
+        except Exception as exc:  # noqa: BLE001 - every generated error becomes a port error
+            raise _port_error(exc) from exc
+
+    def forget_goal(self, component: str, action: str, goal: str) -> None:
+        with self._goals_lock:
+            track = self._goals.pop((component, action, goal), None)
+        if track is not None:
+            track.close()
+
     def close(self) -> None:
+        with self._goals_lock:
+            tracks, self._goals = list(self._goals.values()), {}
+        for track in tracks:
+            track.close()
         for instance in self.components.values():
             close = getattr(instance, "close", None)
             if callable(close):

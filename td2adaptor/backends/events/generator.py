@@ -222,7 +222,9 @@ def exposed_td(
             action["idempotent"] = spec.kind is not Kind.INVOKE
             action["synchronous"] = False
             action["forms"] = [form(topic, "invokeaction", "publish")]
-            actions[spec.affordance] = action
+            # a ROS action's query and cancel have no TD affordance of their own: name them after it
+            suffix = spec.kind.value.capitalize() if spec.goal_control else ""
+            actions[spec.affordance + suffix] = action
         else:
             name = {Kind.FEEDBACK: "Feedback", Kind.STATE: "State"}.get(spec.kind, "")
             key = f"{spec.affordance}{name}" if spec.affordance else spec.kind.value
@@ -382,15 +384,7 @@ def _readme(model: Model, catalog: EventCatalog) -> str:
 
 def generate(model: Model, options: GenOptions, diags: Diagnostics) -> GeneratedTree:
     """Schemas, AsyncAPI document, exposed TD, README and broker ACL of `model`'s events, under `<package>/`."""
-    del options  # nothing to choose, nothing that can fail: every model has an event contract
-    for comp in model.components:
-        for a in comp.actions:
-            diags.warning(
-                "GEN860",
-                f"events backend: {comp.name}.{a.name}: ROS action {a.ros_name.binding_form()} ({a.type_name}) is "
-                "not in the event contract yet: skipped",
-                a.pointer,
-            )
+    del options, diags  # nothing to choose, nothing that can fail: every model has an event contract
     catalog = build_catalog(model)
     folder = f"{catalog.package}/"
     tree = GeneratedTree()
