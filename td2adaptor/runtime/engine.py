@@ -37,7 +37,7 @@ from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope, excerpt, salvage
 from td2adaptor.runtime.goals import GoalRunner
 from td2adaptor.runtime.port import NoValue, PortError, RobotPort, StartResult
-from td2adaptor.runtime.procedures import ProcedureStatus, interpret
+from td2adaptor.runtime.procedures import ProcedureStatus, read
 from td2adaptor.runtime.replay import ReplayGuard, Verdict
 
 log = logging.getLogger("td2adaptor.runtime")
@@ -397,20 +397,28 @@ class Engine:
     def _follow(self, m: Mission) -> None:
         cfg, port, proc = self.config, self.port, m.procedure
         deadline = m.started + cfg.mission_timeout
+        refused = False
         try:
             started = port.start(m.component, m.action, m.payload, cfg.call_timeout)
         except PortError as exc:
-            if exc.response is None:
+            if exc.response is None:  # no answer: we cannot know whether it runs
+                log.warning("%s: failed (%s): %s", m.action, exc.reason, _describe(exc))
                 self._finish(m, ProcedureStatus("failed", message=_describe(exc), reason=exc.reason))
                 return
-            started = StartResult(exc.response, None)  # the robot answered, and refused: read its answer
+            started, refused = StartResult(exc.response, None), True  # the robot answered, and refused
         except Exception as exc:
+            log.warning("%s: failed: %s", m.action, _describe(exc))
             self._finish(m, ProcedureStatus("failed", message=_describe(exc), reason="call-failed"))
             return
-        status = interpret(started.response, self._path(proc))
-        if status.state != "failed" and _says_error(started.response):
-            status = ProcedureStatus("failed", status.result, status.message, status.last_event, "rejected")
+        reading = read(started.response, proc, "run", _DEFAULT_MISSION_PATH)
+        status = reading.status or ProcedureStatus("running", message="started")
+        if reading.unmapped is not None:
+            log.warning("%s: state value %r is not mapped: taken as started", m.action, reading.unmapped)
+        if status.state != "failed" and (refused or _says_error(started.response)):
+            status = ProcedureStatus("failed", status.result, status.message or _message(started.response))
         if status.state == "failed":  # refused by the robot: the id in its answer is not ours
+            why = "answered with an error" if refused or _says_error(started.response) else "reported it failed"
+            log.warning("%s: rejected: the robot %s: %s", m.action, why, status.message or "(no message)")
             self._finish(m, ProcedureStatus("failed", status.result, status.message, status.last_event, "rejected"))
             return
         m.mission_id = started.mission_id if started.mission_id is not None else status.mission_id
@@ -439,7 +447,7 @@ class Engine:
             mid = m.mission_id if m.mission_id is not None else -1
             try:
                 response = _answer(port.query, m.component, proc.query, mid, cfg.call_timeout)
-                status = interpret(response, self._path(proc))
+                reading = read(response, proc, "query", _DEFAULT_MISSION_PATH)
             except Exception as exc:
                 failures += 1
                 log.warning("query %d of %s mission %s failed: %s", failures, m.action, mid, _describe(exc))
@@ -449,11 +457,17 @@ class Engine:
                     return
                 continue
             failures = 0
-            if status.terminal:
-                self._finish(m, status)
+            current = reading.status
+            if current is None:  # validate refuses such a query (ROS445); an unmapped value is no news
+                log.warning("query of %s mission %s: no state in the answer (%r)", m.action, mid, reading.unmapped)
+                continue
+            if current.terminal:
+                if current.state == "failed":
+                    log.warning("%s mission %s: the robot reports it failed: %s", m.action, mid, current.message)
+                self._finish(m, current)
                 return
-            if status.state != m.state:
-                self._feedback(m, status, terminal=False)
+            if current.state != m.state:
+                self._feedback(m, current, terminal=False)
 
     def _pending_cancels(self, m: Mission) -> bool:
         """Carry out cancel events for this mission; True when the mission ended."""
@@ -474,7 +488,7 @@ class Engine:
                 continue
             try:
                 response = _answer(self.port.cancel, m.component, proc.cancel, mid, self.config.call_timeout)
-                status = interpret(response, self._path(proc))
+                status = read(response, proc, "cancel", _DEFAULT_MISSION_PATH).status or _requested(m.state)
             except Exception as exc:
                 self._error(
                     "call-failed",
@@ -548,7 +562,9 @@ class Engine:
                 mission=mid if mid != -1 else None,
             )
             return
-        status = interpret(response, self._path(procedure))
+        status = read(response, procedure, "cancel" if cancel else "query", _DEFAULT_MISSION_PATH).status
+        if status is None:
+            status = _requested(None) if cancel else ProcedureStatus("running", message="no state in the answer")
         mission = status.mission_id if status.mission_id is not None else (mid if mid != -1 else None)
         self._state(procedure.run, status, correlation, mission)
 
@@ -568,6 +584,7 @@ class Engine:
             output = dict(self.port.call(m.component, action, m.payload, self.config.call_timeout))
         except Exception as exc:
             reason = exc.reason if isinstance(exc, PortError) else "call-failed"
+            log.warning("%s: failed (%s): %s", action, reason, _describe(exc))
             self._feedback(m, ProcedureStatus("failed", message=_describe(exc), reason=reason), terminal=True)
             return
         self._feedback(m, ProcedureStatus("finished"), terminal=True, output=output)
@@ -621,6 +638,17 @@ def _answer(
         if exc.response is None:
             raise
         return exc.response
+
+
+def _requested(state: str | None) -> ProcedureStatus:
+    """The answer to a cancel whose response carries no state: asked, the mission's end will tell."""
+    return ProcedureStatus(state or "running", message="cancel requested")
+
+
+def _message(response: Mapping[str, Any]) -> str:
+    """The robot's words in a response without a procedure state (std_srvs' `message`)."""
+    text = response.get("message")
+    return text if isinstance(text, str) else ""
 
 
 def _says_error(response: Mapping[str, Any]) -> bool:

@@ -16,6 +16,7 @@ ROS 1 interpreter.
 from __future__ import annotations
 
 import importlib
+import inspect
 import math
 import threading
 import time
@@ -88,6 +89,13 @@ def _port_error(exc: BaseException) -> PortError:
     if "NoMessage" in names:
         return NoValue(message)
     return PortCallFailed(message, response=plain if isinstance(plain, Mapping) else None)
+
+
+def _takes_mission_id(method: Callable[..., Any]) -> bool:
+    try:
+        return "mission_id" in inspect.signature(method).parameters
+    except (TypeError, ValueError):
+        return False
 
 
 @dataclass(frozen=True)
@@ -260,8 +268,12 @@ class GeneratedPort:
         return self._guarded(component, run)  # type: ignore[no-any-return]
 
     def query(self, component: str, action: str, mission_id: int, timeout: float) -> Mapping[str, Any]:
+        """Call a query or cancel; the mission id goes where the generated method takes one (`mission_id=`),
+        else the robot is asked about its current procedure (a request that cannot name it: ROS447)."""
         call = self._method(component, f"call_{action}")
-        return self._guarded(component, lambda: to_plain(call(mission_id=mission_id, timeout=timeout)))  # type: ignore[no-any-return]
+        if _takes_mission_id(call):
+            return self._guarded(component, lambda: to_plain(call(mission_id=mission_id, timeout=timeout)))  # type: ignore[no-any-return]
+        return self._guarded(component, lambda: to_plain(call(timeout=timeout)))  # type: ignore[no-any-return]
 
     def cancel(self, component: str, action: str, mission_id: int, timeout: float) -> Mapping[str, Any]:
         return self.query(component, action, mission_id, timeout)

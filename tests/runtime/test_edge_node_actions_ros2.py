@@ -25,7 +25,7 @@ from td2adaptor.generation.backend import GenOptions
 from td2adaptor.generation.registry import load as load_backend
 from td2adaptor.model import Model
 from td2adaptor.model.events import Kind, build_catalog
-from td2adaptor.runtime import RuntimeConfig, serve
+from td2adaptor.runtime import PortRejected, PortTimeout, PortUnavailable, RuntimeConfig, serve
 from td2adaptor.runtime.events import EventValidator
 from td2adaptor.runtime.ros import RosLink, connect
 from tests.lowering.test_actions import INTERFACES, action_td
@@ -33,7 +33,7 @@ from tests.ros2 import env
 from tests.ros2.common import Process
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient, Event
-from tests.runtime.edge import feedback
+from tests.runtime.edge import feedback, until
 from tests.runtime.fibo_ros2 import ABORT, SLOW, sequence
 from tests.runtime.rb1 import terminal
 
@@ -101,7 +101,11 @@ class Edge:
         settings.update(config)
         self.config = RuntimeConfig(robot=robot, bus=broker.url, property_period=0, state_dir="", **settings)
         self.link: RosLink = connect(model, model.package_name, [self.config], ros=2, package_paths=[src])
-        self.engine = serve(model, self.link.ports[robot], self.config)
+        port = self.link.ports[robot]
+        # the goal service can be discovered before its server matched our response reader (the first answer
+        # may be lost): wait for one answered goal; a negative order is rejected, so nothing runs
+        assert until(lambda: rejects(port), 30, 0.1)
+        self.engine = serve(model, port, self.config)
         self.app = AppClient(broker.url, [f"td2adaptor/{robot}/#"])
         self.validator = EventValidator(build_catalog(model))
         self.catalog = build_catalog(model)
@@ -137,6 +141,16 @@ class Edge:
         self.app.close()
         self.engine.stop()
         self.link.close()
+
+
+def rejects(port: Any) -> bool:
+    try:
+        port.send_goal(COMPONENT, "fibonacci", {"order": -1}, 1.0)
+    except PortRejected:
+        return True
+    except (PortUnavailable, PortTimeout):
+        return False
+    raise AssertionError("a goal of order -1 was accepted")
 
 
 def sent_feedback(robot: Process, ns: str, order: int) -> list[list[int]]:
