@@ -624,7 +624,18 @@ def build_catalog(model: Model) -> EventCatalog:
 #: a goal id as the events carry it: the goal's UUID in hex (ROS 2), or actionlib's goal id text (ROS 1)
 GOAL_ID = {"description": "The ROS goal id the adaptor follows.", "type": "string", "minLength": 1, "maxLength": 256}
 #: the ROS goal status words a goal event may carry in `result`
-GOAL_WORDS = ("rejected", "accepted", "executing", "canceling", "succeeded", "canceled", "aborted", "unknown")
+GOAL_WORDS = (
+    "pending",
+    "rejected",
+    "accepted",
+    "executing",
+    "canceling",
+    "succeeded",
+    "canceled",
+    "aborted",
+    "lost",
+    "unknown",
+)
 
 
 def _action_part(model: Model, type_name: str, part: str) -> dict[str, Any]:

@@ -80,8 +80,8 @@ def _port_error(exc: BaseException) -> PortError:
     response = getattr(exc, "response", None)
     plain = to_plain(response) if response is not None else None
     message = str(exc) or type(exc).__name__
-    if "GoalRejected" in names:
-        return PortRejected(message)
+    if "GoalRejected" in names:  # the server's words, without the action's name in front
+        return PortRejected(str(getattr(exc, "message", "") or message))
     if "ServiceUnavailable" in names:
         return PortUnavailable(message)
     if "CallTimeout" in names:
@@ -136,6 +136,7 @@ class GoalTrack:
         self._done = False
         self._status = "accepted"
         self._result: Any = None
+        self._message = ""
         self._closed = False
         self._thread = threading.Thread(target=self._pump, name=f"goal-{self.goal_id[:8]}", daemon=True)
         self._thread.start()
@@ -155,12 +156,14 @@ class GoalTrack:
 
     def _pump(self) -> None:
         consumed = 0
+        lost = ""
         while not self._closed:
             try:
                 consumed = self._take(consumed)
                 break  # the goal ended
             except Exception as exc:  # noqa: BLE001 - CallTimeout: nothing new yet; anything else ends it
                 if "CallTimeout" not in {c.__name__ for c in type(exc).__mro__}:
+                    lost = f"{type(exc).__name__}: {exc}"  # e.g. the ROS 1 server went away
                     break
         if self._closed:
             return
@@ -174,8 +177,10 @@ class GoalTrack:
         except Exception as exc:  # noqa: BLE001 - GoalAborted / GoalCanceled carry the server's result
             response = getattr(exc, "response", None)
             result = to_plain(response) if response is not None else None
+        ended = bool(self.handle.done)
         with self._cond:
-            self._status = str(self.handle.status)
+            self._status = str(self.handle.status) if ended else "lost"
+            self._message = str(getattr(self.handle, "reason", "") or "") if ended else lost
             self._result = result if isinstance(result, Mapping) else None
             self._done = True
             self._cond.notify_all()
@@ -189,7 +194,7 @@ class GoalTrack:
             if since is not None:
                 new = tuple(self._items[max(0, since - self._dropped) :])
             status = self._status if self._done else str(self.handle.status)
-            return GoalProgress(new, received, status, self._done, self._result)
+            return GoalProgress(new, received, status, self._done, self._result, self._message)
 
     def close(self) -> None:
         self._closed = True

@@ -20,7 +20,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from td2adaptor.model.events import EventSpec, Kind
+from td2adaptor.model.events import GOAL_WORDS, EventSpec, Kind
 from td2adaptor.runtime.port import GoalPort, GoalProgress, PortError, PortRejected
 from td2adaptor.runtime.procedures import ProcedureStatus
 
@@ -32,28 +32,37 @@ log = logging.getLogger("td2adaptor.runtime")
 #: ROS goal status → procedure state
 _STATES = {
     "unknown": "queued",
+    "pending": "queued",
     "accepted": "queued",
     "executing": "running",
     "canceling": "running",
     "succeeded": "finished",
     "canceled": "cancelled",
     "aborted": "failed",
+    "rejected": "failed",
+    "lost": "failed",
 }
+#: why a goal failed, by its status word
+_REASONS = {"aborted": "aborted", "rejected": "rejected", "lost": "unreachable"}
 _ENDS = {
     "succeeded": "the goal succeeded",
     "canceled": "the goal was canceled",
     "aborted": "the robot aborted the goal",
+    "rejected": "the action server rejected the goal",
+    "lost": "the goal was lost",
 }
 
 
 def goal_status(progress: GoalProgress) -> ProcedureStatus:
-    """A goal's progress as a procedure state; the status word is kept as `result`."""
+    """A goal's progress as a procedure state; the status word is kept as `result`, the server's words (or
+    ours, when it said nothing) as `message`."""
     word = progress.status
     state = _STATES.get(word, "running")
     if progress.done and state not in ("finished", "cancelled", "failed"):
         return ProcedureStatus("failed", word, f"the goal ended with status {word}", reason="robot-error")
-    reason = "aborted" if state == "failed" else None
-    return ProcedureStatus(state, word, _ENDS.get(word, "") if progress.done else "", reason=reason)
+    reason = _REASONS.get(word, "robot-error") if state == "failed" else None
+    message = progress.message or (_ENDS.get(word, "") if progress.done else "")
+    return ProcedureStatus(state, word if word in GOAL_WORDS else "unknown", message, reason=reason)
 
 
 @dataclass(frozen=True)
@@ -89,7 +98,7 @@ class GoalRunner:
             goal = port.send_goal(m.component, m.action, m.payload, cfg.call_timeout)
         except PortError as exc:
             word = "rejected" if isinstance(exc, PortRejected) else ""
-            message = "the action server rejected the goal" if word else _describe(exc)
+            message = (str(exc) or "the action server rejected the goal") if word else _describe(exc)
             log.warning("%s goal failed (%s): %s", m.action, exc.reason, message)
             e._finish(m, ProcedureStatus("failed", word, message, reason=exc.reason))
             return

@@ -16,8 +16,20 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
-#: the ROS action goal states a port reports (ROS 2's GoalStatus words; actionlib's map onto them)
-GOAL_STATES = ("unknown", "accepted", "executing", "canceling", "succeeded", "canceled", "aborted")
+#: the ROS action goal states a port reports: ROS 2's GoalStatus words, and actionlib's pending, rejected and
+#: lost (the goal ended without a result: the server forgot it, or went away)
+GOAL_STATES = (
+    "unknown",
+    "pending",
+    "accepted",
+    "executing",
+    "canceling",
+    "succeeded",
+    "canceled",
+    "aborted",
+    "rejected",
+    "lost",
+)
 
 
 class PortError(Exception):
@@ -112,7 +124,8 @@ class GoalProgress:
 
     `feedback` are the feedback messages received after the first `since` ones (as dicts, in order),
     `received` how many arrived in all, `status` one of GOAL_STATES; once `done`, `result` is the result
-    message the server sent (None when it sent none).
+    message the server sent (None when it sent none) and `message` the server's words (actionlib's status
+    text) or why the goal was lost.
     """
 
     feedback: tuple[Any, ...]
@@ -120,6 +133,7 @@ class GoalProgress:
     status: str
     done: bool = False
     result: Mapping[str, Any] | None = None
+    message: str = ""
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -128,6 +142,7 @@ class GoalProgress:
             "status": self.status,
             "done": self.done,
             "result": self.result,
+            "message": self.message,
         }
 
     @classmethod
@@ -139,6 +154,7 @@ class GoalProgress:
             str(data.get("status") or "unknown"),
             bool(data.get("done")),
             result if isinstance(result, Mapping) else None,
+            str(data.get("message") or ""),
         )
 
 

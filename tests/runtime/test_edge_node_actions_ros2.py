@@ -191,6 +191,7 @@ def test_goal_feedback_and_result_over_mqtt(
         (refused,) = edge.ended("neg")
         assert refused["payload"]["state"] == "failed" and refused["payload"]["terminal"]
         assert (refused["payload"]["reason"], refused["payload"]["result"]) == ("rejected", "rejected")
+        assert refused["payload"]["message"] == "the goal was rejected"
 
         # aborted after two feedback messages: failed (aborted), with the result the server sent
         edge.send("", {"correlation": "abort", "payload": {"order": ABORT}})
