@@ -36,6 +36,11 @@ if TYPE_CHECKING:
 @click.option("--namespace", help="ROS namespace of the robot ({{robotName}}); default: the robot id.")
 @click.option("--bus", help="mqtt://host:port, mqtts://host:port or local (default: local).")
 @click.option(
+    "--mqtt-version",
+    type=click.Choice(["5", "3.1.1"]),
+    help="MQTT protocol version to speak to the broker (default: 5; 3.1.1 for brokers that speak only that).",
+)
+@click.option(
     "--broker",
     help="Broker URL the robot's published Thing Description names (default: the --bus URL; with a local bus, "
     "no TD is published).",
@@ -95,6 +100,7 @@ def run(
     robot: str | None,
     namespace: str | None,
     bus: str | None,
+    mqtt_version: str | None,
     broker: str | None,
     config_file: Path | None,
     ros: str,
@@ -139,6 +145,7 @@ def run(
         "robot": robot,
         "namespace": namespace,
         "bus": bus,
+        "mqtt_version": mqtt_version,
         "td_broker": broker,
         "ros_domain_id": domain_id,
         "ros_master_uri": master_uri,

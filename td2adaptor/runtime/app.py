@@ -86,7 +86,7 @@ def open_bus(
     if security.username and not config.allow_anonymous_broker:
         from td2adaptor.runtime.mqttbus import accepts_anonymous
 
-        if accepts_anonymous(address, security.tls):
+        if accepts_anonymous(address, security.tls, mqtt_version=config.mqtt_version):
             raise SecurityError(
                 f"the MQTT broker at {address} accepts clients without credentials, although the Thing "
                 "Description requires authentication: anyone who reaches it could command the robot or forge "
@@ -101,6 +101,7 @@ def open_bus(
         birth=birth,
         announce=announce,
         session_expiry=config.session_expiry,
+        mqtt_version=config.mqtt_version,
         keepalive=config.keepalive,
     )
 

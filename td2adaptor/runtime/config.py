@@ -46,6 +46,7 @@ class RuntimeConfig:
     allow_insecure: bool = False
     allow_anonymous_broker: bool = False  # run although the TD requires authentication and the broker does not
     session_expiry: int = 3600
+    mqtt_version: str = "5"  # "5", or "3.1.1" for brokers that speak only that
     keepalive: int = 30
     ros_master_uri: str | None = None  # for the ROS 1 adapter
     ros_domain_id: int | None = None  # for the ROS 2 adapter
@@ -67,6 +68,8 @@ class RuntimeConfig:
             raise ConfigError("feedback_period must be >= 0 (0: one feedback event per ROS feedback message)")
         if self.property_period < 0 or self.max_query_failures < 1 or self.max_event_bytes < 256:
             raise ConfigError("property_period >= 0, max_query_failures >= 1 and max_event_bytes >= 256 required")
+        if self.mqtt_version not in ("5", "3.1.1"):
+            raise ConfigError(f"mqtt_version {self.mqtt_version!r} must be 5 or 3.1.1")
         if not self.topic_root or any(c in self.topic_root for c in "+#\x00") or self.topic_root.startswith("/"):
             raise ConfigError(f"topic_root {self.topic_root!r} is not a valid MQTT topic prefix")
 
