@@ -39,8 +39,10 @@ from td2adaptor.runtime.port import (
 
 #: how long a goal's feedback pump waits in one go (it re-checks whether it was told to stop in between)
 PUMP_WAIT = 1.0
-#: after a goal ended, how long feedback may still trail its result (a different ROS channel) and be kept
-FEEDBACK_GRACE = 0.1
+#: after a goal's result, feedback still arriving is kept until none came for this long (see GoalTrack)
+FEEDBACK_GRACE = 0.01
+#: ... but for no longer than this in all
+TRAIL_LIMIT = 1.0
 #: feedback messages a goal keeps for a caller that has not read them yet (older ones are dropped)
 FEEDBACK_KEEP = 1000
 
@@ -122,9 +124,11 @@ class Layout:
 class GoalTrack:
     """One goal followed through a generated `GoalHandle`: its feedback as dicts, its status and its end.
 
-    A pump thread iterates over the handle's feedback (the handle buffers what arrives before anyone reads),
-    so no message is lost between sending the goal and the first `progress` call; when the goal ended it
-    waits `FEEDBACK_GRACE` for feedback that trails the result, then takes the result.
+    Feedback comes from the handle's `on_feedback` callback, registered at once; what arrived before (the
+    handle buffers it) is read with its `feedback()` iterator up to the first message the callback also saw
+    (the same object), so no message is lost or doubled. A thread waits for the result; when it came, feedback
+    may still trail it (a different channel, and rclpy hands a result over before feedback taken in the same
+    wake-up): the goal counts as done once no message came for `FEEDBACK_GRACE` (at most `TRAIL_LIMIT`).
     """
 
     def __init__(self, handle: Any) -> None:
@@ -133,52 +137,76 @@ class GoalTrack:
         self._cond = threading.Condition()
         self._items: list[Any] = []
         self._dropped = 0
+        self._late: list[Any] = []  # messages the callback took before the buffered ones were read
+        self._joined = False
         self._done = False
         self._status = "accepted"
         self._result: Any = None
         self._message = ""
         self._closed = False
-        self._thread = threading.Thread(target=self._pump, name=f"goal-{self.goal_id[:8]}", daemon=True)
+        self._remove = handle.on_feedback(self._on_feedback)
+        self._thread = threading.Thread(target=self._follow, name=f"goal-{self.goal_id[:8]}", daemon=True)
         self._thread.start()
 
-    def _take(self, consumed: int) -> int:
-        """Read the handle's feedback from the start, keeping what comes after the first `consumed`."""
-        for i, message in enumerate(self.handle.feedback(timeout=PUMP_WAIT)):
-            if i >= consumed:
-                with self._cond:
-                    self._items.append(to_plain(message))
-                    if len(self._items) > FEEDBACK_KEEP:
-                        del self._items[0]
-                        self._dropped += 1
-                    self._cond.notify_all()
-                consumed = i + 1
-        return consumed
+    def _add(self, message: Any) -> None:
+        """Append one message (lock held)."""
+        self._items.append(to_plain(message))
+        if len(self._items) > FEEDBACK_KEEP:
+            del self._items[0]
+            self._dropped += 1
+        self._cond.notify_all()
 
-    def _pump(self) -> None:
-        consumed = 0
+    def _on_feedback(self, message: Any) -> None:
+        with self._cond:
+            if self._joined:
+                self._add(message)
+            else:
+                self._late.append(message)
+
+    def _join(self) -> None:
+        """The buffered messages the callback did not see, then the ones it did, in order."""
+        earlier: list[Any] = []
+        try:
+            for message in self.handle.feedback(timeout=0.001):
+                with self._cond:
+                    seen = any(message is m for m in self._late)
+                if seen:
+                    break
+                earlier.append(message)
+        except Exception:  # noqa: BLE001 - CallTimeout: the buffer is read; ServiceUnavailable: the end tells
+            pass
+        with self._cond:
+            for message in [*earlier, *self._late]:
+                self._add(message)
+            self._late = []
+            self._joined = True
+
+    def _follow(self) -> None:
+        self._join()
         lost = ""
+        result: Any = None
         while not self._closed:
             try:
-                consumed = self._take(consumed)
-                break  # the goal ended
-            except Exception as exc:  # noqa: BLE001 - CallTimeout: nothing new yet; anything else ends it
-                if "CallTimeout" not in {c.__name__ for c in type(exc).__mro__}:
+                result = to_plain(self.handle.result(timeout=PUMP_WAIT))
+                break
+            except Exception as exc:  # noqa: BLE001 - the goal's end, or still running, or its server gone
+                names = {c.__name__ for c in type(exc).__mro__}
+                if "CallTimeout" in names and not self.handle.done:
+                    continue
+                response = getattr(exc, "response", None)
+                result = to_plain(response) if response is not None else None
+                if not self.handle.done:
                     lost = f"{type(exc).__name__}: {exc}"  # e.g. the ROS 1 server went away
-                    break
+                break
         if self._closed:
             return
-        time.sleep(FEEDBACK_GRACE)
-        try:
-            self._take(consumed)
-        except Exception:  # noqa: BLE001 - what trailed is best effort
-            pass
-        try:
-            result = to_plain(self.handle.result(timeout=PUMP_WAIT))
-        except Exception as exc:  # noqa: BLE001 - GoalAborted / GoalCanceled carry the server's result
-            response = getattr(exc, "response", None)
-            result = to_plain(response) if response is not None else None
-        ended = bool(self.handle.done)
+        deadline = time.monotonic() + TRAIL_LIMIT
         with self._cond:
+            count = -1
+            while count != len(self._items) + self._dropped and time.monotonic() < deadline:
+                count = len(self._items) + self._dropped
+                self._cond.wait(FEEDBACK_GRACE)
+            ended = bool(self.handle.done)
             self._status = str(self.handle.status) if ended else "lost"
             self._message = str(getattr(self.handle, "reason", "") or "") if ended else lost
             self._result = result if isinstance(result, Mapping) else None
@@ -198,6 +226,10 @@ class GoalTrack:
 
     def close(self) -> None:
         self._closed = True
+        try:
+            self._remove()
+        except Exception:  # noqa: BLE001 - the handle is going away anyway
+            pass
 
 
 class GeneratedPort:
