@@ -205,6 +205,13 @@ def run(
 @click.option("--robot", required=True, help="Robot id on the bus (as `run --robot`).")
 @click.option("--broker", required=True, help="mqtt://host:port or mqtts://host:port of the broker the robot uses.")
 @click.option(
+    "--ros",
+    type=click.Choice(["1", "2"]),
+    default="2",
+    show_default=True,
+    help="ROS version the robot runs (as `run --ros`): its message layouts, e.g. time as secs/nsecs or sec/nanosec.",
+)
+@click.option(
     "--output",
     "-o",
     default="-",
@@ -222,6 +229,7 @@ def expose(
     max_affordances: int,
     robot: str,
     broker: str,
+    ros: str,
     output: str,
 ) -> None:
     """Write the Thing Description of one robot as its edge node exposes it on the broker.
@@ -231,7 +239,7 @@ def expose(
     td2adaptor/<robot>/td while it runs. (`gen -b events` writes the fleet's Thing Model, td.mqtt.json.)
     """
     from td2adaptor.backends.events.generator import dump, exposed_td
-    from td2adaptor.model.events import ALL_ROBOTS, ROBOT_ID
+    from td2adaptor.model.events import ALL_ROBOTS, ROBOT_ID, build_catalog
     from td2adaptor.runtime.security import SecurityError, parse_broker_url
 
     if not ROBOT_ID.match(robot) or robot == ALL_ROBOTS:
@@ -244,7 +252,8 @@ def expose(
     if result.model is None:
         report(result.diagnostics, "human", label=_label([source]))
         sys.exit(EXIT_INVALID)
-    text = dump(exposed_td(result.model, robot=robot, broker=url))
+    catalog = build_catalog(result.model, f"ros{ros}")
+    text = dump(exposed_td(result.model, catalog, robot=robot, broker=url))
     if output == "-":
         click.echo(text, nl=False)
     else:

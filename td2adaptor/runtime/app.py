@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 
 from td2adaptor.model import Model
-from td2adaptor.model.events import td_topic
+from td2adaptor.model.events import EventCatalog, build_catalog, td_topic
 from td2adaptor.runtime.bus import Bus, Message
 from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.engine import Engine, status_event
@@ -19,6 +19,7 @@ from td2adaptor.runtime.security import (
     parse_broker_url,
     plan_security,
 )
+from td2adaptor.runtime.thingbus import thing_bus
 
 
 def bus_security(
@@ -51,15 +52,16 @@ def td_broker(config: RuntimeConfig) -> str | None:
     return None if url is None else parse_broker_url(url).url
 
 
-def td_message(config: RuntimeConfig, model: Model) -> Message | None:
+def td_message(config: RuntimeConfig, model: Model, catalog: EventCatalog | None = None) -> Message | None:
     """The robot's Thing Description as the retained message the edge node publishes when it is online (the
-    text `td2adaptor expose` writes for the same robot and broker); None when there is no broker to name."""
+    text `td2adaptor expose` writes for the same robot, broker and ROS version); None when there is no broker
+    to name."""
     broker = td_broker(config)
     if broker is None:
         return None
     from td2adaptor.backends.events.generator import dump, exposed_td
 
-    text = dump(exposed_td(model, robot=config.robot, broker=broker, root=config.topic_root))
+    text = dump(exposed_td(model, catalog, robot=config.robot, broker=broker, root=config.topic_root))
     return Message(td_topic(config.robot, config.topic_root), text.encode("utf-8"), retain=True)
 
 
@@ -113,12 +115,20 @@ def serve(
     *,
     broker: LocalBroker | None = None,
     env: Mapping[str, str] | None = None,
+    distro: str = "ros2",
 ) -> Engine:
     """Connect and start serving (the robot's TD published, retained, with the online status); `Engine.stop()`
-    ends it (and clears the TD)."""
-    td = td_message(config, model)
+    ends it (and clears the TD). `distro`: the robot's ROS version, whose message layouts the events follow.
+
+    The engine's bus is wrapped in a `ThingBus`: WoT consumers of the published TD use the robot on its WoT
+    topics, native clients on the envelope topics."""
+    catalog = build_catalog(model, distro)
+    td = td_message(config, model, catalog)
     announce = () if td is None else (td,)
-    engine = Engine(model, port, open_bus(config, model, broker=broker, env=env, announce=announce), config, td=td)
+    bus = thing_bus(
+        open_bus(config, model, broker=broker, env=env, announce=announce), catalog, config.robot, config.topic_root
+    )
+    engine = Engine(model, port, bus, config, catalog=catalog, td=td)
     engine.start()
     return engine
 
@@ -130,12 +140,13 @@ def serve_fleet(
     *,
     broker: LocalBroker | None = None,
     env: Mapping[str, str] | None = None,
+    distro: str = "ros2",
 ) -> list[Engine]:
     """One engine per robot in one process (each with its own bus client and port); all or none start."""
     engines: list[Engine] = []
     try:
         for config in configs:
-            engines.append(serve(model, make_port(config), config, broker=broker, env=env))
+            engines.append(serve(model, make_port(config), config, broker=broker, env=env, distro=distro))
     except BaseException:
         for engine in engines:
             engine.stop()

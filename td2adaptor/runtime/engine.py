@@ -39,6 +39,7 @@ from td2adaptor.runtime.goals import GoalRunner
 from td2adaptor.runtime.port import NoValue, PortError, RobotPort, StartResult
 from td2adaptor.runtime.procedures import ProcedureStatus, read
 from td2adaptor.runtime.replay import ReplayGuard, Verdict
+from td2adaptor.runtime.words import INTERNAL, describe
 
 log = logging.getLogger("td2adaptor.runtime")
 
@@ -256,9 +257,9 @@ class Engine:
                 return
             try:
                 self._handle(msg)
-            except Exception as exc:  # a bug here must cost one event, not the process
+            except Exception:  # a bug here must cost one event, not the process
                 log.exception("internal error on %s", msg.topic)
-                self._error("internal", f"internal error: {type(exc).__name__}", topic=msg.topic, raw=msg.payload)
+                self._error("internal", INTERNAL, topic=msg.topic, raw=msg.payload)
 
     def _handle(self, msg: Message) -> None:
         self._count("in")
@@ -387,9 +388,9 @@ class Engine:
                 self._goals.follow(m)
             else:
                 self._follow(m)
-        except Exception as exc:  # the last line of defence: report, never crash
+        except Exception:  # the last line of defence: report, never crash
             log.exception("mission %s failed internally", m.action)
-            self._finish(m, ProcedureStatus("failed", message=f"internal error: {exc!r}", reason="call-failed"))
+            self._finish(m, ProcedureStatus("failed", message=INTERNAL, reason="call-failed"))
         finally:
             with self._lock:
                 self._missions.discard(threading.current_thread())
@@ -657,5 +658,4 @@ def _says_error(response: Mapping[str, Any]) -> bool:
 
 
 def _describe(exc: BaseException) -> str:
-    text = str(exc).strip()
-    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+    return describe(exc)  # user words, never class names (runtime/words.py)

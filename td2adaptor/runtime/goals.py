@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 from td2adaptor.model.events import GOAL_WORDS, EventSpec, Kind
 from td2adaptor.runtime.port import GoalPort, GoalProgress, PortError, PortRejected
 from td2adaptor.runtime.procedures import ProcedureStatus
+from td2adaptor.runtime.words import describe
 
 if TYPE_CHECKING:
     from td2adaptor.runtime.engine import Engine, Mission
@@ -98,7 +99,7 @@ class GoalRunner:
             goal = port.send_goal(m.component, m.action, m.payload, cfg.call_timeout)
         except PortError as exc:
             word = "rejected" if isinstance(exc, PortRejected) else ""
-            message = (str(exc) or "the action server rejected the goal") if word else _describe(exc)
+            message = (str(exc) or "the action server rejected the goal") if word else describe(exc)
             log.warning("%s goal failed (%s): %s", m.action, exc.reason, message)
             e._finish(m, ProcedureStatus("failed", word, message, reason=exc.reason))
             return
@@ -111,7 +112,7 @@ class GoalRunner:
             try:
                 port.forget_goal(m.component, m.action, goal)
             except Exception as exc:  # noqa: BLE001 - the goal is over for us either way
-                log.debug("forgetting %s goal %s: %s", m.action, goal, _describe(exc))
+                log.debug("forgetting %s goal %s: %s", m.action, goal, describe(exc))
 
     def _watch(self, port: GoalPort, m: Mission, goal: str) -> None:
         e, cfg = self.engine, self.engine.config
@@ -131,9 +132,9 @@ class GoalRunner:
                 progress = port.goal_progress(m.component, m.action, goal, since, min(cfg.poll_period, remaining))
             except Exception as exc:
                 failures += 1
-                log.warning("following %s goal %s failed (%d): %s", m.action, goal, failures, _describe(exc))
+                log.warning("following %s goal %s failed (%d): %s", m.action, goal, failures, describe(exc))
                 if failures >= cfg.max_query_failures:
-                    message = f"the robot did not answer {failures} times: {_describe(exc)}"
+                    message = f"the robot did not answer {failures} times: {describe(exc)}"
                     log.warning("%s goal %s: failed: %s", m.action, goal, message)
                     e._finish(m, ProcedureStatus("failed", message=message, reason="unreachable"))
                     return
@@ -167,7 +168,7 @@ class GoalRunner:
         try:
             port.cancel_goal(m.component, m.action, goal, cfg.call_timeout)
         except Exception as exc:  # noqa: BLE001 - the server may be gone: that is why we gave up
-            log.warning("could not cancel timed-out %s goal %s: %s", m.action, goal, _describe(exc))
+            log.warning("could not cancel timed-out %s goal %s: %s", m.action, goal, describe(exc))
 
     def _carry_out_cancels(self, port: GoalPort, m: Mission, goal: str) -> None:
         """Cancel events for the goal followed: ask the server, answer each with a state event."""
@@ -179,7 +180,7 @@ class GoalRunner:
                 accepted = port.cancel_goal(m.component, m.action, goal, e.config.call_timeout)
                 progress = port.goal_progress(m.component, m.action, goal, None, 0.0)
             except Exception as exc:
-                message = f"cancelling {m.action} goal {goal} failed: {_describe(exc)}"
+                message = f"cancelling {m.action} goal {goal} failed: {describe(exc)}"
                 self._refuse(Kind.CANCEL, m.action, m.component, "call-failed", message, correlation)
                 continue
             status = goal_status(progress)
@@ -225,7 +226,7 @@ class GoalRunner:
             try:
                 progress = port.goal_progress(m.component, m.action, m.goal, None, 0.0)
             except Exception as exc:
-                message = f"querying {m.action} goal {m.goal} failed: {_describe(exc)}"
+                message = f"querying {m.action} goal {m.goal} failed: {describe(exc)}"
                 self._refuse(Kind.QUERY, m.action, m.component, "call-failed", message, correlation)
                 return
             e._state(m.action, goal_status(progress), correlation, None, {"goal": m.goal})
@@ -259,7 +260,3 @@ def _wanted(event: Mapping[str, Any]) -> Any:
     payload = event.get("payload")
     return payload.get("goal") if isinstance(payload, Mapping) else None
 
-
-def _describe(exc: BaseException) -> str:
-    text = str(exc).strip()
-    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__

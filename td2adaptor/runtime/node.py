@@ -87,7 +87,9 @@ class EdgeNode:
             return ports[config.robot]
 
         try:
-            self.engines = serve_fleet(self.model, port_of, self.configs, broker=self.broker)
+            self.engines = serve_fleet(
+                self.model, port_of, self.configs, broker=self.broker, distro=f"ros{self.options.ros}"
+            )
         except BaseException:
             self.link.close()
             raise
