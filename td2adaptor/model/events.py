@@ -678,9 +678,7 @@ def _goal_payload(*, feedback: Any = None, output: Any = None) -> dict[str, Any]
     return {**schema, "properties": props}
 
 
-def _goal_events(
-    model: Model, comp: Component, action: ActionEndpoint, add: Callable[..., None], distro: str
-) -> None:
+def _goal_events(model: Model, comp: Component, action: ActionEndpoint, add: Callable[..., None], distro: str) -> None:
     """The events of a TD action bound to a ROS action: invoke (a goal), feedback (one per ROS feedback
     message, then exactly one terminal event with the result), query and cancel of the goal, state."""
     title, desc = _text(action.text, action.name)

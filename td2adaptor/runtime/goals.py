@@ -259,4 +259,3 @@ class GoalRunner:
 def _wanted(event: Mapping[str, Any]) -> Any:
     payload = event.get("payload")
     return payload.get("goal") if isinstance(payload, Mapping) else None
-

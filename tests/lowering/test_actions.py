@@ -221,6 +221,6 @@ def test_events_backend_gives_ros_actions_goal_events(tmp_path: Path) -> None:
     }
     feedback = next(s for s in specs if s.kind is Kind.FEEDBACK).schema["properties"]["payload"]["properties"]
     assert feedback["feedback"]["properties"]["sequence"]["type"] == "array"  # test_msgs Fibonacci.Feedback
-    assert feedback["output"]["properties"]["sequence"]["items"] == {"type": "integer"}  # the TD's output
+    assert feedback["output"]["properties"]["sequence"]["items"]["type"] == "integer"  # the TD's output
     exposed = json.loads(tree.files[f"{model.package_name}/td.mqtt.json"])
     assert {"fibonacci", "fibonacciQuery", "fibonacciCancel"} <= set(exposed["actions"])

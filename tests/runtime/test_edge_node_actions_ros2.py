@@ -25,6 +25,7 @@ from td2adaptor.generation.backend import GenOptions
 from td2adaptor.generation.registry import load as load_backend
 from td2adaptor.model import Model
 from td2adaptor.model.events import Kind, build_catalog
+from td2adaptor.model.wot import WOT_LEVEL
 from td2adaptor.runtime import PortRejected, PortTimeout, PortUnavailable, RuntimeConfig, serve
 from td2adaptor.runtime.events import EventValidator
 from td2adaptor.runtime.ros import RosLink, connect
@@ -122,8 +123,8 @@ class Edge:
 
     def check(self, events: list[Event]) -> None:
         for where, event in events:
-            if self.catalog.route(where) is not None or where.endswith("/td"):
-                continue  # sent by the test, or the robot's TD
+            if self.catalog.route(where) is not None or where.endswith("/td") or f"/{WOT_LEVEL}/" in where:
+                continue  # sent by the test, the robot's TD, or the WoT consumers' form of an event
             kind = Kind(event["type"])
             spec = self.catalog.find(kind, event.get("affordance") if kind not in (Kind.ERROR, Kind.STATUS) else None)
             assert spec.topic(event["robot"]) == where
@@ -268,3 +269,28 @@ def test_robot_killed_mid_goal_fails_within_the_timeout(fibo_build: tuple[Model,
     finally:
         edge.close()
         robot.stop()
+
+
+def test_a_wot_consumer_sends_a_goal_queries_and_cancels_it(
+    fibo_build: tuple[Model, Path], fibo_robot: Process, broker: Mosquitto
+) -> None:
+    """The same goal through the WoT consumers' topics (the TD's forms): the goal's fields plus correlationId in,
+    its feedback out; query and cancel on topics of their own, naming the goal."""
+    edge = Edge(fibo_build, broker, ROBOT)
+    wot = f"td2adaptor/{ROBOT}/{WOT_LEVEL}/{COMPONENT}/fibonacci"
+
+    def of(suffix: str, correlation: str) -> list[dict[str, Any]]:
+        return [e for t, e in edge.app.events if t == wot + suffix and e.get("correlationId") == correlation]
+
+    try:
+        edge.app.send(wot, {"order": SLOW, "correlationId": "w"})
+        edge.app.wait(lambda _: any("feedback" in e for e in of("/feedback", "w")), timeout=20)
+        goal = of("/feedback", "w")[0]["goal"]
+        edge.app.send(wot + "/query", {"goal": goal, "correlationId": "wq"})
+        edge.app.wait(lambda _: bool(of("/state", "wq")), timeout=10)
+        assert of("/state", "wq")[0]["state"] == "running"
+        edge.app.send(wot + "/cancel", {"correlationId": "wc"})
+        edge.app.wait(lambda _: any(e["terminal"] for e in of("/feedback", "w")), timeout=20)
+        assert [e["state"] for e in of("/feedback", "w") if e["terminal"]] == ["cancelled"]
+    finally:
+        edge.close()
