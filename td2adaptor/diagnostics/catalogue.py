@@ -208,6 +208,19 @@ _ENTRIES: tuple[Entry, ...] = (
     Entry("ROS442", (_E,), "procedure link target is not an action of the component"),
     Entry("ROS443", (_E,), "procedure links are inconsistent"),
     Entry("ROS444", (_E,), "invalid procedure missionId"),
+    Entry(
+        "ROS445",
+        (_E,),
+        "the edge node could not read a procedure's state",
+        "name the response field holding the state with rosv:procedure `state` and `states`",
+    ),
+    Entry("ROS446", (_E,), "invalid procedure state mapping (state, states, message)"),
+    Entry(
+        "ROS447",
+        (_W,),
+        "a procedure's mission id cannot reach its query or cancel",
+        "the edge node asks about the robot's current mission instead",
+    ),
     # -- TY5: ROS interface types ------------------------------------------------------------------------
     Entry("TY500", (_E,), "interface folder not found"),
     Entry("TY501", (_W,), "interface folder contains no .msg/.srv/.action files", "use <pkg>/msg/*.msg etc."),
@@ -312,7 +325,6 @@ _ENTRIES: tuple[Entry, ...] = (
     Entry("GEN840", (_E,), "rospy backend cannot express a message field"),
     Entry("GEN841", (_E,), "rospy backend: a component would define a name twice"),
     Entry("GEN842", (_E,), "rospy backend: ROS 1 types not found", "add their definitions with --interfaces"),
-    Entry("GEN860", (_W,), "events backend: a ROS action is not in the event contract yet: skipped"),
     # -- SCF1: scaffolding a TD from a robot ------------------------------------------------------------
     Entry("SCF100", (_E,), "scaffold source cannot be read (bag or listing missing, unreadable or malformed)"),
     Entry("SCF101", (_E,), "the ROS graph cannot be read (no rclpy, no ROS 1 master at the URI)"),

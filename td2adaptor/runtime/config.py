@@ -35,6 +35,7 @@ class RuntimeConfig:
     mission_timeout: float = 600.0  # overall limit of one mission
     call_timeout: float = 10.0  # one robot call
     max_query_failures: int = 3  # consecutive failed queries before a mission is given up
+    feedback_period: float = 0.0  # ROS action feedback: 0 one event per message, else at most one per period
     property_period: float = 1.0  # property events: at most one per property and period (0: off)
     max_event_bytes: int = 65536
     username: str | None = None
@@ -67,6 +68,8 @@ class RuntimeConfig:
                 raise ConfigError(f"{name} must be positive")
         if not self.freshness_window > 0 or self.clock_skew < 0:
             raise ConfigError("freshness_window must be positive and clock_skew >= 0")
+        if self.feedback_period < 0:
+            raise ConfigError("feedback_period must be >= 0 (0: one feedback event per ROS feedback message)")
         if self.property_period < 0 or self.max_query_failures < 1 or self.max_event_bytes < 256:
             raise ConfigError("property_period >= 0, max_query_failures >= 1 and max_event_bytes >= 256 required")
         if self.mqtt_version not in ("5", "3.1.1"):
