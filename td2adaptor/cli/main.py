@@ -11,7 +11,7 @@ from collections.abc import Sequence
 
 import click
 
-from td2adaptor.cli import frontend, generate, runtime  # noqa: F401 - registers the commands
+from td2adaptor.cli import frontend, generate, runtime, scaffold  # noqa: F401 - registers the commands
 from td2adaptor.cli.common import EXIT_INTERNAL, cli
 
 __all__ = ["cli", "main"]

@@ -46,6 +46,16 @@ if TYPE_CHECKING:
     "no TD is published).",
 )
 @click.option(
+    "--directory",
+    help="W3C WoT Thing Description Directory (http(s)://host:port[/path]) to register each robot's TD with "
+    "while it runs (PUT /things/{id}, DELETE on stop); token: TD2ADAPTOR_DIRECTORY_TOKEN.",
+)
+@click.option(
+    "--directory-ttl",
+    type=click.IntRange(min=0),
+    help="Seconds the directory keeps a TD without a refresh (default 600; refreshed every ttl/2; 0: no expiry).",
+)
+@click.option(
     "--config",
     "config_file",
     type=click.Path(dir_okay=False, path_type=Path),
@@ -102,6 +112,8 @@ def run(
     bus: str | None,
     mqtt_version: str | None,
     broker: str | None,
+    directory: str | None,
+    directory_ttl: int | None,
     config_file: Path | None,
     ros: str,
     package: str | None,
@@ -123,8 +135,9 @@ def run(
     The generated adaptor package must be importable: source the colcon/catkin install space it was built
     into, or give --package-path (its source directory) and, for ROS 2, --prefix (the built interfaces).
     Precedence of settings: options > TD2ADAPTOR_* environment > --config file. Once online, each robot's
-    Thing Description (what `td2adaptor expose` writes) is retained on td2adaptor/<robot>/td. SIGINT/SIGTERM
-    stop it cleanly (the TD is cleared, the robot's status becomes offline).
+    Thing Description (what `td2adaptor expose` writes) is retained on td2adaptor/<robot>/td and, with
+    --directory, registered with a TD directory. SIGINT/SIGTERM stop it cleanly (the TD is cleared and
+    deregistered, the robot's status becomes offline).
     """
     import logging
     import signal
@@ -147,6 +160,8 @@ def run(
         "bus": bus,
         "mqtt_version": mqtt_version,
         "td_broker": broker,
+        "directory": directory,
+        "directory_ttl": directory_ttl,
         "ros_domain_id": domain_id,
         "ros_master_uri": master_uri,
         "poll_period": poll_period,

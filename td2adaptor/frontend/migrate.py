@@ -124,6 +124,11 @@ def _affordance(
                 link["cancel"] = proc.cancel
             if proc.mission_id:
                 link["missionId"] = "/".join(proc.mission_id)
+            if proc.state:
+                link["state"] = "/".join(proc.state)
+                link["states"] = dict(proc.states)
+            if proc.message:
+                link["message"] = "/".join(proc.message)
             out["rosv:procedure"] = link
         wrote_component = True
 

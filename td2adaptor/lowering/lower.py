@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 from td2adaptor.diagnostics import Diagnostics, Severity, pointer_join
 from td2adaptor.frontend.extract import BINDING, REFERENCE, RawEndpoint, obj
+from td2adaptor.lowering.procstate import READING_KEYS, RoleInfo, check_reading, parse_reading
 from td2adaptor.lowering.rosnames import (
     BINDING_PLACEHOLDER,
     REFERENCE_PLACEHOLDER,
@@ -122,6 +123,7 @@ def lower(
     _report_interface_problems(found, endpoints, tables, diags)
     for g in groups:
         procedures[g.name] = tuple(_mission_ids(g, procedures[g.name], tables, diags))
+        procedures[g.name] = tuple(check_reading(proc, _roles(g, proc), tables, diags) for proc in procedures[g.name])
     _crosscheck(endpoints, tables, diags, ros1_first=thing.master_uri is not None)
     if len(diags.errors()) > errors_before:
         return None
@@ -386,12 +388,12 @@ def _explicit_procedure(
     ok = True
     links: dict[str, str | None] = {"query": None, "cancel": None}
     for key in value:
-        if key not in ("query", "cancel", "missionId"):
+        if key not in ("query", "cancel", "missionId", *READING_KEYS):
             diags.error(
                 "ROS441",
                 f"action {ep.raw.name!r}: unknown procedure link {key!r}",
                 pointer_join(loc.pointer, key),
-                "rosv:procedure has 'query', 'cancel' and 'missionId'",
+                "rosv:procedure has 'query', 'cancel', 'missionId', 'state', 'states' and 'message'",
             )
             ok = False
     for key in ("query", "cancel"):
@@ -437,7 +439,23 @@ def _explicit_procedure(
                 "e.g. 'state/header/id'",
             )
             ok = False
-    return Procedure(ep.raw.name, links["query"], links["cancel"], path) if ok else None
+    reading = parse_reading(ep.raw.name, value, loc.pointer, diags)
+    if reading is None or not ok:
+        return None
+    state, states, message = reading
+    return Procedure(ep.raw.name, links["query"], links["cancel"], path, state, states, message)
+
+
+def _roles(group: _Group, proc: Procedure) -> dict[str, RoleInfo]:
+    """The services a procedure calls, by role, as the state checks need them."""
+    by_name = {ep.raw.name: ep for ep in group.endpoints}
+    run = by_name[proc.run]
+    where = run.raw.procedure.pointer if run.raw.procedure is not None else run.raw.pointer
+    out = {}
+    for role, name in (("run", proc.run), ("query", proc.query), ("cancel", proc.cancel)):
+        if name is not None:
+            out[role] = RoleInfo(name, by_name[name].type_name, by_name[name].raw.pointer, where)
+    return out
 
 
 def _role_of(ep: _Endpoint) -> ProcedureRole:
@@ -526,7 +544,7 @@ def _mission_ids(
             continue
         derived = ("state", "header", "id")
         if responses and all(_field_path(resp, derived, t) in _INT_TYPES for t, resp in responses):
-            out.append(Procedure(proc.run, proc.query, proc.cancel, derived))
+            out.append(replace(proc, mission_id=derived))
         else:
             out.append(proc)
     return out

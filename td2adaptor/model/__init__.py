@@ -319,12 +319,21 @@ class Procedure:
     """A long-running robot procedure: the run action and the actions that query and cancel it.
 
     `mission_id` is the response field path (e.g. ("state", "header", "id")) holding the id the robot assigns.
+    How a state is read from a response: with `state` (a field path) through `states` (field value as text →
+    queued/running/paused/finished/failed/cancelled) and `message` (a field path), or, when `state` is empty,
+    by the procedures_msgs convention (state/current_state, state/last_event, result/result, result/message).
+    `stateful` names the roles ("run", "query", "cancel") whose responses carry a state that way; the
+    others only say that the call was taken.
     """
 
     run: str
     query: str | None = None
     cancel: str | None = None
     mission_id: tuple[str, ...] = ()
+    state: tuple[str, ...] = ()
+    states: tuple[tuple[str, str], ...] = ()
+    message: tuple[str, ...] = ()
+    stateful: frozenset[str] = frozenset()
 
 
 @dataclass(frozen=True)

@@ -10,6 +10,8 @@ Topic scheme (every level but the robot id is a validated identifier, so no leve
     td2adaptor/<robot>/<Component>/<property>          property value, retained, throttled          (out)
     td2adaptor/<robot>/<Component>/<run>/feedback      every state change of a mission              (out)
     td2adaptor/<robot>/<Component>/<run>/state         answer to a query or cancel event            (out)
+    td2adaptor/<robot>/<Component>/<action>/query      query a ROS action's goal                    (in)
+    td2adaptor/<robot>/<Component>/<action>/cancel     cancel a ROS action's goal                   (in)
     td2adaptor/<robot>/error                           error events                                 (out)
     td2adaptor/<robot>/status                          online/offline, retained, last will          (out)
     td2adaptor/<robot>/td                              the robot's Thing Description, retained      (out)
@@ -18,18 +20,33 @@ The last one is no event: the edge node publishes there the robot's TD (what `td
 soon as it is online and clears it (an empty retained message) when it stops.
 
 `<robot>` is the robot id; the reserved id `all` addresses every robot (inbound events only).
+
+A TD action bound to a ROS action is a procedure by nature (see `_goal_events`): its invoke sends a goal,
+its feedback events carry the ROS feedback messages and end with the result, and since the ROS action has
+no affordances of its own for query and cancel, they are topics under the action's.
 """
 
 from __future__ import annotations
 
 import enum
 import re
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
 
-from td2adaptor.model import Model, ProcedureRole, Role, ServiceEndpoint, Text, TopicEndpoint, thaw
+from td2adaptor.model import (
+    ActionDef,
+    ActionEndpoint,
+    Component,
+    Model,
+    ProcedureRole,
+    Role,
+    ServiceEndpoint,
+    Text,
+    TopicEndpoint,
+    thaw,
+)
 from td2adaptor.model.msgschema import message_schema, strictest
 
 TOPIC_ROOT = "td2adaptor"
@@ -94,6 +111,11 @@ class EventSpec:
     run: str | None = None  # query/cancel: the run action they belong to
 
     @property
+    def goal_control(self) -> bool:
+        """A query or cancel of a ROS action's goal: it has the action's name, under a topic of its own."""
+        return self.kind in (Kind.QUERY, Kind.CANCEL) and self.run is not None and self.run == self.affordance
+
+    @property
     def key(self) -> str:
         """A stable identifier, usable as an AsyncAPI component key."""
         parts = [p for p in (self.component, self.affordance) if p]
@@ -125,7 +147,7 @@ class EventSpec:
         if self.component is None:
             return f"{root}/{robot}/{self.kind.value}"
         base = f"{root}/{robot}/{self.component}/{self.affordance}"
-        if self.kind in (Kind.WRITE, Kind.FEEDBACK, Kind.STATE):
+        if self.kind in (Kind.WRITE, Kind.FEEDBACK, Kind.STATE) or self.goal_control:
             return f"{base}/{self.kind.value}"
         return base
 
@@ -560,6 +582,8 @@ def build_catalog(model: Model, distro: str = "ros2") -> EventCatalog:
                     required=[],
                     run=proc.run,
                 )
+        for action in comp.actions:
+            _goal_events(model, comp, action, add, distro)
         for topic in comp.topics:
             title, desc = _text(topic.text, topic.name)
             if topic.role is Role.SUBSCRIBER:
@@ -603,3 +627,110 @@ def build_catalog(model: Model, distro: str = "ros2") -> EventCatalog:
         required=_OUT_REQUIRED,
     )
     return EventCatalog(model.package_name, tuple(specs), _envelope(base), distro)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# TD actions bound to ROS actions
+
+#: a goal id as the events carry it: the goal's UUID in hex (ROS 2), or actionlib's goal id text (ROS 1)
+GOAL_ID = {"description": "The ROS goal id the adaptor follows.", "type": "string", "minLength": 1, "maxLength": 256}
+#: the ROS goal status words a goal event may carry in `result`
+GOAL_WORDS = (
+    "pending",
+    "rejected",
+    "accepted",
+    "executing",
+    "canceling",
+    "succeeded",
+    "canceled",
+    "aborted",
+    "lost",
+    "unknown",
+)
+
+
+def _action_part(model: Model, action: ActionEndpoint, part: str, *, distro: str, complete: bool) -> Any:
+    """JSON Schema of an action's goal, result or feedback in `distro`'s layout (else the other's), narrowed by
+    the TD's input (goal) or output (result) schema as a service's request and response are."""
+    ros: dict[str, Any] = {}
+    for table in (model.ros1, model.ros2) if distro == "ros1" else (model.ros2, model.ros1):
+        found = table.get(action.type_name)
+        if isinstance(found, ActionDef):
+            ros = message_schema(getattr(found, part), table, complete=complete)
+            break
+    td = {"goal": action.input_schema, "result": action.output_schema}.get(part)
+    schema = strictest(ros, data_schema(td)) if td is not None else ros
+    return schema or {"type": "object"}
+
+
+def _goal_payload(*, feedback: Any = None, output: Any = None) -> dict[str, Any]:
+    """A feedback (when `feedback` is given) or state payload of a ROS action goal."""
+    schema = _state_payload(feedback=feedback is not None, output=output)
+    props = dict(schema["properties"])
+    props["goal"] = GOAL_ID
+    props["result"] = {
+        "description": "The ROS goal status, in the robot's words (e.g. succeeded, aborted, canceled, rejected).",
+        "type": "string",
+        "enum": list(GOAL_WORDS),
+    }
+    if feedback is not None:
+        props["feedback"] = {**feedback, "description": "One ROS feedback message, as the robot sent it."}
+    return {**schema, "properties": props}
+
+
+def _goal_events(model: Model, comp: Component, action: ActionEndpoint, add: Callable[..., None], distro: str) -> None:
+    """The events of a TD action bound to a ROS action: invoke (a goal), feedback (one per ROS feedback
+    message, then exactly one terminal event with the result), query and cancel of the goal, state."""
+    title, desc = _text(action.text, action.name)
+    goal = _action_part(model, action, "goal", distro=distro, complete=False)
+    needed = action.input_schema is not None or bool(goal.get("properties"))
+    output = _action_part(model, action, "result", distro=distro, complete=True)
+    add(
+        Kind.INVOKE,
+        comp.name,
+        action.name,
+        f"{title}: invoke",
+        f"Send a {action.name} goal. {desc}".strip(),
+        payload=goal,
+        required=["payload"] if needed else [],
+        extra={"mission": False},
+    )
+    add(
+        Kind.FEEDBACK,
+        comp.name,
+        action.name,
+        f"{title}: feedback",
+        f"The {action.name} goal accepted, one event per ROS feedback message (in `feedback`), then exactly one "
+        "terminal event with the result (in `output`).",
+        payload=_goal_payload(
+            feedback=_action_part(model, action, "feedback", distro=distro, complete=True), output=output
+        ),
+        required=_OUT_REQUIRED + ["affordance"],
+    )
+    control = {
+        "type": "object",
+        "properties": {"goal": {**GOAL_ID, "description": "The goal; default: the current or last one."}},
+        "additionalProperties": False,
+    }
+    for kind, verb in ((Kind.QUERY, "Query the state of"), (Kind.CANCEL, "Cancel")):
+        add(
+            kind,
+            comp.name,
+            action.name,
+            f"{title}: {kind.value}",
+            f"{verb} a {action.name} goal: the one given by `goal`, else the current or last one. Answered by a "
+            f"{action.name} state event.",
+            payload=control,
+            required=[],
+            run=action.name,
+            extra={"mission": False},
+        )
+    add(
+        Kind.STATE,
+        comp.name,
+        action.name,
+        f"{title}: state",
+        f"The state of a {action.name} goal, answering a query or cancel event.",
+        payload=_goal_payload(),
+        required=_OUT_REQUIRED + ["affordance"],
+    )

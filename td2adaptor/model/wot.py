@@ -27,7 +27,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from td2adaptor.model.events import TOPIC_ROOT, EventCatalog, EventSpec, Kind
+from td2adaptor.model.events import GOAL_ID, TOPIC_ROOT, EventCatalog, EventSpec, Kind
 
 WOT_LEVEL = "wot-thing"
 CORRELATION = "correlationId"
@@ -55,7 +55,7 @@ def wot_topic(spec: EventSpec, robot: str, root: str = TOPIC_ROOT) -> str | None
     if spec.kind is Kind.ERROR:
         return f"{base}/error"
     topic = f"{base}/{spec.component}/{spec.affordance}"
-    if spec.kind in (Kind.FEEDBACK, Kind.STATE):
+    if spec.kind in (Kind.FEEDBACK, Kind.STATE) or spec.goal_control:  # a ROS action's query/cancel: own topics
         return f"{topic}/{spec.kind.value}"
     return topic
 
@@ -74,6 +74,15 @@ def takes_correlation(spec: EventSpec) -> bool:
 def action_input(spec: EventSpec) -> dict[str, Any]:
     """The data a WoT consumer sends to invoke, query or cancel: the goal's own fields (query and cancel:
     which mission), plus the optional `correlationId`."""
+    if spec.goal_control:  # a ROS action's goal: named by its goal id
+        return {
+            "type": "object",
+            "properties": {
+                "goal": {**GOAL_ID, "description": "Which goal; default the current or last one."},
+                CORRELATION: dict(_CORRELATION_SCHEMA),
+            },
+            "additionalProperties": False,
+        }
     if spec.kind in (Kind.QUERY, Kind.CANCEL):
         return {
             "type": "object",

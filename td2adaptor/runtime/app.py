@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING
 
 from td2adaptor.model import Model
 from td2adaptor.model.events import EventCatalog, build_catalog, td_topic
@@ -20,6 +22,11 @@ from td2adaptor.runtime.security import (
     plan_security,
 )
 from td2adaptor.runtime.thingbus import thing_bus
+
+if TYPE_CHECKING:
+    from td2adaptor.runtime.discovery import Registration
+
+log = logging.getLogger("td2adaptor.runtime")
 
 
 def bus_security(
@@ -117,8 +124,9 @@ def serve(
     env: Mapping[str, str] | None = None,
     distro: str = "ros2",
 ) -> Engine:
-    """Connect and start serving (the robot's TD published, retained, with the online status); `Engine.stop()`
-    ends it (and clears the TD). `distro`: the robot's ROS version, whose message layouts the events follow.
+    """Connect and start serving (the robot's TD published, retained, with the online status, and registered
+    with the configured TD directory); `Engine.stop()` ends it (and clears the TD, here and there). `distro`:
+    the robot's ROS version, whose message layouts the events follow.
 
     The engine's bus is wrapped in a `ThingBus`: WoT consumers of the published TD use the robot on its WoT
     topics, native clients on the envelope topics."""
@@ -130,7 +138,33 @@ def serve(
     )
     engine = Engine(model, port, bus, config, catalog=catalog, td=td)
     engine.start()
+    registration = register(config, td)
+    if registration is not None:
+        engine.on_stop.append(registration.stop)
     return engine
+
+
+def register(config: RuntimeConfig, td: Message | None) -> Registration | None:
+    """Start keeping the robot's TD registered with `config.directory` (None when none is configured)."""
+    if config.directory is None:
+        return None
+    if td is None:
+        log.warning(
+            "robot %s: no Thing Description to register with the directory (a local bus names no broker; "
+            "set td_broker)",
+            config.robot,
+        )
+        return None
+    from td2adaptor.runtime.discovery import Directory, Registration
+
+    directory = Directory(config.directory, token=config.directory_token, ca_file=config.directory_ca_file)
+    try:
+        registration = Registration(directory, td.payload, robot=config.robot, ttl=config.directory_ttl)
+    except ValueError as exc:  # a TD without id: logged, the robot is served all the same
+        log.error("%s", exc)
+        return None
+    registration.start()
+    return registration
 
 
 def serve_fleet(

@@ -36,9 +36,11 @@ from typing import IO, Any
 
 from td2adaptor.runtime.genport import GeneratedPort, Layout
 from td2adaptor.runtime.port import (
+    GoalProgress,
     NoValue,
     PortCallFailed,
     PortError,
+    PortRejected,
     PortTimeout,
     PortUnavailable,
     StartResult,
@@ -50,6 +52,7 @@ _ERRORS: dict[str, type[PortError]] = {
     "PortTimeout": PortTimeout,
     "PortCallFailed": PortCallFailed,
     "NoValue": NoValue,
+    "PortRejected": PortRejected,
 }
 #: ROS 2 variables (and the ROS 2 wheels' loader state) a ROS 1 child must not inherit
 _ROS2_ONLY = (
@@ -361,6 +364,21 @@ class BridgePort:
     def write_property(self, component: str, name: str, value: Any) -> None:
         self.bridge.call(self.robot, "write_property", [component, name, value], self.bridge.timeout)
 
+    # ROS actions: the child follows the goal (feedback, result), the parent asks it what happened
+
+    def send_goal(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> str:
+        return str(self.bridge.call(self.robot, "send_goal", [component, action, dict(payload), timeout], timeout))
+
+    def goal_progress(self, component: str, action: str, goal: str, since: int | None, wait: float) -> GoalProgress:
+        out = self.bridge.call(self.robot, "goal_progress", [component, action, goal, since, wait], wait)
+        return GoalProgress.from_json(out)
+
+    def cancel_goal(self, component: str, action: str, goal: str, timeout: float) -> bool:
+        return bool(self.bridge.call(self.robot, "cancel_goal", [component, action, goal, timeout], timeout))
+
+    def forget_goal(self, component: str, action: str, goal: str) -> None:
+        self.bridge.call(self.robot, "forget_goal", [component, action, goal], self.bridge.timeout)
+
 
 # ---------------------------------------------------------------------------------------------------------
 # child side
@@ -415,8 +433,13 @@ def _serve(requests: IO[str], replies: IO[str]) -> int:
             if op == "start":
                 started = port.start(*args)
                 reply({"id": rid, "ok": {"response": started.response, "mission_id": started.mission_id}})
-            elif op in ("query", "cancel", "call", "read_property", "write_property"):
+            elif op == "goal_progress":
+                reply({"id": rid, "ok": port.goal_progress(*args).to_json()})
+            elif op in ("query", "cancel", "call", "read_property", "write_property", "send_goal", "cancel_goal"):
                 reply({"id": rid, "ok": getattr(port, op)(*args)})
+            elif op == "forget_goal":
+                port.forget_goal(*args)
+                reply({"id": rid, "ok": None})
             else:
                 raise PortCallFailed(f"unknown bridge operation {op!r}")
         except Exception as exc:  # noqa: BLE001 - every failure is an answer

@@ -35,6 +35,7 @@ class RuntimeConfig:
     mission_timeout: float = 600.0  # overall limit of one mission
     call_timeout: float = 10.0  # one robot call
     max_query_failures: int = 3  # consecutive failed queries before a mission is given up
+    feedback_period: float = 0.0  # ROS action feedback: 0 one event per message, else at most one per period
     property_period: float = 1.0  # property events: at most one per property and period (0: off)
     max_event_bytes: int = 65536
     username: str | None = None
@@ -52,6 +53,10 @@ class RuntimeConfig:
     freshness_window: float = 300.0  # an inbound event older than this (by its `time`) is expired, not run
     clock_skew: float = 30.0  # tolerated difference between the sender's clock and ours
     state_dir: str | None = None  # where event ids are remembered (default: the user cache's state/; "" keeps none)
+    directory: str | None = None  # a W3C WoT Thing Description Directory to register the robot's TD with
+    directory_ttl: int = 600  # seconds the directory keeps the TD without a refresh (0: until it is deleted)
+    directory_token: str | None = field(default=None, repr=False)  # Bearer token for the directory, if it wants one
+    directory_ca_file: str | None = None  # CA bundle for an https directory with a private CA
 
     def __post_init__(self) -> None:
         if not ROBOT_ID.match(self.robot) or self.robot == ALL_ROBOTS:
@@ -63,10 +68,21 @@ class RuntimeConfig:
                 raise ConfigError(f"{name} must be positive")
         if not self.freshness_window > 0 or self.clock_skew < 0:
             raise ConfigError("freshness_window must be positive and clock_skew >= 0")
+        if self.feedback_period < 0:
+            raise ConfigError("feedback_period must be >= 0 (0: one feedback event per ROS feedback message)")
         if self.property_period < 0 or self.max_query_failures < 1 or self.max_event_bytes < 256:
             raise ConfigError("property_period >= 0, max_query_failures >= 1 and max_event_bytes >= 256 required")
         if self.mqtt_version not in ("5", "3.1.1"):
             raise ConfigError(f"mqtt_version {self.mqtt_version!r} must be 5 or 3.1.1")
+        if self.directory is not None:
+            from td2adaptor.runtime.discovery import check_directory_url
+
+            try:
+                object.__setattr__(self, "directory", check_directory_url(self.directory))
+            except ValueError as exc:
+                raise ConfigError(str(exc)) from None
+        if self.directory_ttl < 0:
+            raise ConfigError("directory_ttl must be >= 0 (0: the directory keeps the TD until it is deleted)")
         if not self.topic_root or any(c in self.topic_root for c in "+#\x00") or self.topic_root.startswith("/"):
             raise ConfigError(f"topic_root {self.topic_root!r} is not a valid MQTT topic prefix")
 

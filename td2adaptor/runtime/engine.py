@@ -35,8 +35,9 @@ from td2adaptor.model.events import ALL_ROBOTS, EventCatalog, EventSpec, Kind, b
 from td2adaptor.runtime.bus import Bus, BusError, Message
 from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope, excerpt, salvage
+from td2adaptor.runtime.goals import GoalRunner
 from td2adaptor.runtime.port import NoValue, PortError, RobotPort, StartResult
-from td2adaptor.runtime.procedures import ProcedureStatus, interpret
+from td2adaptor.runtime.procedures import ProcedureStatus, read
 from td2adaptor.runtime.replay import ReplayGuard, Verdict
 from td2adaptor.runtime.words import INTERNAL, describe
 
@@ -76,6 +77,7 @@ class Mission:
     done: bool = False
     cancels: list[str | None] = field(default_factory=list)
     wake: threading.Event = field(default_factory=threading.Event)
+    goal: str | None = None  # a ROS action goal: its id, once the server accepted it
 
 
 def status_event(config: RuntimeConfig, model: Model, state: str) -> Message:
@@ -111,6 +113,7 @@ class Engine:
         self.validator = EventValidator(self.catalog)
         self.clock = clock
         self.td = td  # the robot's TD as the bus announces it on connecting: cleared on stop
+        self.on_stop: list[Callable[[], None]] = []  # run first by stop() (e.g. leaving a TD directory)
         self.stats: dict[str, int] = {}
         self._lock = threading.Lock()
         self._inbox: queue.Queue[Message | None] = queue.Queue()
@@ -121,6 +124,7 @@ class Engine:
         self._threads: list[threading.Thread] = []
         self._missions: set[threading.Thread] = set()
         self._pool = ThreadPoolExecutor(max_workers=4, thread_name_prefix=f"td2adaptor-{config.robot}-call")
+        self._goals = GoalRunner(self)
 
     # -- life cycle ----------------------------------------------------------------------------------------
 
@@ -147,6 +151,11 @@ class Engine:
         if self._stopping.is_set():
             return
         self._stopping.set()
+        for hook in self.on_stop:
+            try:
+                hook()
+            except Exception:  # a hook must not keep the robot from going offline cleanly
+                log.exception("while stopping robot %s", self.config.robot)
         self._inbox.put(None)
         with self._lock:
             missions = list(self._active.values())
@@ -212,15 +221,32 @@ class Engine:
         event = self._event(Kind.ERROR, payload, affordance=affordance, correlation=correlation, mission=mission)
         self._publish(self.catalog.find(Kind.ERROR), event)
 
-    def _state(self, run: str, status: ProcedureStatus, correlation: str | None, mission: int | None) -> None:
-        payload = {**status.payload(), "terminal": status.terminal}
+    def _state(
+        self,
+        run: str,
+        status: ProcedureStatus,
+        correlation: str | None,
+        mission: int | None,
+        extra: Mapping[str, Any] | None = None,
+    ) -> None:
+        payload = {**status.payload(), "terminal": status.terminal, **(extra or {})}
         event = self._event(Kind.STATE, payload, affordance=run, correlation=correlation, mission=mission)
         self._publish(self.catalog.find(Kind.STATE, run), event)
 
-    def _feedback(self, m: Mission, status: ProcedureStatus, *, terminal: bool, output: Any = None) -> None:
+    def _feedback(
+        self,
+        m: Mission,
+        status: ProcedureStatus,
+        *,
+        terminal: bool,
+        output: Any = None,
+        extra: Mapping[str, Any] | None = None,
+    ) -> None:
         m.seq += 1
         m.state = status.state
-        payload: dict[str, Any] = {**status.payload(), "terminal": terminal, "seq": m.seq}
+        payload: dict[str, Any] = {**status.payload(), "terminal": terminal, "seq": m.seq, **(extra or {})}
+        if m.goal is not None:
+            payload["goal"] = m.goal
         if output is not None:
             payload["output"] = output
         event = self._event(
@@ -294,7 +320,14 @@ class Engine:
         component = self.model.component(spec.component or "")
         assert spec.affordance is not None
         procedure = component.procedure_of(spec.affordance)
-        if spec.kind is Kind.INVOKE and procedure is not None and procedure.run == spec.affordance:
+        if any(a.name == spec.affordance for a in component.actions):
+            if spec.kind is Kind.INVOKE:
+                self._invoke(spec, Procedure(spec.affordance), event, msg.topic, goal=True)
+            elif spec.kind is Kind.CANCEL:
+                self._goals.cancel(spec, event)
+            elif spec.kind is Kind.QUERY:
+                self._pool.submit(self._goals.query, spec, event)
+        elif spec.kind is Kind.INVOKE and procedure is not None and procedure.run == spec.affordance:
             self._invoke(spec, procedure, event, msg.topic)
         elif spec.kind is Kind.INVOKE:
             self._pool.submit(self._plain_call, spec, event)
@@ -307,12 +340,14 @@ class Engine:
 
     # -- missions ------------------------------------------------------------------------------------------
 
-    def _invoke(self, spec: EventSpec, procedure: Procedure, event: dict[str, Any], topic: str) -> None:
+    def _invoke(
+        self, spec: EventSpec, procedure: Procedure, event: dict[str, Any], topic: str, *, goal: bool = False
+    ) -> None:
         component = spec.component or ""
         correlation = event.get("correlation") or event.get("id")
         mission = Mission(component, procedure.run, procedure, correlation, event.get("payload") or {}, self.clock())
         thread = threading.Thread(
-            target=self._run_mission, args=(mission,), name=f"mission-{procedure.run}", daemon=True
+            target=self._run_mission, args=(mission, goal), name=f"mission-{procedure.run}", daemon=True
         )
         with self._lock:
             busy = self._active.get(component)
@@ -334,7 +369,7 @@ class Engine:
         self._count("missions")
         thread.start()
 
-    def _finish(self, m: Mission, status: ProcedureStatus) -> None:
+    def _finish(self, m: Mission, status: ProcedureStatus, output: Any = None) -> None:
         """The one terminal feedback; the component is free again before it is published."""
         with self._lock:
             if m.done:
@@ -345,16 +380,20 @@ class Engine:
             if m.mission_id is not None:
                 self._last_mission[m.action] = m.mission_id
             late, m.cancels = m.cancels, []
-        self._feedback(m, status, terminal=True)
+        self._feedback(m, status, terminal=True, output=output)
+        extra = {"goal": m.goal} if m.goal is not None else None
         for correlation in late:  # cancels that came as the mission ended: its end is their answer
-            self._state(m.action, status, correlation, m.mission_id)
+            self._state(m.action, status, correlation, m.mission_id, extra)
 
     def _path(self, procedure: Procedure) -> tuple[str, ...]:
         return procedure.mission_id or _DEFAULT_MISSION_PATH
 
-    def _run_mission(self, m: Mission) -> None:
+    def _run_mission(self, m: Mission, goal: bool = False) -> None:
         try:
-            self._follow(m)
+            if goal:
+                self._goals.follow(m)
+            else:
+                self._follow(m)
         except Exception:  # the last line of defence: report, never crash
             log.exception("mission %s failed internally", m.action)
             self._finish(m, ProcedureStatus("failed", message=INTERNAL, reason="call-failed"))
@@ -365,20 +404,28 @@ class Engine:
     def _follow(self, m: Mission) -> None:
         cfg, port, proc = self.config, self.port, m.procedure
         deadline = m.started + cfg.mission_timeout
+        refused = False
         try:
             started = port.start(m.component, m.action, m.payload, cfg.call_timeout)
         except PortError as exc:
-            if exc.response is None:
+            if exc.response is None:  # no answer: we cannot know whether it runs
+                log.warning("%s: failed (%s): %s", m.action, exc.reason, _describe(exc))
                 self._finish(m, ProcedureStatus("failed", message=_describe(exc), reason=exc.reason))
                 return
-            started = StartResult(exc.response, None)  # the robot answered, and refused: read its answer
+            started, refused = StartResult(exc.response, None), True  # the robot answered, and refused
         except Exception as exc:
+            log.warning("%s: failed: %s", m.action, _describe(exc))
             self._finish(m, ProcedureStatus("failed", message=_describe(exc), reason="call-failed"))
             return
-        status = interpret(started.response, self._path(proc))
-        if status.state != "failed" and _says_error(started.response):
-            status = ProcedureStatus("failed", status.result, status.message, status.last_event, "rejected")
+        reading = read(started.response, proc, "run", _DEFAULT_MISSION_PATH)
+        status = reading.status or ProcedureStatus("running", message="started")
+        if reading.unmapped is not None:
+            log.warning("%s: state value %r is not mapped: taken as started", m.action, reading.unmapped)
+        if status.state != "failed" and (refused or _says_error(started.response)):
+            status = ProcedureStatus("failed", status.result, status.message or _message(started.response))
         if status.state == "failed":  # refused by the robot: the id in its answer is not ours
+            why = "answered with an error" if refused or _says_error(started.response) else "reported it failed"
+            log.warning("%s: rejected: the robot %s: %s", m.action, why, status.message or "(no message)")
             self._finish(m, ProcedureStatus("failed", status.result, status.message, status.last_event, "rejected"))
             return
         m.mission_id = started.mission_id if started.mission_id is not None else status.mission_id
@@ -407,7 +454,7 @@ class Engine:
             mid = m.mission_id if m.mission_id is not None else -1
             try:
                 response = _answer(port.query, m.component, proc.query, mid, cfg.call_timeout)
-                status = interpret(response, self._path(proc))
+                reading = read(response, proc, "query", _DEFAULT_MISSION_PATH)
             except Exception as exc:
                 failures += 1
                 log.warning("query %d of %s mission %s failed: %s", failures, m.action, mid, _describe(exc))
@@ -417,11 +464,17 @@ class Engine:
                     return
                 continue
             failures = 0
-            if status.terminal:
-                self._finish(m, status)
+            current = reading.status
+            if current is None:  # validate refuses such a query (ROS445); an unmapped value is no news
+                log.warning("query of %s mission %s: no state in the answer (%r)", m.action, mid, reading.unmapped)
+                continue
+            if current.terminal:
+                if current.state == "failed":
+                    log.warning("%s mission %s: the robot reports it failed: %s", m.action, mid, current.message)
+                self._finish(m, current)
                 return
-            if status.state != m.state:
-                self._feedback(m, status, terminal=False)
+            if current.state != m.state:
+                self._feedback(m, current, terminal=False)
 
     def _pending_cancels(self, m: Mission) -> bool:
         """Carry out cancel events for this mission; True when the mission ended."""
@@ -442,7 +495,7 @@ class Engine:
                 continue
             try:
                 response = _answer(self.port.cancel, m.component, proc.cancel, mid, self.config.call_timeout)
-                status = interpret(response, self._path(proc))
+                status = read(response, proc, "cancel", _DEFAULT_MISSION_PATH).status or _requested(m.state)
             except Exception as exc:
                 self._error(
                     "call-failed",
@@ -516,7 +569,9 @@ class Engine:
                 mission=mid if mid != -1 else None,
             )
             return
-        status = interpret(response, self._path(procedure))
+        status = read(response, procedure, "cancel" if cancel else "query", _DEFAULT_MISSION_PATH).status
+        if status is None:
+            status = _requested(None) if cancel else ProcedureStatus("running", message="no state in the answer")
         mission = status.mission_id if status.mission_id is not None else (mid if mid != -1 else None)
         self._state(procedure.run, status, correlation, mission)
 
@@ -536,6 +591,7 @@ class Engine:
             output = dict(self.port.call(m.component, action, m.payload, self.config.call_timeout))
         except Exception as exc:
             reason = exc.reason if isinstance(exc, PortError) else "call-failed"
+            log.warning("%s: failed (%s): %s", action, reason, _describe(exc))
             self._feedback(m, ProcedureStatus("failed", message=_describe(exc), reason=reason), terminal=True)
             return
         self._feedback(m, ProcedureStatus("finished"), terminal=True, output=output)
@@ -589,6 +645,17 @@ def _answer(
         if exc.response is None:
             raise
         return exc.response
+
+
+def _requested(state: str | None) -> ProcedureStatus:
+    """The answer to a cancel whose response carries no state: asked, the mission's end will tell."""
+    return ProcedureStatus(state or "running", message="cancel requested")
+
+
+def _message(response: Mapping[str, Any]) -> str:
+    """The robot's words in a response without a procedure state (std_srvs' `message`)."""
+    text = response.get("message")
+    return text if isinstance(text, str) else ""
 
 
 def _says_error(response: Mapping[str, Any]) -> bool:

@@ -17,8 +17,10 @@ ROS 1 interpreter.
 from __future__ import annotations
 
 import importlib
+import inspect
 import math
 import threading
+import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from types import ModuleType
@@ -26,13 +28,24 @@ from typing import Any
 
 from td2adaptor.model import Model, ProcedureRole
 from td2adaptor.runtime.port import (
+    GoalProgress,
     NoValue,
     PortCallFailed,
     PortError,
+    PortRejected,
     PortTimeout,
     PortUnavailable,
     StartResult,
 )
+
+#: how long a goal's feedback pump waits in one go (it re-checks whether it was told to stop in between)
+PUMP_WAIT = 1.0
+#: after a goal's result, feedback still arriving is kept until none came for this long (see GoalTrack)
+FEEDBACK_GRACE = 0.01
+#: ... but for no longer than this in all
+TRAIL_LIMIT = 1.0
+#: feedback messages a goal keeps for a caller that has not read them yet (older ones are dropped)
+FEEDBACK_KEEP = 1000
 
 
 def to_plain(value: Any) -> Any:
@@ -70,6 +83,8 @@ def _port_error(exc: BaseException) -> PortError:
     response = getattr(exc, "response", None)
     plain = to_plain(response) if response is not None else None
     message = str(exc).strip()  # may be empty: the error event then says the kind in words (runtime/words.py)
+    if "GoalRejected" in names:  # the server's words, without the action's name in front
+        return PortRejected(str(getattr(exc, "message", "") or message))
     if "ServiceUnavailable" in names:
         return PortUnavailable(message)
     if "CallTimeout" in names:
@@ -77,6 +92,13 @@ def _port_error(exc: BaseException) -> PortError:
     if "NoMessage" in names:
         return NoValue(message)
     return PortCallFailed(message, response=plain if isinstance(plain, Mapping) else None)
+
+
+def _takes_mission_id(method: Callable[..., Any]) -> bool:
+    try:
+        return "mission_id" in inspect.signature(method).parameters
+    except (TypeError, ValueError):
+        return False
 
 
 @dataclass(frozen=True)
@@ -98,6 +120,117 @@ class Layout:
     def from_json(cls, data: Mapping[str, Any]) -> Layout:
         runs: Iterable[Any] = data.get("runs") or ()
         return cls(tuple(str(c) for c in data["components"]), frozenset((str(c), str(a)) for c, a in runs))
+
+
+class GoalTrack:
+    """One goal followed through a generated `GoalHandle`: its feedback as dicts, its status and its end.
+
+    Feedback comes from the handle's `on_feedback` callback, registered at once; what arrived before (the
+    handle buffers it) is read with its `feedback()` iterator up to the first message the callback also saw
+    (the same object), so no message is lost or doubled. A thread waits for the result; when it came, feedback
+    may still trail it (a different channel, and rclpy hands a result over before feedback taken in the same
+    wake-up): the goal counts as done once no message came for `FEEDBACK_GRACE` (at most `TRAIL_LIMIT`).
+    """
+
+    def __init__(self, handle: Any) -> None:
+        self.handle = handle
+        self.goal_id = str(handle.goal_id)
+        self._cond = threading.Condition()
+        self._items: list[Any] = []
+        self._dropped = 0
+        self._late: list[Any] = []  # messages the callback took before the buffered ones were read
+        self._joined = False
+        self._done = False
+        self._status = "accepted"
+        self._result: Any = None
+        self._message = ""
+        self._closed = False
+        self._remove = handle.on_feedback(self._on_feedback)
+        self._thread = threading.Thread(target=self._follow, name=f"goal-{self.goal_id[:8]}", daemon=True)
+        self._thread.start()
+
+    def _add(self, message: Any) -> None:
+        """Append one message (lock held)."""
+        self._items.append(to_plain(message))
+        if len(self._items) > FEEDBACK_KEEP:
+            del self._items[0]
+            self._dropped += 1
+        self._cond.notify_all()
+
+    def _on_feedback(self, message: Any) -> None:
+        with self._cond:
+            if self._joined:
+                self._add(message)
+            else:
+                self._late.append(message)
+
+    def _join(self) -> None:
+        """The buffered messages the callback did not see, then the ones it did, in order."""
+        earlier: list[Any] = []
+        try:
+            for message in self.handle.feedback(timeout=0.001):
+                with self._cond:
+                    seen = any(message is m for m in self._late)
+                if seen:
+                    break
+                earlier.append(message)
+        except Exception:  # noqa: BLE001 - CallTimeout: the buffer is read; ServiceUnavailable: the end tells
+            pass
+        with self._cond:
+            for message in [*earlier, *self._late]:
+                self._add(message)
+            self._late = []
+            self._joined = True
+
+    def _follow(self) -> None:
+        self._join()
+        lost = ""
+        result: Any = None
+        while not self._closed:
+            try:
+                result = to_plain(self.handle.result(timeout=PUMP_WAIT))
+                break
+            except Exception as exc:  # noqa: BLE001 - the goal's end, or still running, or its server gone
+                names = {c.__name__ for c in type(exc).__mro__}
+                if "CallTimeout" in names and not self.handle.done:
+                    continue
+                response = getattr(exc, "response", None)
+                result = to_plain(response) if response is not None else None
+                if not self.handle.done:
+                    lost = f"{type(exc).__name__}: {exc}"  # e.g. the ROS 1 server went away
+                break
+        if self._closed:
+            return
+        deadline = time.monotonic() + TRAIL_LIMIT
+        with self._cond:
+            count = -1
+            while count != len(self._items) + self._dropped and time.monotonic() < deadline:
+                count = len(self._items) + self._dropped
+                self._cond.wait(FEEDBACK_GRACE)
+            ended = bool(self.handle.done)
+            self._status = str(self.handle.status) if ended else "lost"
+            self._message = str(getattr(self.handle, "reason", "") or "") if ended else lost
+            self._result = result if isinstance(result, Mapping) else None
+            self._done = True
+            self._cond.notify_all()
+
+    def progress(self, since: int | None, wait: float) -> GoalProgress:
+        with self._cond:
+            if since is not None:
+                self._cond.wait_for(lambda: self._done or self._dropped + len(self._items) > since, wait)
+            received = self._dropped + len(self._items)
+            new: tuple[Any, ...] = ()
+            if since is not None:
+                new = tuple(self._items[max(0, since - self._dropped) :])
+            status = self._status if self._done else str(self.handle.status)
+            return GoalProgress(new, received, status, self._done, self._result, self._message)
+
+    def close(self) -> None:
+        self._closed = True
+        try:
+            self._remove()
+        except Exception:  # noqa: BLE001 - the handle is going away anyway
+            pass
 
 
 class GeneratedPort:
@@ -127,6 +260,8 @@ class GeneratedPort:
         module = importlib.import_module(package) if isinstance(package, str) else package
         self.components: dict[str, Any] = {}
         self._locks: dict[str, threading.Lock] = {}
+        self._goals: dict[tuple[str, str, str], GoalTrack] = {}
+        self._goals_lock = threading.Lock()
         for name in self.layout.components:
             cls = getattr(module, name, None)
             if cls is None:
@@ -171,8 +306,12 @@ class GeneratedPort:
         return self._guarded(component, run)  # type: ignore[no-any-return]
 
     def query(self, component: str, action: str, mission_id: int, timeout: float) -> Mapping[str, Any]:
+        """Call a query or cancel; the mission id goes where the generated method takes one (`mission_id=`),
+        else the robot is asked about its current procedure (a request that cannot name it: ROS447)."""
         call = self._method(component, f"call_{action}")
-        return self._guarded(component, lambda: to_plain(call(mission_id=mission_id, timeout=timeout)))  # type: ignore[no-any-return]
+        if _takes_mission_id(call):
+            return self._guarded(component, lambda: to_plain(call(mission_id=mission_id, timeout=timeout)))  # type: ignore[no-any-return]
+        return self._guarded(component, lambda: to_plain(call(timeout=timeout)))  # type: ignore[no-any-return]
 
     def cancel(self, component: str, action: str, mission_id: int, timeout: float) -> Mapping[str, Any]:
         return self.query(component, action, mission_id, timeout)
@@ -199,7 +338,45 @@ class GeneratedPort:
         fields = value if isinstance(value, Mapping) else {"data": value}
         self._guarded(component, lambda: publish(construct(**fields)))
 
+    # -- ROS actions (the `GoalPort` protocol) --------------------------------------------------------------
+
+    def send_goal(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> str:
+        construct = self._method(component, f"construct_{action}_Goal")
+        send = self._method(component, f"send_{action}")
+        handle = self._guarded(component, lambda: send(construct(**payload), timeout=timeout))
+        track = GoalTrack(handle)
+        with self._goals_lock:
+            self._goals[(component, action, track.goal_id)] = track
+        return track.goal_id
+
+    def _track(self, component: str, action: str, goal: str) -> GoalTrack:
+        with self._goals_lock:
+            track = self._goals.get((component, action, goal))
+        if track is None:
+            raise PortCallFailed(f"{component}.{action}: no goal {goal} is followed here")
+        return track
+
+    def goal_progress(self, component: str, action: str, goal: str, since: int | None, wait: float) -> GoalProgress:
+        return self._track(component, action, goal).progress(since, wait)
+
+    def cancel_goal(self, component: str, action: str, goal: str, timeout: float) -> bool:
+        track = self._track(component, action, goal)
+        try:
+            return bool(track.handle.cancel(timeout=timeout))
+        except Exception as exc:  # noqa: BLE001 - every generated error becomes a port error
+            raise _port_error(exc) from exc
+
+    def forget_goal(self, component: str, action: str, goal: str) -> None:
+        with self._goals_lock:
+            track = self._goals.pop((component, action, goal), None)
+        if track is not None:
+            track.close()
+
     def close(self) -> None:
+        with self._goals_lock:
+            tracks, self._goals = list(self._goals.values()), {}
+        for track in tracks:
+            track.close()
         for instance in self.components.values():
             close = getattr(instance, "close", None)
             if callable(close):

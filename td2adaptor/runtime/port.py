@@ -16,6 +16,21 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
+#: the ROS action goal states a port reports: ROS 2's GoalStatus words, and actionlib's pending, rejected and
+#: lost (the goal ended without a result: the server forgot it, or went away)
+GOAL_STATES = (
+    "unknown",
+    "pending",
+    "accepted",
+    "executing",
+    "canceling",
+    "succeeded",
+    "canceled",
+    "aborted",
+    "rejected",
+    "lost",
+)
+
 
 class PortError(Exception):
     """A robot call that failed. `response` is the robot's answer when there was one (as a dict).
@@ -46,6 +61,12 @@ class PortTimeout(PortError):
 
 class PortCallFailed(PortError):
     """The call was made and failed (remote exception, conversion error, ...)."""
+
+
+class PortRejected(PortError):
+    """A ROS action server refused the goal (it never ran)."""
+
+    reason = "rejected"
 
 
 class NoValue(PortError):
@@ -94,4 +115,70 @@ class RobotPort(Protocol):
 
     def write_property(self, component: str, name: str, value: Any) -> None:
         """Publish `value` on a publisher property."""
+        ...
+
+
+@dataclass(frozen=True)
+class GoalProgress:
+    """What happened to a ROS action goal since the caller last asked.
+
+    `feedback` are the feedback messages received after the first `since` ones (as dicts, in order),
+    `received` how many arrived in all, `status` one of GOAL_STATES; once `done`, `result` is the result
+    message the server sent (None when it sent none) and `message` the server's words (actionlib's status
+    text) or why the goal was lost.
+    """
+
+    feedback: tuple[Any, ...]
+    received: int
+    status: str
+    done: bool = False
+    result: Mapping[str, Any] | None = None
+    message: str = ""
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "feedback": list(self.feedback),
+            "received": self.received,
+            "status": self.status,
+            "done": self.done,
+            "result": self.result,
+            "message": self.message,
+        }
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> GoalProgress:
+        result = data.get("result")
+        return cls(
+            tuple(data.get("feedback") or ()),
+            int(data.get("received") or 0),
+            str(data.get("status") or "unknown"),
+            bool(data.get("done")),
+            result if isinstance(result, Mapping) else None,
+            str(data.get("message") or ""),
+        )
+
+
+@runtime_checkable
+class GoalPort(Protocol):
+    """A robot whose TD actions may be ROS actions: goals, their feedback, result and cancel.
+
+    `goal` is the goal id the port returned from `send_goal` (a hex string). A port forgets a goal when told
+    to, or when it is closed; until then `goal_progress` keeps every feedback message (up to a bound).
+    """
+
+    def send_goal(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> str:
+        """Send a goal built from `payload`; its id once accepted (`PortRejected` when the server refuses)."""
+        ...
+
+    def goal_progress(self, component: str, action: str, goal: str, since: int | None, wait: float) -> GoalProgress:
+        """Feedback after the first `since` messages (None: none, the status only), waiting at most `wait`
+        seconds for some to arrive or for the goal to end."""
+        ...
+
+    def cancel_goal(self, component: str, action: str, goal: str, timeout: float) -> bool:
+        """Ask the server to cancel the goal; whether it accepted to."""
+        ...
+
+    def forget_goal(self, component: str, action: str, goal: str) -> None:
+        """The caller no longer follows the goal."""
         ...

@@ -1,7 +1,9 @@
-"""Reading a robot's procedure responses (procedures_msgs conventions) as one of six procedure states.
+"""Reading a robot's procedure responses as one of six procedure states.
 
-The reference edge node mapped `finished` with `last_event == abort` to `unknown` and everything unexpected
-to `unknown`; we keep the distinction instead: finished, failed (with a reason) or cancelled.
+By default the procedures_msgs convention (`interpret`); a binding may name the state field and map its
+values instead (`read`). The reference edge node mapped `finished` with `last_event == abort` to `unknown`
+and everything unexpected to `unknown`; we keep the distinction instead: finished, failed (with a reason)
+or cancelled.
 """
 
 from __future__ import annotations
@@ -10,6 +12,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from td2adaptor.model import Procedure
 from td2adaptor.model.events import TERMINAL_STATES
 
 
@@ -85,3 +88,36 @@ def interpret(response: Any, mission_path: Sequence[str] = ("state", "header", "
     else:  # unknown, empty or something new: the robot does not know this procedure (or refused it)
         state, reason = "failed", "robot-error"
     return ProcedureStatus(state, result, message, last_event, reason, mission)
+
+
+@dataclass(frozen=True)
+class Reading:
+    """What one response says: `status` (None when this kind of response carries no state: the call was
+    taken, nothing more), or the `unmapped` value of a mapped state field no state is given for."""
+
+    status: ProcedureStatus | None
+    unmapped: str | None = None
+
+
+def _value_text(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return value if isinstance(value, str) else str(value)
+
+
+def read(response: Any, procedure: Procedure, role: str, default_path: Sequence[str] = ()) -> Reading:
+    """The state in a `role` ("run", "query", "cancel") response of `procedure` (see `Procedure`)."""
+    if role not in procedure.stateful:
+        return Reading(None)
+    path = procedure.mission_id or tuple(default_path)
+    if not procedure.state:
+        return Reading(interpret(response, path))
+    if not isinstance(response, Mapping):
+        return Reading(ProcedureStatus("failed", message="no response from the robot", reason="unreachable"))
+    text = _value_text(_get(response, *procedure.state))
+    state = dict(procedure.states).get(text)
+    message = _text(_get(response, *procedure.message)) if procedure.message else ""
+    if state is None:
+        return Reading(None, unmapped=text)
+    reason = "robot-error" if state == "failed" else None
+    return Reading(ProcedureStatus(state, text, message, reason=reason, mission_id=mission_id_of(response, path)))

@@ -60,7 +60,10 @@ def test_rb1_binding_td_is_clean(rb1: Model) -> None:
 def test_rb1_services_procedures_and_topics(rb1: Model) -> None:
     goto = rb1.component("GoToComponent")
     assert [s.name for s in goto.services] == ["gotoRun", "gotoCancel", "gotoQuery"]
-    assert goto.procedures == (Procedure("gotoRun", "gotoQuery", "gotoCancel", ("state", "header", "id")),)
+    every = frozenset({"run", "query", "cancel"})  # each response carries a procedures_msgs state
+    assert goto.procedures == (
+        Procedure("gotoRun", "gotoQuery", "gotoCancel", ("state", "header", "id"), stateful=every),
+    )
     assert [s.procedure_role for s in goto.services] == [
         ProcedureRole.RUN,
         ProcedureRole.CANCEL,

@@ -201,11 +201,26 @@ def test_backends_without_actions_refuse_or_skip(tmp_path: Path, backend: str, c
     assert "chatter" in text
 
 
-def test_events_backend_skips_actions_with_a_warning(tmp_path: Path) -> None:
+def test_events_backend_gives_ros_actions_goal_events(tmp_path: Path) -> None:
+    """A ROS action is a procedure by nature: invoke (the goal), feedback (ROS feedback, then the result),
+    query and cancel under the action's topic, state; no warning."""
+    from td2adaptor.model.events import Kind, build_catalog
+
     model = _model(tmp_path)
     diags = Diagnostics()
     tree = load_backend("events").generate(model, GenOptions(), diags)
-    (found,) = list(diags)
-    assert found.code == "GEN860" and found.severity is Severity.WARNING and found.pointer == "/actions/fibonacci"
-    text = b"".join(tree.files.values()).decode("utf-8")
-    assert "fibonacci" not in text and "chatter" in text
+    assert list(diags) == []
+    specs = [s for s in build_catalog(model).specs if s.affordance == "fibonacci"]
+    topics = {s.kind: s.topic("r1") for s in specs}
+    assert topics == {
+        Kind.INVOKE: "td2adaptor/r1/MathComponent/fibonacci",
+        Kind.FEEDBACK: "td2adaptor/r1/MathComponent/fibonacci/feedback",
+        Kind.QUERY: "td2adaptor/r1/MathComponent/fibonacci/query",
+        Kind.CANCEL: "td2adaptor/r1/MathComponent/fibonacci/cancel",
+        Kind.STATE: "td2adaptor/r1/MathComponent/fibonacci/state",
+    }
+    feedback = next(s for s in specs if s.kind is Kind.FEEDBACK).schema["properties"]["payload"]["properties"]
+    assert feedback["feedback"]["properties"]["sequence"]["type"] == "array"  # test_msgs Fibonacci.Feedback
+    assert feedback["output"]["properties"]["sequence"]["items"]["type"] == "integer"  # the TD's output
+    exposed = json.loads(tree.files[f"{model.package_name}/td.mqtt.json"])
+    assert {"fibonacci", "fibonacciQuery", "fibonacciCancel"} <= set(exposed["actions"])

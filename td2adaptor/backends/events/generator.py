@@ -256,13 +256,15 @@ def exposed_td(
             # TD 1.1's own operations on the run action, for clients that offer them: the same messages as
             # the query and cancel actions (answered by the run's state event)
             for op, linked in (
-                ("queryaction", runs.get(spec.affordance)),
-                ("cancelaction", stops.get(spec.affordance)),
+                ("queryaction", runs.get(spec.affordance) if spec.kind is Kind.INVOKE else None),
+                ("cancelaction", stops.get(spec.affordance) if spec.kind is Kind.INVOKE else None),
             ):
                 linked_topic = None if linked is None else wot_topic(linked, robot, root)
                 if linked_topic is not None:
                     action["forms"].append(form(linked_topic, op, "publish"))
-            actions[spec.affordance] = action
+            # a ROS action's query and cancel have no TD affordance of their own: name them after it
+            suffix = spec.kind.value.capitalize() if spec.goal_control else ""
+            actions[spec.affordance + suffix] = action
         else:
             name = {Kind.FEEDBACK: "Feedback", Kind.STATE: "State"}.get(spec.kind, "")
             key = f"{spec.affordance}{name}" if spec.affordance else spec.kind.value
@@ -420,15 +422,7 @@ def _readme(model: Model, catalog: EventCatalog) -> str:
 
 def generate(model: Model, options: GenOptions, diags: Diagnostics) -> GeneratedTree:
     """Schemas, AsyncAPI document, exposed TD, README and broker ACL of `model`'s events, under `<package>/`."""
-    del options  # nothing to choose, nothing that can fail: every model has an event contract
-    for comp in model.components:
-        for a in comp.actions:
-            diags.warning(
-                "GEN860",
-                f"events backend: {comp.name}.{a.name}: ROS action {a.ros_name.binding_form()} ({a.type_name}) is "
-                "not in the event contract yet: skipped",
-                a.pointer,
-            )
+    del options, diags  # nothing to choose, nothing that can fail: every model has an event contract
     catalog = build_catalog(model)
     folder = f"{catalog.package}/"
     tree = GeneratedTree()

@@ -410,9 +410,10 @@ class Builder:
 
     def mission_path(self, svc: ServiceDef, response_path: Sequence[str]) -> str | None:
         """Where a query/cancel request carries the mission id: the longest suffix of the run response's
-        mission-id path that is an integer field of the request (`header/id` for `state/header/id`)."""
-        for start in range(len(response_path)):
-            path = response_path[start:]
+        mission-id path that is an integer field of the request (`header/id` for `state/header/id`), else
+        header/id, id or mission_id (the rule validate checks, ROS447)."""
+        candidates = [tuple(response_path[i:]) for i in range(len(response_path))]
+        for path in (*candidates, ("header", "id"), ("id",), ("mission_id",)):
             msg: MessageDef | None = svc.request
             for i, part in enumerate(path):
                 found = next((x for x in msg.fields if x.name == part), None) if msg is not None else None

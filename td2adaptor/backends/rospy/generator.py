@@ -282,9 +282,11 @@ def _failure(resp: MessageDef, types: TypeTable) -> tuple[str | None, str | None
     return None, None
 
 
-def _mission_target(req: MessageDef, types: TypeTable) -> str | None:
-    """The request field of a query/cancel that takes a mission id."""
-    for path in (("header", "id"), ("id",), ("mission_id",)):
+def _mission_target(req: MessageDef, types: TypeTable, id_path: tuple[str, ...]) -> str | None:
+    """The request field of a query/cancel that takes a mission id: an integer field at the longest suffix of
+    the run response's id path, else at header/id, id or mission_id (the rule validate checks, ROS447)."""
+    suffixes = [id_path[i:] for i in range(len(id_path))]
+    for path in (*suffixes, ("header", "id"), ("id",), ("mission_id",)):
         if _path(req, types, path, "int"):
             return "request." + ".".join(path)
     return None
@@ -316,7 +318,7 @@ def _service_view(
     elif proc is not None and svc.procedure_role in (ProcedureRole.QUERY, ProcedureRole.CANCEL):
         run = comp.service(proc.run)
         if proc.mission_id and run.procedure_role is ProcedureRole.RUN:
-            mission_target = _mission_target(sdef.request, types)
+            mission_target = _mission_target(sdef.request, types, proc.mission_id)
             if mission_target is not None:
                 mission_attr = f"_mission_{proc.run}"
                 notes.append(

@@ -1,0 +1,191 @@
+"""Edge node serving a ROS 2 action (issue 12). Every figure is printed next to a baseline measured in the same run.
+
+* latency: invoke event → goal → first feedback event, and → terminal event, over a real mosquitto, vs a
+  hand-written rclpy ActionClient sending the same goal from this process (send → first feedback callback,
+  send → result) (target: overhead <= 2 ms median);
+* throughput: feedback events per second the edge node relays from a goal whose server publishes feedback
+  every millisecond, vs the feedback messages per second the hand-written client receives from the same goal.
+
+The robot is tests/runtime/fibo_ros2.py (an rclpy ActionServer of test_msgs/action/Fibonacci) in its own
+process; the edge node (engine, MQTT client, rclpy node) and the application (a second MQTT client) are here.
+Needs the ROS 2 extra and mosquitto. Run: `.venv/bin/python bench/edge_node_actions_ros2.py [--runs N]`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "bench"))
+from runtime_bus import Replies, latency, mosquitto  # noqa: E402
+
+import td2adaptor  # noqa: E402
+from td2adaptor.diagnostics import Diagnostics  # noqa: E402
+from td2adaptor.generation.backend import GenOptions  # noqa: E402
+from td2adaptor.generation.registry import load as load_backend  # noqa: E402
+from td2adaptor.runtime import RuntimeConfig, serve  # noqa: E402
+from td2adaptor.runtime.mqttbus import MqttBus  # noqa: E402
+from td2adaptor.runtime.ros import connect  # noqa: E402
+from td2adaptor.runtime.security import parse_broker_url  # noqa: E402
+from tests.lowering.test_actions import INTERFACES, action_td  # noqa: E402
+from tests.ros2 import env  # noqa: E402
+from tests.ros2.common import Process  # noqa: E402
+from tests.runtime.fibo_ros2 import FAST  # noqa: E402
+
+NS = "fibo_bench"
+TOPIC = f"td2adaptor/{NS}/MathComponent/fibonacci"
+ORDER = 2  # two feedback messages, 50 ms apart, then the result
+FLOOD = 2000  # feedback messages of the throughput goal, 1 ms apart
+
+
+class RawClient:
+    """A hand-written rclpy ActionClient (the baseline): times to the first feedback and to the result."""
+
+    def __init__(self, node: Any) -> None:
+        from rclpy.action import ActionClient
+        from test_msgs.action import Fibonacci
+
+        self.goal_type = Fibonacci.Goal
+        self.client = ActionClient(node, Fibonacci, f"/{NS}/fibonacci")
+        assert self.client.wait_for_server(timeout_sec=30), "no action server"
+
+    def run(self, order: int) -> tuple[float, float, int]:
+        """(seconds to the first feedback, seconds to the result, feedback messages received)."""
+        first = threading.Event()
+        done = threading.Event()
+        count = [0]
+        marks: dict[str, float] = {}
+
+        def on_feedback(_msg: Any) -> None:
+            count[0] += 1
+            if not first.is_set():
+                marks["first"] = time.perf_counter()
+                first.set()
+
+        def on_result(_future: Any) -> None:
+            marks["result"] = time.perf_counter()
+            done.set()
+
+        def on_goal(future: Any) -> None:
+            future.result().get_result_async().add_done_callback(on_result)
+
+        t0 = time.perf_counter()
+        self.client.send_goal_async(self.goal_type(order=order), feedback_callback=on_feedback).add_done_callback(
+            on_goal
+        )
+        assert done.wait(120), "no result"
+        time.sleep(0.02)  # feedback of the same wake-up
+        return marks.get("first", marks["result"]) - t0, marks["result"] - t0, count[0]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--runs", type=int, default=40)
+    args = parser.parse_args()
+    if not env.ros2_available():
+        print("ROS 2 Jazzy wheels not installed (bash .ci/setup-ros2.sh): skipped")
+        return
+    env.isolate()
+    work = Path(tempfile.mkdtemp(prefix="td2adaptor-bench-actions-"))
+    td = work / "td.json"
+    td.write_text(json.dumps(action_td()), encoding="utf-8")
+    result = td2adaptor.compile(td, interfaces=[INTERFACES])
+    assert result.model is not None
+    model = result.model
+    for rel, data in load_backend("rclpy").generate(model, GenOptions(), Diagnostics()):
+        (work / "src" / rel).parent.mkdir(parents=True, exist_ok=True)
+        (work / "src" / rel).write_bytes(data)
+    robot = Process([sys.executable, "-m", "tests.runtime.fibo_ros2", NS], env.child_env([]))
+    try:
+        robot.wait_for(lambda e: e.get("event") == "ready", 30)
+        with mosquitto() as url:
+            config = RuntimeConfig(robot=NS, bus=url, poll_period=0.5, property_period=0, state_dir="")
+            src = work / "src" / model.package_name
+            link = connect(model, model.package_name, [config], ros=2, package_paths=[src])
+            try:
+                run(link, model, config, url, args.runs)
+            finally:
+                link.close()
+    finally:
+        robot.stop()
+
+
+def run(link: Any, model: Any, config: RuntimeConfig, url: str, runs: int) -> None:
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import MultiThreadedExecutor
+
+    context = Context()
+    rclpy.init(context=context)
+    node: Any = rclpy.create_node("bench_raw_client", context=context)
+    executor = MultiThreadedExecutor(num_threads=2, context=context)
+    executor.add_node(node)
+    spin = threading.Thread(target=executor.spin, daemon=True)
+    spin.start()
+    engine = serve(model, link.ports[NS], config)
+    replies = Replies()
+    app = MqttBus(parse_broker_url(url), client_id="actions-bench-app", clean_start=True)
+    app.subscribe(f"{TOPIC}/+", replies)
+    app.connect()
+    print(f"python {sys.version.split()[0]}, {time.strftime('%Y-%m-%d')}, {runs} runs, flood of {FLOOD}")
+    try:
+        raw = RawClient(node)
+        raw.run(ORDER)  # warm-up: discovery on both sides
+        edge(app, replies, "warm", ORDER)
+        raw_first, raw_end, edge_first, edge_end = [], [], [], []
+        for i in range(runs):  # interleaved: both see the same machine state
+            first, end, _ = raw.run(ORDER)
+            raw_first.append(first)
+            raw_end.append(end)
+            first, end, _ = edge(app, replies, f"g{i}", ORDER)
+            edge_first.append(first)
+            edge_end.append(end)
+        _, raw_time, raw_count = raw.run(FAST + FLOOD)
+        _, edge_time, edge_count = edge(app, replies, "flood", FAST + FLOOD)
+    finally:
+        engine.stop()
+        app.close()
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=context)
+    med = statistics.median
+    target = "<= 2 ms"
+    latency("invoke event -> goal -> 1st feedback event", med(edge_first), "ActionClient", med(raw_first), target)
+    latency("invoke event -> goal -> terminal event", med(edge_end), "ActionClient", med(raw_end), target)
+    label = "feedback events relayed per s, MQTT"
+    print(
+        f"{label:<44} {edge_count / edge_time:8.0f} /s   {'ActionClient':<20} {raw_count / raw_time:7.0f} /s   "
+        f"({edge_count} and {raw_count} of {FLOOD} messages)"
+    )
+
+
+def edge(app: MqttBus, replies: Replies, corr: str, order: int) -> tuple[float, float, int]:
+    """Through the edge node: (seconds to the first feedback event with a ROS feedback message, to the terminal
+    event, feedback events carrying a ROS message)."""
+    marks: dict[str, float] = {}
+
+    def seen() -> bool:
+        events = replies.by_corr.get(corr, [])
+        if "first" not in marks and any("feedback" in e["payload"] for e in events):
+            marks["first"] = time.perf_counter()
+        return any(e["payload"].get("terminal") for e in events)
+
+    t0 = time.perf_counter()
+    app.publish(TOPIC, json.dumps({"correlation": corr, "payload": {"order": order}}).encode())
+    replies.wait(seen, timeout=120)
+    end = time.perf_counter()
+    count = sum(1 for e in replies.by_corr[corr] if "feedback" in e["payload"])
+    return marks.get("first", end) - t0, end - t0, count
+
+
+if __name__ == "__main__":
+    main()

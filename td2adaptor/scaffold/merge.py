@@ -1,0 +1,126 @@
+"""`--merge`: fold a fresh scaffold into an existing TD without losing what a person wrote.
+
+Affordances are matched by their ROS name (`rosv:name` of the first form), not by affordance name, so a
+hand-chosen name survives. From the existing TD are kept: every Thing-level member, affordance names,
+titles, descriptions, semantic annotations (`@type`, any prefixed term, `rosv:component`,
+`rosv:procedure`), `safe`/`idempotent`, extra forms and form members the scaffold does not own, and the
+titles, descriptions and units inside data schemas. From the source come the ROS binding (type, role,
+interface, QoS) and the data schemas' structure. Existing affordances the source does not show are kept
+(SCF109); new ones are added.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from td2adaptor.diagnostics import Diagnostics
+
+SECTIONS = ("properties", "actions", "events")
+#: form members the scaffold writes (the rest of an existing form is the user's)
+_OWNED_FORM_KEYS = frozenset({"href", "op", "rosv:name", "rosv:type", "rosv:interface", "rosv:role", "rosv:latch"})
+#: data schema members that describe rather than constrain: always the existing TD's
+_ANNOTATIONS = frozenset({"title", "titles", "description", "descriptions", "unit", "@type", "comment", "default"})
+#: affordance members a person decides: the existing TD's when it has them
+_DECIDED = frozenset({"safe", "idempotent"})
+
+
+def _rosname(affordance: Any) -> str | None:
+    forms = affordance.get("forms") if isinstance(affordance, dict) else None
+    if isinstance(forms, list) and forms and isinstance(forms[0], dict):
+        name = forms[0].get("rosv:name")
+        return name if isinstance(name, str) else None
+    return None
+
+
+def merge_schema(old: Any, new: Any) -> Any:
+    """`new`'s structure with `old`'s annotations wherever the two share a path."""
+    if not isinstance(old, dict) or not isinstance(new, dict):
+        return new
+    out = dict(new)
+    for key, value in old.items():
+        if key in _ANNOTATIONS or (":" in key and key not in out):
+            out[key] = value
+    for key in ("items", "input", "output"):
+        if key in old and key in new:
+            out[key] = merge_schema(old[key], new[key])
+    if isinstance(old.get("properties"), dict) and isinstance(new.get("properties"), dict):
+        out["properties"] = {k: merge_schema(old["properties"].get(k), v) for k, v in new["properties"].items()}
+    return out
+
+
+def _merge_form(old: dict[str, Any], new: dict[str, Any]) -> dict[str, Any]:
+    out = {k: v for k, v in old.items() if k not in _OWNED_FORM_KEYS and k != "rosv:qos"}
+    out.update(new)
+    old_qos, new_qos = old.get("rosv:qos"), new.get("rosv:qos")
+    if isinstance(old_qos, dict):
+        out["rosv:qos"] = {**old_qos, **(new_qos or {})}
+    return out
+
+
+def _merge_affordance(old: dict[str, Any], new: dict[str, Any]) -> dict[str, Any]:
+    out = merge_schema({k: v for k, v in old.items() if k != "forms"}, {k: v for k, v in new.items() if k != "forms"})
+    for key in ("rosv:component", "rosv:procedure", *_DECIDED):
+        if key in old:
+            out[key] = old[key]
+    for key, value in old.items():  # the user's own members (semantic annotations, links, uriVariables...)
+        if key not in out and key != "forms":
+            out[key] = value
+    forms = old.get("forms")
+    old_forms: list[Any] = forms if isinstance(forms, list) else []
+    first = old_forms[0] if old_forms and isinstance(old_forms[0], dict) else {}
+    merged: dict[str, Any] = out
+    merged["forms"] = [_merge_form(first, new["forms"][0]), *old_forms[1:]]
+    return merged
+
+
+def merge(existing: dict[str, Any], fresh: dict[str, Any], diags: Diagnostics) -> dict[str, Any]:
+    """`existing` updated from `fresh` (both TD-shaped JSON objects)."""
+    index: dict[str, tuple[str, str]] = {}
+    for section in SECTIONS:
+        for name, aff in (existing.get(section) or {}).items():
+            rosname = _rosname(aff)
+            if rosname is not None:
+                index.setdefault(rosname, (section, name))
+    taken = {name for section in SECTIONS for name in (existing.get(section) or {})}
+    renames: dict[str, str] = {}
+    matched: dict[tuple[str, str], tuple[str, dict[str, Any]]] = {}
+    added: dict[str, dict[str, Any]] = {s: {} for s in SECTIONS}
+    for section in SECTIONS:
+        for name, aff in (fresh.get(section) or {}).items():
+            hit = index.get(_rosname(aff) or "")
+            if hit is not None and hit not in matched:
+                matched[hit] = (name, aff)
+                renames[name] = hit[1]
+                continue
+            final, n = name, 2
+            while final in taken:
+                final, n = f"{name}{n}", n + 1
+            taken.add(final)
+            renames[name] = final
+            added[section][final] = aff
+    out = {k: v for k, v in existing.items() if k not in SECTIONS}
+    for key, value in fresh.items():
+        if key not in SECTIONS and key not in out:
+            out[key] = value
+    for section in SECTIONS:
+        merged: dict[str, Any] = {}
+        for name, aff in (existing.get(section) or {}).items():
+            if (section, name) in matched:
+                merged[name] = _merge_affordance(aff, _renamed(matched[(section, name)][1], renames))
+            else:
+                merged[name] = aff
+                if isinstance(aff, dict) and _rosname(aff) is not None:
+                    diags.warning("SCF109", f"{section}/{name} ({_rosname(aff)}) is not in the source: kept as it is")
+        for name, aff in added[section].items():
+            merged[name] = _renamed(aff, renames)
+        if merged:
+            out[section] = merged
+    return out
+
+
+def _renamed(aff: dict[str, Any], renames: dict[str, str]) -> dict[str, Any]:
+    procedure = aff.get("rosv:procedure")
+    if not isinstance(procedure, dict):
+        return aff
+    linked = {k: renames.get(v, v) if k in ("query", "cancel") else v for k, v in procedure.items()}
+    return {**aff, "rosv:procedure": linked}

@@ -1,0 +1,162 @@
+"""The TD (or Thing Model) of a layout: affordances in the `rosv` binding, data schemas from the messages.
+
+Schemas come from `model.msgschema` over the ROS 2 type set plus the user's interface folders (TDs use
+ROS 2 names and field spellings, `sec`/`nanosec`, whatever the robot runs), the ROS 1 set for a type only
+ROS 1 has. A type that resolves nowhere keeps its affordance without a schema (SCF103).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from td2adaptor.diagnostics import Diagnostics
+from td2adaptor.model import ActionDef, MessageDef, ServiceDef
+from td2adaptor.model.msgschema import message_schema
+from td2adaptor.rostypes.registry import TypeRegistry
+from td2adaptor.scaffold.layout import Layout, Plan
+
+TD_CONTEXT = "https://www.w3.org/2022/wot/td/v1.1"
+ROSV_CONTEXT = "https://td2adaptor.dev/ns/rosv/v1"
+
+
+#: what an event-contract schema adds that a TD's data schema leaves to the contract (which lays the message's
+#: own schema over the TD's anyway): closed objects and required fields
+_CONTRACT_ONLY = ("additionalProperties", "required")
+
+
+def td_style(schema: Any) -> Any:
+    """A message schema as a TD writes it: structure, types, ranges and bounds, without `_CONTRACT_ONLY`."""
+    if isinstance(schema, list):
+        return [td_style(s) for s in schema]
+    if not isinstance(schema, dict):
+        return schema
+    out = {}
+    for key, value in schema.items():
+        if key in _CONTRACT_ONLY:
+            continue
+        if key == "properties" and isinstance(value, dict):
+            out[key] = {name: td_style(sub) for name, sub in value.items()}
+        else:
+            out[key] = td_style(value)
+    return out
+
+
+class Schemas:
+    """JSON Schemas of interface types, from the ROS 2 registry first, then ROS 1 (each built once)."""
+
+    def __init__(self, interfaces: Sequence[Path], diags: Diagnostics) -> None:
+        self._interfaces = list(interfaces)
+        self._registries: dict[str, TypeRegistry] = {}
+        self._diags = diags
+        self._cache: dict[str, list[dict[str, Any]] | None] = {}
+
+    def _registry(self, distro: str) -> TypeRegistry:
+        if distro not in self._registries:
+            self._registries[distro] = TypeRegistry(distro, self._interfaces, self._diags)  # type: ignore[arg-type]
+        return self._registries[distro]
+
+    def parts(self, type_name: str) -> list[dict[str, Any]] | None:
+        """[message] for a message, [request, response] for a service, [goal, result, feedback] for an
+        action; None when no registry resolves it."""
+        if type_name not in self._cache:
+            self._cache[type_name] = self._resolve(type_name)
+        return self._cache[type_name]
+
+    def _resolve(self, type_name: str) -> list[dict[str, Any]] | None:
+        for distro in ("ros2", "ros1"):
+            table = self._registry(distro).table([type_name])
+            if type_name in table.missing:
+                continue
+            found = table.get(type_name)
+            if isinstance(found, MessageDef):
+                return [td_style(message_schema(found, table))]
+            if isinstance(found, ServiceDef):
+                return [td_style(message_schema(m, table)) for m in (found.request, found.response)]
+            if isinstance(found, ActionDef):
+                return [td_style(message_schema(m, table)) for m in (found.goal, found.result, found.feedback)]
+        return None
+
+
+def _has_path(schema: dict[str, Any], path: Sequence[str], kind: str) -> bool:
+    for part in path:
+        schema = schema.get("properties", {}).get(part)
+        if not isinstance(schema, dict):
+            return False
+    return schema.get("type") == kind
+
+
+def _affordance(p: Plan, schemas: Schemas, diags: Diagnostics) -> dict[str, Any]:
+    ep = p.endpoint
+    parts = schemas.parts(ep.type)
+    if parts is None:
+        diags.warning(
+            "SCF103",
+            f"type {ep.type} of {ep.name} is not known: {p.name} has no data schema",
+            hint="give the folder of its interface package with --interfaces",
+        )
+    form: dict[str, Any] = {"href": p.href}
+    out: dict[str, Any] = {"rosv:component": p.component}
+    if p.section == "properties":
+        reads = ep.role == "publisher"
+        form["op"] = ["readproperty", "observeproperty"] if reads else ["writeproperty"]
+        form["rosv:role"] = "subscriber" if reads else "publisher"
+        if parts is not None:
+            out.update(parts[0])
+        if reads:
+            out.update(observable=True, readOnly=True)
+        else:
+            out["writeOnly"] = True
+    else:
+        form["op"] = "invokeaction"
+        if p.procedure is not None:
+            procedure = dict(p.procedure)
+            if parts is not None and _has_path(parts[1], ("state", "header", "id"), "integer"):
+                procedure["missionId"] = "state/header/id"
+            out["rosv:procedure"] = procedure
+        if parts is not None:
+            out["input"], out["output"] = parts[0], parts[1]
+        out.update(safe=p.safe, idempotent=p.safe)
+    form["rosv:name"] = p.rosname
+    form["rosv:type"] = ep.type
+    if ep.kind == "action":
+        form["rosv:interface"] = "action"
+    if ep.latch:
+        form["rosv:latch"] = True
+    if ep.qos:
+        form["rosv:qos"] = dict(ep.qos)
+    out["forms"] = [form]
+    return out
+
+
+def slug(text: str) -> str:
+    return re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-") or "robot"
+
+
+def write(layout: Layout, schemas: Schemas, diags: Diagnostics, *, title: str | None, label: str) -> dict[str, Any]:
+    """The TD, or a Thing Model when the layout is a fleet."""
+    if title is None:
+        title = layout.namespaces[0] if len(layout.namespaces) == 1 else "Robot"
+    doc: dict[str, Any] = {"@context": [TD_CONTEXT, ROSV_CONTEXT]}
+    if layout.fleet:
+        doc["@type"] = "tm:ThingModel"
+        doc["title"] = title
+        doc["description"] = (
+            f"Thing Model scaffolded by td2adaptor from {label}; instantiate it per robot with robotName "
+            f"(the ROS namespace: {', '.join(layout.namespaces)})."
+        )
+        doc["version"] = {"model": "1.0.0"}
+    else:
+        doc["@type"] = "Thing"
+        doc["id"] = f"urn:dev:wot:td2adaptor:{slug(title)}"
+        doc["title"] = title
+        doc["description"] = f"Scaffolded by td2adaptor from {label}."
+    doc["securityDefinitions"] = {"nosec_sc": {"scheme": "nosec"}}
+    doc["security"] = ["nosec_sc"]
+    for section in ("properties", "actions"):
+        chosen = [p for p in layout.plans if p.section == section]
+        if chosen:
+            doc[section] = {p.name: _affordance(p, schemas, diags) for p in chosen}
+    return doc

@@ -1,0 +1,254 @@
+"""The edge node serving a TD action bound to a ROS 1 action, through the bridge, over a real mosquitto.
+
+Real parts only: Debian's rosmaster, rospy and actionlib; the robot is tests/runtime/fibo_ros1.py (an actionlib
+ActionServer of test_msgs/Fibonacci, genpy-built from tests/data/actions by tests/ros1/build_actions.py) in its
+own process; the rospy adaptor generated from tests.lowering.test_actions.action_td runs in the ROS 1 bridge
+(td2adaptor.runtime.bridge, under /usr/bin/python3), the engine and the bus here. Checked as on ROS 2
+(test_edge_node_actions_ros2): invoke → acceptance, one feedback event per ROS feedback message, exactly one
+terminal event with the result; rejected and aborted with the server's words; query and cancel; the robot
+killed mid-goal → failure within the timeout.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import td2adaptor
+from td2adaptor.diagnostics import Diagnostics, Severity
+from td2adaptor.generation.backend import GenOptions
+from td2adaptor.generation.registry import load as load_backend
+from td2adaptor.model import Model
+from td2adaptor.model.events import Kind, build_catalog
+from td2adaptor.model.wot import WOT_LEVEL
+from td2adaptor.runtime import RuntimeConfig, serve
+from td2adaptor.runtime.bridge import Ros1Bridge
+from td2adaptor.runtime.events import EventValidator
+from td2adaptor.runtime.genport import Layout
+from tests.conftest import REPO
+from tests.lowering.test_actions import INTERFACES, action_td
+from tests.ros1 import harness
+from tests.ros1.harness import Master
+from tests.ros2.common import Process
+from tests.runtime.broker import Mosquitto
+from tests.runtime.client import AppClient, Event
+from tests.runtime.edge import feedback
+from tests.runtime.fibo_ros2 import ABORT, SLOW, sequence
+from tests.runtime.rb1 import terminal
+
+ROBOT = "fibo_one"
+KILLED = "fibo_one_killed"
+COMPONENT = "MathComponent"
+BUILD_ACTIONS = REPO / "tests" / "ros1" / "build_actions.py"
+
+
+@pytest.fixture(scope="module")
+def ros1() -> None:
+    problem = harness.ros1_problem()
+    if problem:
+        if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
+            pytest.skip(problem)
+        pytest.fail(problem)
+
+
+@pytest.fixture(scope="module")
+def build(ros1: None, tmp_path_factory: pytest.TempPathFactory) -> tuple[Model, Path, Path]:
+    """The model, the generated rospy package's src/ and the genpy modules of tests/data/actions."""
+    base = tmp_path_factory.mktemp("fibo-ros1")
+    td = base / "td.json"
+    td.write_text(json.dumps(action_td()), encoding="utf-8")
+    result = td2adaptor.compile(td, interfaces=[INTERFACES])
+    assert result.model is not None, [d.message for d in result.diagnostics]
+    diags = Diagnostics()
+    tree = load_backend("rospy").generate(result.model, GenOptions(partial=True), diags)
+    if any(d.code == "GEN843" for d in diags) or not BUILD_ACTIONS.exists():
+        pytest.skip("the rospy backend does not generate ROS 1 actions here yet (branch wt-actionlib)")
+    assert not [d for d in diags if d.severity is Severity.ERROR], [d.message for d in diags]
+    for rel, data in tree:
+        (base / "pkg" / rel).parent.mkdir(parents=True, exist_ok=True)
+        (base / "pkg" / rel).write_bytes(data)
+    modules = base / "genpy"
+    built = subprocess.run(
+        [harness.SYSTEM_PYTHON, str(BUILD_ACTIONS), str(INTERFACES), str(modules)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert built.returncode == 0, built.stderr
+    return result.model, base / "pkg" / result.model.package_name / "src", modules
+
+
+@pytest.fixture(scope="module")
+def master(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Iterator[Master]:
+    with harness.rosmaster(tmp_path_factory.mktemp("ros1-home")) as m:
+        yield m
+
+
+def robot_process(master: Master, modules: Path, namespace: str) -> Process:
+    script = REPO / "tests" / "runtime" / "fibo_ros1.py"
+    process = Process([harness.SYSTEM_PYTHON, str(script), namespace], master.env(modules, REPO))
+    try:
+        process.wait_for(lambda e: e.get("event") == "ready", timeout=30)
+    except BaseException:
+        process.stop()
+        raise
+    return process
+
+
+@pytest.fixture(scope="module")
+def fibo_robot(master: Master, build: tuple[Model, Path, Path]) -> Iterator[Process]:
+    process = robot_process(master, build[2], ROBOT)
+    yield process
+    process.stop()
+
+
+@pytest.fixture
+def broker(tmp_path: Path) -> Iterator[Mosquitto]:
+    b = Mosquitto(tmp_path / "broker")
+    b.start()
+    yield b
+    b.stop()
+
+
+class Edge:
+    """The edge node of `robot`: bridge (ROS 1) + engine + mosquitto, and an application recording events."""
+
+    def __init__(self, build: tuple[Model, Path, Path], master: Master, broker: Mosquitto, robot: str, **kw: Any):
+        model, src, modules = build
+        settings: dict[str, Any] = {"poll_period": 0.1, "call_timeout": 10.0, "mission_timeout": 60.0}
+        settings.update(kw)
+        self.config = RuntimeConfig(robot=robot, bus=broker.url, property_period=0, state_dir="", **settings)
+        self.bridge = Ros1Bridge(
+            Layout.of(model),
+            model.package_name,
+            [(robot, robot)],
+            python=harness.SYSTEM_PYTHON,
+            pythonpath=[modules, src],
+            master_uri=master.uri,
+            timeout=self.config.call_timeout,
+            environ=master.env(),
+        )
+        self.bridge.start()
+        self.engine = serve(model, self.bridge.port(robot), self.config)
+        self.app = AppClient(broker.url, [f"td2adaptor/{robot}/#"])
+        self.catalog = build_catalog(model)
+        self.validator = EventValidator(self.catalog)
+
+    def send(self, suffix: str, event: dict[str, Any]) -> None:
+        self.app.send(f"td2adaptor/{self.config.robot}/{COMPONENT}/fibonacci{suffix}", {"source": "test", **event})
+
+    def ended(self, correlation: str, timeout: float = 30.0) -> list[dict[str, Any]]:
+        self.app.wait(terminal("feedback", correlation), timeout=timeout)
+        self.check(self.app.events)
+        return feedback(self.app.events, correlation)
+
+    def answers(self, correlation: str) -> list[dict[str, Any]]:
+        def found(events: list[Event]) -> list[dict[str, Any]]:
+            return [e for _, e in events if e.get("correlation") == correlation and e.get("type") in ("state", "error")]
+
+        return found(self.app.wait(lambda ev: bool(found(ev)), timeout=10))
+
+    def check(self, events: list[Event]) -> None:
+        for where, event in events:
+            if self.catalog.route(where) is not None or where.endswith("/td") or f"/{WOT_LEVEL}/" in where:
+                continue  # sent by the test, the robot's TD, or the WoT consumers' form of an event
+            kind = Kind(event["type"])
+            spec = self.catalog.find(kind, event.get("affordance") if kind not in (Kind.ERROR, Kind.STATUS) else None)
+            assert spec.topic(event["robot"]) == where
+            assert self.validator.errors(spec, event) == [], (where, event)
+
+    def close(self) -> None:
+        self.app.close()
+        self.engine.stop()
+        self.bridge.close()
+
+
+def sent_feedback(robot: Process, ns: str, order: int) -> list[list[int]]:
+    robot.seen.clear()
+    robot.wait_for(lambda e: e.get("event") == "goal" and e.get("ns") == ns and e.get("order") == order, timeout=10)
+    robot.seen.clear()
+    robot.wait_for(lambda e: e.get("event") == "end" and e.get("ns") == ns, timeout=10)
+    return [e["sequence"] for e in robot.seen if e.get("event") == "feedback" and e.get("ns") == ns]
+
+
+def test_goal_feedback_result_rejected_aborted(
+    build: tuple[Model, Path, Path], master: Master, fibo_robot: Process, broker: Mosquitto
+) -> None:
+    edge = Edge(build, master, broker, ROBOT)
+    try:
+        edge.send("", {"correlation": "five", "payload": {"order": 5}})
+        events = edge.ended("five")
+        payloads = [e["payload"] for e in events]
+        assert [p["seq"] for p in payloads] == list(range(1, len(payloads) + 1))
+        assert [p["terminal"] for p in payloads] == [False] * (len(payloads) - 1) + [True]
+        assert payloads[0]["state"] == "queued" and len({p["goal"] for p in payloads}) == 1
+        assert [p["feedback"]["sequence"] for p in payloads[1:-1]] == sent_feedback(fibo_robot, ROBOT, 5)
+        assert len(payloads) == 5 + 2
+        last = payloads[-1]
+        assert (last["state"], last["result"], last["message"]) == ("finished", "succeeded", "done")
+        assert last["output"] == {"sequence": sequence(5)}
+
+        edge.send("", {"correlation": "neg", "payload": {"order": -1}})
+        (refused,) = edge.ended("neg")
+        assert (refused["payload"]["reason"], refused["payload"]["result"]) == ("rejected", "rejected")
+        assert "order must not be negative" in refused["payload"]["message"]
+
+        edge.send("", {"correlation": "abort", "payload": {"order": ABORT}})
+        events = edge.ended("abort")
+        last = events[-1]["payload"]
+        assert [e["payload"]["feedback"]["sequence"] for e in events[1:-1]] == [sequence(1), sequence(2)]
+        assert (last["state"], last["reason"], last["result"]) == ("failed", "aborted", "aborted")
+        assert last["message"] == f"{ABORT} is unlucky" and last["output"] == {"sequence": sequence(2)}
+    finally:
+        edge.close()
+
+
+def test_query_and_cancel(
+    build: tuple[Model, Path, Path], master: Master, fibo_robot: Process, broker: Mosquitto
+) -> None:
+    edge = Edge(build, master, broker, ROBOT)
+    try:
+        edge.send("", {"correlation": "slow", "payload": {"order": SLOW}})
+        edge.app.wait(lambda ev: any("feedback" in e["payload"] for e in feedback(ev, "slow")), timeout=20)
+        goal = feedback(edge.app.events, "slow")[0]["payload"]["goal"]
+        edge.send("/query", {"correlation": "q", "payload": {"goal": goal}})
+        (state,) = edge.answers("q")
+        assert (state["payload"]["state"], state["payload"]["result"], state["payload"]["goal"]) == (
+            "running",
+            "executing",
+            goal,
+        )
+        edge.send("/cancel", {"correlation": "c"})
+        events = edge.ended("slow")
+        last = events[-1]["payload"]
+        assert (last["state"], last["result"], last["message"]) == ("cancelled", "canceled", "canceled on request")
+        assert all(e["payload"]["goal"] == goal for e in edge.answers("c"))
+    finally:
+        edge.close()
+
+
+def test_robot_killed_mid_goal(build: tuple[Model, Path, Path], master: Master, broker: Mosquitto) -> None:
+    robot = robot_process(master, build[2], KILLED)
+    edge = Edge(build, master, broker, KILLED, mission_timeout=20.0)
+    try:
+        edge.send("", {"correlation": "k", "payload": {"order": SLOW}})
+        edge.app.wait(lambda ev: any("feedback" in e["payload"] for e in feedback(ev, "k")), timeout=20)
+        robot.proc.send_signal(signal.SIGKILL)
+        robot.proc.wait(10)
+        killed = time.monotonic()
+        events = edge.ended("k", timeout=30)
+        last = events[-1]["payload"]
+        assert last["state"] == "failed" and last["reason"] in ("unreachable", "timeout"), last
+        assert time.monotonic() - killed < 20.0 + 5.0
+        assert sum(1 for e in events if e["payload"]["terminal"]) == 1
+    finally:
+        edge.close()
+        robot.stop()

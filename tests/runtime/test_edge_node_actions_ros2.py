@@ -1,0 +1,296 @@
+"""The edge node serving a TD action bound to a ROS 2 action, on real ROS 2 Jazzy over a real mosquitto.
+
+The robot is `tests.runtime.fibo_ros2` (an rclpy ActionServer of test_msgs/action/Fibonacci) in its own
+process, the edge node is `connect` + `serve` in this process on the rclpy adaptor generated from
+tests.lowering.test_actions.action_td. Checked: invoke → the acceptance, one feedback event per ROS feedback
+message (in order, carrying it) → exactly one terminal event with the result; rejected and aborted goals;
+query and cancel; the throttle; the robot killed mid-goal → failure within the mission timeout.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import td2adaptor
+from td2adaptor.diagnostics import Diagnostics, Severity
+from td2adaptor.generation.backend import GenOptions
+from td2adaptor.generation.registry import load as load_backend
+from td2adaptor.model import Model
+from td2adaptor.model.events import Kind, build_catalog
+from td2adaptor.model.wot import WOT_LEVEL
+from td2adaptor.runtime import PortRejected, PortTimeout, PortUnavailable, RuntimeConfig, serve
+from td2adaptor.runtime.events import EventValidator
+from td2adaptor.runtime.ros import RosLink, connect
+from tests.lowering.test_actions import INTERFACES, action_td
+from tests.ros2 import env
+from tests.ros2.common import Process
+from tests.runtime.broker import Mosquitto
+from tests.runtime.client import AppClient, Event
+from tests.runtime.edge import feedback, until
+from tests.runtime.fibo_ros2 import ABORT, SLOW, sequence
+from tests.runtime.rb1 import terminal
+
+pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain
+
+ROBOT = "fibo_edge"
+KILLED = "fibo_killed"
+COMPONENT = "MathComponent"
+
+
+def topic(robot: str, suffix: str = "") -> str:
+    return f"td2adaptor/{robot}/{COMPONENT}/fibonacci{suffix}"
+
+
+@pytest.fixture(scope="module")
+def fibo_build(ros2_domain: int, tmp_path_factory: pytest.TempPathFactory) -> tuple[Model, Path]:
+    """The model and the generated rclpy adaptor's source folder (it goes on sys.path)."""
+    base = tmp_path_factory.mktemp("fibo-edge")
+    td = base / "td.json"
+    td.write_text(json.dumps(action_td()), encoding="utf-8")
+    result = td2adaptor.compile(td, interfaces=[INTERFACES])
+    assert result.model is not None, [d.message for d in result.diagnostics]
+    diags = Diagnostics()
+    tree = load_backend("rclpy").generate(result.model, GenOptions(), diags)
+    assert not [d for d in diags if d.severity is Severity.ERROR], [d.message for d in diags]
+    for rel, data in tree:
+        path = base / "src" / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(data)
+    return result.model, base / "src" / result.model.package_name
+
+
+def robot_process(*namespaces: str) -> Process:
+    process = Process([sys.executable, "-m", "tests.runtime.fibo_ros2", *namespaces], env.child_env([]))
+    try:
+        process.wait_for(lambda e: e.get("event") == "ready", timeout=30)
+    except BaseException:
+        process.stop()
+        raise
+    return process
+
+
+@pytest.fixture(scope="module")
+def fibo_robot(ros2_domain: int) -> Iterator[Process]:
+    process = robot_process(ROBOT)
+    yield process
+    process.stop()
+
+
+@pytest.fixture
+def broker(tmp_path: Path) -> Iterator[Mosquitto]:
+    b = Mosquitto(tmp_path / "broker")
+    b.start()
+    yield b
+    b.stop()
+
+
+class Edge:
+    """An edge node for `robot` on ROS 2 and mosquitto, and an application recording its events."""
+
+    def __init__(self, build: tuple[Model, Path], broker: Mosquitto, robot: str, **config: Any) -> None:
+        model, src = build
+        self.model = model
+        settings: dict[str, Any] = {"poll_period": 0.1, "call_timeout": 15.0, "mission_timeout": 60.0}
+        settings.update(config)
+        self.config = RuntimeConfig(robot=robot, bus=broker.url, property_period=0, state_dir="", **settings)
+        self.link: RosLink = connect(model, model.package_name, [self.config], ros=2, package_paths=[src])
+        port = self.link.ports[robot]
+        # the goal service can be discovered before its server matched our response reader (the first answer
+        # may be lost): wait for one answered goal; a negative order is rejected, so nothing runs
+        assert until(lambda: rejects(port), 30, 0.1)
+        self.engine = serve(model, port, self.config)
+        self.app = AppClient(broker.url, [f"td2adaptor/{robot}/#"])
+        self.validator = EventValidator(build_catalog(model))
+        self.catalog = build_catalog(model)
+
+    def send(self, suffix: str, event: dict[str, Any]) -> None:
+        self.app.send(topic(self.config.robot, suffix), {"source": "test", **event})
+
+    def ended(self, correlation: str, timeout: float = 30.0) -> list[dict[str, Any]]:
+        """The goal's feedback events once its terminal one came; all conform to their schema."""
+        self.app.wait(terminal("feedback", correlation), timeout=timeout)
+        events = feedback(self.app.events, correlation)
+        self.check(self.app.events)
+        return events
+
+    def check(self, events: list[Event]) -> None:
+        for where, event in events:
+            if self.catalog.route(where) is not None or where.endswith("/td") or f"/{WOT_LEVEL}/" in where:
+                continue  # sent by the test, the robot's TD, or the WoT consumers' form of an event
+            kind = Kind(event["type"])
+            spec = self.catalog.find(kind, event.get("affordance") if kind not in (Kind.ERROR, Kind.STATUS) else None)
+            assert spec.topic(event["robot"]) == where
+            assert self.validator.errors(spec, event) == [], (where, event)
+
+    def answers(self, correlation: str, timeout: float = 10.0) -> list[dict[str, Any]]:
+        """The state or error events answering the test's query or cancel `correlation` (at least one)."""
+
+        def found(events: list[Event]) -> list[dict[str, Any]]:
+            return [e for _, e in events if e.get("correlation") == correlation and e.get("type") in ("state", "error")]
+
+        return found(self.app.wait(lambda ev: bool(found(ev)), timeout=timeout))
+
+    def close(self) -> None:
+        self.app.close()
+        self.engine.stop()
+        self.link.close()
+
+
+def rejects(port: Any) -> bool:
+    try:
+        port.send_goal(COMPONENT, "fibonacci", {"order": -1}, 1.0)
+    except PortRejected:
+        return True
+    except (PortUnavailable, PortTimeout):
+        return False
+    raise AssertionError("a goal of order -1 was accepted")
+
+
+def sent_feedback(robot: Process, ns: str, order: int) -> list[list[int]]:
+    """The feedback messages the robot sent for its goal of `order` (waits for the goal's end)."""
+    robot.seen.clear()
+    robot.wait_for(lambda e: e.get("event") == "goal" and e.get("ns") == ns and e.get("order") == order, timeout=10)
+    robot.seen.clear()
+    robot.wait_for(lambda e: e.get("event") == "end" and e.get("ns") == ns, timeout=10)
+    return [e["sequence"] for e in robot.seen if e.get("event") == "feedback" and e.get("ns") == ns]
+
+
+def check_goal(events: list[dict[str, Any]], messages: list[list[int]], end: str) -> dict[str, Any]:
+    """accepted, then one running event per ROS feedback message (carrying it, in order), then one terminal."""
+    payloads = [e["payload"] for e in events]
+    assert [p["seq"] for p in payloads] == list(range(1, len(payloads) + 1))
+    assert [p["terminal"] for p in payloads] == [False] * (len(payloads) - 1) + [True]
+    assert (payloads[0]["state"], payloads[0]["result"]) == ("queued", "accepted")
+    assert [p["feedback"]["sequence"] for p in payloads[1:-1]] == messages
+    assert all(p["state"] == "running" for p in payloads[1:-1])
+    assert len({p["goal"] for p in payloads}) == 1 and len(payloads[0]["goal"]) == 32
+    assert payloads[-1]["state"] == end
+    return payloads[-1]
+
+
+def test_goal_feedback_and_result_over_mqtt(
+    fibo_build: tuple[Model, Path], fibo_robot: Process, broker: Mosquitto
+) -> None:
+    edge = Edge(fibo_build, broker, ROBOT)
+    try:
+        edge.send("", {"id": "g-5", "correlation": "five", "payload": {"order": 5}})
+        events = edge.ended("five")
+        last = check_goal(events, sent_feedback(fibo_robot, ROBOT, 5), "finished")
+        assert len(events) == 5 + 2
+        assert (last["result"], last["output"]) == ("succeeded", {"sequence": sequence(5)})
+
+        # rejected: the server refuses the goal; one terminal event in the robot's words
+        edge.send("", {"correlation": "neg", "payload": {"order": -1}})
+        (refused,) = edge.ended("neg")
+        assert refused["payload"]["state"] == "failed" and refused["payload"]["terminal"]
+        assert (refused["payload"]["reason"], refused["payload"]["result"]) == ("rejected", "rejected")
+        assert refused["payload"]["message"] == "the goal was rejected"
+
+        # aborted after two feedback messages: failed (aborted), with the result the server sent
+        edge.send("", {"correlation": "abort", "payload": {"order": ABORT}})
+        events = edge.ended("abort")
+        last = check_goal(events, [sequence(1), sequence(2)], "failed")
+        assert (last["reason"], last["result"], last["output"]) == ("aborted", "aborted", {"sequence": sequence(2)})
+        # a query after the end answers with the end
+        edge.send("/query", {"correlation": "q-end"})
+        (answer,) = edge.answers("q-end")
+        assert answer["type"] == "state" and answer["payload"]["state"] == "failed"
+        assert answer["payload"]["goal"] == last["goal"]
+    finally:
+        edge.close()
+
+
+def test_query_and_cancel_a_goal(fibo_build: tuple[Model, Path], fibo_robot: Process, broker: Mosquitto) -> None:
+    edge = Edge(fibo_build, broker, ROBOT)
+    try:
+        edge.send("", {"correlation": "slow", "payload": {"order": SLOW}})
+        edge.app.wait(lambda ev: any("feedback" in e["payload"] for e in feedback(ev, "slow")), timeout=20)
+        goal = feedback(edge.app.events, "slow")[0]["payload"]["goal"]
+        # a second invoke while the goal runs: busy, never queued
+        edge.send("", {"correlation": "second", "payload": {"order": 3}})
+        (busy,) = edge.ended("second")
+        assert busy["payload"]["reason"] == "busy"
+        edge.send("/query", {"correlation": "q", "payload": {"goal": goal}})
+        (state,) = edge.answers("q")
+        assert (state["type"], state["payload"]["state"], state["payload"]["goal"]) == ("state", "running", goal)
+        assert state["payload"]["result"] == "executing" and not state["payload"]["terminal"]
+        edge.send("/cancel", {"correlation": "c"})
+        events = edge.ended("slow")
+        assert events[-1]["payload"]["state"] == "cancelled" and events[-1]["payload"]["result"] == "canceled"
+        assert [e["payload"]["state"] for e in events[1:-1]] == ["running"] * (len(events) - 2)
+        answers = edge.answers("c")
+        assert all(e["type"] == "state" and e["payload"]["goal"] == goal for e in answers)
+        # a cancel of a goal nobody follows: an error event, not a silent drop
+        edge.send("/cancel", {"correlation": "c2", "payload": {"goal": "0" * 32}})
+        (error,) = edge.answers("c2")
+        assert error["type"] == "error" and error["payload"]["code"] == "unsupported"
+        edge.check(edge.app.events)
+    finally:
+        edge.close()
+
+
+def test_feedback_throttle(fibo_build: tuple[Model, Path], fibo_robot: Process, broker: Mosquitto) -> None:
+    edge = Edge(fibo_build, broker, ROBOT, feedback_period=0.3)
+    try:
+        edge.send("", {"correlation": "t", "payload": {"order": 20}})
+        events = edge.ended("t")
+        messages = sent_feedback(fibo_robot, ROBOT, 20)
+        relayed = [e["payload"]["feedback"]["sequence"] for e in events[1:-1]]
+        # 20 messages 0.05 s apart, at most one event per 0.3 s: fewer events, in order, the last one kept
+        assert len(messages) == 20 and 1 <= len(relayed) < len(messages)
+        assert relayed[-1] == messages[-1] and relayed == sorted(relayed, key=len)
+        assert events[-1]["payload"]["state"] == "finished"
+    finally:
+        edge.close()
+
+
+def test_robot_killed_mid_goal_fails_within_the_timeout(fibo_build: tuple[Model, Path], broker: Mosquitto) -> None:
+    robot = robot_process(KILLED)
+    edge = Edge(fibo_build, broker, KILLED, mission_timeout=10.0, call_timeout=15.0)
+    try:
+        edge.send("", {"correlation": "k", "payload": {"order": SLOW}})
+        edge.app.wait(lambda ev: any("feedback" in e["payload"] for e in feedback(ev, "k")), timeout=20)
+        robot.proc.send_signal(signal.SIGKILL)
+        robot.proc.wait(10)
+        killed = time.monotonic()
+        events = edge.ended("k", timeout=20)
+        assert time.monotonic() - killed < 10.0 + 5.0
+        last = events[-1]["payload"]
+        assert (last["state"], last["reason"]) == ("failed", "timeout"), last
+        assert sum(1 for e in events if e["payload"]["terminal"]) == 1
+    finally:
+        edge.close()
+        robot.stop()
+
+
+def test_a_wot_consumer_sends_a_goal_queries_and_cancels_it(
+    fibo_build: tuple[Model, Path], fibo_robot: Process, broker: Mosquitto
+) -> None:
+    """The same goal through the WoT consumers' topics (the TD's forms): the goal's fields plus correlationId in,
+    its feedback out; query and cancel on topics of their own, naming the goal."""
+    edge = Edge(fibo_build, broker, ROBOT)
+    wot = f"td2adaptor/{ROBOT}/{WOT_LEVEL}/{COMPONENT}/fibonacci"
+
+    def of(suffix: str, correlation: str) -> list[dict[str, Any]]:
+        return [e for t, e in edge.app.events if t == wot + suffix and e.get("correlationId") == correlation]
+
+    try:
+        edge.app.send(wot, {"order": SLOW, "correlationId": "w"})
+        edge.app.wait(lambda _: any("feedback" in e for e in of("/feedback", "w")), timeout=20)
+        goal = of("/feedback", "w")[0]["goal"]
+        edge.app.send(wot + "/query", {"goal": goal, "correlationId": "wq"})
+        edge.app.wait(lambda _: bool(of("/state", "wq")), timeout=10)
+        assert of("/state", "wq")[0]["state"] == "running"
+        edge.app.send(wot + "/cancel", {"correlationId": "wc"})
+        edge.app.wait(lambda _: any(e["terminal"] for e in of("/feedback", "w")), timeout=20)
+        assert [e["state"] for e in of("/feedback", "w") if e["terminal"]] == ["cancelled"]
+    finally:
+        edge.close()

@@ -1,0 +1,85 @@
+"""The pure parts of goals and procedures: ROS goal status words → procedure states, mapped state fields, and
+the goal progress crossing the ROS 1 bridge as JSON. (The real middleware tests are test_edge_node_actions_*
+and test_edge_node_mapped_procedure.)"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from td2adaptor.model import Procedure
+from td2adaptor.model.events import GOAL_WORDS, STATES
+from td2adaptor.runtime.goals import goal_status
+from td2adaptor.runtime.port import GOAL_STATES, GoalProgress
+from td2adaptor.runtime.procedures import read
+
+MAPPED = Procedure(
+    "taskRun",
+    "taskQuery",
+    "taskCancel",
+    ("int64_value",),
+    ("uint8_value",),
+    (("0", "queued"), ("1", "running"), ("2", "finished"), ("3", "failed"), ("4", "cancelled")),
+    ("string_value",),
+    frozenset({"run", "query"}),
+)
+
+
+@pytest.mark.parametrize(
+    ("word", "done", "state", "reason"),
+    [
+        ("pending", False, "queued", None),
+        ("accepted", False, "queued", None),
+        ("executing", False, "running", None),
+        ("canceling", False, "running", None),
+        ("succeeded", True, "finished", None),
+        ("canceled", True, "cancelled", None),
+        ("aborted", True, "failed", "aborted"),
+        ("rejected", True, "failed", "rejected"),
+        ("lost", True, "failed", "unreachable"),
+        ("executing", True, "failed", "robot-error"),  # ended, but not in an end state: never reported finished
+    ],
+)
+def test_goal_words(word: str, done: bool, state: str, reason: str | None) -> None:
+    status = goal_status(GoalProgress((), 0, word, done, None, "the server's words" if done else ""))
+    assert (status.state, status.reason, status.terminal) == (state, reason, done)
+    assert status.result in GOAL_WORDS and status.state in STATES
+    if done and word != "executing":
+        assert status.message == "the server's words"
+
+
+def test_every_goal_state_is_a_word_of_the_contract() -> None:
+    assert set(GOAL_STATES) <= set(GOAL_WORDS)
+
+
+def test_goal_progress_crosses_the_bridge_as_json() -> None:
+    progress = GoalProgress(({"sequence": [0, 1]},), 3, "aborted", True, {"sequence": [0]}, "13 is unlucky")
+    assert GoalProgress.from_json(json.loads(json.dumps(progress.to_json()))) == progress
+
+
+def test_mapped_state_field() -> None:
+    answer = {"int64_value": 42, "uint8_value": 1, "string_value": "working"}
+    reading = read(answer, MAPPED, "query")
+    assert reading.status is not None and reading.unmapped is None
+    assert (reading.status.state, reading.status.message, reading.status.mission_id) == ("running", "working", 42)
+    failed = read({**answer, "uint8_value": 3}, MAPPED, "query").status
+    assert failed is not None and (failed.state, failed.reason, failed.terminal) == ("failed", "robot-error", True)
+    # a value the mapping does not name: no state, and the value to log
+    assert read({**answer, "uint8_value": 9}, MAPPED, "query") == type(reading)(None, unmapped="9")
+    # a response kind that carries no state (here: cancel): the call was taken, nothing more
+    assert read(answer, MAPPED, "cancel").status is None
+
+
+def test_convention_is_the_default() -> None:
+    rb1 = Procedure("gotoRun", "gotoQuery", None, ("state", "header", "id"), stateful=frozenset({"run", "query"}))
+    answer = {"state": {"current_state": "finished", "last_event": "cancel", "header": {"id": 7}}}
+    status = read(answer, rb1, "query").status
+    assert status is not None and (status.state, status.mission_id) == ("cancelled", 7)
+
+
+def test_boolean_state_fields_read_as_true_and_false() -> None:
+    states = (("true", "finished"), ("false", "running"))
+    proc = Procedure("run", "query", None, (), ("done",), states, (), frozenset({"query"}))
+    status = read({"done": True}, proc, "query").status
+    assert status is not None and status.state == "finished"

@@ -1,0 +1,184 @@
+"""The source-independent steps on hand-made graphs: what is left out, names, components, procedures,
+namespaces and fleets (the real graphs are in test_ros2 / test_ros1 / test_offline)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from td2adaptor.diagnostics import Diagnostics
+from td2adaptor.scaffold import Options, scaffold
+from td2adaptor.scaffold.graph import Endpoint, Filters, Graph, select
+
+F64, TRIGGER = "std_msgs/msg/Float64", "std_srvs/srv/Trigger"
+
+
+def topic(name: str, role: str = "publisher", node: str = "/robot/driver", type_: str = F64) -> Endpoint:
+    return Endpoint("topic", name, type_, role, (node,))  # type: ignore[arg-type]
+
+
+def service(name: str, type_: str = TRIGGER, node: str = "/robot/driver") -> Endpoint:
+    return Endpoint("service", name, type_, "server", (node,))
+
+
+def run(endpoints: list[Endpoint], **options: Any) -> tuple[dict[str, Any] | None, Diagnostics]:
+    diags = Diagnostics()
+    return scaffold(Graph("a test graph", endpoints), Options(**options), diags), diags
+
+
+def names(doc: dict[str, Any] | None) -> dict[str, list[str]]:
+    assert doc is not None
+    return {s: list(doc.get(s, {})) for s in ("properties", "actions")}
+
+
+def test_infrastructure_and_hidden_names_are_left_out_unless_kept() -> None:
+    graph = Graph(
+        "g",
+        [
+            topic("/rosout"),
+            topic("/parameter_events"),
+            topic("/tf_static"),
+            topic("/robot/odom"),
+            topic("/robot/fibonacci/_action/feedback"),
+            service("/robot/driver/get_parameters"),
+            service("/robot/driver/get_type_description"),
+            service("/robot/driver/set_logger_level"),
+            service("/robot/reset"),
+        ],
+    )
+    kept = select(graph, Filters(), Diagnostics())
+    assert [e.name for e in kept] == ["/robot/odom", "/robot/reset"]
+    kept = select(graph, Filters(keep=("/tf_static",)), Diagnostics())
+    assert [e.name for e in kept] == ["/robot/odom", "/robot/reset", "/tf_static"]
+
+
+def test_filters_by_namespace_node_and_regex() -> None:
+    graph = Graph("g", [topic("/a/x", node="/a/n1"), topic("/a/y", node="/a/n2"), topic("/b/x", node="/b/n1")])
+    assert [e.name for e in select(graph, Filters(namespaces=("/a",)), Diagnostics())] == ["/a/x", "/a/y"]
+    assert [e.name for e in select(graph, Filters(nodes=("/a/n2",)), Diagnostics())] == ["/a/y"]
+    assert [e.name for e in select(graph, Filters(include=("x$",), exclude=("^/b",)), Diagnostics())] == ["/a/x"]
+
+
+def test_a_name_with_two_types_keeps_the_first_and_says_so() -> None:
+    diags = Diagnostics()
+    graph = Graph("g", [topic("/r/x"), topic("/r/x", role="subscriber", type_="std_msgs/msg/Int32")])
+    assert [e.type for e in select(graph, Filters(), diags)] == [F64]
+    assert diags.codes() == ["SCF106"]
+
+
+def test_names_grow_while_they_collide_and_keywords_get_a_suffix() -> None:
+    doc, _ = run([topic("/robot/left/camera/image"), topic("/robot/right/camera/image"), topic("/robot/import")])
+    assert names(doc)["properties"] == ["importValue", "leftCameraImage", "rightCameraImage"]
+
+
+def test_run_query_cancel_services_are_a_procedure() -> None:
+    trio = [service(f"/robot/dock/{leaf}") for leaf in ("run", "query", "cancel")]
+    doc, _ = run([*trio, service("/robot/reset")])
+    assert doc is not None
+    assert names(doc)["actions"] == ["reset", "dockRun", "dockCancel", "dockQuery"]
+    run_action = doc["actions"]["dockRun"]
+    assert run_action["rosv:component"] == "DockComponent" == doc["actions"]["dockQuery"]["rosv:component"]
+    # std_srvs/Trigger answers no mission id: no missionId is proposed
+    assert run_action["rosv:procedure"] == {"query": "dockQuery", "cancel": "dockCancel"}
+    assert (doc["actions"]["dockQuery"]["safe"], doc["actions"]["dockRun"]["safe"]) == (True, False)
+
+
+def test_components_by_prefix_or_by_node() -> None:
+    endpoints = [
+        topic("/robot/camera/image", node="/robot/cam"),
+        topic("/robot/camera/info", node="/robot/cam"),
+        topic("/robot/odom", node="/robot/base"),
+    ]
+    doc, _ = run(endpoints)
+    assert doc is not None
+    components = {n: a["rosv:component"] for n, a in doc["properties"].items()}
+    assert components == {"image": "CameraComponent", "info": "CameraComponent", "odom": "OdomComponent"}
+    doc, _ = run(endpoints, group="node")
+    assert doc is not None
+    components = {n: a["rosv:component"] for n, a in doc["properties"].items()}
+    assert components == {"image": "CamComponent", "info": "CamComponent", "odom": "BaseComponent"}
+
+
+def test_a_topic_the_robot_publishes_and_reads_is_read_and_one_it_only_reads_is_written() -> None:
+    doc, _ = run([topic("/robot/a"), topic("/robot/a", role="subscriber"), topic("/robot/cmd", role="subscriber")])
+    assert doc is not None
+    assert doc["properties"]["a"]["readOnly"] is True and doc["properties"]["cmd"]["writeOnly"] is True
+    assert doc["properties"]["cmd"]["forms"][0]["rosv:role"] == "publisher"
+
+
+def test_a_robot_namespace_becomes_the_placeholder_and_a_root_graph_stays_verbatim() -> None:
+    doc, diags = run([topic("/rb/odom"), topic("/rb/scan"), topic("/door/cmd", role="subscriber")])
+    assert doc is not None and doc["@type"] == "Thing"
+    forms = {n: a["forms"][0] for n, a in doc["properties"].items()}
+    assert forms["odom"]["rosv:name"] == "/{{robotName}}/odom" and forms["odom"]["href"] == "ros:odom"
+    assert forms["cmd"]["rosv:name"] == "/door/cmd" and forms["cmd"]["href"] == "ros:/door/cmd"
+    assert "SCF105" in diags.codes()
+    doc, diags = run([topic("/odom"), topic("/scan")])
+    assert doc is not None and doc["properties"]["odom"]["forms"][0]["rosv:name"] == "/odom"
+    assert "SCF105" not in diags.codes()
+
+
+def test_namespaces_with_the_same_interfaces_are_a_fleet_and_given_ones_that_differ_share_what_they_can() -> None:
+    fleet = [topic(f"/{r}/{t}") for r in ("r1", "r2", "r3") for t in ("odom", "scan")]
+    doc, _ = run(fleet)
+    assert doc is not None and doc["@type"] == "tm:ThingModel" and "id" not in doc
+    assert names(doc)["properties"] == ["odom", "scan"]
+    doc, diags = run([*fleet, topic("/r1/extra")], robot_namespaces=("r1", "r2", "r3"))
+    assert doc is not None and names(doc)["properties"] == ["odom", "scan"]
+    assert "SCF104" in diags.codes()
+
+
+def test_nothing_left_is_an_error() -> None:
+    doc, diags = run([topic("/rosout")])
+    assert doc is None and diags.codes() == ["SCF102"]
+
+
+def test_two_procedures_with_the_same_last_segment_get_their_own_names_and_components() -> None:
+    trios = [
+        service(f"/robot/{arm}/Grip/{leaf}") for arm in ("left", "right") for leaf in ("add", "query_state", "cancel")
+    ]
+    doc, _ = run(trios)
+    assert doc is not None
+    actions = doc["actions"]
+    assert sorted(actions) == sorted(["gripRun", "gripQuery", "gripCancel", "grip2Run", "grip2Query", "grip2Cancel"])
+    assert {actions["gripRun"]["rosv:component"], actions["grip2Run"]["rosv:component"]} == {
+        "GripComponent",
+        "Grip2Component",
+    }
+    assert actions["grip2Run"]["rosv:procedure"] == {"query": "grip2Query", "cancel": "grip2Cancel"}
+
+
+def test_td_style_leaves_the_contract_only_members_to_the_event_contract() -> None:
+    from td2adaptor.scaffold.writer import td_style
+
+    strict = {
+        "type": "object",
+        "properties": {
+            "required": {"type": "boolean"},  # a field called so stays
+            "pose": {"type": "object", "properties": {"x": {"type": "number"}}, "additionalProperties": False},
+            "list": {"type": "array", "items": {"type": "object", "properties": {}, "required": []}},
+        },
+        "additionalProperties": False,
+        "required": ["required", "pose"],
+    }
+    assert td_style(strict) == {
+        "type": "object",
+        "properties": {
+            "required": {"type": "boolean"},
+            "pose": {"type": "object", "properties": {"x": {"type": "number"}}},
+            "list": {"type": "array", "items": {"type": "object", "properties": {}}},
+        },
+    }
+
+
+def test_the_five_topics_of_an_actionlib_server_are_one_action_and_four_of_them_are_not() -> None:
+    five = [
+        topic("/r/move/goal", "subscriber", type_="nav_msgs/msg/MoveActionGoal"),
+        topic("/r/move/cancel", "subscriber", type_="actionlib_msgs/msg/GoalID"),
+        topic("/r/move/status", type_="actionlib_msgs/msg/GoalStatusArray"),
+        topic("/r/move/feedback", type_="nav_msgs/msg/MoveActionFeedback"),
+        topic("/r/move/result", type_="nav_msgs/msg/MoveActionResult"),
+    ]
+    folded = select(Graph("g", five), Filters(), Diagnostics())
+    assert [(e.kind, e.name, e.type) for e in folded] == [("action", "/r/move", "nav_msgs/action/Move")]
+    partial = select(Graph("g", five[:4]), Filters(), Diagnostics())
+    assert [e.kind for e in partial] == ["topic"] * 4
