@@ -101,27 +101,11 @@ def check_nav_base_summary(out: subprocess.CompletedProcess[str], bus: str) -> N
     assert "door open" in per_action and "poseMarker" not in per_action
 
 
-def require_edge_node_actions() -> None:
-    """Until the edge node serves ROS actions (issue 12), the nav_base demo cannot run: say so instead."""
-    import td2adaptor
-    from td2adaptor.model.events import Kind, build_catalog
-    from tests.examples.nav_base import EXAMPLE, INTERFACES
-
-    model = td2adaptor.compile(EXAMPLE / "td.json", interfaces=[INTERFACES]).model
-    assert model is not None
-    try:
-        build_catalog(model).find(Kind.INVOKE, "navigateToPose")
-    except StopIteration:
-        pytest.skip("the edge node does not serve ROS actions yet (the event contract has no navigateToPose)")
-
-
 def test_demo_warehouse_with_nav_base_robots(ros2_domain: int, nav_prefix: Path) -> None:
-    require_edge_node_actions()
     check_nav_base_summary(demo("--robot-kind", "nav_base"), "local")
 
 
 def test_demo_warehouse_with_nav_base_robots_over_mqtt(ros2_domain: int, nav_prefix: Path, broker: Mosquitto) -> None:
-    require_edge_node_actions()
     check_nav_base_summary(demo("--robot-kind", "nav_base", "--bus", broker.url), broker.url)
 
 
