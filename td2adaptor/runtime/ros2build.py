@@ -262,8 +262,8 @@ def build_interfaces(
     `progress` hears about a build before it starts and when it is done (half a minute or more): the
     command line passes it on a terminal only, so CI logs stay quiet.
     """
-    src, cache = src.resolve(), cache.resolve()  # colcon runs in the build folder: relative paths would miss
     packages = packages_in(src)  # refuse an empty or missing folder before hashing or locking anything
+    src, cache = src.resolve(), cache.resolve()  # colcon runs in the build folder: relative paths would miss
     key = definitions_hash(src)
     root = cache / key
     done = root / "DONE"
