@@ -159,7 +159,7 @@ def test_subscribed_types_must_fit_the_sub_task_stack(generated: Apps, tmp_path:
 @needs_host
 def test_robot_namespace_length_is_checked_when_compiling(generated: Apps) -> None:
     app, root = generated["rb1"]
-    ns_max = mros.plan(app.model, GenOptions(partial=True), Diagnostics()).context["ns_max"]  # type: ignore[union-attr]
+    ns_max = mros.plan(app.model, GenOptions(partial=True, extra=apps.TREE_LIMITS), Diagnostics()).context["ns_max"]  # type: ignore[union-attr]
     ok = f'-DTD2A_ROBOT_NAMESPACE="{"n" * ns_max}"'
     build.run([build.HOST_CXX, *build.HOST_SYNTAX, ok, *build.includes(root), str(root / "app.cpp")])
     too_long = f'-DTD2A_ROBOT_NAMESPACE="{"n" * (ns_max + 1)}"'
@@ -181,7 +181,7 @@ def test_robot_namespace_length_is_checked_when_compiling(generated: Apps) -> No
 
 
 def _context(app: apps.App) -> dict[str, Any]:
-    made = mros.plan(app.model, GenOptions(partial=True), Diagnostics())
+    made = mros.plan(app.model, GenOptions(partial=True, extra=apps.TREE_LIMITS), Diagnostics())
     assert made is not None
     return made.context
 
