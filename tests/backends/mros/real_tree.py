@@ -97,9 +97,9 @@ def tree_copy(dest: Path, tcpros_max: int) -> Path:
     return dest
 
 
-def make(app: Path, timeout: float = 900) -> str:
+def make(app: Path, *args: str, timeout: float = 900) -> str:
     """`make` in an application directory of a tree copy (serially, as the README says); the output."""
-    proc = subprocess.run(["make"], cwd=app, capture_output=True, text=True, timeout=timeout, check=False)
+    proc = subprocess.run(["make", *args], cwd=app, capture_output=True, text=True, timeout=timeout, check=False)
     assert proc.returncode == 0, f"make in {app} failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-6000:]}"
     return proc.stdout + proc.stderr
 
