@@ -258,6 +258,11 @@ def test_rb1_tasks_on_the_loopback_bus(generated: Apps, shared_root: Path) -> No
         assert lb.ask(f"PUBLISH door {door.hex()}") == "1"
         assert lb.items("PROBLEMS") == []
         assert lb.items("LOG") == []
+        # a truncated Status is dropped with a log line that survives mROS's -DMROS_LOG_DISABLE_WARN
+        assert lb.ask(f"INJECT /rb1_base/robot_local_control/state {status[:-3].hex()}") == "1"
+        assert lb.ask("HOOK availability") == f"1 {status.hex()}"  # the hook did not see it
+        log = lb.items("LOG")
+        assert len(log) == 1 and "dropped a malformed robot_local_control_msgs/Status message" in log[0]
     finally:
         lb.close()
 
