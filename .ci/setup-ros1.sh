@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# ROS 1 (Noetic-era rospy) from Debian 12 packages, for the rospy backend's real-runtime tests.
+# ROS 1 (Noetic-era rospy, actionlib) from Debian 12 packages, for the rospy backend's real-runtime tests
+# (python3-move-base-msgs: genaction output built by Debian, to check td2adaptor's ROS 1 action md5 sums).
 # Called by .ci/setup.sh --test with $SUDO set ("" as root, "sudo" otherwise). Idempotent and quiet.
 # Uses Debian's /usr/bin/python3 (the packages live in /usr/lib/python3/dist-packages).
 set -euo pipefail
@@ -10,6 +11,7 @@ PACKAGES=(
   python3-genpy python3-genmsg python3-catkin-pkg
   ros-std-msgs ros-geometry-msgs python3-geometry-msgs
   catkin rosbash rospack-tools python3-roslaunch
+  python3-actionlib python3-actionlib-msgs python3-move-base-msgs
 )
 
 if ! command -v apt-get >/dev/null; then
@@ -35,7 +37,7 @@ if [ "${#missing[@]}" -gt 0 ]; then
   fi
 fi
 
-/usr/bin/python3 -c "import rospy, rosmaster, genpy, genmsg, catkin_pkg, std_msgs.msg, std_srvs.srv, geometry_msgs.msg" \
+/usr/bin/python3 -c "import rospy, rosmaster, genpy, genmsg, catkin_pkg, std_msgs.msg, std_srvs.srv, geometry_msgs.msg, actionlib, actionlib_msgs.msg, move_base_msgs.msg" \
   || { echo "setup-ros1: Debian's rospy is not importable by /usr/bin/python3" >&2; exit 1; }
 for tool in rosmaster catkin_make rosrun roslaunch; do
   command -v "$tool" >/dev/null || { echo "setup-ros1: $tool is not on PATH" >&2; exit 1; }

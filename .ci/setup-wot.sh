@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The W3C WoT reference data the conformance tests use as an oracle when ../shared/wot is not beside the
 # repository: the official TD and TM 1.1 schemas and the Thingweb Playground corpus, pinned npm packages
-# (data only: --ignore-scripts) in .cache/wot. Called by .ci/setup.sh --test; idempotent and quiet.
+# (data only: --ignore-scripts) in .cache/wot; and the AsyncAPI parser the events backend's AsyncAPI documents
+# are checked with (pure JavaScript, also --ignore-scripts). Called by .ci/setup.sh --test; idempotent and quiet.
 # Needs node and npm (Debian: nodejs npm). tests/wot_corpus.py says what the tests take from here.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -12,6 +13,7 @@ PACKAGES=(
   "wot-thing-description-types@1.1.0-12-March-2025"
   "wot-thing-model-types@1.1.0-12-March-2025"
   "@thing-description-playground/core@1.4.0"
+  "@asyncapi/parser@3.6.3"
 )
 
 . .ci/node.sh

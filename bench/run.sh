@@ -22,4 +22,6 @@ run "gen next to a peer generator (issue 3)" "$PY" bench/peer.py
 [ -f bench/backend_mros.py ] && run "mROS backend (issue 4)" "$PY" bench/backend_mros.py
 [ -f bench/runtime_bus.py ] && run "edge-node runtime over MQTT (issue 5)" "$PY" bench/runtime_bus.py
 [ -f bench/edge_node_ros2.py ] && run "edge node: MQTT event -> ROS 2 call -> feedback (issue 5)" "$PY" bench/edge_node_ros2.py
+[ -f bench/wot_consumer.py ] && run "a WoT consumer (node-wot) on ROS 2; the retained TD at start (issue 11)" "$PY" bench/wot_consumer.py
+[ -f bench/discovery.py ] && run "discovery: TD registered with a TD directory at start (issue 11)" "$PY" bench/discovery.py
 exit $status

@@ -36,9 +36,24 @@ if TYPE_CHECKING:
 @click.option("--namespace", help="ROS namespace of the robot ({{robotName}}); default: the robot id.")
 @click.option("--bus", help="mqtt://host:port, mqtts://host:port or local (default: local).")
 @click.option(
+    "--mqtt-version",
+    type=click.Choice(["5", "3.1.1"]),
+    help="MQTT protocol version to speak to the broker (default: 5; 3.1.1 for brokers that speak only that).",
+)
+@click.option(
     "--broker",
     help="Broker URL the robot's published Thing Description names (default: the --bus URL; with a local bus, "
     "no TD is published).",
+)
+@click.option(
+    "--directory",
+    help="W3C WoT Thing Description Directory (http(s)://host:port[/path]) to register each robot's TD with "
+    "while it runs (PUT /things/{id}, DELETE on stop); token: TD2ADAPTOR_DIRECTORY_TOKEN.",
+)
+@click.option(
+    "--directory-ttl",
+    type=click.IntRange(min=0),
+    help="Seconds the directory keeps a TD without a refresh (default 600; refreshed every ttl/2; 0: no expiry).",
 )
 @click.option(
     "--config",
@@ -95,7 +110,10 @@ def run(
     robot: str | None,
     namespace: str | None,
     bus: str | None,
+    mqtt_version: str | None,
     broker: str | None,
+    directory: str | None,
+    directory_ttl: int | None,
     config_file: Path | None,
     ros: str,
     package: str | None,
@@ -117,8 +135,9 @@ def run(
     The generated adaptor package must be importable: source the colcon/catkin install space it was built
     into, or give --package-path (its source directory) and, for ROS 2, --prefix (the built interfaces).
     Precedence of settings: options > TD2ADAPTOR_* environment > --config file. Once online, each robot's
-    Thing Description (what `td2adaptor expose` writes) is retained on td2adaptor/<robot>/td. SIGINT/SIGTERM
-    stop it cleanly (the TD is cleared, the robot's status becomes offline).
+    Thing Description (what `td2adaptor expose` writes) is retained on td2adaptor/<robot>/td and, with
+    --directory, registered with a TD directory. SIGINT/SIGTERM stop it cleanly (the TD is cleared and
+    deregistered, the robot's status becomes offline).
     """
     import logging
     import signal
@@ -139,7 +158,10 @@ def run(
         "robot": robot,
         "namespace": namespace,
         "bus": bus,
+        "mqtt_version": mqtt_version,
         "td_broker": broker,
+        "directory": directory,
+        "directory_ttl": directory_ttl,
         "ros_domain_id": domain_id,
         "ros_master_uri": master_uri,
         "poll_period": poll_period,
@@ -198,6 +220,13 @@ def run(
 @click.option("--robot", required=True, help="Robot id on the bus (as `run --robot`).")
 @click.option("--broker", required=True, help="mqtt://host:port or mqtts://host:port of the broker the robot uses.")
 @click.option(
+    "--ros",
+    type=click.Choice(["1", "2"]),
+    default="2",
+    show_default=True,
+    help="ROS version the robot runs (as `run --ros`): its message layouts, e.g. time as secs/nsecs or sec/nanosec.",
+)
+@click.option(
     "--output",
     "-o",
     default="-",
@@ -215,6 +244,7 @@ def expose(
     max_affordances: int,
     robot: str,
     broker: str,
+    ros: str,
     output: str,
 ) -> None:
     """Write the Thing Description of one robot as its edge node exposes it on the broker.
@@ -224,7 +254,7 @@ def expose(
     td2adaptor/<robot>/td while it runs. (`gen -b events` writes the fleet's Thing Model, td.mqtt.json.)
     """
     from td2adaptor.backends.events.generator import dump, exposed_td
-    from td2adaptor.model.events import ALL_ROBOTS, ROBOT_ID
+    from td2adaptor.model.events import ALL_ROBOTS, ROBOT_ID, build_catalog
     from td2adaptor.runtime.security import SecurityError, parse_broker_url
 
     if not ROBOT_ID.match(robot) or robot == ALL_ROBOTS:
@@ -237,7 +267,8 @@ def expose(
     if result.model is None:
         report(result.diagnostics, "human", label=_label([source]))
         sys.exit(EXIT_INVALID)
-    text = dump(exposed_td(result.model, robot=robot, broker=url))
+    catalog = build_catalog(result.model, f"ros{ros}")
+    text = dump(exposed_td(result.model, catalog, robot=robot, broker=url))
     if output == "-":
         click.echo(text, nl=False)
     else:

@@ -22,10 +22,11 @@ _PKG = Path(__file__).resolve().parents[1]  # the td2adaptor package, bundled sc
 
 
 def _code_fingerprint() -> str:
-    """Sizes and mtimes of td2adaptor's sources and data: any edit or upgrade invalidates the cache."""
+    """Sizes and mtimes of td2adaptor's sources and data (templates and verbatim files included, since cached
+    generated trees depend on them): any edit or upgrade invalidates the cache."""
     h = hashlib.sha256()
     for path in sorted(_PKG.rglob("*")):
-        if path.suffix in (".py", ".json", ".jsonld", ".msg", ".srv", ".action") and "__pycache__" not in path.parts:
+        if "__pycache__" not in path.parts and path.is_file():
             st = path.stat()
             h.update(f"{path}:{st.st_size}:{st.st_mtime_ns}\n".encode())
     return h.hexdigest()
@@ -67,6 +68,8 @@ def cached(cache_key: str | None, compute: Callable[[], Any]) -> Any:
         with entry.open("rb") as fh:
             deps, value = pickle.load(fh)
         if all(Path(p).is_file() and _file_digest(Path(p)) == digest for p, digest in deps):
+            if jsonsrc.READ_LOG is not None:  # an enclosing cached computation depends on them too
+                jsonsrc.READ_LOG.extend(deps)
             return value
     except (OSError, pickle.PickleError, EOFError, ValueError, TypeError, AttributeError, ImportError):
         pass
@@ -77,6 +80,8 @@ def cached(cache_key: str | None, compute: Callable[[], Any]) -> Any:
         value = compute()
     finally:
         jsonsrc.READ_LOG = previous
+        if previous is not None:
+            previous.extend(log)
     try:
         from td2adaptor.support.fsutil import write_atomic
 

@@ -185,12 +185,6 @@ _ENTRIES: tuple[Entry, ...] = (
     Entry("ROS422", (_W,), "declared class name does not match the ROS type"),
     Entry("ROS423", (_E,), "unknown ROS type", "add its definition with --interfaces DIR"),
     Entry("ROS424", (_W,), "ROS type not known for one ROS version: that version's backends cannot use it"),
-    Entry(
-        "ROS425",
-        (_W,),
-        "ROS action on a ROS 1 robot: actionlib is not generated yet, only the rclpy backend generates it",
-        "the rospy and mros backends refuse it; --partial skips it",
-    ),
     Entry("ROS426", (_W,), "type used by the interface definitions not known for one ROS version"),
     Entry("ROS427", (_W,), "type written in a ROS 1 or rosjava spelling", "write pkg/msg/Name (srv, action)"),
     Entry(
@@ -198,6 +192,12 @@ _ENTRIES: tuple[Entry, ...] = (
         (_I,),
         "a standard interface package the adaptors import at run time",
         "ROS 2: pip install ros-jazzy-<package>; ROS 1: apt install python3-<package>",
+    ),
+    Entry(
+        "ROS429",
+        (_E,),
+        "a hidden type of a ROS 2 action (Name_SendGoal, Name_GetResult, Name_FeedbackMessage)",
+        'bind the action itself: "rosv:interface": "action", "rosv:type": "pkg/action/Name"',
     ),
     Entry("ROS430", (_E,), "component name unusable as a class name", "use a CamelCase name"),
     Entry("ROS431", (_E,), "affordance name unusable in generated method names"),
@@ -311,13 +311,6 @@ _ENTRIES: tuple[Entry, ...] = (
     Entry("GEN840", (_E,), "rospy backend cannot express a message field"),
     Entry("GEN841", (_E,), "rospy backend: a component would define a name twice"),
     Entry("GEN842", (_E,), "rospy backend: ROS 1 types not found", "add their definitions with --interfaces"),
-    Entry(
-        "GEN843",
-        (_E, _W),
-        "rospy backend: ROS 1 actions (actionlib) are not generated yet",
-        "--partial skips the action; the rclpy backend generates ROS 2 actions",
-        "warning under --partial, which skips the action",
-    ),
     Entry("GEN860", (_W,), "events backend: a ROS action is not in the event contract yet: skipped"),
     # -- CFG9: project configuration ---------------------------------------------------------------------
     Entry("CFG900", (_E,), "configuration file cannot be read"),

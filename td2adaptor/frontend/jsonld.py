@@ -108,15 +108,24 @@ def _resolver(loader: OfflineLoader) -> Any:
     from pyld.resolved_context import ResolvedContext
 
     class Resolver(ContextResolver):  # type: ignore[misc]
+        # The same scoped-context dict comes back for every node it applies to: its key is remembered by
+        # identity (the dict is kept alive beside it, so its id cannot be reused during this call).
+        keys: dict[int, tuple[Any, str | None]] = {}
+
         def resolve(self, active_ctx: Any, context: Any, base: Any, cycles: Any = None) -> Any:
             if isinstance(context, dict) and "@context" in context:
                 context = context["@context"]
             resolved = []
             for ctx in context if isinstance(context, list) else [context]:
-                try:
-                    key = json.dumps(ctx, sort_keys=True, separators=(",", ":")) if type(ctx) is dict else None
-                except (TypeError, ValueError, RecursionError):
-                    key = None
+                known = self.keys.get(id(ctx))
+                if known is not None and known[0] is ctx:
+                    key = known[1]
+                else:
+                    try:
+                        key = json.dumps(ctx, sort_keys=True, separators=(",", ":")) if type(ctx) is dict else None
+                    except (TypeError, ValueError, RecursionError):
+                        key = None
+                    self.keys[id(ctx)] = (ctx, key)
                 if key is None:  # URLs, null, anything unusual: pyld's own way
                     resolved.extend(super().resolve(active_ctx, ctx, base, cycles))
                     continue

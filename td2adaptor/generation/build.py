@@ -117,7 +117,48 @@ def build(
     targets: Sequence[Target], diags: Diagnostics, *, use_cache: bool = True, parallel: bool = False
 ) -> dict[Path, GeneratedTree] | None:
     """Compile every TD of every target and generate; trees merged per output directory `OUT/<backend>`, then
-    finished by the backends that have a `finish` (see `generation.backend`)."""
+    finished by the backends that have a `finish` (see `generation.backend`).
+
+    With `use_cache`, the trees and diagnostics of an identical earlier build come from the result cache (its
+    key covers td2adaptor's code and templates, the targets, every input file and interface folder), so the
+    pre-commit `check` of an unchanged project imports no backend and renders nothing.
+    """
+    key = _build_key(targets) if use_cache else None
+    if key is None:
+        return _build(targets, diags, use_cache=use_cache, parallel=parallel)
+    from td2adaptor.compiler import resultcache
+
+    def fresh() -> tuple[list[Diagnostic], dict[Path, GeneratedTree] | None]:
+        local = Diagnostics()
+        trees = _build(targets, local, use_cache=True, parallel=parallel)
+        return list(local), trees
+
+    found, trees = resultcache.cached(key, fresh)
+    diags.extend(found)
+    return trees  # type: ignore[no-any-return]
+
+
+def _build_key(targets: Sequence[Target]) -> str | None:
+    """The result-cache key of a build, or None when it cannot be cached: no cache directory, an input on
+    stdin, or a backend installed by another distribution (its code is not in td2adaptor's fingerprint)."""
+    from td2adaptor.support import cache
+
+    if cache.cache_dir() is None:
+        return None
+    from importlib.metadata import entry_points
+
+    if any(True for _ in entry_points(group=backend_registry.ENTRY_POINT_GROUP)):
+        return None
+    from td2adaptor.compiler import resultcache
+
+    sources = [str(td) for target in targets for td in target.tds]
+    folders = [Path(folder) for target in targets for folder in target.interfaces]
+    return resultcache.key(sources, folders, ("build", str(Path.cwd()), tuple(targets)))
+
+
+def _build(
+    targets: Sequence[Target], diags: Diagnostics, *, use_cache: bool, parallel: bool
+) -> dict[Path, GeneratedTree] | None:
     from td2adaptor.compiler.pipeline import compile
 
     merged: dict[Path, GeneratedTree] = {}

@@ -112,7 +112,6 @@ def lower(
         )
     _check_unbound_actions(td, raws, diags)
     endpoints = [ep for ep in (_endpoint(raw, diags) for raw in raws) if ep is not None]
-    _check_ros1_actions(endpoints, thing.master_uri, diags)
     _check_duplicate_names(endpoints, diags)
     _check_relative_names(endpoints, diags)
     groups = _group(endpoints, diags)
@@ -170,7 +169,7 @@ def _check_unbound_actions(td: Mapping[str, Any], raws: Sequence[RawEndpoint], d
 
 
 def _endpoint(raw: RawEndpoint, diags: Diagnostics) -> _Endpoint | None:
-    from td2adaptor.rostypes.names import normalize_type_name
+    from td2adaptor.rostypes.names import hidden_action_part, normalize_type_name
 
     what = f"{raw.kind} {raw.name!r}"
     ok = True
@@ -197,6 +196,18 @@ def _endpoint(raw: RawEndpoint, diags: Diagnostics) -> _Endpoint | None:
     _check_href(raw, ros_name, diags)
     kind = {Interface.SERVICE: "srv", Interface.TOPIC: "msg", Interface.ACTION: "action"}[raw.interface]
     type_name = normalize_type_name(raw.type_name.value, kind)  # type: ignore[arg-type]
+    hidden = hidden_action_part(raw.type_name.value)
+    if hidden is not None:
+        action, part = hidden
+        diags.error(
+            "ROS429",
+            f"{what}: {raw.type_name.value!r} is the {part} type ROS 2 derives for action {action}: its hidden "
+            "services and topic are not bound one by one",
+            raw.type_name.pointer,
+            f'bind the action itself: "rosv:interface": "action", "rosv:type": "{action}" (goal as input, result '
+            "as output; the adaptors send goals, follow feedback and cancel)",
+        )
+        return None
     if type_name is None:
         diags.error(
             "ROS420",
@@ -226,21 +237,6 @@ def _endpoint(raw: RawEndpoint, diags: Diagnostics) -> _Endpoint | None:
         return None
     # other problems were reported; keep going so type resolution can report its own too
     return _Endpoint(raw, component, ros_name, type_name, errors=not ok)
-
-
-def _check_ros1_actions(endpoints: Sequence[_Endpoint], master_uri: str | None, diags: Diagnostics) -> None:
-    """A ROS action on a ROS 1 robot (a TD naming a ROS 1 master) is actionlib, which is not generated yet."""
-    if master_uri is None:
-        return
-    for ep in endpoints:
-        if ep.raw.interface is Interface.ACTION:
-            diags.warning(
-                "ROS425",
-                f"{ep.raw.kind} {ep.raw.name!r}: the TD names a ROS 1 master, and ROS 1 actions (actionlib) are "
-                "not generated yet: only the rclpy backend (ROS 2) generates this action",
-                ep.raw.form_pointer,
-                "the rospy and mros backends refuse it (--partial skips it)",
-            )
 
 
 def _check_relative_names(endpoints: Sequence[_Endpoint], diags: Diagnostics) -> None:

@@ -30,7 +30,7 @@ from functools import cached_property
 from typing import Any
 
 from td2adaptor.model import Model, ProcedureRole, Role, ServiceEndpoint, Text, TopicEndpoint, thaw
-from td2adaptor.model.msgschema import message_schema
+from td2adaptor.model.msgschema import message_schema, strictest
 
 TOPIC_ROOT = "td2adaptor"
 ALL_ROBOTS = "all"
@@ -137,6 +137,7 @@ class EventCatalog:
     package: str
     specs: tuple[EventSpec, ...]
     envelope: Mapping[str, Any]
+    distro: str = "ros2"  # whose message layouts the payload schemas follow (time: secs/nsecs or sec/nanosec)
 
     @property
     def base(self) -> str:
@@ -287,18 +288,28 @@ def typed(schema: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _ros_schema(model: Model, type_name: str, half: str = "") -> dict[str, Any]:
-    """JSON Schema of a message (or a service half) from the first distro that resolves it."""
-    for table in (model.ros2, model.ros1):
+def _ros_schema(model: Model, type_name: str, half: str = "", *, distro: str, complete: bool) -> dict[str, Any]:
+    """JSON Schema of a message (or a service half) in `distro`'s layout, else in the other's when only that
+    resolves it; `{}` when neither does. `complete`: every field required (a value the robot sends)."""
+    tables = (model.ros1, model.ros2) if distro == "ros1" else (model.ros2, model.ros1)
+    for table in tables:
         found = table.get(type_name)
         if found is None:
             continue
         if half:
             svc = table.service(type_name)
-            return message_schema(svc.request if half == "request" else svc.response, table)
+            return message_schema(svc.request if half == "request" else svc.response, table, complete=complete)
         msg = table.message(type_name)
-        return message_schema(msg, table)
-    return {"type": "object"}
+        return message_schema(msg, table, complete=complete)
+    return {}
+
+
+def payload_schema(model: Model, type_name: str, td: Any, *, half: str = "", distro: str, complete: bool) -> Any:
+    """A payload's schema: the ROS type's, narrowed by the TD's data schema `td` where it has one; an object
+    when neither says more."""
+    ros = _ros_schema(model, type_name, half, distro=distro, complete=complete)
+    schema = strictest(ros, data_schema(td)) if td is not None else ros
+    return schema or {"type": "object"}
 
 
 def _text(text: Text, fallback: str) -> tuple[str, str]:
@@ -361,6 +372,7 @@ def _envelope(base: str) -> dict[str, Any]:
 
 
 _OUT_REQUIRED = ["type", "robot", "id", "time", "source", "payload"]
+_ENVELOPE_MEMBERS = tuple(_envelope("")["properties"])
 
 
 def _event_schema(
@@ -375,13 +387,17 @@ def _event_schema(
     required: list[str],
     extra: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
-    props: dict[str, Any] = {"type": {"type": "string", "const": kind.value}}
+    # every envelope member by reference, then this event's own constraints in place of the shared ones (each
+    # self-sufficient), closed with additionalProperties: the same meaning in JSON Schema draft-07 and
+    # 2020-12, so that AsyncAPI tools, which check draft-07 payloads, check these too
+    props: dict[str, Any] = {name: {"$ref": f"envelope.schema.json#/properties/{name}"} for name in _ENVELOPE_MEMBERS}
+    props["type"] = {"type": "string", "const": kind.value}
     if affordance is not None:
         props["affordance"] = {"type": "string", "const": affordance}
     else:
         props["affordance"] = False
     if not kind.inbound:
-        props["robot"] = {"not": {"type": "string", "const": ALL_ROBOTS}}
+        props["robot"] = {"type": "string", "pattern": ROBOT_ID_PATTERN, "not": {"type": "string", "const": ALL_ROBOTS}}
     props.update(extra or {})
     props["payload"] = payload
     # robot-level events are files of their own; a component's events sit in its file's $defs, where the
@@ -392,10 +408,9 @@ def _event_schema(
         "title": title,
         "description": description,
         "type": "object",
-        "allOf": [{"$ref": "envelope.schema.json"}],
         "properties": props,
         "required": required,
-        "unevaluatedProperties": False,
+        "additionalProperties": False,
     }
 
 
@@ -465,22 +480,20 @@ def _status_payload() -> dict[str, Any]:
     }
 
 
-def _invoke_payload(model: Model, svc: ServiceEndpoint) -> tuple[Any, bool]:
+def _invoke_payload(model: Model, svc: ServiceEndpoint, distro: str) -> tuple[Any, bool]:
     """The payload schema of an invoke event and whether a payload is required."""
-    if svc.input_schema is not None:
-        return data_schema(svc.input_schema), True
-    schema = _ros_schema(model, svc.type_name, "request")
-    return schema, bool(schema.get("properties"))
+    schema = payload_schema(model, svc.type_name, svc.input_schema, half="request", distro=distro, complete=False)
+    return schema, svc.input_schema is not None or bool(schema.get("properties"))
 
 
-def _property_payload(model: Model, topic: TopicEndpoint) -> Any:
-    if topic.schema is not None:
-        return data_schema(topic.schema)
-    return _ros_schema(model, topic.type_name)
+def _property_payload(model: Model, topic: TopicEndpoint, distro: str, *, complete: bool) -> Any:
+    return payload_schema(model, topic.type_name, topic.schema, distro=distro, complete=complete)
 
 
-def build_catalog(model: Model) -> EventCatalog:
-    """Every event of `model`: per component in TD order, then the robot-level error and status events."""
+def build_catalog(model: Model, distro: str = "ros2") -> EventCatalog:
+    """Every event of `model`: per component in TD order, then the robot-level error and status events.
+
+    Payloads follow `distro`'s message layouts (the ROS version the robot runs)."""
     base = f"{SCHEMA_BASE}{model.package_name}/"
     specs: list[EventSpec] = []
 
@@ -497,7 +510,7 @@ def build_catalog(model: Model) -> EventCatalog:
             proc = comp.procedure_of(svc.name)
             role = svc.procedure_role
             if role is ProcedureRole.RUN or proc is None or role is ProcedureRole.NONE:
-                payload, needed = _invoke_payload(model, svc)
+                payload, needed = _invoke_payload(model, svc, distro)
                 add(
                     Kind.INVOKE,
                     comp.name,
@@ -511,10 +524,8 @@ def build_catalog(model: Model) -> EventCatalog:
                 plain = role is not ProcedureRole.RUN
                 output = None
                 if plain:
-                    output = (
-                        data_schema(svc.output_schema)
-                        if svc.output_schema is not None
-                        else _ros_schema(model, svc.type_name, "response")
+                    output = payload_schema(
+                        model, svc.type_name, svc.output_schema, half="response", distro=distro, complete=True
                     )
                 add(
                     Kind.FEEDBACK,
@@ -558,7 +569,7 @@ def build_catalog(model: Model) -> EventCatalog:
                     topic.name,
                     f"{title}: value",
                     f"Latest value of {topic.name} (retained; throttled by the runtime). {desc}".strip(),
-                    payload=_property_payload(model, topic),
+                    payload=_property_payload(model, topic, distro, complete=True),
                     required=_OUT_REQUIRED + ["affordance"],
                 )
             else:
@@ -568,7 +579,7 @@ def build_catalog(model: Model) -> EventCatalog:
                     topic.name,
                     f"{title}: write",
                     f"Publish a value of {topic.name}. {desc}".strip(),
-                    payload=_property_payload(model, topic),
+                    payload=_property_payload(model, topic, distro, complete=False),
                     required=["payload"],
                     extra={"mission": False},
                 )
@@ -591,4 +602,4 @@ def build_catalog(model: Model) -> EventCatalog:
         payload=_status_payload(),
         required=_OUT_REQUIRED,
     )
-    return EventCatalog(model.package_name, tuple(specs), _envelope(base))
+    return EventCatalog(model.package_name, tuple(specs), _envelope(base), distro)

@@ -166,11 +166,41 @@ def action_part_names(action: str) -> tuple[str, str, str]:
 
 
 def ros1_name(name: str) -> str:
-    """`pkg/msg/Name` → `pkg/Name`, the spelling ROS 1 tools and md5 texts use."""
+    """`pkg/msg/Name` → `pkg/Name`, the spelling ROS 1 tools and md5 texts use; the parts of services and
+    actions lose their `_`: `pkg/action/Name_Goal` → `pkg/NameGoal` (genpy's class, genaction's message)."""
     pieces = name.split("/")
     if len(pieces) == 3:
-        return f"{pieces[0]}/{pieces[2]}"
+        base = pieces[2].replace("_", "") if pieces[1] in ("srv", "action") else pieces[2]
+        return f"{pieces[0]}/{base}"
     return name
+
+
+#: the messages genaction derives from a ROS 1 action `pkg/action/Name`, besides its goal, result and
+#: feedback: `pkg/msg/NameAction`, `pkg/msg/NameActionGoal`, ... (real messages of the package in ROS 1)
+ROS1_ACTION_MESSAGES = ("Action", "ActionGoal", "ActionResult", "ActionFeedback")
+
+
+def ros1_action_messages(action: str) -> tuple[str, str, str, str]:
+    """The four derived ROS 1 messages of action `pkg/action/Name` (see ROS1_ACTION_MESSAGES)."""
+    package, _, name = action.split("/")
+    action_msg, goal, result, feedback = (f"{package}/msg/{name}{suffix}" for suffix in ROS1_ACTION_MESSAGES)
+    return action_msg, goal, result, feedback
+
+
+#: the types ROS 2 derives from an action for its hidden services and topic; a TD binds the action instead
+_HIDDEN_ACTION_PART = re.compile(
+    r"(?P<package>[a-z][a-z0-9_]*)/(?:(?:msg|srv|action)/)?(?P<name>[A-Z][A-Za-z0-9]*)_"
+    r"(?P<part>SendGoal|GetResult|FeedbackMessage)(?:_(?:Request|Response|Event))?"
+)
+
+
+def hidden_action_part(raw: str) -> tuple[str, str] | None:
+    """For a ROS 2 action's hidden type (`pkg/srv/Name_SendGoal`, `pkg/action/Name_GetResult`,
+    `pkg/msg/Name_FeedbackMessage`, ...): the action `pkg/action/Name` and the part's name; else None."""
+    match = _HIDDEN_ACTION_PART.fullmatch(raw.strip())
+    if match is None:
+        return None
+    return f"{match['package']}/action/{match['name']}", match["part"]
 
 
 def providers(package: str) -> tuple[str, str]:

@@ -15,9 +15,16 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
 from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity
-from td2adaptor.model import ActionDef, MessageDef, ServiceDef, TypeTable
+from td2adaptor.model import ActionDef, FieldType, MessageDef, MessageField, ServiceDef, TypeTable
 from td2adaptor.rostypes.md5 import Ros1Texts
-from td2adaptor.rostypes.names import KINDS, Kind, is_valid_package_name, is_valid_type_name, parse_type_name
+from td2adaptor.rostypes.names import (
+    KINDS,
+    Kind,
+    is_valid_package_name,
+    is_valid_type_name,
+    parse_type_name,
+    ros1_action_messages,
+)
 from td2adaptor.rostypes.parser import PART_SUFFIXES, FileParser, ParsedDef, split_sections
 from td2adaptor.rostypes.typestore import (
     STORE_NAMES,
@@ -38,6 +45,34 @@ __all__ = ["BUNDLED_DIR", "Distro", "Resolved", "TypeRegistry"]
 Resolved = MessageDef | ServiceDef | ActionDef
 
 BUNDLED_DIR = Path(__file__).resolve().parent / "interfaces"
+
+
+# ---------------------------------------------------------------------------------------------------------
+# ROS 1 actions
+
+
+def _genaction(action: str, origin: str) -> list[MessageDef]:
+    """The messages genaction derives from ROS 1 action `pkg/action/Name` besides its goal, result and
+    feedback: NameActionGoal (header, goal_id, goal), NameActionResult and NameActionFeedback (header, status,
+    result/feedback) and NameAction (the three of them), as `pkg/msg/...` (where genpy puts them)."""
+    action_msg, action_goal, action_result, action_feedback = ros1_action_messages(action)
+
+    def msg(name: str, *fields: tuple[str, str]) -> MessageDef:
+        return MessageDef(name, tuple(MessageField(f, FieldType(t, is_message=True)) for f, t in fields), origin=origin)
+
+    header = ("header", "std_msgs/msg/Header")
+    status = ("status", "actionlib_msgs/msg/GoalStatus")
+    return [
+        msg(action_goal, header, ("goal_id", "actionlib_msgs/msg/GoalID"), ("goal", f"{action}_Goal")),
+        msg(action_result, header, status, ("result", f"{action}_Result")),
+        msg(action_feedback, header, status, ("feedback", f"{action}_Feedback")),
+        msg(
+            action_msg,
+            ("action_goal", action_goal),
+            ("action_result", action_result),
+            ("action_feedback", action_feedback),
+        ),
+    ]
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -69,6 +104,7 @@ class TypeRegistry:
         self._defs: dict[str, ParsedDef] = {}
         self._services: dict[str, tuple[str, str]] = {}
         self._actions: dict[str, tuple[str, str, str]] = {}
+        self._derived: dict[str, MessageDef] = {}  # ROS 1: the genaction messages of the actions above
         self._broken: set[str] = set()
         self._known: tuple[str, ...] | None = None
         self._ros1 = Ros1Texts(self._message, self._written_constants)
@@ -170,6 +206,8 @@ class TypeRegistry:
             self._services[name] = (defs[0].msg.name, defs[1].msg.name)
         elif kind == "action":
             self._actions[name] = (defs[0].msg.name, defs[1].msg.name, defs[2].msg.name)
+            if self.distro == "ros1":
+                self._derived.update((m.name, m) for m in _genaction(name, path.as_posix()))
 
     def _warn_if_replacing(self, name: str, defs: Sequence[ParsedDef], parser: FileParser, bundled: bool) -> None:
         """Overriding is allowed, but a silently different definition would change behaviour and md5s."""
@@ -267,7 +305,29 @@ class TypeRegistry:
         found = self._defs.get(name)
         if found is not None:
             return found.msg
-        return base_message(self.distro, name)
+        derived = self._derived.get(name)
+        if derived is not None:
+            return derived
+        return base_message(self.distro, name) or self._base_action_part(name)
+
+    def _base_action_part(self, name: str) -> MessageDef | None:
+        """ROS 1: `pkg/action/Name_Goal` (Result, Feedback) of an action the typestore knows only by its
+        genaction messages (`pkg/msg/NameGoal`, `pkg/msg/NameActionGoal`, ...), under its canonical name."""
+        pieces = name.split("/")
+        if self.distro != "ros1" or len(pieces) != 3 or pieces[1] != "action":
+            return None
+        stem, _, part = pieces[2].rpartition("_")
+        if part not in ("Goal", "Result", "Feedback") or base_message("ros1", f"{pieces[0]}/msg/{stem}Action") is None:
+            return None
+        found = base_message("ros1", f"{pieces[0]}/msg/{stem}{part}")
+        return None if found is None else MessageDef(name, found.fields, found.constants, found.origin)
+
+    def _base_action(self, name: str) -> tuple[str, str, str] | None:
+        """ROS 1: the parts of `pkg/action/Name` when only the typestore knows it (see `_base_action_part`)."""
+        if self.distro != "ros1" or "/action/" not in name or name in self._actions:
+            return None
+        parts = (f"{name}_Goal", f"{name}_Result", f"{name}_Feedback")
+        return parts if all(self._base_action_part(p) is not None for p in parts) else None
 
     def _written_constants(self, name: str) -> tuple[str, ...] | None:
         """Constant values as written in an interface file (genmsg hashes the text); None for typestore types."""
@@ -281,8 +341,9 @@ class TypeRegistry:
         if name in self._services:
             req, resp = (self._message(n) for n in self._services[name])
             return ServiceDef(name, req, resp) if req is not None and resp is not None else None
-        if name in self._actions:
-            goal, result, feedback = (self._message(n) for n in self._actions[name])
+        parts = self._actions.get(name) or self._base_action(name)
+        if parts is not None:
+            goal, result, feedback = (self._message(n) for n in parts)
             if goal is None or result is None or feedback is None:
                 return None
             return ActionDef(name, goal, result, feedback)
@@ -308,7 +369,11 @@ class TypeRegistry:
         if self._known is None:
             names: set[str] = set(self._services) | set(self._actions)
             names.update(n for n in self._defs if "/msg/" in n)
+            names.update(self._derived)
             names.update(n for n in base_fielddefs(self.distro) if "/msg/" in n)
+            if self.distro == "ros1":  # actions the typestore has as genaction messages
+                stems = {n[: -len("ActionGoal")] for n in names if n.endswith("ActionGoal") and "/msg/" in n}
+                names.update(a for s in stems if self._base_action(a := s.replace("/msg/", "/action/")))
             if self.distro == "ros1":
                 names.difference_update(TIME_MESSAGES)
             names.difference_update(self._broken)
@@ -374,7 +439,8 @@ class TypeRegistry:
     # -- ROS 1 definitions and md5 sums -----------------------------------------------------------------
 
     def ros1_definition(self, name: str) -> tuple[str, str]:
-        """ROS 1 full definition text and md5 sum of a message or service (ros1 registries only).
+        """ROS 1 full definition text and md5 sum of a message or service (ros1 registries only); an action's
+        goal/result/feedback go by `pkg/action/Name_Goal`..., its genaction messages by `pkg/msg/NameAction`...
 
         Messages: the text rospy/rosbag put in connection headers (the message, then each message it uses
         after a `====...` line and `MSG: pkg/Name`). Services: request and response texts around `---`, and

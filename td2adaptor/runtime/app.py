@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING
 
 from td2adaptor.model import Model
-from td2adaptor.model.events import td_topic
+from td2adaptor.model.events import EventCatalog, build_catalog, td_topic
 from td2adaptor.runtime.bus import Bus, Message
 from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.engine import Engine, status_event
@@ -19,6 +21,12 @@ from td2adaptor.runtime.security import (
     parse_broker_url,
     plan_security,
 )
+from td2adaptor.runtime.thingbus import thing_bus
+
+if TYPE_CHECKING:
+    from td2adaptor.runtime.discovery import Registration
+
+log = logging.getLogger("td2adaptor.runtime")
 
 
 def bus_security(
@@ -51,15 +59,16 @@ def td_broker(config: RuntimeConfig) -> str | None:
     return None if url is None else parse_broker_url(url).url
 
 
-def td_message(config: RuntimeConfig, model: Model) -> Message | None:
+def td_message(config: RuntimeConfig, model: Model, catalog: EventCatalog | None = None) -> Message | None:
     """The robot's Thing Description as the retained message the edge node publishes when it is online (the
-    text `td2adaptor expose` writes for the same robot and broker); None when there is no broker to name."""
+    text `td2adaptor expose` writes for the same robot, broker and ROS version); None when there is no broker
+    to name."""
     broker = td_broker(config)
     if broker is None:
         return None
     from td2adaptor.backends.events.generator import dump, exposed_td
 
-    text = dump(exposed_td(model, robot=config.robot, broker=broker, root=config.topic_root))
+    text = dump(exposed_td(model, catalog, robot=config.robot, broker=broker, root=config.topic_root))
     return Message(td_topic(config.robot, config.topic_root), text.encode("utf-8"), retain=True)
 
 
@@ -86,7 +95,7 @@ def open_bus(
     if security.username and not config.allow_anonymous_broker:
         from td2adaptor.runtime.mqttbus import accepts_anonymous
 
-        if accepts_anonymous(address, security.tls):
+        if accepts_anonymous(address, security.tls, mqtt_version=config.mqtt_version):
             raise SecurityError(
                 f"the MQTT broker at {address} accepts clients without credentials, although the Thing "
                 "Description requires authentication: anyone who reaches it could command the robot or forge "
@@ -101,6 +110,7 @@ def open_bus(
         birth=birth,
         announce=announce,
         session_expiry=config.session_expiry,
+        mqtt_version=config.mqtt_version,
         keepalive=config.keepalive,
     )
 
@@ -112,14 +122,49 @@ def serve(
     *,
     broker: LocalBroker | None = None,
     env: Mapping[str, str] | None = None,
+    distro: str = "ros2",
 ) -> Engine:
-    """Connect and start serving (the robot's TD published, retained, with the online status); `Engine.stop()`
-    ends it (and clears the TD)."""
-    td = td_message(config, model)
+    """Connect and start serving (the robot's TD published, retained, with the online status, and registered
+    with the configured TD directory); `Engine.stop()` ends it (and clears the TD, here and there). `distro`:
+    the robot's ROS version, whose message layouts the events follow.
+
+    The engine's bus is wrapped in a `ThingBus`: WoT consumers of the published TD use the robot on its WoT
+    topics, native clients on the envelope topics."""
+    catalog = build_catalog(model, distro)
+    td = td_message(config, model, catalog)
     announce = () if td is None else (td,)
-    engine = Engine(model, port, open_bus(config, model, broker=broker, env=env, announce=announce), config, td=td)
+    bus = thing_bus(
+        open_bus(config, model, broker=broker, env=env, announce=announce), catalog, config.robot, config.topic_root
+    )
+    engine = Engine(model, port, bus, config, catalog=catalog, td=td)
     engine.start()
+    registration = register(config, td)
+    if registration is not None:
+        engine.on_stop.append(registration.stop)
     return engine
+
+
+def register(config: RuntimeConfig, td: Message | None) -> Registration | None:
+    """Start keeping the robot's TD registered with `config.directory` (None when none is configured)."""
+    if config.directory is None:
+        return None
+    if td is None:
+        log.warning(
+            "robot %s: no Thing Description to register with the directory (a local bus names no broker; "
+            "set td_broker)",
+            config.robot,
+        )
+        return None
+    from td2adaptor.runtime.discovery import Directory, Registration
+
+    directory = Directory(config.directory, token=config.directory_token, ca_file=config.directory_ca_file)
+    try:
+        registration = Registration(directory, td.payload, robot=config.robot, ttl=config.directory_ttl)
+    except ValueError as exc:  # a TD without id: logged, the robot is served all the same
+        log.error("%s", exc)
+        return None
+    registration.start()
+    return registration
 
 
 def serve_fleet(
@@ -129,12 +174,13 @@ def serve_fleet(
     *,
     broker: LocalBroker | None = None,
     env: Mapping[str, str] | None = None,
+    distro: str = "ros2",
 ) -> list[Engine]:
     """One engine per robot in one process (each with its own bus client and port); all or none start."""
     engines: list[Engine] = []
     try:
         for config in configs:
-            engines.append(serve(model, make_port(config), config, broker=broker, env=env))
+            engines.append(serve(model, make_port(config), config, broker=broker, env=env, distro=distro))
     except BaseException:
         for engine in engines:
             engine.stop()

@@ -45,12 +45,17 @@ class RuntimeConfig:
     allow_insecure: bool = False
     allow_anonymous_broker: bool = False  # run although the TD requires authentication and the broker does not
     session_expiry: int = 3600
+    mqtt_version: str = "5"  # "5", or "3.1.1" for brokers that speak only that
     keepalive: int = 30
     ros_master_uri: str | None = None  # for the ROS 1 adapter
     ros_domain_id: int | None = None  # for the ROS 2 adapter
     freshness_window: float = 300.0  # an inbound event older than this (by its `time`) is expired, not run
     clock_skew: float = 30.0  # tolerated difference between the sender's clock and ours
     state_dir: str | None = None  # where event ids are remembered (default: the user cache's state/; "" keeps none)
+    directory: str | None = None  # a W3C WoT Thing Description Directory to register the robot's TD with
+    directory_ttl: int = 600  # seconds the directory keeps the TD without a refresh (0: until it is deleted)
+    directory_token: str | None = field(default=None, repr=False)  # Bearer token for the directory, if it wants one
+    directory_ca_file: str | None = None  # CA bundle for an https directory with a private CA
 
     def __post_init__(self) -> None:
         if not ROBOT_ID.match(self.robot) or self.robot == ALL_ROBOTS:
@@ -64,6 +69,17 @@ class RuntimeConfig:
             raise ConfigError("freshness_window must be positive and clock_skew >= 0")
         if self.property_period < 0 or self.max_query_failures < 1 or self.max_event_bytes < 256:
             raise ConfigError("property_period >= 0, max_query_failures >= 1 and max_event_bytes >= 256 required")
+        if self.mqtt_version not in ("5", "3.1.1"):
+            raise ConfigError(f"mqtt_version {self.mqtt_version!r} must be 5 or 3.1.1")
+        if self.directory is not None:
+            from td2adaptor.runtime.discovery import check_directory_url
+
+            try:
+                object.__setattr__(self, "directory", check_directory_url(self.directory))
+            except ValueError as exc:
+                raise ConfigError(str(exc)) from None
+        if self.directory_ttl < 0:
+            raise ConfigError("directory_ttl must be >= 0 (0: the directory keeps the TD until it is deleted)")
         if not self.topic_root or any(c in self.topic_root for c in "+#\x00") or self.topic_root.startswith("/"):
             raise ConfigError(f"topic_root {self.topic_root!r} is not a valid MQTT topic prefix")
 

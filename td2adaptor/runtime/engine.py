@@ -38,6 +38,7 @@ from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope,
 from td2adaptor.runtime.port import NoValue, PortError, RobotPort, StartResult
 from td2adaptor.runtime.procedures import ProcedureStatus, interpret
 from td2adaptor.runtime.replay import ReplayGuard, Verdict
+from td2adaptor.runtime.words import INTERNAL, describe
 
 log = logging.getLogger("td2adaptor.runtime")
 
@@ -110,6 +111,7 @@ class Engine:
         self.validator = EventValidator(self.catalog)
         self.clock = clock
         self.td = td  # the robot's TD as the bus announces it on connecting: cleared on stop
+        self.on_stop: list[Callable[[], None]] = []  # run first by stop() (e.g. leaving a TD directory)
         self.stats: dict[str, int] = {}
         self._lock = threading.Lock()
         self._inbox: queue.Queue[Message | None] = queue.Queue()
@@ -146,6 +148,11 @@ class Engine:
         if self._stopping.is_set():
             return
         self._stopping.set()
+        for hook in self.on_stop:
+            try:
+                hook()
+            except Exception:  # a hook must not keep the robot from going offline cleanly
+                log.exception("while stopping robot %s", self.config.robot)
         self._inbox.put(None)
         with self._lock:
             missions = list(self._active.values())
@@ -236,9 +243,9 @@ class Engine:
                 return
             try:
                 self._handle(msg)
-            except Exception as exc:  # a bug here must cost one event, not the process
+            except Exception:  # a bug here must cost one event, not the process
                 log.exception("internal error on %s", msg.topic)
-                self._error("internal", f"internal error: {type(exc).__name__}", topic=msg.topic, raw=msg.payload)
+                self._error("internal", INTERNAL, topic=msg.topic, raw=msg.payload)
 
     def _handle(self, msg: Message) -> None:
         self._count("in")
@@ -354,9 +361,9 @@ class Engine:
     def _run_mission(self, m: Mission) -> None:
         try:
             self._follow(m)
-        except Exception as exc:  # the last line of defence: report, never crash
+        except Exception:  # the last line of defence: report, never crash
             log.exception("mission %s failed internally", m.action)
-            self._finish(m, ProcedureStatus("failed", message=f"internal error: {exc!r}", reason="call-failed"))
+            self._finish(m, ProcedureStatus("failed", message=INTERNAL, reason="call-failed"))
         finally:
             with self._lock:
                 self._missions.discard(threading.current_thread())
@@ -596,5 +603,4 @@ def _says_error(response: Mapping[str, Any]) -> bool:
 
 
 def _describe(exc: BaseException) -> str:
-    text = str(exc).strip()
-    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+    return describe(exc)  # user words, never class names (runtime/words.py)

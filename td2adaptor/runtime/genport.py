@@ -7,8 +7,9 @@ cancels accept `mission_id=`), `get_<property>_value(timeout=)`, `construct_<pro
 This adapter turns dicts into those calls and messages back into dicts, and maps the errors onto
 `PortError`s. One lock per component: the generated clients are used from the engine's mission threads.
 
-Values use the TD's (ROS 2) field names on both middlewares: a ROS 1 time or duration becomes
-`{"sec": ..., "nanosec": ...}` like ROS 2's (the generated rospy constructors accept either spelling).
+Values use the field names of the robot's own ROS version, as the event schemas and the robot's published
+TD declare them: a ROS 1 time or duration is `{"secs": ..., "nsecs": ...}`, a ROS 2 one `{"sec": ...,
+"nanosec": ...}` (the generated rospy constructors accept either spelling on the way in).
 Only the standard library and `td2adaptor.model` are imported: the ROS 1 bridge runs this module under a
 ROS 1 interpreter.
 """
@@ -53,7 +54,7 @@ def to_plain(value: Any) -> Any:
         return {name: to_plain(getattr(value, name)) for name in fields()}
     slots = getattr(type(value), "__slots__", None)
     if isinstance(slots, (list, tuple)) and list(slots) == ["secs", "nsecs"]:  # genpy Time / Duration
-        return {"sec": int(value.secs), "nanosec": int(value.nsecs)}
+        return {"secs": int(value.secs), "nsecs": int(value.nsecs)}
     if isinstance(slots, (list, tuple)) and slots and all(isinstance(s, str) for s in slots):
         return {s: to_plain(getattr(value, s)) for s in slots if not s.startswith("_")}  # genpy message
     if hasattr(value, "tolist"):  # numpy arrays and scalars
@@ -68,7 +69,7 @@ def _port_error(exc: BaseException) -> PortError:
     names = {cls.__name__ for cls in type(exc).__mro__}
     response = getattr(exc, "response", None)
     plain = to_plain(response) if response is not None else None
-    message = str(exc) or type(exc).__name__
+    message = str(exc).strip()  # may be empty: the error event then says the kind in words (runtime/words.py)
     if "ServiceUnavailable" in names:
         return PortUnavailable(message)
     if "CallTimeout" in names:

@@ -1,8 +1,10 @@
 """The bus on a real MQTT broker, with paho-mqtt 2.x.
 
-MQTT 5, QoS 1 both ways, a persistent session (`clean_start=False` with a session expiry) so that neither
-side loses messages while the other is away; paho reconnects by itself with back-off, keeps unacknowledged
-QoS 1 publishes and resends them; we resubscribe and republish the birth message on every (re)connect.
+MQTT 5 (or 3.1.1 for brokers that speak only that: `mqtt_version`), QoS 1 both ways, a persistent session
+(`clean_start=False` with a session expiry; in 3.1.1 `clean_session=False`, kept as long as the broker keeps
+sessions) so that neither side loses messages while the other is away; paho reconnects by itself with
+back-off, keeps unacknowledged QoS 1 publishes and resends them; we resubscribe and republish the birth
+message on every (re)connect.
 The will (the retained `offline` status) is published by the broker when the connection drops uncleanly.
 """
 
@@ -27,7 +29,8 @@ from td2adaptor.runtime.security import ENV_PASSWORD, ENV_USERNAME, BrokerAddres
 
 log = logging.getLogger("td2adaptor.runtime.bus")
 
-_AUTH_REFUSALS = {134, 135}  # Bad user name or password, Not authorized
+_AUTH_REFUSALS = {134, 135}  # Bad user name or password, Not authorized (paho maps 3.1.1's 4 and 5 onto them)
+MQTT_VERSIONS = ("5", "3.1.1")
 
 
 def _no_delay(_client: mqtt.Client, _userdata: Any, sock: Any) -> None:
@@ -75,6 +78,7 @@ class MqttBus:
         announce: Sequence[Message] = (),
         clean_start: bool = False,
         session_expiry: int = 3600,
+        mqtt_version: str = "5",
         keepalive: int = 30,
         connect_timeout: float = 10.0,
         reconnect_delay: tuple[int, int] = (1, 4),
@@ -87,6 +91,9 @@ class MqttBus:
         self.announce = tuple(announce)
         self.clean_start = clean_start
         self.session_expiry = session_expiry
+        if mqtt_version not in MQTT_VERSIONS:
+            raise BusError(f"MQTT version {mqtt_version!r} is not supported (supported: {', '.join(MQTT_VERSIONS)})")
+        self.mqtt_version = mqtt_version
         self.keepalive = keepalive
         self.connect_timeout = connect_timeout
         self.reconnect_delay = reconnect_delay
@@ -110,12 +117,21 @@ class MqttBus:
     # -- connection ----------------------------------------------------------------------------------------
 
     def _make_client(self) -> mqtt.Client:
-        client = mqtt.Client(
-            CallbackAPIVersion.VERSION2,
-            client_id=self.client_id,
-            protocol=MQTTProtocolVersion.MQTTv5,
-            reconnect_on_failure=True,
-        )
+        if self.mqtt_version == "5":
+            client = mqtt.Client(
+                CallbackAPIVersion.VERSION2,
+                client_id=self.client_id,
+                protocol=MQTTProtocolVersion.MQTTv5,
+                reconnect_on_failure=True,
+            )
+        else:  # 3.1.1: the session flag is set here, and there are no CONNECT properties
+            client = mqtt.Client(
+                CallbackAPIVersion.VERSION2,
+                client_id=self.client_id,
+                clean_session=self.clean_start,
+                protocol=MQTTProtocolVersion.MQTTv311,
+                reconnect_on_failure=True,
+            )
         client.max_queued_messages_set(0)  # unlimited: nothing published while offline is dropped
         client.max_inflight_messages_set(200)
         client.reconnect_delay_set(*self.reconnect_delay)
@@ -138,19 +154,22 @@ class MqttBus:
         if self._client is not None:
             return
         client = self._make_client()
-        props = Properties(PacketTypes.CONNECT)  # type: ignore[no-untyped-call]
-        props.SessionExpiryInterval = self.session_expiry
         self._connack.clear()
         self._refusal = None
         self._dropped = None
         try:
-            client.connect(
-                self.address.host,
-                self.address.port,
-                self.keepalive,
-                clean_start=self.clean_start,
-                properties=props,
-            )
+            if self.mqtt_version == "5":
+                props = Properties(PacketTypes.CONNECT)  # type: ignore[no-untyped-call]
+                props.SessionExpiryInterval = self.session_expiry
+                client.connect(
+                    self.address.host,
+                    self.address.port,
+                    self.keepalive,
+                    clean_start=self.clean_start,
+                    properties=props,
+                )
+            else:
+                client.connect(self.address.host, self.address.port, self.keepalive)
         except ssl.SSLError as exc:
             raise BusError(f"TLS handshake with the MQTT broker at {self.address} failed: {exc}") from None
         except OSError as exc:
@@ -159,7 +178,12 @@ class MqttBus:
         self._client = client
         if not self._connack.wait(self.connect_timeout):
             self._abort()
-            raise BusError(f"the MQTT broker at {self.address} did not answer within {self.connect_timeout:g} s")
+            hint = (
+                " (a broker that speaks only MQTT 3.1.1 does not answer an MQTT 5 client: set mqtt_version to 3.1.1)"
+                if self.mqtt_version == "5"
+                else ""
+            )
+            raise BusError(f"the MQTT broker at {self.address} did not answer within {self.connect_timeout:g} s{hint}")
         if self._dropped is not None and self._refusal is None and self.connects == 0:
             self._abort()
             raise BusError(
@@ -293,7 +317,9 @@ class MqttBus:
         self._connected = False
 
 
-def accepts_anonymous(address: BrokerAddress, tls: TlsOptions | None, *, timeout: float = 5.0) -> bool:
+def accepts_anonymous(
+    address: BrokerAddress, tls: TlsOptions | None, *, timeout: float = 5.0, mqtt_version: str = "5"
+) -> bool:
     """Whether the broker lets a client connect without credentials (with the same TLS settings).
 
     A TD that requires authentication is only kept if the broker enforces it: otherwise anyone who can reach
@@ -306,6 +332,7 @@ def accepts_anonymous(address: BrokerAddress, tls: TlsOptions | None, *, timeout
         client_id=f"td2adaptor-probe-{os.urandom(4).hex()}",
         clean_start=True,
         session_expiry=0,
+        mqtt_version=mqtt_version,
         connect_timeout=timeout,
     )
     probe.probe = True

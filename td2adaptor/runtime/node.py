@@ -87,7 +87,9 @@ class EdgeNode:
             return ports[config.robot]
 
         try:
-            self.engines = serve_fleet(self.model, port_of, self.configs, broker=self.broker)
+            self.engines = serve_fleet(
+                self.model, port_of, self.configs, broker=self.broker, distro=f"ros{self.options.ros}"
+            )
         except BaseException:
             self.link.close()
             raise
@@ -108,7 +110,9 @@ class EdgeNode:
 
         bus = redact_url(self.configs[0].bus)
         how = self.link.description if self.link is not None else f"ROS {self.options.ros}"
-        return f"serving {robots} on {bus} via {how}"
+        directory = self.configs[0].directory
+        registered = f"; TDs registered with {redact_url(directory)}" if directory else ""
+        return f"serving {robots} on {bus} via {how}{registered}"
 
 
 def wait_for_signal(stop: threading.Event | None = None) -> int:

@@ -13,6 +13,8 @@ from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
 from td2adaptor.model import Model
+from td2adaptor.model.events import payload_schema
+from td2adaptor.model.msgschema import fill
 from td2adaptor.runtime.port import NoValue, PortCallFailed, PortUnavailable, StartResult
 from td2adaptor.runtime.procedures import mission_id_of
 
@@ -92,6 +94,12 @@ class SimPort:
         self.readers = dict(rb1_readers(sim) if readers is None else readers)
         self.writers = dict(rb1_writers(sim) if writers is None else writers)
         self.request_field = request_field
+        # what the sim knows of a message, completed as ROS would send it: every field, defaults where unset
+        self._schemas = {
+            t.name: payload_schema(model, t.type_name, t.schema, distro="ros2", complete=True)
+            for c in model.components
+            for t in c.topics
+        }
         self.down = False  # fault injection: every call fails as if the robot were gone
         self.delay = 0.0  # fault injection: seconds each call takes
         self.calls: list[tuple[str, str]] = []  # (component, action) in call order
@@ -138,7 +146,8 @@ class SimPort:
         reader = self.readers.get(name)
         if reader is None:
             raise NoValue(f"no message on {name} yet")
-        return reader()
+        schema = self._schemas.get(name)
+        return reader() if schema is None else fill(schema, reader())
 
     def write_property(self, component: str, name: str, value: Any) -> None:
         if self.down:

@@ -31,12 +31,12 @@ def _run(args: list[str | Path], cwd: Path) -> subprocess.CompletedProcess[str]:
     return subprocess.run([str(a) for a in args], cwd=cwd, capture_output=True, text=True, timeout=300)
 
 
-def _package(tmp: Path, runtime: Path) -> Path:
-    """A package `pkg` as the backend lays it out: its runtime module next to the shared modules."""
+def _package(tmp: Path, *runtime: Path) -> Path:
+    """A package `pkg` as the backend lays it out: its runtime modules next to the shared modules."""
     pkg = tmp / "pkg"
     pkg.mkdir()
     (pkg / "__init__.py").write_text("", encoding="utf-8")
-    for module in (runtime, *SHARED.glob("*.py")):
+    for module in (*runtime, *SHARED.glob("*.py")):
         shutil.copy(module, pkg / module.name)
     return pkg
 
@@ -83,7 +83,7 @@ def test_rclpy_runtime_is_mypy_and_pyright_strict_clean(tmp_path: Path) -> None:
 
 
 def test_rospy_runtime_is_mypy_and_pyright_strict_clean_against_its_stubs(tmp_path: Path) -> None:
-    _package(tmp_path, BACKENDS / "rospy" / "verbatim" / "_runtime.py")
+    _package(tmp_path, BACKENDS / "rospy" / "verbatim" / "_runtime.py", BACKENDS / "rospy" / "verbatim" / "_actions.py")
     stubs = BACKENDS / "rospy" / "verbatim" / "stubs"
     mypy = [VENV_BIN / "mypy", "--strict", "--python-version", "3.10", "--cache-dir", tmp_path / ".mypy", "pkg"]
     proc = subprocess.run(

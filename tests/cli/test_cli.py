@@ -237,6 +237,10 @@ def test_expose_writes_the_td_of_one_robot(runner: CliRunner, tmp_path: Path) ->
     assert json.loads(other.output)["id"] != td["id"] and "{{" not in other.output
     validated = runner.invoke(cli, ["validate", str(out)])
     assert validated.exit_code == 0, validated.output
+    # the robot's ROS version decides the message layouts: time as ROS 1 (secs/nsecs) or ROS 2 names it
+    ros1 = runner.invoke(cli, ["expose", TD, *IFACE, *args, "--ros", "1"])
+    assert ros1.exit_code == 0, ros1.output
+    assert '"nsecs"' in ros1.output and '"nanosec"' not in ros1.output and '"nanosec"' in text
     for bad in (["--robot", "all"], ["--robot", "{{robotName}}"], ["--broker", "mqtt://u:p@h:1"], ["--broker", "x"]):
         refused = runner.invoke(cli, ["expose", TD, *IFACE, *args, *bad])
         assert refused.exit_code == 1 and "td2adaptor expose:" in refused.output, (bad, refused.output)

@@ -1,5 +1,6 @@
 """TD actions bound to ROS 2 actions (`"rosv:interface": "action"`): type resolution, lowering, and what the
-backends that cannot generate them (rospy, mros, events) say."""
+backends that cannot generate them (mros, events) say; the rospy backend's actions are tested on real ROS 1 in
+tests/backends/rospy/test_rospy_actions.py."""
 
 from __future__ import annotations
 
@@ -113,6 +114,23 @@ def test_goal_and_result_are_cross_checked(tmp_path: Path) -> None:
     assert any(p.startswith("/actions/fibonacci/output") for p in pointers), [(d.code, d.pointer) for d in found]
 
 
+def test_ros1_only_action_from_the_typestore_is_resolved_and_cross_checked(tmp_path: Path) -> None:
+    """actionlib/TwoInts exists only as ROS 1 genaction messages in rosbags' Noetic typestore: it resolves for
+    ROS 1 (goal a, b; result sum) and the TD's schemas are checked against those."""
+    td = action_td(**{"rosv:masterURI": "http://localhost:11311"})
+    action = td["actions"]["fibonacci"]
+    action["forms"][0]["rosv:type"] = "actionlib/action/TwoInts"
+    action["input"] = {"type": "object", "properties": {"a": {"type": "integer"}, "b": {"type": "string"}}}
+    action["output"] = {"type": "object", "properties": {"sum": {"type": "integer"}}}
+    result = compile_td(tmp_path, td)
+    assert result.model is not None, [d.message for d in result.diagnostics]
+    (adef,) = result.model.ros1.actions
+    assert [f.name for f in adef.goal.fields] == ["a", "b"] and [f.name for f in adef.result.fields] == ["sum"]
+    found = [(d.code, d.pointer) for d in result.diagnostics if d.code.startswith("XC6")]
+    assert [p for _, p in found] == ["/actions/fibonacci/input/properties/b/type"], found
+    assert "ROS424" in codes(result, Severity.WARNING)  # no such action for ROS 2
+
+
 def test_unknown_action_type_is_reported(tmp_path: Path) -> None:
     td = action_td()
     td["actions"]["fibonacci"]["forms"][0]["rosv:type"] = "test_msgs/action/Fibonaci"
@@ -129,10 +147,34 @@ def test_action_type_for_a_service_binding_is_refused(tmp_path: Path) -> None:
     assert "ROS421" in codes(result, Severity.ERROR)
 
 
-def test_ros1_robot_is_warned(tmp_path: Path) -> None:
+def test_ros1_robot_gets_no_action_warning(tmp_path: Path) -> None:
+    """The rospy backend generates actionlib clients: a ROS 1 robot's action is nothing to warn about."""
     result = compile_td(tmp_path, action_td(**{"rosv:masterURI": "http://localhost:11311"}))
     assert result.model is not None, [d.message for d in result.diagnostics]
-    assert "ROS425" in codes(result, Severity.WARNING)
+    assert not codes(result, Severity.WARNING), [d.message for d in result.diagnostics]
+    assert [a.name for a in result.model.ros1.actions] == ["test_msgs/action/Fibonacci"]
+
+
+@pytest.mark.parametrize(
+    ("written", "part"),
+    [
+        ("test_msgs/srv/Fibonacci_SendGoal", "SendGoal"),
+        ("test_msgs/action/Fibonacci_GetResult", "GetResult"),
+        ("test_msgs/msg/Fibonacci_FeedbackMessage", "FeedbackMessage"),
+    ],
+)
+def test_hidden_action_types_point_at_the_action(tmp_path: Path, written: str, part: str) -> None:
+    """Binding a ROS 2 action's hidden service or topic type is refused with the way out: bind the action."""
+    td = action_td()
+    form = td["actions"]["fibonacci"]["forms"][0]
+    del form["rosv:interface"]
+    form["rosv:type"] = written
+    result = compile_td(tmp_path, td)
+    assert result.model is None
+    (found,) = [d for d in result.diagnostics if d.severity is Severity.ERROR]
+    assert found.code == "ROS429" and found.pointer == "/actions/fibonacci/forms/0/rosv:type"
+    assert f"the {part} type ROS 2 derives for action test_msgs/action/Fibonacci" in found.message
+    assert '"rosv:interface": "action", "rosv:type": "test_msgs/action/Fibonacci"' in (found.hint or "")
 
 
 def _model(tmp_path: Path) -> Model:
@@ -141,7 +183,7 @@ def _model(tmp_path: Path) -> Model:
     return result.model
 
 
-@pytest.mark.parametrize(("backend", "code"), [("rospy", "GEN843"), ("mros", "MROS907")])
+@pytest.mark.parametrize(("backend", "code"), [("mros", "MROS907")])
 def test_backends_without_actions_refuse_or_skip(tmp_path: Path, backend: str, code: str) -> None:
     model = _model(tmp_path)
     diags = Diagnostics()

@@ -31,6 +31,8 @@ def free_port() -> int:
 class Mosquitto:
     """One broker process; `restart()` keeps its port and its persisted sessions."""
 
+    mqtt_version = "5"
+
     def __init__(
         self,
         workdir: Path,
@@ -112,3 +114,71 @@ class Mosquitto:
     def restart(self) -> None:
         self.stop()
         self.start()
+
+
+AMQTT = Path(__file__).resolve().parents[2] / ".cache" / "amqtt" / "venv" / "bin" / "amqtt"
+
+
+class Amqtt:
+    """An amqtt broker (a second, independent MQTT 3.1.1 implementation, in Python) with Mosquitto's interface,
+    anonymous access only. It speaks MQTT 3.1.1 only, and keeps sessions in memory: a restart loses them
+    (see docs/brokers.md)."""
+
+    mqtt_version = "3.1.1"
+
+    def __init__(self, workdir: Path) -> None:
+        if not AMQTT.exists():
+            pytest.fail("amqtt is not installed: run `bash .ci/setup-amqtt.sh` (or .ci/setup.sh --test)")
+        self.dir = workdir
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self.port = free_port()
+        self.proc: subprocess.Popen[bytes] | None = None
+        self.conf = self.dir / "amqtt.yaml"
+        self.log = self.dir / "amqtt.log"
+        self.conf.write_text(
+            "listeners:\n"
+            "  default:\n"
+            "    type: tcp\n"
+            f"    bind: 127.0.0.1:{self.port}\n"
+            "    max_connections: 1000\n"
+            "plugins:\n"
+            "  amqtt.plugins.authentication.AnonymousAuthPlugin:\n"
+            "    allow_anonymous: true\n",
+            encoding="utf-8",
+        )
+
+    @property
+    def url(self) -> str:
+        return f"mqtt://127.0.0.1:{self.port}"
+
+    def start(self, timeout: float = 20.0) -> None:
+        with self.log.open("ab") as log:
+            self.proc = subprocess.Popen([str(AMQTT), "-c", str(self.conf)], stdout=log, stderr=log)
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if self.proc.poll() is not None:
+                raise RuntimeError(f"amqtt exited with {self.proc.returncode}: {self.log.read_text()[-2000:]}")
+            try:
+                with socket.create_connection(("127.0.0.1", self.port), timeout=0.2):
+                    return
+            except OSError:
+                time.sleep(0.05)
+        raise RuntimeError(f"amqtt did not listen on {self.port} within {timeout} s")
+
+    def stop(self) -> None:
+        proc, self.proc = self.proc, None
+        if proc is None:
+            return
+        proc.terminate()
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(5)
+
+    def restart(self) -> None:
+        self.stop()
+        self.start()
+
+
+Broker = Mosquitto | Amqtt

@@ -21,22 +21,27 @@ class AppClient:
 
     def __init__(
         self,
-        url: str,
+        url: str | Any,
         patterns: list[str],
         *,
         client_id: str | None = None,
         username: str | None = None,
         password: str | None = None,
+        mqtt_version: str = "5",
     ) -> None:
+        if not isinstance(url, str):  # a test broker: its URL and the MQTT version it speaks
+            url, mqtt_version = url.url, url.mqtt_version
         host, port = url.removeprefix("mqtt://").rsplit(":", 1)
         self.events: list[Event] = []
         self.cond = threading.Condition()
         self.connected = threading.Event()
         self.patterns = patterns
+        v5 = mqtt_version == "5"
         self.client = mqtt.Client(
             CallbackAPIVersion.VERSION2,
             client_id=client_id or f"app-{uuid.uuid4().hex[:8]}",
-            protocol=MQTTProtocolVersion.MQTTv5,
+            protocol=MQTTProtocolVersion.MQTTv5 if v5 else MQTTProtocolVersion.MQTTv311,
+            clean_session=None if v5 else False,
         )
         self.client.reconnect_delay_set(1, 2)
         if username:
@@ -45,9 +50,12 @@ class AppClient:
         self.client.on_message = self._on_message
         self.client.on_subscribe = self._on_subscribe
         self.client.on_disconnect = lambda *_: self.connected.clear()
-        props = Properties(PacketTypes.CONNECT)  # type: ignore[no-untyped-call]
-        props.SessionExpiryInterval = 600
-        self.client.connect(host, int(port), 30, clean_start=False, properties=props)
+        if v5:
+            props = Properties(PacketTypes.CONNECT)  # type: ignore[no-untyped-call]
+            props.SessionExpiryInterval = 600
+            self.client.connect(host, int(port), 30, clean_start=False, properties=props)
+        else:
+            self.client.connect(host, int(port), 30)
         self.client.loop_start()
         assert self.connected.wait(10), "test client could not connect"
 

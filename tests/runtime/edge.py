@@ -14,9 +14,18 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from td2adaptor.runtime.bus import Bus
+from td2adaptor.runtime.engine import Engine
+from td2adaptor.runtime.thingbus import ThingBus
 from tests.conftest import REPO
 
 Event = tuple[str, dict[str, Any]]
+
+
+def bus_of(engine: Engine) -> Bus:
+    """The engine's own bus, under the WoT adapter `serve` wraps it in."""
+    bus = engine.bus
+    return bus.bus if isinstance(bus, ThingBus) else bus
 
 
 def until(predicate: Callable[[], bool], timeout: float, period: float = 0.02) -> bool:

@@ -1,16 +1,20 @@
-// A standard WoT consumer (Eclipse Thingweb node-wot with its MQTT binding) using a robot as a Thing: it
-// fetches the robot's Thing Description where the edge node keeps it (retained on td2adaptor/<robot>/td)
-// and consumes it exactly as published; then reads and observes a property, subscribes to the feedback
-// event and invokes an action. One JSON line per observation on stdout; exits 0 after the terminal feedback
-// and a property value, 1 on an error.
-//   NODE_PATH=<node_modules> node nodewot_client.js BROKER_URL ROBOT CORRELATION
+// A standard WoT consumer (Eclipse Thingweb node-wot with its MQTT binding) using a robot as a Thing, through
+// the WoT Scripting API only: it fetches the robot's Thing Description where the edge node keeps it (retained
+// on td2adaptor/<robot>/td) and consumes it exactly as published; reads, observes and writes properties with
+// their own data; invokes gotoRun with the goal's fields (plus the optional correlationId the TD declares)
+// and follows it to its terminal outcome; invokes a second run, queries it and cancels it while it runs;
+// sends a goal the robot's message cannot hold and receives the error event. One JSON line per observation
+// on stdout; exits 0 when all is seen, 1 on an error or after 25 s.
+//   NODE_PATH=<node_modules> node nodewot_client.js BROKER_URL ROBOT
 "use strict";
-const mqtt = require("mqtt"); // the MQTT client node-wot's binding uses
+const mqtt = require("mqtt"); // the MQTT client node-wot's binding uses, only to fetch the retained TD
 const { Servient } = require("@node-wot/core");
 const { MqttClientFactory } = require("@node-wot/binding-mqtt");
 
+const t0 = process.hrtime.bigint();
 function emit(kind, value) {
-  process.stdout.write(JSON.stringify({ kind, value }) + "\n");
+  const ms = Number(process.hrtime.bigint() - t0) / 1e6;
+  process.stdout.write(JSON.stringify({ kind, value, ms }) + "\n");
 }
 
 async function fetchTD(broker, robot) {
@@ -25,44 +29,86 @@ async function fetchTD(broker, robot) {
   return text;
 }
 
+// resolves with the first event of `list` that satisfies `predicate` (now or later)
+function waiter(list) {
+  const pending = [];
+  return {
+    push(value) {
+      list.push(value);
+      for (const p of pending.slice()) {
+        if (p.predicate(value)) {
+          pending.splice(pending.indexOf(p), 1);
+          p.resolve(value);
+        }
+      }
+    },
+    until(predicate) {
+      const found = list.find(predicate);
+      if (found) return Promise.resolve(found);
+      return new Promise((resolve) => pending.push({ predicate, resolve }));
+    },
+  };
+}
+
 async function main() {
-  const [broker, robot, correlation] = process.argv.slice(2);
+  const [broker, robot] = process.argv.slice(2);
   const text = await fetchTD(broker, robot);
   emit("td", text);
   const servient = new Servient();
   servient.addClientFactory(new MqttClientFactory());
   const WoT = await servient.start();
   const thing = await WoT.consume(JSON.parse(text));
+
+  // properties: the value itself, read (retained), observed, written
   const read = await thing.readProperty("poseMarker");
   emit("read", await read.value());
-  let sawProperty = false;
-  let sawTerminal = false;
-  const finish = () => {
-    if (sawProperty && sawTerminal) {
-      emit("done", null);
-      servient.shutdown();
-      process.exit(0);
-    }
-  };
+  const observed = waiter([]);
   await thing.observeProperty("poseMarker", async (output) => {
-    emit("property", await output.value());
-    sawProperty = true;
-    finish();
+    const value = await output.value();
+    emit("observed", value);
+    observed.push(value);
   });
-  await thing.subscribeEvent("gotoRunFeedback", async (output) => {
-    const event = await output.value();
-    emit("feedback", event);
-    if (event.correlation === correlation && event.payload && event.payload.terminal) {
-      sawTerminal = true;
-      finish();
-    }
-  });
+  await thing.writeProperty("door", { data: 0.75 });
+  emit("written", { data: 0.75 });
+
+  // events: progress and outcome of procedures, answers to queries and cancels, errors
+  const feedback = waiter([]);
+  const states = waiter([]);
+  const errors = waiter([]);
+  for (const [name, sink] of [["gotoRunFeedback", feedback], ["gotoRunState", states], ["error", errors]]) {
+    await thing.subscribeEvent(name, async (output) => {
+      const value = await output.value();
+      emit(name, value);
+      sink.push(value);
+    });
+  }
   emit("subscribed", null);
   await new Promise((resolve) => setTimeout(resolve, 300)); // let the broker confirm the subscriptions
-  // today's event contract: the action's input is the event (correlation, source, the goal as payload)
+
+  // 1. a goal, followed to its terminal outcome
   const goal = { procedure: { goals: [{ pose: { x: 1.5, y: 3.0, theta: 0.0 } }] } };
-  await thing.invokeAction("gotoRun", { correlation, source: "node-wot", payload: goal });
-  emit("invoked", null);
+  emit("invoke", "wot-1");
+  await thing.invokeAction("gotoRun", { ...goal, correlationId: "wot-1" });
+  await feedback.until((e) => e.correlationId === "wot-1" && e.terminal);
+  emit("outcome", "wot-1");
+
+  // 2. another one, queried and cancelled while it runs
+  await thing.invokeAction("gotoRun", { ...goal, correlationId: "wot-2" });
+  const started = await feedback.until((e) => e.correlationId === "wot-2" && !e.terminal);
+  await thing.invokeAction("gotoQuery", { mission: started.mission, correlationId: "q-1" });
+  await states.until((e) => e.correlationId === "q-1");
+  await thing.invokeAction("gotoCancel", { mission: started.mission, correlationId: "c-1" });
+  await states.until((e) => e.correlationId === "c-1");
+  await feedback.until((e) => e.correlationId === "wot-2" && e.terminal);
+  emit("cancelled", "wot-2");
+
+  // 3. goals the robot's message cannot hold: refused at once, with the error event
+  await thing.invokeAction("pickRun", { nope: 1, correlationId: "bad-1" });
+  await errors.until((e) => e.correlationId === "bad-1");
+  await observed.until(() => true);
+  emit("done", null);
+  await servient.shutdown();
+  process.exit(0);
 }
 
 main().catch((error) => {
@@ -72,4 +118,4 @@ main().catch((error) => {
 setTimeout(() => {
   emit("error", "timed out");
   process.exit(1);
-}, 20000);
+}, 25000);

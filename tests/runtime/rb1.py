@@ -9,10 +9,13 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
+from jsonschema import Draft202012Validator  # type: ignore[import-untyped, unused-ignore]
+
 import td2adaptor
 from examples.robotnik_rb1.sim.core import RobotSim
 from td2adaptor.model import Model
-from td2adaptor.model.events import TD_LEVEL, EventCatalog, Kind, build_catalog
+from td2adaptor.model.events import TD_LEVEL, EventCatalog, EventSpec, Kind, build_catalog
+from td2adaptor.model.wot import WOT_LEVEL, wot_data, wot_specs, wot_topic
 from td2adaptor.runtime.events import EventValidator
 from td2adaptor.runtime.localbus import LocalBroker, LocalBus
 from tests.conftest import EXAMPLE
@@ -33,13 +36,24 @@ def rb1_model() -> Model:
 
 
 @cache
-def rb1_catalog() -> EventCatalog:
-    return build_catalog(rb1_model())
+def rb1_catalog(distro: str = "ros2") -> EventCatalog:
+    return build_catalog(rb1_model(), distro)
 
 
 @cache
-def rb1_validator() -> EventValidator:
-    return EventValidator(rb1_catalog())
+def rb1_validator(distro: str = "ros2") -> EventValidator:
+    return EventValidator(rb1_catalog(distro))
+
+
+@cache
+def wot_validators(robot: str, distro: str = "ros2") -> dict[str, tuple[EventSpec, Draft202012Validator]]:
+    """WoT topic of `robot` -> (its event, a validator of the data there: unknown keys forbidden)."""
+    out = {}
+    for spec in wot_specs(rb1_catalog(distro)):
+        topic = wot_topic(spec, robot)
+        if topic is not None:
+            out[topic] = (spec, Draft202012Validator(wot_data(spec)))
+    return out
 
 
 def td_with_security(tmp: Path, definitions: dict[str, Any]) -> Model:
@@ -52,12 +66,22 @@ def td_with_security(tmp: Path, definitions: dict[str, Any]) -> Model:
     return compile_td(path)
 
 
-def check_outbound(events: list[Event]) -> None:
-    """Every event the adaptor emitted conforms to its schema."""
-    catalog, validator = rb1_catalog(), rb1_validator()
+def check_outbound(events: list[Event], distro: str = "ros2") -> int:
+    """Every event the adaptor emitted, and every WoT message, conforms to its (strict) schema for the robot's
+    ROS version; the number checked."""
+    catalog, validator = rb1_catalog(distro), rb1_validator(distro)
+    checked = 0
     for topic, event in events:
         if catalog.route(topic) is not None:
             continue  # sent by the test
+        levels = topic.split("/")
+        if len(levels) > 2 and levels[2] == WOT_LEVEL:
+            spec, wot = wot_validators(levels[1], distro)[topic]
+            if not spec.kind.inbound:  # what the adaptor sent to WoT consumers (not what the test sent)
+                value = event.get("raw") if set(event) == {"raw"} else event
+                assert list(wot.iter_errors(value)) == [], (topic, event)
+                checked += 1
+            continue
         if topic.endswith("/" + TD_LEVEL):  # the robot's TD (or the empty message clearing it): no event
             assert event.get("@type") == "Thing" or event in ({"raw": ""}, {"raw": b""}), (topic, sorted(event))
             continue
@@ -65,6 +89,8 @@ def check_outbound(events: list[Event]) -> None:
         spec = catalog.find(kind, event.get("affordance") if kind not in (Kind.ERROR, Kind.STATUS) else None)
         assert spec.topic(event["robot"]) == topic
         assert validator.errors(spec, event) == [], (topic, event)
+        checked += 1
+    return checked
 
 
 def sim(duration: float = 0.3, **kw: Any) -> RobotSim:

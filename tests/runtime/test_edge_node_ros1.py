@@ -98,8 +98,8 @@ def test_bridge_ports_drive_the_ros1_sim_and_a_mission_runs_through_the_engine(
         started = port.start("PickComponent", "pickRun", {"procedure": {"pick_frame_id": "edge_ros1_cart2"}}, 5.0)
         assert started.mission_id is not None and started.mission_id > 0
         assert started.response["state"]["current_state"] == "queued"
-        # ROS 1 times come out with the TD's (ROS 2) field names
-        assert set(started.response["state"]["header"]["stamp"]) == {"sec", "nanosec"}
+        # ROS 1 times come out as ROS 1 names them (the robot's TD and event schemas say secs/nsecs too)
+        assert set(started.response["state"]["header"]["stamp"]) == {"secs", "nsecs"}
         with pytest.raises(PortCallFailed, match="already running a procedure") as busy:
             port.start("PickComponent", "pickRun", {}, 5.0)
         assert busy.value.response is not None and busy.value.response["state"]["current_state"] == "unknown"
@@ -113,7 +113,7 @@ def test_bridge_ports_drive_the_ros1_sim_and_a_mission_runs_through_the_engine(
         broker = LocalBroker()
         app = LocalApp(broker)
         config = RuntimeConfig(robot=ROBOT, poll_period=0.05, property_period=0.1, call_timeout=5.0)
-        engine = serve(model, port, config, broker=broker)
+        engine = serve(model, port, config, broker=broker, distro="ros1")
         try:
             app.send(f"td2adaptor/{ROBOT}/GoToComponent/gotoRun", {"correlation": "r1", "payload": GOAL})
             app.wait(terminal("feedback", "r1"), timeout=20)
@@ -121,7 +121,10 @@ def test_bridge_ports_drive_the_ros1_sim_and_a_mission_runs_through_the_engine(
             assert fb[-1]["payload"]["message"] == "Perfect"
             app.wait(
                 lambda ev: any(
-                    t.endswith("/poseMarker") and [m["id"] for m in e["payload"]["markers"]] == [3] for t, e in ev
+                    t.endswith("/PoseMarkerComponent/poseMarker")
+                    and "wot-thing" not in t
+                    and [m["id"] for m in e["payload"]["markers"]] == [3]
+                    for t, e in ev
                 ),
                 timeout=10,
             )
@@ -129,7 +132,7 @@ def test_bridge_ports_drive_the_ros1_sim_and_a_mission_runs_through_the_engine(
             assert sim.read_until("door 0.5", 10.0)
         finally:
             engine.stop()
-        check_outbound(app.events)
+        assert check_outbound(app.events, "ros1") > 0  # strict: ROS 1 time names, no unknown keys
 
         def status() -> Any:
             return port.read_property("AvailabilityComponent", "availability", 5.0)
@@ -251,7 +254,7 @@ def test_rosrun_edge_node_serves_a_robot_over_mosquitto(
         run.close()
         app.close()
         broker.stop()
-    check_outbound(app.events)
+    assert check_outbound(app.events, "ros1") > 0
 
 
 def _roslaunch_env(master: Master, workspace: Path) -> dict[str, str]:
@@ -339,4 +342,4 @@ def test_roslaunch_edge_node_serves_a_robot_over_mosquitto_and_stops_on_sigint(
         run.close()
         app.close()
         broker.stop()
-    check_outbound(app.events)
+    assert check_outbound(app.events, "ros1") > 0

@@ -41,7 +41,7 @@ from tests.ros2 import env
 from tests.ros2.common import EXAMPLE, PACKAGE, Process
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
-from tests.runtime.edge import RunProcess, check_mission, feedback, until
+from tests.runtime.edge import RunProcess, bus_of, check_mission, feedback, until
 from tests.runtime.rb1 import GOAL, LocalApp, check_outbound, rb1_model, terminal
 
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain, rb1_prefix, adaptor_build, adaptor, ros_node
@@ -183,7 +183,10 @@ def test_engine_over_mosquitto_on_ros2_survives_a_broker_restart(
         # property events carry what ROS publishes (and conform to their schemas: check_outbound below)
         app.wait(
             lambda ev: any(
-                t.endswith("/poseMarker") and [m["id"] for m in e["payload"]["markers"]] == [3] for t, e in ev
+                t.endswith("/PoseMarkerComponent/poseMarker")
+                and "wot-thing" not in t
+                and [m["id"] for m in e["payload"]["markers"]] == [3]
+                for t, e in ev
             ),
             timeout=10,
         )
@@ -193,11 +196,11 @@ def test_engine_over_mosquitto_on_ros2_survives_a_broker_restart(
         app.wait(lambda ev: "running" in [e["payload"]["state"] for e in feedback(ev, "second")], timeout=10)
         broker.stop()
         time.sleep(DURATION + 0.4)  # the procedure ends on the robot meanwhile; "finished" waits in the client
-        assert isinstance(engine.bus, MqttBus) and not engine.bus.connected
+        assert isinstance(bus_of(engine), MqttBus) and not bus_of(engine).connected
         broker.start()
         app.wait(terminal("feedback", "second"), timeout=20)
         check_mission(app.events, "second", ["queued", "running", "finished"])
-        assert engine.bus.connects >= 2
+        assert isinstance(bus_of(engine), MqttBus) and bus_of(engine).connects >= 2
     finally:
         engine.stop()
         app.close()
@@ -283,7 +286,8 @@ def test_the_generated_entry_point_serves_a_fleet_from_the_thing_model_and_stops
             tds = app.wait(lambda ev, r=robot: tds_of(ev, r)[-1:] == [{"raw": ""}], timeout=10)
             (td,) = [e for e in tds_of(tds, robot) if e != {"raw": ""}][:1]
             assert td["@type"] == "Thing" and td["id"].endswith(f":{robot}")
-            assert td["actions"]["gotoRun"]["forms"][0]["href"] == f"{broker.url}/{goto_topic(robot)}"
+            wot = goto_topic(robot).replace(f"/{robot}/", f"/{robot}/wot-thing/")  # the WoT topic of gotoRun
+            assert td["actions"]["gotoRun"]["forms"][0]["href"] == f"{broker.url}/{wot}"
     finally:
         run.close()
         app.close()

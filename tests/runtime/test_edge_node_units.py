@@ -12,6 +12,7 @@ from typing import Any
 from td2adaptor.runtime import NoValue, PortCallFailed, PortTimeout, PortUnavailable
 from td2adaptor.runtime.bridge import child_environment
 from td2adaptor.runtime.genport import Layout, _port_error, to_plain
+from td2adaptor.runtime.words import INTERNAL, describe
 from tests.runtime.rb1 import rb1_model
 
 
@@ -29,10 +30,10 @@ class Header:  # the shape of a genpy message
         self.seq, self.stamp, self.frame_id = 7, Time(3, 4), "map"
 
 
-def test_to_plain_gives_json_with_the_tds_field_names() -> None:
+def test_to_plain_gives_json_with_the_robots_own_field_names() -> None:
     value = to_plain({"h": Header(), "a": array.array("d", [1.0, float("nan")]), "b": b"\x01\x02", "t": (1, 2)})
     assert value == {
-        "h": {"seq": 7, "stamp": {"sec": 3, "nanosec": 4}, "frame_id": "map"},
+        "h": {"seq": 7, "stamp": {"secs": 3, "nsecs": 4}, "frame_id": "map"},  # a ROS 1 time, as ROS 1 names it
         "a": [1.0, None],  # NaN is no JSON number: null, and the rest of the message still goes out
         "b": [1, 2],
         "t": [1, 2],
@@ -61,6 +62,18 @@ def test_generated_errors_map_onto_port_errors_by_name() -> None:
     failed = _port_error(error("CallFailed", response={"result": {"result": "error"}}))
     assert isinstance(failed, PortCallFailed) and failed.response == {"result": {"result": "error"}}
     assert str(failed) == "what happened"
+
+
+def test_failures_are_told_in_user_words_never_class_names() -> None:
+    silent = type("CallTimeout", (Exception,), {})()  # a generated error without a message
+    assert describe(_port_error(silent)) == "the robot did not answer in time"
+    assert describe(PortUnavailable("service gotoRun is gone")) == "the robot is not reachable: service gotoRun is gone"
+    assert describe(PortCallFailed("refused")) == "the robot call failed: refused"
+    assert describe(NoValue()) == "the robot has published no value yet"
+    assert describe(RuntimeError("a bug")) == INTERNAL  # the details go to the log, not to users
+    for exc in (silent, PortUnavailable(), PortTimeout(), PortCallFailed(), NoValue(), KeyError("k")):
+        text = describe(_port_error(exc) if exc is silent else exc)
+        assert "Port" not in text and "Error" not in text and "Timeout" not in text, text
 
 
 def test_the_ros1_bridge_child_gets_no_ros2_and_none_of_our_site_packages() -> None:

@@ -19,16 +19,22 @@ import shutil
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
+from jsonschema import Draft202012Validator  # type: ignore[import-untyped, unused-ignore]
 
 from td2adaptor.backends.events.generator import dump, exposed_td
+from td2adaptor.model import Model
+from td2adaptor.model.events import Kind, build_catalog
+from td2adaptor.model.wot import wot_data, wot_specs
 from td2adaptor.runtime import RuntimeConfig, serve
 from td2adaptor.runtime.ros2build import file_lock
 from td2adaptor.runtime.simport import SimPort
 from tests.conftest import REPO
 from tests.runtime.broker import Mosquitto
-from tests.runtime.rb1 import check_outbound, rb1_model, sim
+from tests.runtime.edge import until
+from tests.runtime.rb1 import rb1_model, sim
 
 NODE_WOT = "0.8.16"
 CACHE = REPO / ".cache" / "node-wot"
@@ -67,18 +73,28 @@ def broker(tmp_path: Path) -> Iterator[Mosquitto]:
     b.stop()
 
 
-def test_node_wot_consumes_the_published_td_reads_observes_invokes_and_gets_feedback(broker: Mosquitto) -> None:
+def wot_schemas(model: Model) -> dict[str, dict[str, Any]]:
+    """The strict schema (unknown keys forbidden) of what travels on each WoT topic of ROBOT, by TD name."""
+    out: dict[str, dict[str, Any]] = {}
+    for spec in wot_specs(build_catalog(model)):
+        name = {Kind.FEEDBACK: "Feedback", Kind.STATE: "State"}.get(spec.kind, "")
+        out[f"{spec.affordance}{name}" if spec.affordance else spec.kind.value] = wot_data(spec)
+    return out
+
+
+def test_node_wot_uses_the_robot_as_a_thing_through_the_scripting_api(broker: Mosquitto) -> None:
     modules = node_modules()
     model = rb1_model()
-    config = RuntimeConfig(robot=ROBOT, bus=broker.url, poll_period=0.05, property_period=0.1)
-    engine = serve(model, SimPort(model, sim(0.3)), config)
+    robot = sim(1.0)
+    config = RuntimeConfig(robot=ROBOT, bus=broker.url, poll_period=0.05, property_period=0.1, state_dir="")
+    engine = serve(model, SimPort(model, robot), config)
     try:
         out = subprocess.run(
-            ["node", str(CLIENT), broker.url, ROBOT, "wot-1"],
+            ["node", str(CLIENT), broker.url, ROBOT],
             env={**os.environ, "NODE_PATH": str(modules)},
             capture_output=True,
             text=True,
-            timeout=30,
+            timeout=40,
         )
     finally:
         engine.stop()
@@ -87,18 +103,37 @@ def test_node_wot_consumes_the_published_td_reads_observes_invokes_and_gets_feed
     # node-wot consumed the TD the edge node published, byte for byte what `td2adaptor expose` writes
     (td,) = [line["value"] for line in lines if line["kind"] == "td"]
     assert td == dump(exposed_td(model, robot=ROBOT, broker=broker.url))
-    kinds = [line["kind"] for line in lines]
-    assert kinds.index("read") < kinds.index("subscribed") < kinds.index("invoked") and kinds[-1] == "done", kinds
-    (read,) = [line["value"] for line in lines if line["kind"] == "read"]  # the retained value
-    assert read["type"] == "property" and read["affordance"] == "poseMarker" and read["robot"] == ROBOT
-    feedback = [line["value"] for line in lines if line["kind"] == "feedback"]
-    mine = [e for e in feedback if e["correlation"] == "wot-1"]
-    states = [e["payload"]["state"] for e in mine]
-    assert states in (["queued", "running", "finished"], ["queued", "finished"]), states  # `running` if polled
-    assert mine[-1]["payload"]["terminal"] is True and mine[-1]["robot"] == ROBOT
-    values = [line["value"] for line in lines if line["kind"] == "property"]
-    assert values and all(v["type"] == "property" and v["affordance"] == "poseMarker" for v in values)
-    assert isinstance(values[-1]["payload"]["markers"], list)
-    # what node-wot received is what the schemas describe
-    topic = f"td2adaptor/{ROBOT}/GoToComponent/gotoRun/feedback"
-    check_outbound([(topic, e) for e in mine])
+    schemas = wot_schemas(model)
+
+    def values(kind: str) -> list[Any]:
+        return [line["value"] for line in lines if line["kind"] == kind]
+
+    # every value node-wot received is the affordance's own data, exactly as the strict schema says
+    for kind, name in (("read", "poseMarker"), ("observed", "poseMarker")):
+        for value in values(kind):
+            assert list(Draft202012Validator(schemas[name]).iter_errors(value)) == [], (kind, value)
+    for name in ("gotoRunFeedback", "gotoRunState", "error"):
+        for value in values(name):
+            assert list(Draft202012Validator(schemas[name]).iter_errors(value)) == [], (name, value)
+    (read,) = values("read")
+    assert isinstance(read["markers"], list) and "payload" not in read  # no envelope
+    # the write reached the robot as the property's own data
+    until(lambda: robot.door_command == 0.75, 5)
+    # 1. followed to its terminal outcome, by the correlationId sent with the goal's fields
+    first = [e for e in values("gotoRunFeedback") if e.get("correlationId") == "wot-1"]
+    assert [e["state"] for e in first] in (["queued", "running", "finished"], ["queued", "finished"]), first
+    assert first[-1]["terminal"] is True and [e["seq"] for e in first] == list(range(1, len(first) + 1))
+    # 2. queried and cancelled while it ran
+    second = [e for e in values("gotoRunFeedback") if e.get("correlationId") == "wot-2"]
+    mission = second[0]["mission"]
+    assert second[-1]["terminal"] is True and second[-1]["state"] == "cancelled", second
+    (query,) = [e for e in values("gotoRunState") if e.get("correlationId") == "q-1"]
+    (cancel,) = [e for e in values("gotoRunState") if e.get("correlationId") == "c-1"]
+    assert query["mission"] == mission and query["state"] in ("queued", "running") and not query["terminal"]
+    assert cancel["mission"] == mission and cancel["state"] == "cancelled"
+    # 3. a goal its message cannot hold: refused before it reached the robot, in words, with a stable code
+    (refused,) = [e for e in values("error") if e.get("correlationId") == "bad-1"]
+    assert refused["code"] == "invalid-event" and refused["affordance"] == "pickRun"
+    assert "'nope' was unexpected" in refused["message"] and "Port" not in refused["message"]
+    assert refused["topic"] == f"td2adaptor/{ROBOT}/wot-thing/PickComponent/pickRun"
+    assert robot.next_id == 2  # the two gotoRun missions; the refused pickRun never reached the robot

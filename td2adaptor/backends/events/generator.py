@@ -49,6 +49,7 @@ from td2adaptor.model.events import (
     build_catalog,
     td_topic,
 )
+from td2adaptor.model.wot import wot_data, wot_topic
 
 TEMPLATES = Path(__file__).parent / "templates"
 
@@ -59,7 +60,9 @@ ROBOT_PLACEHOLDER = "{{robotName}}"
 BROKER_PLACEHOLDER = "{{mqttBroker}}"
 #: the runtime publishes and subscribes with QoS 1 (the binding's `mqv:qos` is a string)
 MQTT_QOS = "1"
-SCHEMA_FORMAT = "application/schema+json;version=draft-2020-12"
+#: the schema files declare JSON Schema 2020-12 (what the runtime validates with) and use only keywords that mean
+#: the same in draft-07, the newest format AsyncAPI tools (@asyncapi/parser 3) register and so check
+SCHEMA_FORMAT = "application/schema+json;version=draft-07"
 MQTT_BINDING_VERSION = "0.2.0"
 
 
@@ -101,6 +104,23 @@ def td_schema(schema: Any) -> Any:
     return out
 
 
+def _texts(data: Mapping[str, Any]) -> dict[str, Any]:
+    """`title` and (when not empty) `description` of `data`."""
+    out: dict[str, Any] = {"title": data["title"]}
+    if data.get("description"):
+        out["description"] = data["description"]
+    return out
+
+
+def _wot_description(spec: EventSpec) -> str:
+    if spec.kind is Kind.ERROR:
+        return (
+            "A request to an affordance (an action's input, a written value) was refused or failed: a stable "
+            "code, a message in user words, the affordance and, when known, the correlationId and mission."
+        )
+    return f"{spec.description} Carries the correlationId sent with the action's input and the mission id."
+
+
 def standalone(spec: EventSpec, catalog: EventCatalog) -> dict[str, Any]:
     """The event schema with the envelope merged in, as a self-contained TD data schema."""
     props: dict[str, Any] = {}
@@ -109,7 +129,7 @@ def standalone(spec: EventSpec, catalog: EventCatalog) -> dict[str, Any]:
         if own is False:
             continue
         merged = dict(sub)
-        if isinstance(own, Mapping):
+        if isinstance(own, Mapping) and "$ref" not in own:  # a reference is to `sub` itself
             merged.update({k: v for k, v in own.items() if k != "not"})
             if "const" in own:
                 merged.pop("enum", None)
@@ -198,40 +218,58 @@ def exposed_td(
     def form(topic: str, op: str | list[str], packet: str, retain: bool = False) -> dict[str, Any]:
         return _form(broker, topic, op, packet, model=is_model, retain=retain)
 
+    runs = {s.run: s for s in catalog.specs if s.kind is Kind.QUERY and s.run}
+    stops = {s.run: s for s in catalog.specs if s.kind is Kind.CANCEL and s.run}
     for spec in catalog.specs:
-        topic = spec.topic(robot, root)
-        data = standalone(spec, catalog)
-        assert spec.affordance is not None or spec.component is None
+        topic = wot_topic(spec, robot, root)
+        if topic is None:  # the status event: only its envelope topic, described as it travels
+            data = standalone(spec, catalog)
+            event = _texts(data)
+            event["data"] = {k: v for k, v in data.items() if k not in ("title", "description")}
+            event["forms"] = [
+                form(spec.topic(robot, root), "subscribeevent", "subscribe", retain=True),
+                form(spec.topic(robot, root), "unsubscribeevent", "unsubscribe"),
+            ]
+            events[spec.kind.value] = event
+            continue
+        data = dict(td_schema(wot_data(spec)))
         if spec.kind is Kind.PROPERTY and spec.affordance:
-            prop = {**data, "readOnly": True, "writeOnly": False, "observable": True}
+            prop = {**_texts({"title": spec.title, "description": spec.description}), **data}
+            prop.update(readOnly=True, writeOnly=False, observable=True)
             prop["forms"] = [
                 form(topic, ["readproperty", "observeproperty"], "subscribe", retain=True),
                 form(topic, "unobserveproperty", "unsubscribe"),
             ]
             properties[spec.affordance] = prop
         elif spec.kind is Kind.WRITE and spec.affordance:
-            prop = {**data, "readOnly": False, "writeOnly": True, "observable": False}
+            prop = {**_texts({"title": spec.title, "description": spec.description}), **data}
+            prop.update(readOnly=False, writeOnly=True, observable=False)
             prop["forms"] = [form(topic, "writeproperty", "publish")]
             properties[spec.affordance] = prop
         elif spec.kind in (Kind.INVOKE, Kind.QUERY, Kind.CANCEL) and spec.affordance:
-            action: dict[str, Any] = {"title": data.pop("title")}
-            if "description" in data:
-                action["description"] = data.pop("description")
+            action = _texts({"title": spec.title, "description": spec.description})
             action["input"] = data
             action["safe"] = spec.kind is Kind.QUERY
             action["idempotent"] = spec.kind is not Kind.INVOKE
             action["synchronous"] = False
             action["forms"] = [form(topic, "invokeaction", "publish")]
+            # TD 1.1's own operations on the run action, for clients that offer them: the same messages as
+            # the query and cancel actions (answered by the run's state event)
+            for op, linked in (
+                ("queryaction", runs.get(spec.affordance)),
+                ("cancelaction", stops.get(spec.affordance)),
+            ):
+                linked_topic = None if linked is None else wot_topic(linked, robot, root)
+                if linked_topic is not None:
+                    action["forms"].append(form(linked_topic, op, "publish"))
             actions[spec.affordance] = action
         else:
             name = {Kind.FEEDBACK: "Feedback", Kind.STATE: "State"}.get(spec.kind, "")
             key = f"{spec.affordance}{name}" if spec.affordance else spec.kind.value
-            event: dict[str, Any] = {"title": data.pop("title")}
-            if "description" in data:
-                event["description"] = data.pop("description")
+            event = _texts({"title": spec.title, "description": _wot_description(spec)})
             event["data"] = data
             event["forms"] = [
-                form(topic, "subscribeevent", "subscribe", retain=spec.kind is Kind.STATUS),
+                form(topic, "subscribeevent", "subscribe"),
                 form(topic, "unsubscribeevent", "unsubscribe"),
             ]
             events[key] = event
@@ -414,9 +452,13 @@ def _acl(model: Model, catalog: EventCatalog) -> str:
         package=catalog.package,
         root=TOPIC_ROOT,
         all_robots=ALL_ROBOTS,
-        node_reads=[t for s in inbound for t in (s.topic("%u"), s.topic(ALL_ROBOTS))],
-        node_writes=[*(s.topic("%u") for s in outbound), td_topic("%u")],
-        app_writes=[s.topic("+") for s in inbound],
+        node_reads=[t for s in inbound for t in (s.topic("%u"), s.topic(ALL_ROBOTS), wot_topic(s, "%u")) if t],
+        node_writes=[
+            *(s.topic("%u") for s in outbound),
+            *(t for s in outbound if (t := wot_topic(s, "%u"))),
+            td_topic("%u"),
+        ],
+        app_writes=[t for s in inbound for t in (s.topic("+"), wot_topic(s, "+")) if t],
     )
 
 

@@ -4,7 +4,8 @@ Everything a template prints is computed here (the view model); templates only l
 modules and the rospy/genpy stubs are copied unchanged (`verbatim/`, and `common.py` and `errors.py` shared
 with the rclpy backend in `backends/_python/verbatim/`). Every TD string reaches the output through
 `textsafe`. Output: `<package>/` with package.xml, CMakeLists.txt, setup.py, README.md, mypy.ini, ruff.toml,
-`src/<package>/`, `scripts/edge_node` (rosrun), `launch/edge_node.launch` (roslaunch) and `stubs/`.
+`src/<package>/`, `scripts/edge_node` (rosrun), `launch/edge_node.launch` (roslaunch) and `stubs/`. ROS actions
+become actionlib clients (`_actions.py`, copied only into packages that have actions: they need actionlib).
 """
 
 from __future__ import annotations
@@ -30,6 +31,8 @@ from td2adaptor.generation import textsafe as ts
 from td2adaptor.generation.backend import GeneratedTree, GenOptions
 from td2adaptor.generation.templating import render, verbatim
 from td2adaptor.model import (
+    ActionDef,
+    ActionEndpoint,
     Component,
     MessageDef,
     Model,
@@ -49,13 +52,15 @@ TEMPLATES = Path(__file__).parent / "templates"
 VERBATIM = Path(__file__).parent / "verbatim"
 #: copied unchanged: the parts of rospy and genpy the package uses, typed
 _FIXED_STUBS = ("genpy/__init__.pyi", "rospy/__init__.pyi", "rospy/core.pyi", "rospy/exceptions.pyi")
+#: copied unchanged into packages with actions: the parts of actionlib they use, typed
+_ACTION_STUBS = ("actionlib/__init__.pyi",)
 
 #: names the generated components module must not give to message classes or parameters: what the runtime
 #: modules define, what the template uses besides them, keywords and builtins
 _RESERVED = py.reserved_names(
-    [verbatim(VERBATIM, "_runtime.py"), *(py.shared_source(n) for n in py.SHARED)],
+    [verbatim(VERBATIM, "_runtime.py"), verbatim(VERBATIM, "_actions.py"), *(py.shared_source(n) for n in py.SHARED)],
     ["annotations", "Any", "Callable", "Mapping", "Sequence", "genpy", "self", "item", "request", "response"]
-    + ["mission_id", "timeout"],
+    + ["mission_id", "timeout", "goal"],
 )
 
 # ---------------------------------------------------------------------------------------------------------
@@ -122,6 +127,20 @@ class PublisherView:
 
 
 @dataclass(frozen=True)
+class ActionView:
+    name: str
+    attr: str
+    ros_name: list[str]
+    action_class: str  # genaction's NameAction, what actionlib.ActionClient wants
+    goal_class: str
+    result_class: str
+    feedback_class: str
+    params: list[FieldView]
+    construct_doc: str
+    send_doc: str
+
+
+@dataclass(frozen=True)
 class ComponentView:
     name: str
     doc: str
@@ -131,6 +150,7 @@ class ComponentView:
     publishers: list[PublisherView]
     single: SubscriberView | None
     mission_attrs: list[str]
+    actions: list[ActionView] = field(default_factory=list)
 
 
 @dataclass
@@ -175,6 +195,9 @@ def module_imports(views: list[ComponentView], imports: _Imports) -> list[str]:
             text += [*sub.ros_name, "Callable TopicSubscriber"]
         for pub in v.publishers:
             text += [p.annotation + " " + p.value for p in pub.params] + pub.ros_name + ["TopicPublisher"]
+        for act in v.actions:
+            text += [p.annotation + " " + p.value for p in act.params] + act.ros_name
+            text += ["ActionGoalClient GoalHandle"]
         if v.services:
             text.append("ServiceClient")
         if v.mission_attrs:
@@ -202,6 +225,7 @@ def module_imports(views: list[ComponentView], imports: _Imports) -> list[str]:
         "to_time",
     )
     members += [(".common" if n in py.common_names() else "._runtime", n) for n in runtime]
+    members += [("._actions", n) for n in used("ActionGoalClient", "GoalHandle")]
     members += [(".errors", n) for n in used("CallFailed")]
     return import_block(members, used("genpy"))
 
@@ -386,6 +410,49 @@ def _publisher_view(topic: TopicEndpoint, types: TypeTable, imports: _Imports, d
     )
 
 
+def _action_view(action: ActionEndpoint, types: TypeTable, imports: _Imports, diags: Diagnostics) -> ActionView:
+    adef: ActionDef = types.action(action.type_name)
+    action_class = imports.use(action.type_name)
+    goal_class = imports.use(adef.goal.name)
+    result_class = imports.use(adef.result.name)
+    feedback_class = imports.use(adef.feedback.name)
+    params = _params(adef.goal, imports, diags, action.pointer)
+    display = action.ros_name.binding_form()
+    ros_type = action.type_name.replace("/action/", "/")
+    send_doc = docstring(
+        _td_text(action.text),
+        [
+            f"Send a goal to ROS action {display} ({ros_type}, actionlib: {display}/goal, cancel, status, feedback, "
+            "result).",
+            f"goal=None sends construct_{action.name}_Goal() (all fields zero). Returns the goal's GoalHandle: "
+            "goal_id, status, on_feedback(callback), feedback(timeout=...) to iterate over the feedback until the "
+            "goal ends, result(timeout=...) and cancel(timeout=...). Its waits default to timeout (default: "
+            "self.timeout).",
+            "Raises ServiceUnavailable when no action server is connected within wait_timeout, GoalRejected when "
+            "the server rejects the goal, CallTimeout when it does not take the goal up within timeout (the goal "
+            "is then cancelled); result() raises GoalAborted or GoalCanceled when the goal does not succeed.",
+        ],
+        " " * 8,
+    )
+    construct_doc = docstring(
+        [f"The goal of {action.name}."],
+        ["Keyword arguments are the goal's fields; nested messages may also be mappings of their fields."],
+        " " * 8,
+    )
+    return ActionView(
+        name=action.name,
+        attr=f"_act_{action.name}",
+        ros_name=_name_expr(action.ros_name),
+        action_class=action_class,
+        goal_class=goal_class,
+        result_class=result_class,
+        feedback_class=feedback_class,
+        params=params,
+        construct_doc=construct_doc,
+        send_doc=send_doc,
+    )
+
+
 def _method_names(view: ComponentView) -> list[str]:
     names = ["register", "close"]
     for s in view.services:
@@ -394,6 +461,8 @@ def _method_names(view: ComponentView) -> list[str]:
         names += [f"get_{sub.name}_value", f"on_{sub.name}"]
     for p in view.publishers:
         names += [f"construct_{p.name}_Msg", f"publish_{p.name}_Msg"]
+    for a in view.actions:
+        names += [f"construct_{a.name}_Goal", f"send_{a.name}"]
     if view.single is not None:
         names.append("get_value")
     return names
@@ -406,7 +475,8 @@ def component_views(model: Model, imports: _Imports, diags: Diagnostics) -> list
         services = [_service_view(comp, s, types, imports, diags) for s in comp.services]
         subscribers = [_subscriber_view(t, imports) for t in comp.subscribers]
         publishers = [_publisher_view(t, types, imports, diags) for t in comp.publishers]
-        members = [s.name for s in comp.services] + [t.name for t in comp.topics]
+        actions = [_action_view(a, types, imports, diags) for a in comp.actions]
+        members = [s.name for s in comp.services] + [a.name for a in comp.actions] + [t.name for t in comp.topics]
         doc = docstring(
             [],
             [
@@ -436,6 +506,7 @@ def component_views(model: Model, imports: _Imports, diags: Diagnostics) -> list
             publishers=publishers,
             single=subscribers[0] if len(subscribers) == 1 else None,
             mission_attrs=mission_attrs,
+            actions=actions,
         )
         names = _method_names(view)
         clashes = sorted({n for n in names if names.count(n) > 1})
@@ -488,6 +559,12 @@ def stub_modules(types: TypeTable, diags: Diagnostics) -> list[StubModule]:
         module = class_location(srv.name)[0]
         services.setdefault(module, []).append(srv)
         by_module.setdefault(module, []).extend([srv.request, srv.response])
+    actions: dict[str, list[ActionDef]] = {}
+    for act in types.actions:
+        module = class_location(act.name)[0]
+        actions.setdefault(module, []).append(act)
+        listed = {m.name for m in by_module.get(module, [])}  # a genaction message may have brought them in
+        by_module.setdefault(module, []).extend(m for m in (act.goal, act.result, act.feedback) if m.name not in listed)
     out = []
     for module in sorted(by_module):
         classes = []
@@ -502,6 +579,8 @@ def stub_modules(types: TypeTable, diags: Diagnostics) -> list[StubModule]:
             )
             for s in sorted(services.get(module, []), key=lambda s: s.name)
         ]
+        # genaction's NameAction: only passed to actionlib.ActionClient, which reads its parts itself
+        classes += [StubClass(class_location(a.name)[1], [], []) for a in actions.get(module, [])]
         annotations = " ".join(a for c in classes for a in (*(f.annotation for f in c.fields), *c.constants))
         members = [("collections.abc", "Sequence")] if "Sequence[" in annotations else []
         if "ClassVar[" in annotations or module in services:
@@ -523,29 +602,14 @@ def _version(raw: str | None) -> str:
 
 def interface_packages(types: TypeTable) -> list[str]:
     names = {m.package for m in types.messages} | {s.package for s in types.services}
+    names |= {a.name.split("/")[0] for a in types.actions}
+    if types.actions:
+        names.add("actionlib_msgs")  # the goal ids and statuses of the action messages
     return sorted(names)
 
 
 def _render(template: str, **context: object) -> str:
     return render(TEMPLATES, template, **context)
-
-
-def _refuse_actions(model: Model, partial: bool, diags: Diagnostics) -> bool:
-    """ROS actions are not generated for ROS 1 yet (actionlib): an error each, or a warning each under
-    --partial (the action is then left out). True when generation can go on."""
-    ok = True
-    for comp in model.components:
-        for a in comp.actions:
-            message = (
-                f"rospy backend: {comp.name}.{a.name}: ROS action {a.ros_name.binding_form()} ({a.type_name}) "
-                "cannot be generated: ROS 1 actions (actionlib) are not generated yet"
-            )
-            if partial:
-                diags.warning("GEN843", message + "; skipped (--partial)", a.pointer)
-            else:
-                diags.error("GEN843", message, a.pointer, hint="--partial skips it; the rclpy backend generates it")
-                ok = False
-    return ok
 
 
 def generate(model: Model, options: GenOptions, diags: Diagnostics) -> GeneratedTree:
@@ -559,14 +623,13 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
             hint="add their definitions with --interfaces, or pick another backend",
         )
         return tree
-    if not _refuse_actions(model, options.partial, diags):
-        return tree
     pkg = options.package_name or model.package_name
     taken = set(_RESERVED) | {c.name for c in model.components}
     imports = _Imports(taken=taken)
     views = component_views(model, imports, diags)
     stubs = stub_modules(types, diags)
     packages = interface_packages(types)
+    standard = set(model.standard_packages) | ({"actionlib_msgs"} if types.actions else set())
     thing = model.thing
     title = ts.py_comment(thing.title)
     description = thing.description or thing.title
@@ -583,10 +646,17 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
         ),
         "init_doc": docstring([thing.title], [f"ROS 1 (rospy) adaptor package {pkg}, generated by td2adaptor."], ""),
         "errors": sorted(py.error_classes()),
-        "exports": sorted([v.name for v in views] + list(py.error_classes()) + ["LAST_MISSION", "Started"]),
+        "exports": sorted(
+            [v.name for v in views]
+            + list(py.error_classes())
+            + ["LAST_MISSION", "Started"]
+            + (["GoalHandle"] if types.actions else [])
+        ),
         "interface_packages": packages,
-        "standard_debs": [providers(p)[1] for p in packages if p in model.standard_packages],
-        "own_interfaces": [p for p in packages if p not in model.standard_packages],
+        "has_actions": bool(types.actions),
+        "standard_debs": [providers(p)[1] for p in packages if p in standard]
+        + (["python3-actionlib"] if types.actions else []),
+        "own_interfaces": [p for p in packages if p not in standard],
         "component_names": sorted(v.name for v in views),
         "xml_description": ts.xml_text(" ".join(description.split())),
         "version": _version(thing.version),
@@ -607,12 +677,14 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     for name in py.SHARED:
         tree.add(src + name, py.shared_source(name))
     tree.add(src + "_runtime.py", verbatim(VERBATIM, "_runtime.py"))
+    if types.actions:
+        tree.add(src + "_actions.py", verbatim(VERBATIM, "_actions.py"))
     tree.add(src + "components.py", _render("src/components.py.j2", **context))
     tree.add(src + "edge_node.py", _render("src/edge_node.py.j2", **context, script=False))
     # the same code as the rosrun script (catkin_install_python in CMakeLists.txt)
     tree.add(root + "scripts/edge_node", _render("src/edge_node.py.j2", **context, script=True), executable=True)
     tree.add(root + "launch/edge_node.launch", _render("launch/edge_node.launch.j2", **context))
-    for name in _FIXED_STUBS:
+    for name in _FIXED_STUBS + (_ACTION_STUBS if types.actions else ()):
         tree.add(f"{root}stubs/{name}", verbatim(VERBATIM, f"stubs/{name}"))
     packages_done: set[str] = set()
     for module in stubs:

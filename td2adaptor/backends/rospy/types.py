@@ -47,12 +47,16 @@ def scalar_default(base: str) -> str:
 
 
 def class_location(name: str) -> tuple[str, str]:
-    """(module, class) of a canonical type: `pkg/msg/N` → (pkg.msg, N); `pkg/srv/N_Request` → (pkg.srv, NRequest)."""
+    """(module, class) of a canonical type: `pkg/msg/N` → (pkg.msg, N); `pkg/srv/N_Request` → (pkg.srv, NRequest);
+    ROS 1 actions are messages (genaction): `pkg/action/N_Goal` → (pkg.msg, NGoal), `pkg/action/N` → (pkg.msg,
+    NAction)."""
     package, kind, short = name.split("/")
     if kind == "srv":
         for suffix in ("_Request", "_Response"):
             if short.endswith(suffix):
                 short = short[: -len(suffix)] + suffix[1:]
+    if kind == "action":
+        return f"{package}.msg", short.replace("_", "") if "_" in short else short + "Action"
     return f"{package}.{kind}", short
 
 

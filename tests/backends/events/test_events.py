@@ -20,6 +20,7 @@ from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GenOptions
 from td2adaptor.model import Model
 from td2adaptor.model.events import ALL_ROBOTS, Kind, build_catalog, data_schema
+from td2adaptor.model.wot import wot_topic
 from td2adaptor.runtime.events import EventValidator
 from tests.backends.events.schemawalk import subschemas, untyped
 from tests.conftest import EXAMPLE, REPO
@@ -98,6 +99,15 @@ FEEDBACK: dict[str, Any] = {
     "payload": {"state": "running", "terminal": False, "seq": 2, "result": "ok", "last_event": "start"},
 }
 
+STAMP = {"stamp": {"sec": 1, "nanosec": 2}, "frame_id": "map"}
+POSE = {"position": {"x": 1.0, "y": 2.0, "z": 0.0}, "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}
+#: a whole ar_track_alvar AlvarMarkers message: what the robot sends has every field
+MARKERS = {
+    "header": STAMP,
+    "markers": [{"header": STAMP, "id": 3, "confidence": 0, "pose": {"header": STAMP, "pose": POSE}}],
+}
+PROPERTY = {"type": "property", "affordance": "poseMarker", **ENVELOPE}
+
 GOOD: list[tuple[str, Any]] = [
     ("GoToComponent.gotoRun.invoke", {"payload": GOAL}),
     ("GoToComponent.gotoRun.invoke", {"type": "invoke", "affordance": "gotoRun", **ENVELOPE, "payload": GOAL}),
@@ -113,7 +123,7 @@ GOOD: list[tuple[str, Any]] = [
     ("GoToComponent.gotoRun.state", {**FEEDBACK, "type": "state", "payload": {"state": "paused", "terminal": False}}),
     (
         "PoseMarkerComponent.poseMarker.property",
-        {"type": "property", "affordance": "poseMarker", **ENVELOPE, "payload": {"markers": [{"id": 3}]}},
+        {"type": "property", "affordance": "poseMarker", **ENVELOPE, "payload": MARKERS},
     ),
     ("DoorComponent.door.write", {"payload": {"data": 1.0}}),
     (
@@ -146,6 +156,20 @@ BAD: list[tuple[str, Any, str]] = [
     ("GoToComponent.gotoRun.feedback", {k: v for k, v in FEEDBACK.items() if k != "id"}, "'id'"),
     ("GoToComponent.gotoRun.state", {**FEEDBACK, "type": "state"}, "seq"),
     ("DoorComponent.door.write", {"payload": {"data": "open"}}, "number"),
+    # payloads the ROS message cannot hold are refused where they arrive (issue 11)
+    ("DoorComponent.door.write", {"payload": {"linear": {"x": "fast"}}}, "'linear' was unexpected"),
+    ("PickComponent.pickRun.invoke", {"payload": {"nope": 1}}, "'nope' was unexpected"),
+    ("PickComponent.pickRun.invoke", {"payload": {"markerID": 2}}, "'markerID' was unexpected"),
+    ("PickComponent.pickRun.invoke", {"payload": {"procedure": {"pick_frame_id": 2}}}, "not of type 'string'"),
+    ("GoToComponent.gotoRun.invoke", {"payload": {"procedure": {"goals": [{"pose": {"x": "fast"}}]}}}, "number"),
+    # what the robot sends is a whole message, nothing more
+    ("PoseMarkerComponent.poseMarker.property", {**PROPERTY, "payload": {"markers": []}}, "'header' is a required"),
+    ("PoseMarkerComponent.poseMarker.property", {**PROPERTY, "payload": {**MARKERS, "x": 1}}, "'x' was unexpected"),
+    (
+        "PoseMarkerComponent.poseMarker.property",
+        {**PROPERTY, "payload": {**MARKERS, "header": {"stamp": {"secs": 1, "nsecs": 2}, "frame_id": "m"}}},
+        "'sec' is a required",
+    ),
     ("error", {"type": "error", **ENVELOPE, "payload": {"code": "oops", "message": "m"}}, "oops"),
     ("status", {"type": "status", **ENVELOPE, "payload": {"state": "sleepy"}}, "sleepy"),
 ]
@@ -223,7 +247,7 @@ def test_asyncapi_document(files: dict[str, bytes]) -> None:
         assert channel
     for message in api["components"]["messages"].values():
         payload = message["payload"]
-        assert payload["schemaFormat"] == "application/schema+json;version=draft-2020-12"
+        assert payload["schemaFormat"] == "application/schema+json;version=draft-07"  # what AsyncAPI tools check
         schema = _resolve(files, "asyncapi.json", api, payload["schema"]["$ref"])
         Draft202012Validator.check_schema(schema)
         assert schema["title"] == message["title"]
@@ -304,6 +328,14 @@ def test_robot_td_passes_the_w3c_mqtt_binding_schema() -> None:
     }
 
 
+def test_robot_td_for_ros1_names_time_as_ros1_does() -> None:
+    ros1 = backend.exposed_td(rb1_model(), build_catalog(rb1_model(), "ros1"), robot=ROBOT, broker=BROKER)
+    text = json.dumps(ros1)
+    assert '"secs"' in text and '"nsecs"' in text and '"nanosec"' not in text
+    text = json.dumps(robot_td())
+    assert '"sec"' in text and '"nanosec"' in text and '"nsecs"' not in text
+
+
 def _forms(td: dict[str, Any]) -> list[dict[str, Any]]:
     return [f for section in ("properties", "actions", "events") for a in td[section].values() for f in a["forms"]]
 
@@ -313,7 +345,8 @@ def test_exposed_td_forms(files: dict[str, bytes]) -> None:
     assert {"mqv": "http://www.example.org/mqtt-binding#"} in td["@context"]
     assert td["@type"] == "Thing" and td["id"] == f"urn:dev:wot:robotnik:rb1:{ROBOT}"
     assert "{{" not in json.dumps(td)
-    topics = {s.topic(ROBOT) for s in rb1_catalog().specs}
+    # every affordance on its WoT topic (the data alone); the status event on its envelope topic
+    topics = {wot_topic(s, ROBOT) or s.topic(ROBOT) for s in rb1_catalog().specs}
     seen = set()
     for form in _forms(td):
         packet = form["mqv:controlPacket"]
@@ -325,21 +358,34 @@ def test_exposed_td_forms(files: dict[str, bytes]) -> None:
         seen.add(topic)
     assert seen == topics
     goto = td["actions"]["gotoRun"]
-    assert goto["forms"][0]["op"] == "invokeaction" and goto["forms"][0]["mqv:controlPacket"] == "publish"
-    assert "mqv:retain" not in goto["forms"][0]
-    assert goto["input"]["required"] == ["payload"]
-    assert goto["input"]["properties"]["payload"]["properties"]["procedure"]["type"] == "object"
+    assert [f["op"] for f in goto["forms"]] == ["invokeaction", "queryaction", "cancelaction"]
+    assert all(f["mqv:controlPacket"] == "publish" and "mqv:retain" not in f for f in goto["forms"])
+    assert [f["mqv:topic"] for f in goto["forms"]] == [
+        f"td2adaptor/{ROBOT}/wot-thing/GoToComponent/{name}" for name in ("gotoRun", "gotoQuery", "gotoCancel")
+    ]
+    # the input is the goal's own fields (no envelope), plus the optional correlationId
+    assert list(goto["input"]["properties"]) == ["procedure", "correlationId"] and "required" not in goto["input"]
+    assert goto["input"]["properties"]["procedure"]["type"] == "object"
+    query = td["actions"]["gotoQuery"]["input"]
+    assert set(query["properties"]) == {"mission", "correlationId"}
     availability = td["properties"]["availability"]
     assert availability["forms"][0]["op"] == ["readproperty", "observeproperty"] and availability["observable"]
     assert availability["forms"][0]["mqv:retain"] is True  # property values are retained, as is the status
     assert td["events"]["status"]["forms"][0]["mqv:retain"] is True
     assert "mqv:retain" not in td["events"]["gotoRunFeedback"]["forms"][0]
     assert td["properties"]["door"]["writeOnly"] is True
-    assert td["properties"]["door"]["forms"][0]["mqv:topic"].endswith("/door/write")
+    assert td["properties"]["door"]["forms"][0]["mqv:topic"] == f"td2adaptor/{ROBOT}/wot-thing/DoorComponent/door"
+    assert set(td["properties"]["door"]["properties"]) == {"data"}  # the value itself
+    assert "payload" not in td["properties"]["poseMarker"]["properties"]
     feedback = td["events"]["gotoRunFeedback"]
     assert feedback["forms"][0]["op"] == "subscribeevent"
-    assert feedback["data"]["properties"]["payload"]["properties"]["state"]["enum"][-1] == "cancelled"
-    assert set(td["events"]) >= {"gotoRunFeedback", "gotoRunState", "error", "status"}
+    assert feedback["data"]["properties"]["state"]["enum"][-1] == "cancelled"
+    assert {"correlationId", "mission", "terminal", "seq"} <= set(feedback["data"]["properties"])
+    assert set(td["events"]) == {
+        f"{run}{kind}" for run in ("gotoRun", "pickRun", "placeRun") for kind in ("Feedback", "State")
+    } | {"error", "status"}
+    # the status keeps its envelope, and the TD says so: what it describes is what travels there
+    assert set(td["events"]["status"]["data"]["properties"]) >= {"type", "robot", "id", "time", "payload"}
     # the fleet's model: the same with placeholders for the robot and the broker
     model = doc(files, "td.mqtt.json")
     text = json.dumps(model).replace("{{robotName}}", ROBOT).replace("{{mqttBroker}}", BROKER)

@@ -76,21 +76,30 @@ class NotInitialized(AdaptorError, RuntimeError):
 
 
 class GoalRejected(CallFailed):
-    """ROS 2 action: the action server refused the goal (nothing was started)."""
+    """ROS action: the action server refused the goal (nothing was started); `reason` is the server's words
+    (ROS 1 status text; ROS 2 gives none)."""
 
-    def __init__(self, action: str) -> None:
-        super().__init__(action, "the goal was rejected")
+    def __init__(self, action: str, reason: str = "") -> None:
+        super().__init__(action, _with_reason("the goal was rejected", reason))
+        self.reason = reason
 
 
 class GoalAborted(CallFailed):
-    """ROS 2 action: the goal ended aborted by the robot; `response` is the result it sent."""
+    """ROS action: the goal ended aborted by the robot; `response` is the result it sent, `reason` its words."""
 
-    def __init__(self, action: str, result: Any = None) -> None:
-        super().__init__(action, "the goal was aborted", result)
+    def __init__(self, action: str, result: Any = None, reason: str = "") -> None:
+        super().__init__(action, _with_reason("the goal was aborted", reason), result)
+        self.reason = reason
 
 
 class GoalCanceled(CallFailed):
-    """ROS 2 action: the goal ended canceled (by cancel() or by anyone else); `response` is the result sent."""
+    """ROS action: the goal ended canceled (by cancel() or by anyone else); `response` is the result sent,
+    `reason` the server's words (ROS 1 calls a cancel while executing a preemption)."""
 
-    def __init__(self, action: str, result: Any = None) -> None:
-        super().__init__(action, "the goal was canceled", result)
+    def __init__(self, action: str, result: Any = None, reason: str = "") -> None:
+        super().__init__(action, _with_reason("the goal was canceled", reason), result)
+        self.reason = reason
+
+
+def _with_reason(what: str, reason: str) -> str:
+    return f"{what}: {reason}" if reason else what

@@ -10,7 +10,9 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from std_msgs.msg import String
+from test_msgs.msg import FibonacciAction, FibonacciFeedback, FibonacciGoal, FibonacciResult
 
+from ._actions import ActionGoalClient, GoalHandle
 from ._runtime import TopicSubscriber, require_node
 from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, check_robot_name, check_timeout, in_namespace
 
@@ -20,7 +22,7 @@ __all__ = [
 
 
 class MathComponent:
-    """The robot's MathComponent: chatter.
+    """The robot's MathComponent: fibonacci, chatter.
 
     Call rospy.init_node() once in the process first (rospy has one node per process, and it is the caller's), then
     register() (or just use the methods: they register what they need).
@@ -47,15 +49,60 @@ class MathComponent:
             String,
             queue_size=10,
         )
+        self._act_fibonacci = ActionGoalClient(
+            in_namespace("fibonacci", self.robot_name),
+            FibonacciAction,
+            FibonacciGoal,
+            FibonacciResult,
+            FibonacciFeedback,
+        )
 
     def register(self) -> None:
         """Create every service proxy, publisher and subscriber of this component (idempotent)."""
         require_node()
         self._sub_chatter.register()
+        self._act_fibonacci.register()
 
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
         self._sub_chatter.close()
+        self._act_fibonacci.close()
+
+    def construct_fibonacci_Goal(
+        self,
+        *,
+        order: int = 0,
+    ) -> FibonacciGoal:
+        """The goal of fibonacci.
+
+        Keyword arguments are the goal's fields; nested messages may also be mappings of their fields.
+        """
+        return FibonacciGoal(
+            order=order,
+        )
+
+    def send_fibonacci(
+        self,
+        goal: FibonacciGoal | None = None,
+        *,
+        timeout: float | None = None,
+    ) -> GoalHandle[FibonacciResult, FibonacciFeedback]:
+        """Send a goal to ROS action /{{robotName}}/fibonacci (test_msgs/Fibonacci, actionlib:
+        /{{robotName}}/fibonacci/goal, cancel, status, feedback, result).
+
+        goal=None sends construct_fibonacci_Goal() (all fields zero). Returns the goal's GoalHandle: goal_id,
+        status, on_feedback(callback), feedback(timeout=...) to iterate over the feedback until the goal ends,
+        result(timeout=...) and cancel(timeout=...). Its waits default to timeout (default: self.timeout).
+
+        Raises ServiceUnavailable when no action server is connected within wait_timeout, GoalRejected when the
+        server rejects the goal, CallTimeout when it does not take the goal up within timeout (the goal is then
+        cancelled); result() raises GoalAborted or GoalCanceled when the goal does not succeed.
+        """
+        return self._act_fibonacci.send(
+            self.construct_fibonacci_Goal() if goal is None else goal,
+            self._timeout(timeout),
+            self.wait_timeout,
+        )
 
     def get_chatter_value(self, *, timeout: float | None = None) -> String:
         """The latest std_msgs/String message on /{{robotName}}/chatter, waiting at most timeout seconds (by default

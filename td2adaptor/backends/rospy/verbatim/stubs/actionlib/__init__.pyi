@@ -1,0 +1,32 @@
+# The parts of actionlib (ROS 1 actions) that the generated adaptor uses.
+from collections.abc import Callable
+from typing import Any
+
+import rospy
+
+class CommStateMachine:
+    action_goal: Any
+
+class ClientGoalHandle:
+    comm_state_machine: CommStateMachine
+    def cancel(self) -> None: ...
+    def get_comm_state(self) -> int: ...
+    def get_goal_status(self) -> int: ...
+    def get_goal_status_text(self) -> str: ...
+    def get_result(self) -> Any: ...
+
+class ActionClient:
+    last_status_msg: Any
+    pub_goal: rospy.Publisher
+    pub_cancel: rospy.Publisher
+    status_sub: rospy.Subscriber
+    result_sub: rospy.Subscriber
+    feedback_sub: rospy.Subscriber
+    def __init__(self, ns: str, ActionSpec: Any) -> None: ...
+    def send_goal(
+        self,
+        goal: Any,
+        transition_cb: Callable[[ClientGoalHandle], None] | None = None,
+        feedback_cb: Callable[[ClientGoalHandle, Any], None] | None = None,
+    ) -> ClientGoalHandle: ...
+    def stop(self) -> None: ...

@@ -1,0 +1,248 @@
+"""Registering a robot's Thing Description with a W3C WoT Discovery Thing Description Directory (TDD).
+
+Optional (`directory` in the runtime configuration): the edge node `PUT`s the TD it publishes on the broker to
+`<directory>/things/{id}` once the robot is online, and `DELETE`s it when it stops. The registered copy is the
+published TD plus the discovery context and, with `directory_ttl`, a `registration.ttl` (WoT Discovery): the
+node repeats the `PUT` every ttl/2 seconds, so the directory drops the TD of a node that died without stopping
+(expiry) and gets it back after the directory itself restarted. `PUT` creates or replaces: a TD that changed
+between two runs of a robot updates its registration.
+
+The directory is never in the way of the robot: registration runs on its own thread, failures are logged (the
+URL without credentials, the directory's answer in short) and retried with exponential backoff, and stopping
+waits for one short `DELETE` at most. Plain HTTP(S) with the standard library: no client dependency.
+"""
+
+from __future__ import annotations
+
+import http.client
+import json
+import logging
+import ssl
+import threading
+import time
+import urllib.error
+import urllib.request
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+from urllib.parse import quote, urlsplit
+
+from td2adaptor.runtime.security import redact_url
+
+log = logging.getLogger("td2adaptor.runtime.discovery")
+
+DISCOVERY_CONTEXT = "https://www.w3.org/2022/wot/discovery"
+TD_MEDIA_TYPE = "application/td+json"
+ENV_DIRECTORY_TOKEN = "TD2ADAPTOR_DIRECTORY_TOKEN"
+PUT_TIMEOUT = 30.0  # a directory may take its time to store a large TD (it turns it into RDF)
+DELETE_TIMEOUT = 5.0  # stopping waits at most this long for the directory
+MAX_BACKOFF = 60.0
+
+
+class DirectoryError(Exception):
+    """A directory request failed; the message says which and why (never a credential)."""
+
+
+def check_directory_url(url: str) -> str:
+    """`url` as a directory base URL (http(s)://host[:port][/path], no trailing slash); raises ValueError with a
+    message that shows the URL redacted. Credentials do not belong in it (they would show in process lists)."""
+    shown = redact_url(url)
+    try:
+        parts = urlsplit(url)
+        parts.port  # noqa: B018 - raises ValueError for a bad port
+    except ValueError as exc:
+        raise ValueError(f"directory URL {shown!r}: {exc}") from None
+    if parts.scheme not in ("http", "https") or not parts.hostname:
+        raise ValueError(f"directory URL {shown!r}: use http(s)://host[:port][/path] of a Thing Description Directory")
+    if parts.username or parts.password:
+        raise ValueError(
+            f"directory URL {shown!r} carries credentials: give a token in the configuration "
+            f"(directory_token) or in {ENV_DIRECTORY_TOKEN} instead"
+        )
+    if parts.query or parts.fragment:
+        raise ValueError(f"directory URL {shown!r}: no query or fragment (the directory's base URL)")
+    return url.rstrip("/")
+
+
+def registration_document(td_text: str | bytes, ttl: int) -> dict[str, Any]:
+    """The TD as registered: the published one with the discovery context and, when ttl > 0, its time to live."""
+    td = json.loads(td_text)
+    context = td.get("@context")
+    contexts = list(context) if isinstance(context, list) else [context] if context is not None else []
+    if DISCOVERY_CONTEXT not in contexts:
+        contexts.append(DISCOVERY_CONTEXT)
+    td["@context"] = contexts
+    if ttl > 0:
+        td["registration"] = {"ttl": ttl}
+    return dict(td)
+
+
+def backoff(attempt: int, base: float = 1.0, cap: float = MAX_BACKOFF) -> float:
+    """Seconds to wait before retry `attempt` (1, 2, ...): doubling from `base`, at most `cap`."""
+    return float(min(cap, base * 2 ** max(0, attempt - 1)))
+
+
+@dataclass(frozen=True)
+class Directory:
+    """A Thing Description Directory's `/things` API, over HTTP(S) with the standard library."""
+
+    url: str  # base URL, checked (check_directory_url)
+    token: str | None = None  # Bearer token, if the directory wants one
+    ca_file: str | None = None  # CA bundle for an https directory with a private CA
+
+    def __repr__(self) -> str:  # the token stays out of logs and tracebacks
+        return f"Directory({redact_url(self.url)!r})"
+
+    def thing_url(self, thing_id: str) -> str:
+        return f"{self.url}/things/{quote(thing_id, safe='')}"
+
+    def request(
+        self, method: str, thing_id: str, body: bytes | None, timeout: float, *, ok: tuple[int, ...] = ()
+    ) -> int:
+        """One request on /things/{id}; its HTTP status. Raises DirectoryError for no answer or an error status
+        (other than those in `ok`)."""
+        headers = {"Accept": "application/json"}
+        if body is not None:
+            headers["Content-Type"] = TD_MEDIA_TYPE
+        if self.token:
+            headers["Authorization"] = f"Bearer {self.token}"
+        target = self.thing_url(thing_id)
+        req = urllib.request.Request(target, data=body, method=method, headers=headers)
+        context = ssl.create_default_context(cafile=self.ca_file) if target.startswith("https:") else None
+        where = f"{method} {redact_url(target)}"
+        try:
+            with urllib.request.urlopen(req, timeout=timeout, context=context) as resp:
+                return int(resp.status)
+        except urllib.error.HTTPError as exc:
+            if exc.code in ok:
+                return int(exc.code)
+            detail = _answer(exc)
+            raise DirectoryError(f"{where}: the directory answered HTTP {exc.code} {exc.reason}{detail}") from None
+        except (urllib.error.URLError, OSError, http.client.HTTPException) as exc:
+            reason = exc.reason if isinstance(exc, urllib.error.URLError) else exc
+            raise DirectoryError(f"{where}: no answer ({reason or type(exc).__name__})") from None
+
+    def put(self, thing_id: str, document: Mapping[str, Any], timeout: float = PUT_TIMEOUT) -> int:
+        """Create or replace the TD `thing_id` (201 created, 204 replaced)."""
+        body = json.dumps(document, ensure_ascii=False).encode("utf-8")
+        return self.request("PUT", thing_id, body, timeout)
+
+    def delete(self, thing_id: str, timeout: float = DELETE_TIMEOUT) -> int:
+        """Remove the TD `thing_id` (404: it was not there, which is fine too)."""
+        return self.request("DELETE", thing_id, None, timeout, ok=(404,))
+
+
+def _answer(exc: urllib.error.HTTPError) -> str:
+    """The start of an error answer's body (a directory says there why it refused), on one line."""
+    try:
+        text = exc.read(400).decode("utf-8", errors="replace")
+    except OSError:
+        return ""
+    text = " ".join(text.split())
+    return f": {text[:300]}" if text else ""
+
+
+class Registration:
+    """Keeps one robot's TD registered while the robot is online: `start()` registers (in the background,
+    retrying), `stop()` deregisters. Timestamps and counts are kept for tests and the bench."""
+
+    def __init__(
+        self,
+        directory: Directory,
+        td_text: str | bytes,
+        *,
+        robot: str,
+        ttl: int = 0,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.directory = directory
+        self.document = registration_document(td_text, ttl)
+        self.thing_id = str(self.document.get("id") or "")
+        if not self.thing_id:
+            raise ValueError(f"robot {robot}: its Thing Description has no id, so a directory cannot hold it")
+        self.robot = robot
+        self.ttl = ttl
+        self.clock = clock
+        self.started_at: float | None = None
+        self.registered_at: float | None = None  # the first successful PUT
+        self.puts = 0  # successful PUTs (registrations and refreshes)
+        self.failures = 0  # failed attempts in a row (0 once one succeeded)
+        self.last_error: str | None = None
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    @property
+    def registration_seconds(self) -> float | None:
+        """From start() to the directory holding the TD (None until it does)."""
+        if self.started_at is None or self.registered_at is None:
+            return None
+        return self.registered_at - self.started_at
+
+    def start(self) -> None:
+        self.started_at = self.clock()
+        self._thread = threading.Thread(target=self._run, name=f"td2adaptor-{self.robot}-directory", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            if self._register():
+                wait = self.ttl / 2 if self.ttl > 0 else None  # refresh before the directory lets it expire
+            else:
+                wait = backoff(self.failures)
+            if wait is None:
+                self._stop.wait()
+            else:
+                self._stop.wait(wait)
+
+    def _register(self) -> bool:
+        try:
+            status = self.directory.put(self.thing_id, self.document)
+        except DirectoryError as exc:
+            self.failures += 1
+            self.last_error = str(exc)
+            log.warning(
+                "robot %s: could not register its Thing Description with the directory (attempt %d, retrying "
+                "in %.0f s; the robot is served all the same): %s",
+                self.robot,
+                self.failures,
+                backoff(self.failures),
+                exc,
+            )
+            return False
+        first = self.registered_at is None
+        if first:
+            self.registered_at = self.clock()
+        elif self.failures:
+            log.info("robot %s: registered with the directory again", self.robot)
+        self.failures, self.last_error = 0, None
+        self.puts += 1
+        if first:
+            log.info(
+                "robot %s: Thing Description %s registered with %s (HTTP %d%s)",
+                self.robot,
+                self.thing_id,
+                redact_url(self.directory.url),
+                status,
+                f", ttl {self.ttl} s" if self.ttl else "",
+            )
+        return True
+
+    def stop(self) -> None:
+        """Stop refreshing and remove the TD from the directory (one short attempt; its expiry is the fallback)."""
+        if self._stop.is_set():
+            return
+        self._stop.set()
+        busy = False
+        if self._thread is not None:
+            self._thread.join(DELETE_TIMEOUT)  # a PUT under way may still land: remove it then too
+            busy = self._thread.is_alive()
+        if self.registered_at is None and not busy:
+            return  # never got there: nothing to remove
+        try:
+            self.directory.delete(self.thing_id)
+            log.info("robot %s: Thing Description removed from the directory", self.robot)
+        except DirectoryError as exc:
+            expiry = f"; it expires after its ttl ({self.ttl} s)" if self.ttl else ""
+            log.warning(
+                "robot %s: could not remove the Thing Description from the directory%s: %s", self.robot, expiry, exc
+            )

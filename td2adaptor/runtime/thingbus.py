@@ -1,0 +1,152 @@
+"""The bus as WoT consumers use it: an adapter between the engine and its bus (see `model/wot.py`).
+
+The engine speaks the project's event envelope only. `ThingBus` wraps its bus and, for the robot it
+serves:
+
+* when the engine subscribes to an inbound envelope topic, also subscribes to the WoT topic of the same
+  affordance; a WoT message there (an action's input, a written value) is wrapped into the envelope event the
+  engine expects (a fresh id and time, `source` "wot", `correlationId` → `correlation`, query/cancel
+  `mission`) and handed to the engine as if it had arrived on the envelope topic, so it is validated, refused
+  or run by the same code;
+* when the engine publishes an event, publishes it unchanged and, for a property value, a feedback, a state or
+  an error about an affordance, its WoT form on the WoT topic (the value alone, retained like the event; the
+  outcome with `correlationId` and `mission` beside the payload).
+
+What cannot be wrapped (not JSON, not an object) goes to the engine as it came, so the engine answers it
+with the error event a native client would get.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from collections.abc import Mapping
+from typing import Any
+
+from td2adaptor.model.events import ALL_ROBOTS, TOPIC_ROOT, EventCatalog, EventSpec, Kind
+from td2adaptor.model.wot import CORRELATION, takes_correlation, wot_topic
+from td2adaptor.runtime.bus import Bus, Handler, Message
+from td2adaptor.runtime.events import encode, new_id, now_rfc3339
+
+log = logging.getLogger("td2adaptor.runtime")
+
+WOT_SOURCE = "wot"
+
+
+class ThingBus:
+    """`bus` with the WoT topics of robot `robot` served beside the envelope topics (a `Bus` itself)."""
+
+    def __init__(self, bus: Bus, catalog: EventCatalog, robot: str, root: str = TOPIC_ROOT) -> None:
+        self.bus = bus
+        self.catalog = catalog
+        self.robot = robot
+        self.root = root
+        self._inbound = {s.topic(robot, root): s for s in catalog.inbound()}
+        self._outbound = {s.topic(robot, root): s for s in catalog.specs if not s.kind.inbound}
+        self._components = {s.affordance: s.component for s in catalog.specs if s.affordance}
+
+    # -- Bus -----------------------------------------------------------------------------------------------
+
+    def connect(self) -> None:
+        self.bus.connect()
+
+    def subscribe(self, pattern: str, handler: Handler) -> None:
+        self.bus.subscribe(pattern, handler)
+        spec = self._inbound.get(pattern)
+        topic = None if spec is None else wot_topic(spec, self.robot, self.root)
+        if spec is None or topic is None:
+            return  # the all-robots channel and anything else: envelope only
+
+        def inbound(msg: Message, spec: EventSpec = spec, native: str = pattern) -> None:
+            handler(Message(native, self.wrap(spec, msg.payload), msg.retain))
+
+        self.bus.subscribe(topic, inbound)
+
+    def publish(self, topic: str, payload: bytes, *, retain: bool = False) -> None:
+        self.bus.publish(topic, payload, retain=retain)
+        spec = self._outbound.get(topic)
+        if spec is None or spec.kind is Kind.STATUS or not payload:
+            return
+        try:
+            event = json.loads(payload)
+        except ValueError:
+            return
+        out = self.unwrap(spec, event)
+        if out is not None:
+            text = json.dumps(out[1], separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+            self.bus.publish(out[0], text.encode("utf-8"), retain=retain)
+
+    def flush(self, timeout: float) -> bool:
+        return self.bus.flush(timeout)
+
+    def close(self) -> None:
+        self.bus.close()
+
+    # -- translation ---------------------------------------------------------------------------------------
+
+    def wrap(self, spec: EventSpec, raw: bytes) -> bytes:
+        """The envelope event of a WoT message on `spec`'s WoT topic (`raw` itself when it is no JSON)."""
+        if not raw.strip():
+            data: Any = {} if spec.kind is not Kind.WRITE else None
+        else:
+            try:
+                data = json.loads(raw)
+            except ValueError:
+                return raw  # the engine answers: invalid-json
+        event: dict[str, Any] = {"type": spec.kind.value, "affordance": spec.affordance, "robot": self.robot}
+        event.update(id=new_id(), time=now_rfc3339(), source=WOT_SOURCE)
+        if spec.kind is Kind.WRITE:
+            event["payload"] = data
+            return encode(event)
+        if isinstance(data, dict) and takes_correlation(spec):
+            data = dict(data)
+            correlation = data.pop(CORRELATION, None)
+            if correlation is not None:
+                event["correlation"] = correlation  # the engine's schema checks it
+        if spec.kind in (Kind.QUERY, Kind.CANCEL) and isinstance(data, dict):
+            mission = data.pop("mission", None)
+            if mission is not None:
+                event["mission"] = mission
+            if data:  # nothing else belongs there: the engine refuses it, naming the member
+                event["payload"] = data
+            return encode(event)
+        event["payload"] = data
+        return encode(event)
+
+    def unwrap(self, spec: EventSpec, event: Any) -> tuple[str, Any] | None:
+        """(WoT topic, data) of an event the engine published, or None when it has no WoT form."""
+        if not isinstance(event, Mapping) or event.get("robot") != self.robot:
+            return None
+        if spec.kind is Kind.PROPERTY:
+            topic = wot_topic(spec, self.robot, self.root)
+            return None if topic is None else (topic, event.get("payload"))
+        if spec.kind is Kind.ERROR:
+            affordance = event.get("affordance")
+            if affordance not in self._components:
+                return None  # no affordance (an unknown topic): only the envelope event
+        topic = wot_topic(spec, self.robot, self.root)
+        payload = event.get("payload")
+        if topic is None or not isinstance(payload, Mapping):
+            return None
+        data: dict[str, Any] = {}
+        if spec.kind is Kind.ERROR:
+            data["affordance"] = event["affordance"]
+        if isinstance(event.get("correlation"), str):
+            data[CORRELATION] = event["correlation"]
+        if isinstance(event.get("mission"), int):
+            data["mission"] = event["mission"]
+        data.update(payload)
+        if spec.kind is Kind.ERROR:  # name the WoT topic the consumer used; the excerpt would be our envelope
+            data.pop("event", None)
+            refused = self._inbound.get(str(data.get("topic")))
+            wot = None if refused is None else wot_topic(refused, self.robot, self.root)
+            if wot is not None:
+                data["topic"] = wot
+        return topic, data
+
+
+def thing_bus(bus: Bus, catalog: EventCatalog, robot: str, root: str = TOPIC_ROOT) -> Bus:
+    """`bus` serving WoT consumers too (the all-robots id has no Thing of its own)."""
+    if robot == ALL_ROBOTS:
+        return bus
+    return ThingBus(bus, catalog, robot, root)

@@ -1,0 +1,354 @@
+"""ROS 1 actions of the generated rospy package against real actionlib servers (Debian's rospy, rosmaster and
+actionlib; tests/ros1/fibonacci_server.py): goal → feedback → result, cancel mid-goal, aborted, rejected,
+pending, server absent and timeouts. test_msgs/Fibonacci comes from tests/data/actions, built with genpy.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import td2adaptor
+from td2adaptor.backends.rospy import generator as backend
+from td2adaptor.diagnostics import Diagnostics, Severity
+from td2adaptor.generation.backend import GenOptions
+from tests.conftest import REPO
+from tests.ros1 import harness
+from tests.ros1.harness import Master
+
+CASE = REPO / "tests" / "golden" / "cases" / "fibo_action"
+INTERFACES = REPO / "tests" / "data" / "actions"
+PKG = "fibo_bot_adaptor"
+NS = "fibo_a"
+STEP = 0.05  # seconds between two feedback messages of the server
+
+
+@pytest.fixture(scope="module")
+def ros1() -> None:
+    problem = harness.ros1_problem()
+    if problem:
+        if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
+            pytest.skip(problem)
+        pytest.fail(problem)
+
+
+@pytest.fixture(scope="module")
+def package(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The fibo_action golden TD's rospy package (a ROS action and a property), generated; its directory."""
+    result = td2adaptor.compile(CASE / "td.json", interfaces=[INTERFACES])
+    assert result.model is not None, [d.message for d in result.diagnostics]
+    diags = Diagnostics()
+    tree = backend.generate(result.model, GenOptions(), diags)
+    assert not [d for d in diags if d.severity is Severity.ERROR], [d.message for d in diags]
+    root = tmp_path_factory.mktemp("rospy-actions")
+    for rel, data in tree:
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        (root / rel).write_bytes(data)
+    return root / PKG
+
+
+@pytest.fixture(scope="module")
+def interfaces(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Path:
+    """genpy modules of tests/data/actions, with the seven ROS 1 messages of each action."""
+    out = tmp_path_factory.mktemp("genpy") / "modules"
+    built = subprocess.run(
+        [harness.SYSTEM_PYTHON, str(harness.HERE / "build_actions.py"), str(INTERFACES), str(out)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert built.returncode == 0, built.stderr
+    return out
+
+
+@pytest.fixture(scope="module")
+def master(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Iterator[Master]:
+    with harness.rosmaster(tmp_path_factory.mktemp("ros1-home")) as m:
+        yield m
+
+
+@pytest.fixture(scope="module")
+def server(master: Master, interfaces: Path) -> Iterator[None]:
+    with harness.run_server(master, interfaces, "fibonacci_server.py", NS, str(STEP)):
+        yield
+
+
+@pytest.fixture(scope="module")
+def path(package: Path, interfaces: Path) -> list[Path]:
+    return [interfaces, package / "src"]
+
+
+#: client code: an ActionGoalClient of the package's runtime for another action server of the robot
+RAW_CLIENT = (
+    f"from {PKG}._actions import ActionGoalClient\n"
+    "from test_msgs.msg import FibonacciAction as A, FibonacciGoal as G, FibonacciResult as R, FibonacciFeedback as F\n"
+    "def raw_client(name):\n"
+    f"    return ActionGoalClient('/{NS}/' + name, A, G, R, F)\n"
+)
+
+
+def client(master: Master, path: list[Path], body: str) -> Any:
+    """Run `body` with `c`, a MathComponent of robot NS, and the package's names imported; it calls emit()."""
+    return harness.run_client(master, path, f"from {PKG} import *\nc = MathComponent({NS!r})\n" + body)
+
+
+def test_generated_package_with_an_action_is_lint_format_and_mypy_strict_clean(package: Path) -> None:
+    bindir = Path(sys.executable).parent
+    for cmd in (
+        [str(bindir / "ruff"), "check", "--no-cache", "."],
+        [str(bindir / "ruff"), "format", "--check", "--no-cache", "."],
+        [str(bindir / "mypy"), "--config-file", "mypy.ini", "--cache-dir", str(package.parent / ".mypy")],
+    ):
+        out = subprocess.run(cmd, cwd=package, capture_output=True, text=True)
+        assert out.returncode == 0, f"{' '.join(cmd[:2])}:\n{out.stdout}\n{out.stderr}"
+
+
+def test_generated_package_with_an_action_is_pyright_strict_clean(package: Path, tmp_path: Path) -> None:
+    from tests.backends.test_python_runtime import STRICT, _pyright
+
+    copy = tmp_path / PKG
+    shutil.copytree(package, copy, ignore=shutil.ignore_patterns(".mypy"))
+    _pyright({**STRICT, "include": [f"{PKG}/src"], "stubPath": f"{PKG}/stubs"}, tmp_path, sys.executable)
+
+
+def test_ros1_action_messages_as_topic_types(tmp_path: Path) -> None:
+    """genaction's messages are ROS 1 messages: a property may observe an action's feedback topic with them."""
+    td = json.loads((CASE / "td.json").read_text(encoding="utf-8"))
+    form = td["properties"]["chatter"]["forms"][0]
+    form["rosv:name"] = "/{{robotName}}/fibonacci/feedback"
+    form["rosv:type"] = "test_msgs/FibonacciActionFeedback"
+    (tmp_path / "td.json").write_text(json.dumps(td), encoding="utf-8")
+    result = td2adaptor.compile(tmp_path / "td.json", interfaces=[INTERFACES])
+    assert result.model is not None, [d.message for d in result.diagnostics]
+    assert "ROS424" in [d.code for d in result.diagnostics]  # ROS 2 has no such message
+    tree = backend.generate(result.model, GenOptions(), Diagnostics())
+    for rel, data in tree:
+        (tmp_path / "out" / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / "out" / rel).write_bytes(data)
+    stub = (tmp_path / "out" / PKG / "stubs" / "test_msgs" / "msg" / "__init__.pyi").read_text()
+    assert "class FibonacciActionFeedback(genpy.Message):" in stub
+    assert "    status: actionlib_msgs.msg.GoalStatus\n    feedback: FibonacciFeedback\n" in stub
+    bindir = Path(sys.executable).parent
+    out = subprocess.run(
+        [str(bindir / "mypy"), "--config-file", "mypy.ini", "--cache-dir", str(tmp_path / ".mypy")],
+        cwd=tmp_path / "out" / PKG,
+        capture_output=True,
+        text=True,
+    )
+    assert out.returncode == 0, out.stdout
+
+
+def test_action_stubs_catch_type_errors(package: Path, tmp_path: Path) -> None:
+    """The GoalHandle is typed from the .action file: a wrong goal or a wrong use of the result is a mypy error."""
+    misuse = package / "src" / PKG / "misuse.py"
+    misuse.write_text(
+        f"from {PKG} import MathComponent\n"
+        "from test_msgs.msg import FibonacciResult\n\n"
+        "def f(c: MathComponent) -> str:\n"
+        "    return c.send_fibonacci(FibonacciResult()).result().sequence\n\n"
+        "def g(c: MathComponent) -> None:\n"
+        "    c.construct_fibonacci_Goal(order='5')\n"
+    )
+    try:
+        bindir = Path(sys.executable).parent
+        out = subprocess.run(
+            [str(bindir / "mypy"), "--config-file", "mypy.ini", "--cache-dir", str(tmp_path / ".mypy")],
+            cwd=package,
+            capture_output=True,
+            text=True,
+        )
+    finally:
+        misuse.unlink()
+    assert out.returncode == 1, out.stdout
+    assert 'Argument 1 to "send_fibonacci" of "MathComponent" has incompatible type "FibonacciResult"' in out.stdout
+    assert 'Incompatible return value type (got "Sequence[int]", expected "str")' in out.stdout
+    assert 'Argument "order" to "construct_fibonacci_Goal" of "MathComponent" has incompatible type' in out.stdout
+
+
+def test_goal_feedback_result(master: Master, path: list[Path], server: None) -> None:
+    out = client(
+        master,
+        path,
+        "seen = []\n"
+        "goal = c.send_fibonacci(c.construct_fibonacci_Goal(order=6))\n"
+        "goal.on_feedback(lambda fb: seen.append(list(fb.sequence)))\n"
+        "iterated = [list(fb.sequence) for fb in goal.feedback(timeout=10)]\n"
+        "result = goal.result(timeout=10)\n"
+        "emit({'id': goal.goal_id, 'iterated': iterated, 'seen': seen, 'result': list(result.sequence),\n"
+        "      'status': goal.status, 'done': goal.done, 'cancel': goal.cancel()})\n",
+    )
+    expected = [[0, 1, 1, 2, 3, 5][: i + 1] for i in range(6)]
+    assert out["iterated"] == expected  # every feedback message, in order, from the first one on
+    assert out["seen"] == expected[len(expected) - len(out["seen"]) :]  # the callback: from when it was added
+    assert out["result"] == [0, 1, 1, 2, 3, 5]
+    assert out["id"] and isinstance(out["id"], str)
+    assert (out["status"], out["done"], out["cancel"]) == ("succeeded", True, False)
+
+
+def test_cancel_mid_goal(master: Master, path: list[Path], server: None) -> None:
+    out = client(
+        master,
+        path,
+        "goal = c.send_fibonacci(c.construct_fibonacci_Goal(order=1000))\n"
+        "first = next(goal.feedback(timeout=10))\n"
+        "accepted = goal.cancel(timeout=10)\n"
+        "try:\n"
+        "    goal.result(timeout=10)\n"
+        "    emit('succeeded?')\n"
+        "except GoalCanceled as e:\n"
+        "    emit({'first': list(first.sequence), 'accepted': accepted, 'status': goal.status, 'reason': e.reason,\n"
+        "          'partial': len(e.response.sequence), 'is_call_failed': isinstance(e, CallFailed)})\n",
+    )
+    assert out["first"] == [0] and out["accepted"] is True and out["status"] == "canceled"
+    assert out["reason"].startswith("canceled at step ") and 1 <= out["partial"] < 1000
+    assert out["is_call_failed"]
+
+
+def test_aborted_goal(master: Master, path: list[Path], server: None) -> None:
+    out = client(
+        master,
+        path,
+        "goal = c.send_fibonacci(c.construct_fibonacci_Goal(order=13))\n"
+        "try:\n"
+        "    goal.result(timeout=20)\n"
+        "except GoalAborted as e:\n"
+        "    emit({'reason': e.reason, 'message': str(e), 'status': goal.status, 'n': len(e.response.sequence)})\n",
+    )
+    assert out == {
+        "reason": "13 is unlucky",
+        "message": f"/{NS}/fibonacci failed: the goal was aborted: 13 is unlucky",
+        "status": "aborted",
+        "n": 13,
+    }
+
+
+def test_rejected_goal(master: Master, path: list[Path], server: None) -> None:
+    """The picky server (an actionlib ActionServer) rejects a negative order; send raises GoalRejected."""
+    out = client(
+        master,
+        path,
+        f"{RAW_CLIENT}picky = raw_client('picky')\n"
+        "fine = picky.send(G(order=3), 10.0, 10.0).result(10.0)\n"
+        "try:\n"
+        "    picky.send(G(order=-1), 10.0, 10.0)\n"
+        "except GoalRejected as e:\n"
+        "    emit({'fine': list(fine.sequence), 'reason': e.reason, 'message': str(e)})\n",
+    )
+    assert out == {
+        "fine": [0],
+        "reason": "order must not be negative",
+        "message": f"/{NS}/picky failed: the goal was rejected: order must not be negative",
+    }
+
+
+def test_pending_goal_and_timeouts(master: Master, path: list[Path], server: None) -> None:
+    """A server that leaves the goal pending: send returns it as such; result and feedback end at their timeout."""
+    out = client(
+        master,
+        path,
+        f"{RAW_CLIENT}stuck = raw_client('stuck')\n"
+        "goal = stuck.send(G(order=3), 3.0, 10.0)\n"
+        "errors = []\n"
+        "for wait in (lambda: goal.result(timeout=0.3), lambda: next(goal.feedback(timeout=0.3))):\n"
+        "    try:\n"
+        "        wait()\n"
+        "    except CallTimeout as e:\n"
+        "        errors.append(str(e))\n"
+        "emit({'status': goal.status, 'done': goal.done, 'errors': errors})\n",
+    )
+    assert out == {
+        "status": "pending",
+        "done": False,
+        "errors": ["no response from /fibo_a/stuck within 0.3 s"] * 2,
+    }
+
+
+def test_result_timeout_leaves_the_goal_running(master: Master, path: list[Path], server: None) -> None:
+    out = client(
+        master,
+        path,
+        "goal = c.send_fibonacci(c.construct_fibonacci_Goal(order=1000))\n"
+        "try:\n"
+        "    goal.result(timeout=0.2)\n"
+        "except CallTimeout as e:\n"
+        "    timed_out = str(e)\n"
+        "running = goal.status\n"
+        "goal.cancel()\n"
+        "try:\n"
+        "    goal.result()\n"
+        "except GoalCanceled:\n"
+        "    emit({'timed_out': timed_out, 'running': running, 'status': goal.status})\n",
+    )
+    assert out == {
+        "timed_out": f"no response from /{NS}/fibonacci within 0.2 s",
+        "running": "executing",
+        "status": "canceled",
+    }
+
+
+def test_server_killed_mid_goal(master: Master, interfaces: Path, path: list[Path]) -> None:
+    """The robot dies during a goal: waits end with ServiceUnavailable once its connections drop, not at their
+    (long) timeout."""
+    with harness.run_server(master, interfaces, "fibonacci_server.py", "fibo_doomed", str(STEP)) as doomed:
+        out = harness.run_client(
+            master,
+            path,
+            "import os, signal\n"
+            f"from {PKG} import *\n"
+            "c = MathComponent('fibo_doomed')\n"
+            "goal = c.send_fibonacci(c.construct_fibonacci_Goal(order=1000))\n"
+            "next(goal.feedback(timeout=10))\n"
+            f"os.kill({doomed.pid}, signal.SIGKILL)\n"
+            "errors = []\n"
+            "start = time.monotonic()\n"
+            "for wait in (lambda: goal.result(timeout=60), lambda: list(goal.feedback(timeout=60))):\n"
+            "    try:\n"
+            "        wait()\n"
+            "    except ServiceUnavailable as e:\n"
+            "        errors.append(str(e))\n"
+            "emit({'errors': errors, 'early': time.monotonic() - start < 30, 'done': goal.done})\n",
+        )
+    assert out == {
+        "errors": ["service /fibo_doomed/fibonacci is not available (the action server went away during the goal)"] * 2,
+        "early": True,
+        "done": False,
+    }
+
+
+def test_server_absent(master: Master, path: list[Path]) -> None:
+    out = harness.run_client(
+        master,
+        path,
+        f"from {PKG} import *\n"
+        "c = MathComponent('nobody_here', wait_timeout=0.5)\n"
+        "try:\n"
+        "    c.send_fibonacci(timeout=1.0)\n"
+        "except ServiceUnavailable as e:\n"
+        "    emit(str(e))\n",
+    )
+    assert out == "service /nobody_here/fibonacci is not available (no action server within 0.5 s)"
+
+
+def test_invalid_goal_and_uninitialised_node(master: Master, path: list[Path]) -> None:
+    out = client(
+        master,
+        path,
+        "from test_msgs.msg import FibonacciResult\n"
+        "try:\n"
+        "    c.send_fibonacci(FibonacciResult())\n"
+        "except InvalidMessage as e:\n"
+        "    emit(str(e))\n",
+    )
+    assert out == f"/{NS}/fibonacci: expected test_msgs/FibonacciGoal, not FibonacciResult"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(map(str, path)))
+    code = f"from {PKG} import *\ntry:\n    MathComponent().send_fibonacci()\nexcept NotInitialized:\n    print('ok')\n"
+    done = subprocess.run([harness.SYSTEM_PYTHON, "-c", code], env=env, capture_output=True, text=True, timeout=60)
+    assert done.stdout.strip() == "ok", done.stderr

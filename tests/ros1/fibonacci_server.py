@@ -1,0 +1,61 @@
+"""Real actionlib servers of test_msgs/Fibonacci for the rospy backend's action tests (Debian's Python).
+
+`fibonacci_server.py NAMESPACE STEP`: under /NAMESPACE,
+* `fibonacci`: an actionlib SimpleActionServer; one feedback message per step (the sequence so far, STEP
+  seconds apart), then the result. It honours cancel requests between steps (preempted, text "canceled at
+  step N"); order 13 ends aborted (text "13 is unlucky").
+* `picky`: an actionlib ActionServer that rejects goals with a negative order (text "order must not be
+  negative") and succeeds at once otherwise.
+* `stuck`: an actionlib ActionServer that never answers a goal (it stays pending).
+Prints `ready` once all three serve.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import actionlib
+import rospy
+from test_msgs.msg import FibonacciAction, FibonacciFeedback, FibonacciResult
+
+
+def main() -> None:
+    namespace, step = sys.argv[1], float(sys.argv[2])
+    rospy.init_node("fibonacci_server", disable_signals=True)
+
+    def execute(goal: object) -> None:
+        sequence = [0, 1]
+        for i in range(goal.order):
+            if server.is_preempt_requested():
+                server.set_preempted(FibonacciResult(sequence=sequence[: i + 1]), f"canceled at step {i}")
+                return
+            server.publish_feedback(FibonacciFeedback(sequence=sequence[: i + 1]))
+            sequence.append(sequence[-1] + sequence[-2])
+            time.sleep(step)
+        result = FibonacciResult(sequence=sequence[: max(goal.order, 0)])
+        if goal.order == 13:
+            server.set_aborted(result, "13 is unlucky")
+        else:
+            server.set_succeeded(result, "done")
+
+    server = actionlib.SimpleActionServer(f"/{namespace}/fibonacci", FibonacciAction, execute, auto_start=False)
+    server.start()
+
+    def picky_goal(handle: actionlib.ServerGoalHandle) -> None:
+        if handle.get_goal().order < 0:
+            handle.set_rejected(FibonacciResult(), "order must not be negative")
+        else:
+            handle.set_accepted("fine")
+            handle.set_succeeded(FibonacciResult(sequence=[0]), "done")
+
+    picky = actionlib.ActionServer(f"/{namespace}/picky", FibonacciAction, picky_goal, auto_start=False)
+    picky.start()
+    stuck = actionlib.ActionServer(f"/{namespace}/stuck", FibonacciAction, lambda handle: None, auto_start=False)
+    stuck.start()
+    print("ready", flush=True)
+    rospy.spin()
+
+
+if __name__ == "__main__":
+    main()
