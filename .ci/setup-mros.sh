@@ -1,15 +1,16 @@
 #!/usr/bin/env bash
 # Toolchains for the mROS backend tests (called by .ci/setup.sh --test with $SUDO set; idempotent, quiet):
-#   host:   g++ (C++98 syntax checks, the wire-format and behaviour harnesses)
-#   target: Debian's arm-none-eabi GCC 12 with binutils, newlib and the libstdc++ headers (Cortex-A9
-#           objects, arm-none-eabi-nm/-size, the footprint benchmark)
-# MROS_FULL_TOOLCHAIN=1 also installs libstdc++-arm-none-eabi-newlib (313 MB download, 1.5 GB installed),
-# which is only needed to *link* a Cortex-A9 image; the tests compile objects and check their symbols.
+#   host:   g++ (C++98 syntax checks, the wire-format and behaviour harnesses), make
+#   target: Debian's arm-none-eabi GCC 12 with binutils, newlib, the libstdc++ headers and newlib's libstdc++
+#           (libstdc++-arm-none-eabi-newlib, ~300 MB: linking a whole mROS image, asp.elf/asp.bin)
+#   TOPPERS configurator: Boost headers and libraries, to build it from the source in the mROS tree
+#           (tests/backends/mros/real_tree.py; the tree itself is test material beside the repository)
 set -euo pipefail
 SUDO="${SUDO-}"
 
-want=(g++ gcc-arm-none-eabi binutils-arm-none-eabi libnewlib-arm-none-eabi libstdc++-arm-none-eabi-dev)
-if [ "${MROS_FULL_TOOLCHAIN:-0}" = 1 ]; then want+=(libstdc++-arm-none-eabi-newlib); fi
+want=(g++ make gcc-arm-none-eabi binutils-arm-none-eabi libnewlib-arm-none-eabi libstdc++-arm-none-eabi-dev
+      libstdc++-arm-none-eabi-newlib
+      libboost-dev libboost-program-options-dev libboost-filesystem-dev libboost-regex-dev libboost-system-dev)
 
 missing=()
 for pkg in "${want[@]}"; do

@@ -57,7 +57,9 @@ def generate(dest: Path) -> tuple[Path, Any]:
     """The RB-1 adaptor written under dest (with the kernel_cfg.h the TOPPERS configurator would make)."""
     result = td2adaptor.compile(EXAMPLE / "td.json", interfaces=[EXAMPLE / "interfaces"])
     assert result.model is not None
-    tree = mros.generate(result.model, GenOptions(partial=True), Diagnostics())
+    # an mROS tree whose TCPROS buffers take the RB-1 types' headers (as pyproject.toml states)
+    options = GenOptions(partial=True, extra=(("mros.tcpros_header_max", 8192),))
+    tree = mros.generate(result.model, options, Diagnostics())
     for rel, data in tree:
         (dest / rel).parent.mkdir(parents=True, exist_ok=True)
         (dest / rel).write_bytes(data)

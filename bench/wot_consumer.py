@@ -8,8 +8,8 @@
 * the retained TD at start: `serve()` called → the TD received by a subscriber already waiting on the broker,
   next to the online status (published on the same connection, after the TD) and to `serve()` returning.
 
-Needs the ROS 2 extra, mosquitto and node-wot (installed into .cache/node-wot by the node-wot test on first
-use). Run: `.venv/bin/python bench/wot_consumer.py [--runs N]`.
+Needs the ROS 2 extra, mosquitto and node-wot (installed into .cache/node-wot by
+.ci/setup-nodewot.sh). Run: `.venv/bin/python bench/wot_consumer.py [--runs N]`.
 """
 
 from __future__ import annotations
@@ -57,7 +57,7 @@ def main() -> None:
         print("ROS 2 Jazzy wheels not installed (bash .ci/setup-ros2.sh): skipped")
         return
     if not (MODULES / "@node-wot" / "binding-mqtt").is_dir():
-        print(f"node-wot is not installed in {MODULES} (run tests/runtime/test_edge_node_wot.py once): skipped")
+        print(f"node-wot is not installed in {MODULES} (run bash .ci/setup-nodewot.sh): skipped")
         return
     env.isolate()
     prefix = build_interfaces()

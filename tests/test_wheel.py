@@ -55,7 +55,9 @@ def test_wheel_installs_and_validates_outside_the_repo(tmp_path: Path) -> None:
     assert '"valid": true' in proc.stdout
     # every backend generates from the wheel's own templates and verbatim files
     gen = subprocess.run(
-        [str(py), "-m", "td2adaptor", "gen", "rb1/td.json", "-I", "rb1/interfaces", "--partial", "-o", "out"],
+        # (the mROS tree stated to take the RB-1 types' TCPROS headers, as pyproject.toml does)
+        [str(py), "-m", "td2adaptor", "gen", "rb1/td.json", "-I", "rb1/interfaces", "--partial", "-o", "out"]
+        + ["--option", "mros.tcpros_header_max=8192"],
         cwd=work,
         capture_output=True,
         text=True,

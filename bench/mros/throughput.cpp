@@ -44,8 +44,8 @@ template <class M> static void run(const std::string &name, long n, const std::s
     std::vector<char> out((size_t)m.dataSize() + 1);
     for (long i = 0; i < n; ++i) {
         char *p = &out[0];
-        out.resize((size_t)m.dataSize() + 1);  // what publish does: dataSize(), then memCopy()
-        m.memCopy(p);
+        out.resize((size_t)m.dataSize() + 1);  // what publish does: dataSize(), then the serialisation
+        m.td2a_write(p);
         asm volatile("" : : "r"(p) : "memory");
     }
     auto t2 = clock::now();

@@ -42,7 +42,11 @@ def _trees(td: dict[str, Any]) -> dict[str, GeneratedTree] | None:
     # the structural comparison below pins the name so that file paths and imports line up
     assert re.fullmatch(r"[a-z][a-z0-9_]*_adaptor", result.model.package_name), result.model.package_name
     diags = Diagnostics()
-    trees = generate_trees(result.model, available(), diags, partial=True, package_name=CLEAN_PACKAGE)
+    # the mROS tree stated to take the RB-1 types' TCPROS headers (MROS914 otherwise), as pyproject.toml does
+    limits = (("mros.tcpros_header_max", 8192),)
+    trees = generate_trees(
+        result.model, available(), diags, partial=True, package_name=CLEAN_PACKAGE, backend_options=limits
+    )
     assert trees is not None, [d.message for d in diags if d.severity is Severity.ERROR]
     return trees
 

@@ -116,7 +116,9 @@ def round_trip(td: dict[str, Any], interfaces: list[Path] | None = None, *, expe
         assert errors
         return
     diags = Diagnostics()
-    trees = generate_trees(result.model, available(), diags, partial=True)
+    # an mROS tree with generous buffers: upstream's 512-byte TCPROS buffer refuses most real types (MROS914)
+    tree_limits = (("mros.tcpros_header_max", 1 << 20), ("mros.xmlrpc_packet_max", 1 << 20))
+    trees = generate_trees(result.model, available(), diags, partial=True, backend_options=tree_limits)
     assert trees is not None, [d.message for d in diags if d.severity is Severity.ERROR]
     for tree in trees.values():
         for rel, data in tree:

@@ -6,6 +6,7 @@ generated two different packages of the same name (GEN805) instead of one adapto
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import pytest
@@ -36,6 +37,8 @@ def test_gen_then_check_of_service_and_topic_config(tmp_path: Path, monkeypatch:
 
 def test_library_build_merges_config_files_and_points_backend_warnings_into_them(tmp_path: Path) -> None:
     job = target(CONFIG, backends=["mros"], output=tmp_path, interfaces=IFACES, partial=True)
+    # the mROS tree is stated to take the RB-1 types' TCPROS headers (MROS914 otherwise)
+    job = dataclasses.replace(job, options=(("mros.tcpros_header_max", 8192),))
     outcome = generate([job], use_cache=False)
     assert outcome.ok, [d.message for d in outcome.diagnostics]
     skipped = [d for d in outcome.diagnostics if d.code == "MROS900"]

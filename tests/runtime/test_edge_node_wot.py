@@ -4,8 +4,8 @@ fetches the robot's TD where the edge node publishes it (retained on td2adaptor/
 receives its feedback event, on a real mosquitto (the simulated robot behind a SimPort: the consumer side is
 under test).
 
-Optional: skipped, saying why, when node/npm are missing or the packages cannot be installed (offline).
-node-wot is installed once into .cache/node-wot with `npm install --ignore-scripts` (pure JavaScript).
+node-wot is installed into .cache/node-wot by .ci/setup-nodewot.sh (`npm install --ignore-scripts`: pure
+JavaScript), which `.ci/setup.sh --test` runs.
 
 node-wot 0.8 takes the MQTT topic from the form's href path and ignores `mqv:topic`/`mqv:filter`: the exposed
 TD puts it in both, and node-wot consumes the TD as generated, nothing rewritten.
@@ -29,7 +29,6 @@ from td2adaptor.model import Model
 from td2adaptor.model.events import Kind, build_catalog
 from td2adaptor.model.wot import wot_data, wot_specs
 from td2adaptor.runtime import RuntimeConfig, serve
-from td2adaptor.runtime.ros2build import file_lock
 from td2adaptor.runtime.simport import SimPort
 from tests.conftest import REPO
 from tests.runtime.broker import Mosquitto
@@ -43,25 +42,13 @@ ROBOT = "wot_rb1"
 
 
 def node_modules() -> Path:
-    """node-wot's node_modules, installed on first use; skips the test when that is impossible."""
-    if shutil.which("node") is None or shutil.which("npm") is None:
-        pytest.skip("node and npm are not installed (apt install nodejs npm), so node-wot cannot run")
+    """node-wot's node_modules, as .ci/setup-nodewot.sh (run by .ci/setup.sh --test) installs them."""
     modules = CACHE / "node_modules"
     wanted = [modules / "@node-wot" / name / "package.json" for name in ("core", "binding-mqtt")]
-    with file_lock(REPO / ".cache" / "node-wot.lock"):
-        if not all(p.is_file() for p in wanted):
-            CACHE.mkdir(parents=True, exist_ok=True)
-            (CACHE / "package.json").write_text('{"name": "td2adaptor-node-wot", "private": true}\n')
-            args = ["npm", "install", "--ignore-scripts", "--no-audit", "--no-fund", "--loglevel=error"]
-            args += [f"@node-wot/core@{NODE_WOT}", f"@node-wot/binding-mqtt@{NODE_WOT}"]
-            try:
-                out = subprocess.run(args, cwd=CACHE, capture_output=True, text=True, timeout=240)
-            except subprocess.TimeoutExpired:
-                pytest.skip("npm install of node-wot took longer than 240 s (no registry access?)")
-            if out.returncode != 0:
-                pytest.skip(f"npm could not install node-wot {NODE_WOT}: {out.stderr.strip()[-300:]}")
+    if shutil.which("node") is None or not all(p.is_file() for p in wanted):
+        pytest.fail(f"node-wot {NODE_WOT} is not installed: run `bash .ci/setup-nodewot.sh` (or .ci/setup.sh --test)")
     installed = json.loads(wanted[1].read_text(encoding="utf-8"))["version"]
-    assert installed == NODE_WOT
+    assert installed == NODE_WOT, f"node-wot {installed} in {CACHE}, the tests pin {NODE_WOT}: run .ci/setup-nodewot.sh"
     return modules
 
 

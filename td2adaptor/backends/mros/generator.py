@@ -3,8 +3,9 @@
 Output, under `<package>/` (an mROS application directory, to be placed at `mros_ws/<package>/`):
 
 * `app.cpp` (C++98 task bodies), `app.h` (`extern "C"` task entries), `app.cfg` (`CRE_TSK`/`CRE_SEM`),
-  `mros_config/` (task table, task count and memory pools consistent with `app.cfg`; see `mros_lint`),
-  `td2adaptor.mk` (Makefile fragment) and `README.md`;
+  `mros_config/` (task table, task count and memory pools consistent with `app.cfg`; see `mros_lint`;
+  network settings), a `Makefile` like those of mROS's examples and `README.md`: copied unedited to
+  `mros_ws/<package>/` of an mROS v1.3 tree, `make` builds `asp.bin` with the tree's own makefiles;
 * `include/<pkg>/<Type>.h`, one class per ROS 1 message type the topics need (transitively): fields,
   `dataSize`/`memCopy`/`deserialize` in the ROS 1 wire format, MD5/datatype/definition traits taken from the
   model's ROS 1 digests; nested messages, fixed and variable arrays, arrays of messages, strings and string
@@ -17,8 +18,9 @@ Output, under `<package>/` (an mROS application directory, to be placed at `mros
   `get_value()` when there is exactly one; `adaptor_hooks.h` (fill outgoing / handle incoming messages;
   weak no-op defaults); `td2a_config.h` (build-time settings);
 * copied unchanged from `verbatim/` (`VERBATIM_FILES`): `include/td2a_wire.h` (wire-format helpers, `time` and
-  `duration`), `include/td2a_support.h` (the latest-value slot, the robot namespace) and
-  `mros_config/os/target/os_asp/mros_os_config.h` (task priorities and stack sizes).
+  `duration`), `include/td2a_support.h` (the latest-value slot, the robot namespace),
+  `mros_config/os/target/os_asp/mros_os_config.h` (task priorities and stack sizes), `mros_os_config.c`
+  (mROS's own task bodies and start-up) and `mros_config/mros_sys_config.c` (pools, user task start).
 
 Layout: one publisher task (one node; advertises, then fills and publishes at a fixed rate) and one
 subscriber task (one node; subscribes, then `ros::spin()`), as mROS binds nodes to tasks and `spin` blocks.
@@ -34,7 +36,10 @@ the largest pool block. Pool blocks are sized from bounded message sizes: unboun
 count with assumed capacities (options below); larger messages are refused at run time, with a log line.
 
 Options (`GenOptions.extra`, all integers): `mros.string_capacity` (64 bytes), `mros.sequence_capacity`
-(8 elements), `mros.max_pool_block` (65536 bytes), `mros.rate_hz` (publish rate, 10).
+(8 elements), `mros.max_pool_block` (65536 bytes), `mros.rate_hz` (publish rate, 10); the limits of the
+user's mROS tree `mros.tcpros_header_max` (512) and `mros.xmlrpc_packet_max` (1024), and the longest ROS 1
+peer node name `mros.peer_name_max` (64): every topic's TCPROS header and XML-RPC requests are computed
+(`limits`) and refused when larger than the tree's buffers (MROS914-916).
 
 Subscribed values are copied under a TOPPERS semaphore (`TD2A_LOCK_SEM`, created in `app.cfg`); the component
 member functions live in `app.cpp`, so message copies are compiled once (footprint: bench/backend_mros.py).
@@ -42,10 +47,13 @@ member functions live in `app.cpp`, so message copies are compiled once (footpri
 
 from __future__ import annotations
 
+import ipaddress
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlsplit
 
+from td2adaptor.backends.mros import limits as proto
 from td2adaptor.backends.mros import lint as mros_lint
 from td2adaptor.backends.mros.types import (
     CPP_KEYWORDS,
@@ -72,6 +80,8 @@ VERBATIM = Path(__file__).parent / "verbatim"
 VERBATIM_FILES = (
     "include/td2a_support.h",
     "include/td2a_wire.h",
+    "mros_config/mros_sys_config.c",
+    "mros_config/os/target/os_asp/mros_os_config.c",
     "mros_config/os/target/os_asp/mros_os_config.h",
 )
 
@@ -93,7 +103,14 @@ OPTIONS: dict[str, tuple[int, int, int]] = {  # name → (default, min, max)
     "mros.sequence_capacity": (8, 0, 1 << 16),
     "mros.max_pool_block": (65536, 1024, 1 << 24),
     "mros.rate_hz": (10, 1, 1000),
+    # the limits of the user's mROS tree (stating one says the tree was changed to it) and what peers send
+    "mros.tcpros_header_max": (proto.TCPROS_BUFFER, 64, 1 << 24),
+    "mros.xmlrpc_packet_max": (proto.XMLRPC_BUFFER, 256, 1 << 24),
+    "mros.peer_name_max": (64, 2, 1024),
 }
+
+#: the options that state the limits of the user's mROS tree
+TREE_LIMITS = ("mros.tcpros_header_max", "mros.xmlrpc_packet_max")
 
 #: every diagnostic this backend reports
 CODES: dict[str, str] = meanings("MROS")  # texts in td2adaptor.diagnostics.catalogue
@@ -176,7 +193,7 @@ class TopicRow:
     type: str
     role: str
     size: int
-    bounded: bool
+    unbounded: bool  # with strings/sequences at the assumed capacities
 
 
 @dataclass(frozen=True)
@@ -332,6 +349,16 @@ def _pool(prefix: str, name: str, label: str, largest: int) -> PoolView:
     return PoolView(prefix, name, name.replace("_mempool", "_config"), label, tuple(classes))
 
 
+def _master_ip(uri: str | None) -> str:
+    """The master's IPv4 address when the TD's master URI names one (mROS takes no host names), else the
+    address mROS's own examples use."""
+    host = urlsplit(uri).hostname if uri else None
+    try:
+        return str(ipaddress.IPv4Address(host or ""))
+    except ValueError:
+        return "192.168.11.5"
+
+
 def _render(template: str, **context: object) -> str:
     return render(TEMPLATES, template, **context)
 
@@ -452,6 +479,88 @@ def _component(
             )
         )
     return ComponentView(cls, instance, tuple(pubs), tuple(subs), comment(c.name))
+
+
+def _sizes(topics: list[TopicEndpoint], table: TypeTable, ns_max: int, opts: dict[str, int]) -> list[proto.TopicSizes]:
+    """The largest TCPROS header and XML-RPC request of every topic (see `limits`)."""
+    callerid = "/" + "n" * (opts["mros.peer_name_max"] - 1)
+    node = "n" * NODE_NAME_MAX  # the node names can be set at build time
+    out = []
+    for t in topics:
+        path = t.ros_name.path.lstrip("/")
+        if t.ros_name.namespaced and ns_max:
+            path = "n" * ns_max + "/" + path
+        topic = "/" + path
+        type_name = t.type_name.replace("/msg/", "/")
+        md5 = table.ros1_digest(t.type_name).md5
+        definition, estimated = proto.full_definition(table, t.type_name)
+        header = proto.publisher_reply if t.role is Role.SUBSCRIBER else proto.subscriber_request
+        size = proto.header_size(header(topic, type_name, md5, definition, callerid))
+        xmlrpc = max(proto.xmlrpc_register_size(node, topic, type_name), proto.xmlrpc_request_topic_size(node, topic))
+        out.append(
+            proto.TopicSizes(
+                t.name,
+                t.ros_name.binding_form(),
+                t.role.value,
+                size,
+                len(definition.encode()),
+                xmlrpc,
+                tuple(n.replace("/msg/", "/") for n in estimated),
+            )
+        )
+    return out
+
+
+def _check_sizes(
+    sizes: list[proto.TopicSizes],
+    topics: list[TopicEndpoint],
+    stated: set[str],
+    opts: dict[str, int],
+    ns_max: int,
+    diags: Diagnostics,
+) -> None:
+    """Errors for protocol messages larger than mROS's buffers (upstream's, or the ones the user stated)."""
+    tcpros_max, xmlrpc_max = opts["mros.tcpros_header_max"], opts["mros.xmlrpc_packet_max"]
+    need_tcpros = max(s.tcpros for s in sizes)
+    need_xmlrpc = max(s.xmlrpc for s in sizes)
+    assumed = f"a peer node name of up to {opts['mros.peer_name_max']} characters (mros.peer_name_max)"
+    if ns_max:
+        assumed += f" and a robot namespace of up to {ns_max}"
+    for s, t in zip(sizes, topics, strict=True):
+        if s.tcpros > tcpros_max:
+            sub = s.role == Role.SUBSCRIBER.value
+            constant = "MROS_PACKET_MAXSIZE_RES_TCPROS" if sub else "MROS_PACKET_MAXSIZE_REQ_TCPROS"
+            buffer = (
+                f"the stated mros.tcpros_header_max of {tcpros_max} bytes"
+                if "mros.tcpros_header_max" in stated
+                else f"{constant} = {tcpros_max} bytes of upstream mROS"
+            )
+            peer = "a ROS 1 publisher answers with" if sub else "a rospy subscriber connects with"
+            bound = "up to" if not s.estimated else "at least"
+            unknown = (
+                f"; {', '.join(s.estimated)} counted without comments (pass their .msg files with -I for exact sizes)"
+                if s.estimated
+                else ""
+            )
+            diags.error(
+                "MROS914" if sub else "MROS915",
+                f"mros backend: {s.prop!r} ({s.topic}): the TCPROS connection header {peer} has {bound} {s.tcpros} "
+                f"bytes (its message definition alone {s.definition}; counted with {assumed}{unknown}); mROS reads "
+                f"it without a bound check into a buffer of {buffer}",
+                t.pointer,
+                hint=f"in your mROS tree, raise {constant} (and its REQ/RES twin) in {proto.PACKET_CONFIG} to at "
+                f"least {need_tcpros}, then state it: --option mros.tcpros_header_max={need_tcpros}",
+            )
+        if s.xmlrpc > xmlrpc_max:
+            diags.error(
+                "MROS916",
+                f"mros backend: {s.prop!r} ({s.topic}): mROS's XML-RPC request for it takes up to {s.xmlrpc} bytes, "
+                f"more than its buffer of {xmlrpc_max}; the topic would never register",
+                t.pointer,
+                hint="in your mROS tree, raise every MROS_PACKET_MAXSIZE_*_REGISTER_* and *_REQUEST_TOPIC in "
+                f"{proto.PACKET_CONFIG} to at least {need_xmlrpc}, then state it: "
+                f"--option mros.xmlrpc_packet_max={need_xmlrpc}",
+            )
 
 
 @dataclass(frozen=True)
@@ -587,6 +696,8 @@ def plan(model: Model, options: GenOptions, diags: Diagnostics) -> Plan | None:
             )
         )
     ns_max = _check_limits(model, topics, diags)
+    sizes = _sizes(topics, table, ns_max, opts)
+    _check_sizes(sizes, topics, {key for key, _ in options.extra}, opts, ns_max, diags)
     n_topics = len({t.ros_name.binding_form() for t in topics})
     limits = {
         "topics": max(DEFAULT_TOPICS, n_topics),
@@ -640,7 +751,16 @@ def plan(model: Model, options: GenOptions, diags: Diagnostics) -> Plan | None:
         "max_empty": MAX_EMPTY_ELEMENTS,
         "max_block": max_block,
         "master_uri": comment(model.thing.master_uri or ""),
+        "master_ip": ts.c_str(_master_ip(model.thing.master_uri)),
         "topic_name_max": TOPIC_NAME_MAX,
+        "sizes": sizes,
+        "tcpros_max": opts["mros.tcpros_header_max"],
+        "xmlrpc_max": opts["mros.xmlrpc_packet_max"],
+        "peer_name_max": opts["mros.peer_name_max"],
+        "need_tcpros": max(s.tcpros for s in sizes),
+        "need_xmlrpc": max(s.xmlrpc for s in sizes),
+        "stated_limits": sorted(k for k, _ in options.extra if k in TREE_LIMITS),
+        "packet_config": proto.PACKET_CONFIG,
         "topic_rows": [
             TopicRow(
                 t.name,
@@ -670,7 +790,8 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     tree.add(root + "app.cpp", _render("app.cpp.j2", **context))
     tree.add(root + "app.h", _render("app.h.j2", **context))
     tree.add(root + "app.cfg", _render("app.cfg.j2", **context))
-    tree.add(root + "td2adaptor.mk", _render("td2adaptor.mk.j2", **context))
+    tree.add(root + "Makefile", _render("Makefile.j2", **context))
+    tree.add(root + "mros_config/mros_sys_config.h", _render("mros_config/mros_sys_config.h.j2", **context))
     tree.add(root + "mros_config/mros_usr_config.h", _render("mros_config/mros_usr_config.h.j2", **context))
     tree.add(root + "mros_config/mros_usr_config.c", _render("mros_config/mros_usr_config.c.j2", **context))
     for rel in VERBATIM_FILES:

@@ -74,7 +74,7 @@ def macro_like(name: str) -> bool:
 #: Namespaces the generated code and mROS already use: a ROS package may not become one of them.
 RESERVED_NAMESPACES = frozenset({"std", "ros", "message_traits", "subtask_methods", "td2a", "adaptor", "adaptor_hooks"})
 #: Members every generated message class has.
-MESSAGE_MEMBERS = frozenset({"dataSize", "memCopy", "deserialize", "td2a_read", "swap"})
+MESSAGE_MEMBERS = frozenset({"dataSize", "memCopy", "deserialize", "td2a_read", "td2a_write", "swap"})
 #: Decoding: at most this many elements of a zero-size element type (an empty message) per sequence.
 MAX_EMPTY_ELEMENTS = 65536
 FIRST_MSG_ID = 101  # the range mROS's own generator uses for custom types

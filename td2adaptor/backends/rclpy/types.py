@@ -14,13 +14,13 @@ from typing import Any
 from td2adaptor.generation import textsafe as ts
 from td2adaptor.model import ArrayKind, FieldType, MessageField
 
-INTS = frozenset({"int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64"})
+# `char` in a .msg is uint8 in ROS 2 (rosidl maps it so): an int, and its arrays are numeric arrays
+INTS = frozenset({"char", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64"})
 FLOATS = frozenset({"float32", "float64"})
 SCALAR = {
     "bool": "bool",
     "byte": "bytes",
     "octet": "bytes",
-    "char": "str",
     "string": "str",
     "wstring": "str",
     **{t: "int" for t in INTS},

@@ -156,7 +156,11 @@ def _cli(*args: str) -> tuple[int, str]:
     return result.exit_code, result.output
 
 
-@pytest.mark.parametrize("backends", [["-b", "events"], ["-b", "all", "--partial"]], ids=["events", "all"])
+#: all: the mROS tree stated to take the RB-1 types' TCPROS headers (MROS914 otherwise)
+ALL = ["-b", "all", "--partial", "--option", "mros.tcpros_header_max=8192"]
+
+
+@pytest.mark.parametrize("backends", [["-b", "events"], ALL], ids=["events", "all"])
 def test_gen_then_check_of_two_tds(backends: list[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
     args = [str(RB1), str(DOOR), "-I", str(IFACES[0]), *backends, "-o", "out", "--no-cache"]

@@ -20,6 +20,9 @@ HERE = Path(__file__).resolve().parent
 INTERFACES = HERE / "interfaces"
 KEYWORD_INTERFACES = HERE / "interfaces_keywords"
 RB1_INTERFACES = EXAMPLE / "interfaces"
+#: the limits the tests' mROS tree is stated to have (test_mros_real_tree.py raises the tree's constants to them):
+#: a ROS 1 publisher's TCPROS header for robot_local_control_msgs/Status has 7.2 KB, upstream's buffer 512 B
+TREE_LIMITS: tuple[tuple[str, Any], ...] = (("mros.tcpros_header_max", 8192),)
 CONTEXT = ["https://www.w3.org/2022/wot/td/v1.1", "https://td2adaptor.dev/ns/rosv/v1"]
 
 
@@ -102,11 +105,18 @@ def compile_td(td: dict[str, Any] | Path, interfaces: list[Path]) -> Model:
 
 
 def generate(
-    td: dict[str, Any] | Path, interfaces: list[Path], *, partial: bool = True, extra: tuple[tuple[str, Any], ...] = ()
+    td: dict[str, Any] | Path,
+    interfaces: list[Path],
+    *,
+    partial: bool = True,
+    extra: tuple[tuple[str, Any], ...] = (),
+    tree_limits: bool = True,
 ) -> App:
+    """The application of `td`; the options `extra` come after `TREE_LIMITS` (unless not `tree_limits`)."""
     model = compile_td(td, interfaces)
     diags = Diagnostics()
-    tree = backend.generate(model, GenOptions(partial=partial, extra=extra), diags)
+    options = (*TREE_LIMITS, *extra) if tree_limits else extra
+    tree = backend.generate(model, GenOptions(partial=partial, extra=options), diags)
     return App(model, tree, diags, model.package_name + "/")
 
 

@@ -21,9 +21,12 @@ HOST_CXX = "g++"
 ARM_CXX = "arm-none-eabi-g++"
 ARM_CC = "arm-none-eabi-gcc"
 #: the flags of the issue: C++98 as mROS's toolchain defaults to, every warning an error
-HOST_SYNTAX = ["-std=gnu++98", "-Wall", "-Wextra", "-Werror", "-fsyntax-only"]
+#: what mROS's Makefile.m defines for every build (ROS_WARN compiles to nothing)
+MROS_CDEFS = ["-DMROS_LOG_DISABLE_WARN"]
+HOST_SYNTAX = [*MROS_CDEFS, "-std=gnu++98", "-Wall", "-Wextra", "-Werror", "-fsyntax-only"]
 ARM_CPU = ["-mcpu=cortex-a9", "-marm", "-mfpu=vfpv3", "-mfloat-abi=hard", "-mno-unaligned-access"]
 ARM_CXXFLAGS = [
+    *MROS_CDEFS,
     "-std=gnu++98",
     *ARM_CPU,
     "-Os",
@@ -83,7 +86,7 @@ def app_sources(app: Path) -> list[Path]:
 def host_objects(app: Path, out: Path, extra_cxx: Sequence[str] = (), defines: Sequence[str] = ()) -> list[Path]:
     """The application, the ros.cpp stand-in, the loopback bus and mros_usr_config.c as host objects."""
     out.mkdir(parents=True, exist_ok=True)
-    cxx = [HOST_CXX, "-std=gnu++98", "-g", "-O1", "-Wall", "-Wextra", "-Werror", *defines, *includes(app)]
+    cxx = [HOST_CXX, *MROS_CDEFS, "-std=gnu++98", "-g", "-O1", "-Wall", "-Wextra", "-Werror", *defines, *includes(app)]
     objs = []
     for src in [app / "app.cpp", API / "mros_stub_lib.cpp", API / "mros_stub_bus.cpp", *map(Path, extra_cxx)]:
         obj = out / (src.stem + ".o")

@@ -49,7 +49,7 @@ static std::string hex(const std::string &b) {
 template <class M> static std::string encode(const M &m) {
     std::string buf((size_t)m.dataSize(), '\\0');
     char *p = &buf[0];
-    m.memCopy(p);
+    m.td2a_write(p);
     return hex(buf);
 }
 template <class M> static void decode(const std::string &h, M &m) {

@@ -28,7 +28,7 @@ from tests.conftest import EXAMPLE, REPO
 GOLDEN = REPO / "generated" / "mros"
 GOLDEN_COMMAND = (
     ".venv/bin/td2adaptor gen examples/robotnik_rb1/td.json -I examples/robotnik_rb1/interfaces -o generated "
-    "--backend mros --partial"
+    "--backend mros --partial --option mros.tcpros_header_max=8192"
 )
 
 
@@ -197,7 +197,7 @@ def test_types_mros_cannot_represent() -> None:
     # a missing type
     without = replace(table, messages=tuple(m for m in table.messages if m.name != "geometry_msgs/msg/Pose"))
     diags = Diagnostics()
-    tree = mros.generate(replace(model, ros1=without), GenOptions(partial=True), diags)
+    tree = mros.generate(replace(model, ros1=without), GenOptions(partial=True, extra=apps.TREE_LIMITS), diags)
     assert [d.code for d in diags.errors()] == ["MROS931"] and not tree.files
     assert "geometry_msgs/msg/Pose" in diags.errors()[0].message
     # a ROS 2 wstring field
@@ -205,7 +205,9 @@ def test_types_mros_cannot_represent() -> None:
     wide = replace(pose, fields=(*pose.fields, MessageField("label", FieldType("wstring"))))
     messages = tuple(wide if m.name == pose.name else m for m in table.messages)
     diags = Diagnostics()
-    mros.generate(replace(model, ros1=replace(table, messages=messages)), GenOptions(partial=True), diags)
+    mros.generate(
+        replace(model, ros1=replace(table, messages=messages)), GenOptions(partial=True, extra=apps.TREE_LIMITS), diags
+    )
     assert [d.code for d in diags.errors()] == ["MROS932"]
 
 
@@ -228,14 +230,14 @@ def test_component_names() -> None:
     model = apps.compile_td(EXAMPLE / "td.json", [apps.RB1_INTERFACES])
     renamed = tuple(replace(c, name="linux") if c.name == "DoorComponent" else c for c in model.components)
     diags = Diagnostics()
-    tree = mros.generate(replace(model, components=renamed), GenOptions(partial=True), diags)
+    tree = mros.generate(replace(model, components=renamed), GenOptions(partial=True, extra=apps.TREE_LIMITS), diags)
     assert any(d.code == "MROS923" and "'linuxClass'" in d.message for d in diags)
     assert b"linuxClass linuxClassInstance;" in tree.files["robotnik_rb_1_adaptor/app.cpp"]
     hostile = tuple(
         replace(c, name="Door Component; int x") if c.name == "DoorComponent" else c for c in model.components
     )
     diags = Diagnostics()
-    mros.generate(replace(model, components=hostile), GenOptions(partial=True), diags)
+    mros.generate(replace(model, components=hostile), GenOptions(partial=True, extra=apps.TREE_LIMITS), diags)
     assert [d.code for d in diags.errors()] == ["MROS922"]
 
 

@@ -15,6 +15,8 @@ from tests.conftest import REPO
 TD = REPO / "tests" / "golden" / "cases" / "std_robot" / "td.json"  # scan: sensor_msgs/msg/LaserScan
 RANGES = "mros.capacity.sensor_msgs/msg/LaserScan.ranges"
 INTENSITIES = "mros.capacity.sensor_msgs/msg/LaserScan.intensities"
+#: the case's mROS tree limit (its TCPROS headers need more than upstream's 512 bytes, MROS914)
+TCPROS = "mros.tcpros_header_max"
 
 
 def _pool_block(out: Path) -> int:
@@ -24,7 +26,10 @@ def _pool_block(out: Path) -> int:
 
 
 def _gen(out: Path, *args: str) -> tuple[int, str]:
-    result = CliRunner().invoke(cli, ["gen", str(TD), "-b", "mros", "--partial", "-o", str(out), "--no-cache", *args])
+    result = CliRunner().invoke(
+        cli,
+        ["gen", str(TD), "-b", "mros", "--partial", "-o", str(out), "--no-cache", "--option", f"{TCPROS}=2048", *args],
+    )
     return result.exit_code, result.output
 
 
@@ -45,12 +50,16 @@ def test_per_field_capacities_from_the_cli_size_the_pool(tmp_path: Path) -> None
 
 def test_the_library_and_the_project_configuration_take_them_too(tmp_path: Path) -> None:
     outcome = td2adaptor.generate(
-        TD, backends=["mros"], partial=True, output=tmp_path / "lib", options={RANGES: 720, INTENSITIES: 720}
+        TD,
+        backends=["mros"],
+        partial=True,
+        output=tmp_path / "lib",
+        options={RANGES: 720, INTENSITIES: 720, TCPROS: 2048},
     )
     assert outcome.ok and not [d for d in outcome.diagnostics if d.code == "MROS913"]
     (tmp_path / "td2adaptor.toml").write_text(
         f'[[target]]\ntds = ["{TD}"]\nbackends = ["mros"]\npartial = true\noutput = "cfg"\n'
-        f'options = {{ "{RANGES}" = 720, "{INTENSITIES}" = 720 }}\n'
+        f'options = {{ "{RANGES}" = 720, "{INTENSITIES}" = 720, "{TCPROS}" = 2048 }}\n'
     )
     configured = td2adaptor.generate(config=tmp_path / "td2adaptor.toml")
     assert configured.ok

@@ -159,7 +159,7 @@ def test_subscribed_types_must_fit_the_sub_task_stack(generated: Apps, tmp_path:
 @needs_host
 def test_robot_namespace_length_is_checked_when_compiling(generated: Apps) -> None:
     app, root = generated["rb1"]
-    ns_max = mros.plan(app.model, GenOptions(partial=True), Diagnostics()).context["ns_max"]  # type: ignore[union-attr]
+    ns_max = mros.plan(app.model, GenOptions(partial=True, extra=apps.TREE_LIMITS), Diagnostics()).context["ns_max"]  # type: ignore[union-attr]
     ok = f'-DTD2A_ROBOT_NAMESPACE="{"n" * ns_max}"'
     build.run([build.HOST_CXX, *build.HOST_SYNTAX, ok, *build.includes(root), str(root / "app.cpp")])
     too_long = f'-DTD2A_ROBOT_NAMESPACE="{"n" * (ns_max + 1)}"'
@@ -181,7 +181,7 @@ def test_robot_namespace_length_is_checked_when_compiling(generated: Apps) -> No
 
 
 def _context(app: apps.App) -> dict[str, Any]:
-    made = mros.plan(app.model, GenOptions(partial=True), Diagnostics())
+    made = mros.plan(app.model, GenOptions(partial=True, extra=apps.TREE_LIMITS), Diagnostics())
     assert made is not None
     return made.context
 
@@ -258,6 +258,11 @@ def test_rb1_tasks_on_the_loopback_bus(generated: Apps, shared_root: Path) -> No
         assert lb.ask(f"PUBLISH door {door.hex()}") == "1"
         assert lb.items("PROBLEMS") == []
         assert lb.items("LOG") == []
+        # a truncated Status is dropped with a log line that survives mROS's -DMROS_LOG_DISABLE_WARN
+        assert lb.ask(f"INJECT /rb1_base/robot_local_control/state {status[:-3].hex()}") == "1"
+        assert lb.ask("HOOK availability") == f"1 {status.hex()}"  # the hook did not see it
+        log = lb.items("LOG")
+        assert len(log) == 1 and "dropped a malformed robot_local_control_msgs/Status message" in log[0]
     finally:
         lb.close()
 

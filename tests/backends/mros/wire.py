@@ -266,12 +266,16 @@ template <class T, size_t N> static void wr(Out &o, const T (&a)[N]) { for (cons
 
 _MAIN = """
 template <class M> static std::string encode(const M &m) {
-    std::string buf((size_t)m.dataSize() + 8, '\\x5a');
-    char *p = &buf[0];
+    // as mROS's publish: the body goes after the 4-byte length word, which memCopy fills in itself
+    std::string buf(4 + (size_t)m.dataSize() + 8, '\\x5a');
+    char *p = &buf[4];
     m.memCopy(p);
-    if (p != &buf[0] + m.dataSize()) return "SIZE-MISMATCH";
-    if (buf.substr((size_t)m.dataSize()) != std::string(8, '\\x5a')) return "OVERRUN";
-    return hex(buf.substr(0, (size_t)m.dataSize()));
+    if (p != &buf[4] + m.dataSize()) return "SIZE-MISMATCH";
+    if (buf.substr(4 + (size_t)m.dataSize()) != std::string(8, '\\x5a')) return "OVERRUN";
+    uint32_t len = 0;
+    memcpy(&len, &buf[0], 4);
+    if (len != (uint32_t)m.dataSize()) return "BAD-LENGTH-WORD";
+    return hex(buf.substr(4, (size_t)m.dataSize()));
 }
 static Out *g_out;
 static bool g_called;

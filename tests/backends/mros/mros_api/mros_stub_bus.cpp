@@ -103,6 +103,9 @@ char *stub_alloc(void *publisher, unsigned int size)
         return 0;
     }
     g_blocks.push_back(std::vector<char>(size + GUARD_BYTES, '\x5a'));
+    /* a reused pool block: mROS's publish leaves its length word as it was (here: 0, which no message with
+     * a field decodes from), so only a memCopy that writes it itself reaches same-board subscribers */
+    memset(&g_blocks.back()[0], 0, 4);
     return &g_blocks.back()[0];
 }
 

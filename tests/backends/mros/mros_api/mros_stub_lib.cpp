@@ -43,8 +43,9 @@ template <class T> void ros::Publisher::publish(T &data)
         ROS_ERROR("publish: no block for %u bytes", size);
         return;
     }
+    /* as ros.cpp: the body goes after mROS's 4-byte length word, which the library itself leaves unwritten
+     * for subscribers on the same board (stub_alloc fills the block with a pattern) */
     char *body = block + 4;
-    memcpy(block, &size, 4);
     data.memCopy(body);
     stub_sent(this->get(), block, size + 4u, body);
 }

@@ -31,8 +31,18 @@ public:
         return (int)(td2a::wire::size_string(name) + td2a::wire::size_string(type) + td2a::wire::size_string(state));
     }
 
-    /* Write the ROS 1 serialisation at addrPtr and advance it by dataSize() bytes. */
+    /* mROS's publish: write the ROS 1 serialisation at addrPtr and advance it by dataSize() bytes. mROS
+     * reserves its 4-byte length word just before addrPtr but fills it in only when sending to another
+     * node; a subscriber on the same board is handed the block as it is, so the length is written here. */
     void memCopy(char *&addrPtr) const
+    {
+        char *length = addrPtr - 4;
+        td2a::wire::put_u32(length, (uint32_t)dataSize());
+        td2a_write(addrPtr);
+    }
+
+    /* Write the ROS 1 serialisation at addrPtr and advance it by dataSize() bytes. */
+    void td2a_write(char *&addrPtr) const
     {
         td2a::wire::put_string(addrPtr, name);
         td2a::wire::put_string(addrPtr, type);
@@ -113,7 +123,7 @@ template <> struct CallCallbackFuncs<ROBOT_LOCAL_CONTROL_MSGS_SENSORSTATUS_MSG_I
         memcpy(&len, rbuf, 4);
         rbuf += 4;
         if (!msg.td2a_read(rbuf, len)) {
-            ROS_WARN("td2adaptor: dropped a malformed %s message", message_traits::DataType<robot_local_control_msgs::SensorStatus *>::value());
+            ROS_ERROR("td2adaptor: dropped a malformed %s message", message_traits::DataType<robot_local_control_msgs::SensorStatus *>::value());
             return;
         }
         fp(&msg);

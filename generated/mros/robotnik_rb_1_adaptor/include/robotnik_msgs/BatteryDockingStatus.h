@@ -50,8 +50,18 @@ public:
         return (int)(6u + td2a::wire::size_string(operation_mode));
     }
 
-    /* Write the ROS 1 serialisation at addrPtr and advance it by dataSize() bytes. */
+    /* mROS's publish: write the ROS 1 serialisation at addrPtr and advance it by dataSize() bytes. mROS
+     * reserves its 4-byte length word just before addrPtr but fills it in only when sending to another
+     * node; a subscriber on the same board is handed the block as it is, so the length is written here. */
     void memCopy(char *&addrPtr) const
+    {
+        char *length = addrPtr - 4;
+        td2a::wire::put_u32(length, (uint32_t)dataSize());
+        td2a_write(addrPtr);
+    }
+
+    /* Write the ROS 1 serialisation at addrPtr and advance it by dataSize() bytes. */
+    void td2a_write(char *&addrPtr) const
     {
         td2a::wire::put_string(addrPtr, operation_mode);
         td2a::wire::put_prim(addrPtr, battery_current);
@@ -142,7 +152,7 @@ template <> struct CallCallbackFuncs<ROBOTNIK_MSGS_BATTERYDOCKINGSTATUS_MSG_ID> 
         memcpy(&len, rbuf, 4);
         rbuf += 4;
         if (!msg.td2a_read(rbuf, len)) {
-            ROS_WARN("td2adaptor: dropped a malformed %s message", message_traits::DataType<robotnik_msgs::BatteryDockingStatus *>::value());
+            ROS_ERROR("td2adaptor: dropped a malformed %s message", message_traits::DataType<robotnik_msgs::BatteryDockingStatus *>::value());
             return;
         }
         fp(&msg);

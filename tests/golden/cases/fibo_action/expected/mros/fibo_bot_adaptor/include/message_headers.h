@@ -6,6 +6,10 @@
 #ifndef TD2A_MESSAGE_HEADERS_H
 #define TD2A_MESSAGE_HEADERS_H
 
+/* mROS's ros.cpp includes this file first and uses the task ids of the TOPPERS configuration (SUB_TASK)
+ * without including them itself: they come from here. */
+#include "kernel_cfg.h"
+
 #include "std_msgs/String.h"
 
 /* mROS decodes every received message into a local object of its SUB_TASK, whose stack has

@@ -88,7 +88,7 @@ inline bool get_string(char *&p, uint32_t &rem, std::string &s)
 
 template <class M> inline void put_msg(char *&p, const M &m)
 {
-    m.memCopy(p);
+    m.td2a_write(p);
 }
 
 template <class M> inline bool get_msg(char *&p, uint32_t &rem, M &m)
@@ -175,7 +175,7 @@ template <class M> inline void put_msg_seq(char *&p, const std::vector<M> &v)
 {
     put_u32(p, (uint32_t)v.size());
     for (size_t i = 0; i < v.size(); ++i) {
-        v[i].memCopy(p);
+        v[i].td2a_write(p);
     }
 }
 
@@ -252,7 +252,7 @@ template <class M, size_t N> inline uint32_t size_msg_arr(const M (&a)[N])
 template <class M, size_t N> inline void put_msg_arr(char *&p, const M (&a)[N])
 {
     for (size_t i = 0; i < N; ++i) {
-        a[i].memCopy(p);
+        a[i].td2a_write(p);
     }
 }
 
@@ -289,7 +289,7 @@ struct Time {
     uint32_t nsec;
     Time() : sec(0u), nsec(0u) {}
     int dataSize() const { return 8; }
-    void memCopy(char *&p) const
+    void td2a_write(char *&p) const
     {
         wire::put_prim(p, sec);
         wire::put_prim(p, nsec);
@@ -313,7 +313,7 @@ struct Duration {
     int32_t nsec;
     Duration() : sec(0), nsec(0) {}
     int dataSize() const { return 8; }
-    void memCopy(char *&p) const
+    void td2a_write(char *&p) const
     {
         wire::put_prim(p, sec);
         wire::put_prim(p, nsec);

@@ -6,6 +6,10 @@
 #ifndef TD2A_MESSAGE_HEADERS_H
 #define TD2A_MESSAGE_HEADERS_H
 
+/* mROS's ros.cpp includes this file first and uses the task ids of the TOPPERS configuration (SUB_TASK)
+ * without including them itself: they come from here. */
+#include "kernel_cfg.h"
+
 #include "robot_local_control_msgs/Pose2DStamped.h"
 #include "std_msgs/Header.h"
 #include "geometry_msgs/Pose2D.h"

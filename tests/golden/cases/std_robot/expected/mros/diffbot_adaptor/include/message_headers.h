@@ -6,6 +6,10 @@
 #ifndef TD2A_MESSAGE_HEADERS_H
 #define TD2A_MESSAGE_HEADERS_H
 
+/* mROS's ros.cpp includes this file first and uses the task ids of the TOPPERS configuration (SUB_TASK)
+ * without including them itself: they come from here. */
+#include "kernel_cfg.h"
+
 #include "geometry_msgs/Twist.h"
 #include "geometry_msgs/Vector3.h"
 #include "nav_msgs/Odometry.h"

@@ -31,8 +31,18 @@ public:
         return 24;
     }
 
-    /* Write the ROS 1 serialisation at addrPtr and advance it by dataSize() bytes. */
+    /* mROS's publish: write the ROS 1 serialisation at addrPtr and advance it by dataSize() bytes. mROS
+     * reserves its 4-byte length word just before addrPtr but fills it in only when sending to another
+     * node; a subscriber on the same board is handed the block as it is, so the length is written here. */
     void memCopy(char *&addrPtr) const
+    {
+        char *length = addrPtr - 4;
+        td2a::wire::put_u32(length, (uint32_t)dataSize());
+        td2a_write(addrPtr);
+    }
+
+    /* Write the ROS 1 serialisation at addrPtr and advance it by dataSize() bytes. */
+    void td2a_write(char *&addrPtr) const
     {
         td2a::wire::put_prim(addrPtr, x);
         td2a::wire::put_prim(addrPtr, y);
@@ -113,7 +123,7 @@ template <> struct CallCallbackFuncs<GEOMETRY_MSGS_POINT_MSG_ID> {
         memcpy(&len, rbuf, 4);
         rbuf += 4;
         if (!msg.td2a_read(rbuf, len)) {
-            ROS_WARN("td2adaptor: dropped a malformed %s message", message_traits::DataType<geometry_msgs::Point *>::value());
+            ROS_ERROR("td2adaptor: dropped a malformed %s message", message_traits::DataType<geometry_msgs::Point *>::value());
             return;
         }
         fp(&msg);

@@ -109,8 +109,18 @@ public:
         return (int)(32u + header.dataSize() + td2a::wire::size_prim_seq(cell_voltage) + td2a::wire::size_prim_seq(cell_temperature) + td2a::wire::size_string(location) + td2a::wire::size_string(serial_number));
     }
 
-    /* Write the ROS 1 serialisation at addrPtr and advance it by dataSize() bytes. */
+    /* mROS's publish: write the ROS 1 serialisation at addrPtr and advance it by dataSize() bytes. mROS
+     * reserves its 4-byte length word just before addrPtr but fills it in only when sending to another
+     * node; a subscriber on the same board is handed the block as it is, so the length is written here. */
     void memCopy(char *&addrPtr) const
+    {
+        char *length = addrPtr - 4;
+        td2a::wire::put_u32(length, (uint32_t)dataSize());
+        td2a_write(addrPtr);
+    }
+
+    /* Write the ROS 1 serialisation at addrPtr and advance it by dataSize() bytes. */
+    void td2a_write(char *&addrPtr) const
     {
         td2a::wire::put_msg(addrPtr, header);
         td2a::wire::put_prim(addrPtr, voltage);
@@ -295,7 +305,7 @@ template <> struct CallCallbackFuncs<SENSOR_MSGS_BATTERYSTATE_MSG_ID> {
         memcpy(&len, rbuf, 4);
         rbuf += 4;
         if (!msg.td2a_read(rbuf, len)) {
-            ROS_WARN("td2adaptor: dropped a malformed %s message", message_traits::DataType<sensor_msgs::BatteryState *>::value());
+            ROS_ERROR("td2adaptor: dropped a malformed %s message", message_traits::DataType<sensor_msgs::BatteryState *>::value());
             return;
         }
         fp(&msg);
