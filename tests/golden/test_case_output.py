@@ -18,7 +18,7 @@ from td2adaptor.backends.mros import lint as mros_lint
 from td2adaptor.diagnostics import Severity
 from tests.backends.events.schemawalk import untyped
 from tests.backends.mros import build as mros_build
-from tests.golden.goldens import CASES
+from tests.golden.goldens import CASES, tomllib
 
 VENV_BIN = Path(sys.executable).parent
 
@@ -36,10 +36,19 @@ def _id(path: Path) -> str:
     return path.relative_to(CASES).as_posix()
 
 
+def _asks_for_mros(case: Path) -> bool:
+    """Whether the case's configuration names the mROS backend (or all backends)."""
+    with (case / "td2adaptor.toml").open("rb") as fh:
+        targets = tomllib.load(fh)["target"]
+    return any({"all", "mros"} & set(t.get("backends", ["all"])) for t in targets)
+
+
 def test_every_case_has_python_events_and_mros_output() -> None:
     cases = sorted(p.name for p in CASES.iterdir() if p.is_dir())
-    for found in (PYTHON, EVENTS, MROS):
+    for found in (PYTHON, EVENTS):
         assert sorted({p.relative_to(CASES).parts[0] for p in found}) == cases
+    # every case that asks for mROS gets it (a case that mROS cannot represent leaves it out, and says why)
+    assert sorted({p.relative_to(CASES).parts[0] for p in MROS}) == [c for c in cases if _asks_for_mros(CASES / c)]
 
 
 @pytest.mark.parametrize("pkg", PYTHON, ids=[_id(p) for p in PYTHON])
