@@ -40,8 +40,10 @@ from td2adaptor.runtime.port import (
 
 #: how long a goal's feedback pump waits in one go (it re-checks whether it was told to stop in between)
 PUMP_WAIT = 1.0
-#: after a goal's result, feedback still arriving is kept until none came for this long (see GoalTrack)
-FEEDBACK_GRACE = 0.01
+#: after a goal's result, feedback still arriving is kept until none came for this long (see GoalTrack);
+#: ROS 1 sends feedback and result over two TCPROS connections read by two threads (and the node reads them
+#: through the bridge), so a feedback message can trail its result by much more there
+FEEDBACK_GRACE = {"ros2": 0.01, "ros1": 0.1}
 #: ... but for no longer than this in all
 TRAIL_LIMIT = 1.0
 #: feedback messages a goal keeps for a caller that has not read them yet (older ones are dropped)
@@ -129,11 +131,13 @@ class GoalTrack:
     handle buffers it) is read with its `feedback()` iterator up to the first message the callback also saw
     (the same object), so no message is lost or doubled. A thread waits for the result; when it came, feedback
     may still trail it (a different channel, and rclpy hands a result over before feedback taken in the same
-    wake-up): the goal counts as done once no message came for `FEEDBACK_GRACE` (at most `TRAIL_LIMIT`).
+    wake-up): the goal counts as done once no message came for `grace` (at most `TRAIL_LIMIT`); a message
+    later than that is not reported (never after the terminal event).
     """
 
-    def __init__(self, handle: Any) -> None:
+    def __init__(self, handle: Any, grace: float = FEEDBACK_GRACE["ros2"]) -> None:
         self.handle = handle
+        self.grace = grace
         self.goal_id = str(handle.goal_id)
         self._cond = threading.Condition()
         self._items: list[Any] = []
@@ -206,7 +210,7 @@ class GoalTrack:
             count = -1
             while count != len(self._items) + self._dropped and time.monotonic() < deadline:
                 count = len(self._items) + self._dropped
-                self._cond.wait(FEEDBACK_GRACE)
+                self._cond.wait(self.grace)
             ended = bool(self.handle.done)
             self._status = str(self.handle.status) if ended else "lost"
             self._message = str(getattr(self.handle, "reason", "") or "") if ended else lost
@@ -257,6 +261,7 @@ class GeneratedPort:
             raise ValueError("a ROS 2 port needs the rclpy node that owns its clients (node=...)")
         self.layout = model if isinstance(model, Layout) else Layout.of(model)
         self.robot_name = robot_name
+        self.distro = distro
         module = importlib.import_module(package) if isinstance(package, str) else package
         self.components: dict[str, Any] = {}
         self._locks: dict[str, threading.Lock] = {}
@@ -344,7 +349,7 @@ class GeneratedPort:
         construct = self._method(component, f"construct_{action}_Goal")
         send = self._method(component, f"send_{action}")
         handle = self._guarded(component, lambda: send(construct(**payload), timeout=timeout))
-        track = GoalTrack(handle)
+        track = GoalTrack(handle, FEEDBACK_GRACE[self.distro])
         with self._goals_lock:
             self._goals[(component, action, track.goal_id)] = track
         return track.goal_id
