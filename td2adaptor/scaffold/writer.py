@@ -117,7 +117,9 @@ def _affordance(p: Plan, schemas: Schemas, diags: Diagnostics) -> dict[str, Any]
                 procedure["missionId"] = "state/header/id"
             out["rosv:procedure"] = procedure
         if parts is not None:
-            out["input"], out["output"] = parts[0], parts[1]
+            if parts[0].get("properties") or parts[0].get("type") != "object":
+                out["input"] = parts[0]  # a request without fields (std_srvs/Trigger) takes no input
+            out["output"] = parts[1]
         out.update(safe=p.safe, idempotent=p.safe)
     form["rosv:name"] = p.rosname
     form["rosv:type"] = ep.type
