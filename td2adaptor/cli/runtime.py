@@ -227,6 +227,12 @@ def run(
     help="ROS version the robot runs (as `run --ros`): its message layouts, e.g. time as secs/nsecs or sec/nanosec.",
 )
 @click.option(
+    "--topic-root",
+    default="td2adaptor",
+    show_default=True,
+    help="First level of every topic (as the run configuration's topic_root).",
+)
+@click.option(
     "--output",
     "-o",
     default="-",
@@ -245,6 +251,7 @@ def expose(
     robot: str,
     broker: str,
     ros: str,
+    topic_root: str,
     output: str,
 ) -> None:
     """Write the Thing Description of one robot as its edge node exposes it on the broker.
@@ -259,6 +266,8 @@ def expose(
 
     if not ROBOT_ID.match(robot) or robot == ALL_ROBOTS:
         _fail("expose", f"robot id {robot!r} must be 1-128 letters, digits, '_', '.', '-' (and not {ALL_ROBOTS!r})")
+    if not topic_root or any(c in topic_root for c in "+#\x00") or topic_root.startswith("/"):
+        _fail("expose", f"topic root {topic_root!r} is not a valid MQTT topic prefix")
     try:
         url = parse_broker_url(broker).url
     except SecurityError as exc:
@@ -268,7 +277,7 @@ def expose(
         report(result.diagnostics, "human", label=_label([source]))
         sys.exit(EXIT_INVALID)
     catalog = build_catalog(result.model, f"ros{ros}")
-    text = dump(exposed_td(result.model, catalog, robot=robot, broker=url))
+    text = dump(exposed_td(result.model, catalog, robot=robot, broker=url, root=topic_root))
     if output == "-":
         click.echo(text, nl=False)
     else:

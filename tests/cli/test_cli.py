@@ -241,6 +241,15 @@ def test_expose_writes_the_td_of_one_robot(runner: CliRunner, tmp_path: Path) ->
     ros1 = runner.invoke(cli, ["expose", TD, *IFACE, *args, "--ros", "1"])
     assert ros1.exit_code == 0, ros1.output
     assert '"nsecs"' in ros1.output and '"nanosec"' not in ros1.output and '"nanosec"' in text
-    for bad in (["--robot", "all"], ["--robot", "{{robotName}}"], ["--broker", "mqtt://u:p@h:1"], ["--broker", "x"]):
+    # a fleet on its own topic root (run's topic_root): every topic under it, and nothing left at the default
+    rooted = runner.invoke(cli, ["expose", TD, *IFACE, *args, "--topic-root", "site1/robots"])
+    assert rooted.exit_code == 0, rooted.output
+    forms = [f for s in ("properties", "actions", "events") for a in json.loads(rooted.output)[s].values()
+             for f in a["forms"]]  # fmt: skip
+    assert all(f["href"].startswith("mqtt://10.0.0.5:1884/site1/robots/rb1_a/") for f in forms)
+    assert all((f.get("mqv:topic") or f["mqv:filter"]).startswith("site1/robots/rb1_a/") for f in forms)
+    bad_roots = (["--topic-root", "a/#"], ["--topic-root", "/abs"], ["--topic-root", ""])
+    for bad in (["--robot", "all"], ["--robot", "{{robotName}}"], ["--broker", "mqtt://u:p@h:1"], ["--broker", "x"],
+                *bad_roots):  # fmt: skip
         refused = runner.invoke(cli, ["expose", TD, *IFACE, *args, *bad])
         assert refused.exit_code == 1 and "td2adaptor expose:" in refused.output, (bad, refused.output)
