@@ -650,6 +650,11 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
         return len(future.result().goals_canceling) > 0
 
 
+#: feedback of a goal: rclpy's default keeps only the last 10 received messages, so a burst the callbacks have
+#: not taken yet overwrites itself; every feedback message counts here (the edge node relays each one)
+FEEDBACK_QOS = _new_qos(depth=1000, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
+
+
 class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
     """One ROS 2 action client (`rclpy.action.ActionClient`) that never waits forever.
 
@@ -668,7 +673,13 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
         with _REGISTER_LOCK:
             if self.client is None:
                 new_client = cast("Callable[..., ActionClient]", ActionClient)
-                self.client = new_client(self.node, self.action_type, self.name, callback_group=self._group)
+                self.client = new_client(
+                    self.node,
+                    self.action_type,
+                    self.name,
+                    callback_group=self._group,
+                    feedback_sub_qos_profile=FEEDBACK_QOS,
+                )
 
     def _client(self) -> ActionClient:
         if self.client is None:
