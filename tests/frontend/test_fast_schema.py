@@ -20,22 +20,21 @@ SCHEMAS = (conformance.TD_SCHEMA, conformance.TM_SCHEMA)
 def _documents() -> list[tuple[str, Any]]:
     """Every JSON document of the repository's examples and tests, and of the WoT corpus when installed."""
     paths = [
-        *sorted((REPO / "examples").rglob("*.json")),
-        *sorted((REPO / "tests").rglob("*.json")),
+        path
+        for folder in ("examples", "tests")
+        for path in sorted((REPO / folder).rglob("*.json"))
+        if "expected" not in path.parts  # generated golden output: not documents anybody writes
     ]
     found = corpus()
-    if found is not None:
+    if found is not None:  # ../shared's, or the npm package's (under node_modules)
         paths += [f.path for f in found.files()]
     out = []
     for path in paths:
-        if "expected" in path.parts or "node_modules" in path.parts:
-            continue
         try:
-            out.append(
-                (str(path.relative_to(REPO) if path.is_relative_to(REPO) else path), json.loads(path.read_bytes()))
-            )
+            data = json.loads(path.read_bytes())
         except ValueError:
             continue
+        out.append((str(path.relative_to(REPO) if path.is_relative_to(REPO) else path), data))
     return out
 
 
