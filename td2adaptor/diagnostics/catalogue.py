@@ -221,6 +221,12 @@ _ENTRIES: tuple[Entry, ...] = (
         "a procedure's mission id cannot reach its query or cancel",
         "the edge node asks about the robot's current mission instead",
     ),
+    Entry(
+        "ROS448",
+        (_W,),
+        "a procedure without a query: only its start can be reported",
+        "link a query action whose response carries the state",
+    ),
     # -- TY5: ROS interface types ------------------------------------------------------------------------
     Entry("TY500", (_E,), "interface folder not found"),
     Entry("TY501", (_W,), "interface folder contains no .msg/.srv/.action files", "use <pkg>/msg/*.msg etc."),

@@ -6,7 +6,8 @@ the procedures_msgs convention (`state/current_state`, ...). The edge node follo
 so a linked query whose response carries no state is an error (ROS445): at run time every answer would read
 as a failure while the robot works. A mapping that names no field, or values no state, is an error (ROS446).
 A mission id the query/cancel requests cannot carry is a warning (ROS447): the node then asks about the
-robot's current procedure.
+robot's current procedure. A procedure without a query (and no state in its run response) is a warning
+(ROS448): its invoke can only report that the robot took the run.
 """
 
 from __future__ import annotations
@@ -174,6 +175,15 @@ def check_reading(
             "ROS445",
             f"procedure {proc.run!r}: its run response ({run.type_name}) has no field {'/'.join(proc.state)}",
             pointer_join(run.procedure_pointer, "state"),
+        )
+    elif "query" not in roles and "run" not in stateful and "run" in resolved:
+        diags.warning(
+            "ROS448",
+            f"procedure {proc.run!r} has no query: the edge node can report only that the robot took the run "
+            "(its invoke ends 'finished' with the message 'started'), not when or how the mission ends",
+            run.procedure_pointer,
+            "link a query action whose response carries the state (rosv:procedure query), or map a state field "
+            "of the run response with state/states",
         )
     for role in ("query", "cancel"):
         info = roles.get(role)

@@ -142,6 +142,25 @@ def test_mission_id_that_cannot_travel_is_a_warning(tmp_path: Path) -> None:
     assert warning.code == "ROS447" and "taskCancel" in warning.message and warning.pointer == "/actions/taskCancel"
 
 
+def test_procedure_without_a_query_is_a_warning(tmp_path: Path) -> None:
+    """Run and cancel on Trigger, no query: the node can only say the robot took the run (ROS448), not its end."""
+    td = procedure_td("std_srvs/srv/Trigger", {})
+    del td["actions"]["taskQuery"]
+    del td["actions"]["taskRun"]["rosv:procedure"]["query"]
+    model, diags = compile_td(tmp_path, td)
+    assert model is not None, [d.message for d in diags]
+    (warning,) = [d for d in diags if d.code == "ROS448"]
+    assert warning.severity is Severity.WARNING and warning.pointer == "/actions/taskRun/rosv:procedure"
+    assert "taskRun" in warning.message and "has no query" in warning.message
+    # a run response that carries a mapped state can be followed without a query: no ROS448
+    procedure = {"state": "uint8_value", "states": STATES, "cancel": "taskCancel"}
+    td = procedure_td("test_msgs/srv/BasicTypes", procedure)
+    del td["actions"]["taskQuery"]
+    del td["actions"]["taskRun"]["rosv:procedure"]["query"]
+    model, diags = compile_td(tmp_path, td)
+    assert model is not None and "ROS448" not in [d.code for d in diags], [d.message for d in diags]
+
+
 @pytest.mark.parametrize("backend", ["rclpy", "rospy"])
 def test_procedure_api_only_where_true(tmp_path: Path, backend: str) -> None:
     """`Started` and `mission_id=` exactly where the id can travel, in both Python backends alike."""
