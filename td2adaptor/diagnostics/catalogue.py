@@ -406,6 +406,12 @@ _ENTRIES: tuple[Entry, ...] = (
         "an XML-RPC request mROS sends for a topic does not fit its packet buffer (the topic never registers)",
         "raise MROS_PACKET_MAXSIZE_REQ_REGISTER_* in the mROS tree and state it: --option mros.xmlrpc_packet_max=N",
     ),
+    Entry(
+        "MROS917",
+        (_W,),
+        "a TCPROS header fits the stated mROS limit only as counted without comments (a lower bound)",
+        "pass the types' .msg files with -I to check the exact size",
+    ),
     Entry("MROS920", (_W,), "field or constant name unusable in C++: renamed with a trailing '_'"),
     Entry("MROS921", (_W,), "package or message name unusable in C++: the namespace/class is renamed"),
     Entry("MROS922", (_E,), "component or affordance name unusable in C++ identifiers"),

@@ -511,6 +511,10 @@ def _sizes(topics: list[TopicEndpoint], table: TypeTable, ns_max: int, opts: dic
     return out
 
 
+#: how much larger than counted without comments a header may be before a stated limit is trusted
+_COMMENT_ALLOWANCE = 2
+
+
 def _check_sizes(
     sizes: list[proto.TopicSizes],
     topics: list[TopicEndpoint],
@@ -542,14 +546,31 @@ def _check_sizes(
                 if s.estimated
                 else ""
             )
+            first = (
+                "pass the .msg files of the types counted without comments with -I (Debian's ROS 1 packages: "
+                "/usr/share/<package>) for the exact size, then "
+                if s.estimated
+                else ""
+            )
             diags.error(
                 "MROS914" if sub else "MROS915",
                 f"mros backend: {s.prop!r} ({s.topic}): the TCPROS connection header {peer} has {bound} {s.tcpros} "
                 f"bytes (its message definition alone {s.definition}; counted with {assumed}{unknown}); mROS reads "
                 f"it without a bound check into a buffer of {buffer}",
                 t.pointer,
-                hint=f"in your mROS tree, raise {constant} (and its REQ/RES twin) in {proto.PACKET_CONFIG} to at "
-                f"least {need_tcpros}, then state it: --option mros.tcpros_header_max={need_tcpros}",
+                hint=f"{first}in your mROS tree, raise {constant} (and its REQ/RES twin) in {proto.PACKET_CONFIG} to "
+                f"at least {need_tcpros}, then state it: --option mros.tcpros_header_max={need_tcpros}",
+            )
+        elif s.estimated and "mros.tcpros_header_max" in stated and s.tcpros * _COMMENT_ALLOWANCE > tcpros_max:
+            diags.warning(
+                "MROS917",
+                f"mros backend: {s.prop!r} ({s.topic}): its TCPROS connection header has at least {s.tcpros} bytes, "
+                f"within the stated mros.tcpros_header_max of {tcpros_max}, but {', '.join(s.estimated)} were "
+                "counted without their comments, which a ROS 1 peer sends too: the real header may not fit "
+                f"(no warning once the limit is {_COMMENT_ALLOWANCE}x the count)",
+                t.pointer,
+                hint="pass those types' .msg files with -I (Debian's ROS 1 packages: /usr/share/<package>) to check "
+                "the exact size",
             )
         if s.xmlrpc > xmlrpc_max:
             diags.error(

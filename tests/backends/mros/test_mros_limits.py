@@ -131,6 +131,22 @@ def test_a_stated_limit_is_checked_too() -> None:
     assert f"--option mros.xmlrpc_packet_max={need}" in (xml[0].hint or "")
 
 
+def test_a_stated_limit_that_only_covers_a_lower_bound_is_a_warning() -> None:
+    """Types counted without comments give a lower bound: a stated limit under twice it may be overrun by a real
+    peer (the RB-1 Status: 5,881 counted, 7,228 sent by Noetic's rospy), so MROS917 says so; twice it is trusted."""
+    status = _plan_sizes()["availability"]
+    assert status.estimated and status.tcpros < 8192 < 2 * status.tcpros
+    app = apps.generate(RB1, [apps.RB1_INTERFACES], extra=(("mros.tcpros_header_max", 8192),))
+    (warning,) = [d for d in app.diags if d.code == "MROS917"]
+    assert warning.pointer == "/properties/availability" and f"at least {status.tcpros} bytes" in warning.message
+    assert "std_msgs/Header, geometry_msgs/Pose2D" in warning.message and "-I" in (warning.hint or "")
+    roomy = apps.generate(RB1, [apps.RB1_INTERFACES], extra=(("mros.tcpros_header_max", 2 * status.tcpros),))
+    assert "MROS917" not in {d.code for d in roomy.diags}
+    # the error's hint says to count exactly before raising the buffer
+    refused = apps.generate(RB1, [apps.RB1_INTERFACES], tree_limits=False)
+    assert all("pass the .msg files" in (d.hint or "") for d in refused.diags.errors())
+
+
 def test_the_cli_refuses_and_the_readme_lists_the_limits(tmp_path: Path) -> None:
     base = ["gen", str(RB1), "-I", str(apps.RB1_INTERFACES), "-b", "mros", "--partial", "--no-cache"]
     refused = CliRunner().invoke(cli, [*base, "-o", str(tmp_path / "no")])
