@@ -83,7 +83,7 @@ def _input_options(f: Any) -> Any:
         "-I",
         multiple=True,
         type=click.Path(file_okay=False, path_type=Path),
-        help="Folder of interface packages (pkg/msg/*.msg, pkg/srv/*.srv); repeatable.",
+        help="Folder of interface packages (pkg/msg/*.msg, pkg/srv/*.srv, pkg/action/*.action); repeatable.",
     )(f)
     return f
 

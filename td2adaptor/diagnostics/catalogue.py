@@ -376,7 +376,7 @@ _ENTRIES: tuple[Entry, ...] = (
         "MROS907",
         (_E, _W),
         "TD action bound to a ROS action: mROS has no actions",
-        "pass --partial to skip it, or use the rclpy backend",
+        "pass --partial to skip it, or use the rospy backend (ROS 1 actions on actionlib; rclpy for ROS 2)",
         "warning under --partial, which skips the action",
     ),
     Entry("MROS910", (_E,), "message larger than the largest allowed pool block", "raise mros.max_pool_block"),

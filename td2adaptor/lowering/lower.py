@@ -4,7 +4,9 @@ resolve types for ROS 1 and ROS 2, and cross-check TD data schemas against the m
 
 from __future__ import annotations
 
+import os
 import re
+import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -595,6 +597,29 @@ def _file_needed(file: str | None, needed: set[tuple[str, str]]) -> bool:
     return (path.parent.parent.name, path.stem) in needed
 
 
+def _prefixes() -> list[Path]:
+    """Where ROS packages are installed here: the sourced prefixes, this Python's (the ros2 extra's wheels
+    install into the venv) and /opt/ros/*."""
+    found = [Path(p) for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+    return [*found, Path(sys.prefix), *sorted(Path("/opt/ros").glob("*"))]
+
+
+def _where_to_find(type_name: str) -> str:
+    """The end of ROS423's hint: the installed package folder that defines `type_name` if there is one, else
+    what --interfaces wants (for an action, the action/ folder that is easy to leave out)."""
+    parts = type_name.split("/")
+    if len(parts) != 3:
+        return "add its definition with --interfaces DIR"
+    package, kind, name = parts
+    for prefix in _prefixes():
+        file = prefix / "share" / package / kind / f"{name}.{kind}"
+        if file.is_file():
+            return f"{file} defines it: add --interfaces {file.parent.parent}"
+    if kind == "action":
+        return f"add its definition with --interfaces DIR, a folder holding {package}/action/{name}.action"
+    return "add its definition with --interfaces DIR"
+
+
 def _resolve_types(
     endpoints: Sequence[_Endpoint], regs: Mapping[str, TypeRegistry], diags: Diagnostics
 ) -> dict[str, TypeTable]:
@@ -614,7 +639,8 @@ def _resolve_types(
                 f"{ep.raw.kind} {ep.raw.name!r}: unknown ROS type {ep.type_name!r}",
                 ep.raw.type_name.pointer,
                 ("closest known types: " + ", ".join(close) if close else "no similar type is known")
-                + "; add its definition with --interfaces DIR",
+                + "; "
+                + _where_to_find(ep.type_name),
             )
         else:
             backends = "rospy and mROS" if missing == ["ros1"] else "rclpy"

@@ -128,6 +128,7 @@ class Ros1Bridge:
         node_name: str = "td2adaptor_edge",
         timeout: float = 10.0,
         wait_timeout: float | None = None,
+        feedback_grace: Mapping[str, float | None] | None = None,
         environ: Mapping[str, str] | None = None,
         start_timeout: float = 30.0,
         restart_period: float = 5.0,
@@ -141,6 +142,7 @@ class Ros1Bridge:
         self.node_name = node_name
         self.timeout = timeout
         self.wait_timeout = timeout if wait_timeout is None else wait_timeout
+        self.feedback_grace = dict(feedback_grace or {})  # per robot id; absent or None: the ROS 1 default
         self.environ = dict(os.environ if environ is None else environ)
         self.start_timeout = start_timeout
         self.restart_period = restart_period
@@ -200,19 +202,23 @@ class Ros1Bridge:
             ]
         for reader in self._readers:
             reader.start()
-        init = {
+        try:
+            self._request(None, "init", [self.init_request()], self.start_timeout)
+        except PortError as exc:
+            self._kill()
+            raise RosSetupError(f"the ROS 1 bridge under {self.python} did not start: {exc}") from None
+
+    def init_request(self) -> dict[str, Any]:
+        """What the child is told first: the package, the robots and the settings of their ports."""
+        return {
             "package": self.package,
             "layout": self.layout.to_json(),
             "robots": [list(r) for r in self.robots],
             "node": self.node_name,
             "timeout": self.timeout,
             "wait_timeout": self.wait_timeout,
+            "feedback_grace": self.feedback_grace,
         }
-        try:
-            self._request(None, "init", [init], self.start_timeout)
-        except PortError as exc:
-            self._kill()
-            raise RosSetupError(f"the ROS 1 bridge under {self.python} did not start: {exc}") from None
 
     def close(self) -> None:
         """Stop the child (it leaves the ROS graph) and remove the package link."""
@@ -417,6 +423,7 @@ def _serve(requests: IO[str], replies: IO[str]) -> int:
                 distro="ros1",
                 timeout=float(init["timeout"]),
                 wait_timeout=float(init["wait_timeout"]),
+                feedback_grace=(init.get("feedback_grace") or {}).get(robot),
             )
     except Exception as exc:  # noqa: BLE001 - reported to the parent, which explains it
         error(

@@ -16,6 +16,7 @@ from typing import Any
 import yaml
 
 from td2adaptor.model.events import ALL_ROBOTS, ROBOT_ID, TOPIC_ROOT
+from td2adaptor.runtime.genport import TRAIL_LIMIT
 
 
 class ConfigError(Exception):
@@ -36,6 +37,8 @@ class RuntimeConfig:
     call_timeout: float = 10.0  # one robot call
     max_query_failures: int = 3  # consecutive failed queries before a mission is given up
     feedback_period: float = 0.0  # ROS action feedback: 0 one event per message, else at most one per period
+    goal_feedback_grace: float | None = None  # after a goal's result, wait this long for trailing feedback; None:
+    # the ROS version's default (genport.FEEDBACK_GRACE: 0.01 s on ROS 2, 0.1 s on ROS 1)
     property_period: float = 1.0  # property events: at most one per property and period (0: off)
     max_event_bytes: int = 65536
     username: str | None = None
@@ -70,6 +73,8 @@ class RuntimeConfig:
             raise ConfigError("freshness_window must be positive and clock_skew >= 0")
         if self.feedback_period < 0:
             raise ConfigError("feedback_period must be >= 0 (0: one feedback event per ROS feedback message)")
+        if self.goal_feedback_grace is not None and not 0 <= self.goal_feedback_grace <= TRAIL_LIMIT:
+            raise ConfigError(f"goal_feedback_grace must be between 0 and {TRAIL_LIMIT:g} seconds")
         if self.property_period < 0 or self.max_query_failures < 1 or self.max_event_bytes < 256:
             raise ConfigError("property_period >= 0, max_query_failures >= 1 and max_event_bytes >= 256 required")
         if self.mqtt_version not in ("5", "3.1.1"):

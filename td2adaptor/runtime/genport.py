@@ -42,7 +42,8 @@ from td2adaptor.runtime.port import (
 PUMP_WAIT = 1.0
 #: after a goal's result, feedback still arriving is kept until none came for this long (see GoalTrack);
 #: ROS 1 sends feedback and result over two TCPROS connections read by two threads (and the node reads them
-#: through the bridge), so a feedback message can trail its result by much more there
+#: through the bridge), so a feedback message can trail its result by much more there. The run setting
+#: `goal_feedback_grace` (RuntimeConfig) overrides it: it is also the least a goal's terminal event waits
 FEEDBACK_GRACE = {"ros2": 0.01, "ros1": 0.1}
 #: ... but for no longer than this in all
 TRAIL_LIMIT = 1.0
@@ -241,7 +242,8 @@ class GeneratedPort:
     """Drive one robot through a generated adaptor package (`package` is the imported module or its name).
 
     `model` is the compiled model (or just its `Layout`). `distro` "ros2" builds components as
-    `Cls(node, robot_name, ...)`, "ros1" as `Cls(robot_name, ...)`.
+    `Cls(node, robot_name, ...)`, "ros1" as `Cls(robot_name, ...)`. `feedback_grace` is each goal's
+    `GoalTrack.grace` (None: `FEEDBACK_GRACE` of the distro).
     """
 
     def __init__(
@@ -254,6 +256,7 @@ class GeneratedPort:
         node: Any = None,
         timeout: float = 10.0,
         wait_timeout: float = 5.0,
+        feedback_grace: float | None = None,
     ) -> None:
         if distro not in ("ros1", "ros2"):
             raise ValueError(f"distro must be 'ros1' or 'ros2', not {distro!r}")
@@ -262,6 +265,7 @@ class GeneratedPort:
         self.layout = model if isinstance(model, Layout) else Layout.of(model)
         self.robot_name = robot_name
         self.distro = distro
+        self.feedback_grace = FEEDBACK_GRACE[distro] if feedback_grace is None else feedback_grace
         module = importlib.import_module(package) if isinstance(package, str) else package
         self.components: dict[str, Any] = {}
         self._locks: dict[str, threading.Lock] = {}
@@ -349,7 +353,7 @@ class GeneratedPort:
         construct = self._method(component, f"construct_{action}_Goal")
         send = self._method(component, f"send_{action}")
         handle = self._guarded(component, lambda: send(construct(**payload), timeout=timeout))
-        track = GoalTrack(handle, FEEDBACK_GRACE[self.distro])
+        track = GoalTrack(handle, self.feedback_grace)
         with self._goals_lock:
             self._goals[(component, action, track.goal_id)] = track
         return track.goal_id

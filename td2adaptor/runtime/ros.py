@@ -129,6 +129,7 @@ def make_port(
             node=node,
             timeout=config.call_timeout,
             wait_timeout=config.call_timeout,
+            feedback_grace=config.goal_feedback_grace,
         )
     except ValueError as exc:  # InvalidRobotName of the generated package
         raise RosSetupError(f"robot {config.robot}: {exc}") from None
@@ -220,6 +221,7 @@ def connect_ros1(
                 master_uri=master or environ.get("ROS_MASTER_URI"),
                 node_name=name or node_name(members),
                 timeout=max(c.call_timeout for c in members),
+                feedback_grace={c.robot: c.goal_feedback_grace for c in members},
                 environ=environ,
             )
             bridge.start()

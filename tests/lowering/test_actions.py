@@ -1,5 +1,7 @@
-"""TD actions bound to ROS 2 actions (`"rosv:interface": "action"`): type resolution, lowering, and what the
-backends that cannot generate them (mros, events) say; the rospy backend's actions are tested on real ROS 1 in
+"""TD actions bound to ROS actions (`"rosv:interface": "action"`): type resolution (interface folders and the
+ROS 1 typestore), lowering, the refusal of hidden action types, the one backend that cannot generate them (mros:
+MROS907, skipped with --partial) and the goal events the events backend gives them. The rclpy and rospy action
+clients are tested on real middleware in tests/backends/rclpy/test_rclpy_actions.py and
 tests/backends/rospy/test_rospy_actions.py."""
 
 from __future__ import annotations
@@ -136,7 +138,25 @@ def test_unknown_action_type_is_reported(tmp_path: Path) -> None:
     td["actions"]["fibonacci"]["forms"][0]["rosv:type"] = "test_msgs/action/Fibonaci"
     result = compile_td(tmp_path, td)
     assert result.model is None
-    assert "ROS423" in codes(result, Severity.ERROR)
+    (found,) = [d for d in result.diagnostics if d.code == "ROS423"]
+    assert "a folder holding test_msgs/action/Fibonaci.action" in (found.hint or "")
+
+
+def test_unknown_action_type_hint_names_the_installed_folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """An action type installed with its package (the ros2 extra's test_msgs wheel, a sourced prefix) but not
+    given with --interfaces: the hint names the package folder to pass."""
+    prefix = tmp_path / "prefix"
+    action = prefix / "share" / "test_msgs" / "action" / "Fibonacci.action"
+    action.parent.mkdir(parents=True)
+    action.write_bytes((INTERFACES / "test_msgs" / "action" / "Fibonacci.action").read_bytes())
+    monkeypatch.setenv("AMENT_PREFIX_PATH", str(prefix))
+    td = tmp_path / "td.json"
+    td.write_text(json.dumps(action_td()), encoding="utf-8")
+    result = td2adaptor.compile(td)
+    assert result.model is None
+    (found,) = [d for d in result.diagnostics if d.code == "ROS423"]
+    assert f"{action} defines it: add --interfaces {prefix / 'share' / 'test_msgs'}" in (found.hint or "")
+    assert td2adaptor.compile(td, interfaces=[prefix / "share" / "test_msgs"]).model is not None
 
 
 def test_action_type_for_a_service_binding_is_refused(tmp_path: Path) -> None:
@@ -191,6 +211,7 @@ def test_backends_without_actions_refuse_or_skip(tmp_path: Path, backend: str, c
     errors = [d for d in diags if d.severity is Severity.ERROR]
     assert [d.code for d in errors] == [code], [d.message for d in diags]
     assert "fibonacci" in errors[0].message and errors[0].pointer == "/actions/fibonacci"
+    assert "rospy backend" in (errors[0].hint or "")  # mROS is ROS 1: the ROS 1 backend with actions
 
     diags = Diagnostics()
     tree = load_backend(backend).generate(model, GenOptions(partial=True), diags)

@@ -1,18 +1,26 @@
-"""The pure parts of goals and procedures: ROS goal status words → procedure states, mapped state fields, and
-the goal progress crossing the ROS 1 bridge as JSON. (The real middleware tests are test_edge_node_actions_*
-and test_edge_node_mapped_procedure.)"""
+"""The pure parts of goals and procedures: ROS goal status words → procedure states, mapped state fields, the
+goal progress crossing the ROS 1 bridge as JSON, and the `goal_feedback_grace` setting reaching GoalTrack.
+(The real middleware tests are test_edge_node_actions_* and test_edge_node_mapped_procedure.)"""
 
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
+from pathlib import Path
+from types import ModuleType
+from typing import Any
 
 import pytest
 
 from td2adaptor.model import Procedure
 from td2adaptor.model.events import GOAL_WORDS, STATES
+from td2adaptor.runtime.bridge import Ros1Bridge
+from td2adaptor.runtime.config import ConfigError, RuntimeConfig, load_config
+from td2adaptor.runtime.genport import FEEDBACK_GRACE, Layout
 from td2adaptor.runtime.goals import goal_status
 from td2adaptor.runtime.port import GOAL_STATES, GoalProgress
 from td2adaptor.runtime.procedures import read
+from td2adaptor.runtime.ros import make_port
 
 MAPPED = Procedure(
     "taskRun",
@@ -83,3 +91,77 @@ def test_boolean_state_fields_read_as_true_and_false() -> None:
     proc = Procedure("run", "query", None, (), ("done",), states, (), frozenset({"query"}))
     status = read({"done": True}, proc, "query").status
     assert status is not None and status.state == "finished"
+
+
+class _Handle:
+    """A goal that has ended: what GoalTrack reads of a generated GoalHandle."""
+
+    goal_id = "0123456789abcdef0123456789abcdef"
+    done = True
+    status = "succeeded"
+    reason = ""
+
+    def on_feedback(self, callback: Any) -> Any:
+        return lambda: None
+
+    def feedback(self, timeout: float) -> Iterator[Any]:
+        return iter(())
+
+    def result(self, timeout: float) -> dict[str, Any]:
+        return {"sequence": [0, 1]}
+
+
+class _Component:
+    """The generated component class's surface GeneratedPort uses for a ROS action."""
+
+    def __init__(self, *args: Any, timeout: float, wait_timeout: float) -> None:
+        pass
+
+    def register(self) -> None:
+        pass
+
+    def construct_count_Goal(self, **fields: Any) -> dict[str, Any]:
+        return fields
+
+    def send_count(self, goal: Any, *, timeout: float) -> _Handle:
+        return _Handle()
+
+
+def _grace(config: RuntimeConfig, distro: str) -> float:
+    """The grace of a goal sent through the port the edge node makes for `config`."""
+    package = ModuleType("fake_adaptor")
+    package.CountComponent = _Component  # type: ignore[attr-defined]
+    port = make_port(Layout(("CountComponent",)), package, config, distro, node=object() if distro == "ros2" else None)
+    try:
+        goal = port.send_goal("CountComponent", "count", {"order": 3}, 1.0)
+        track = port._track("CountComponent", "count", goal)
+        assert track.progress(None, 0).status in ("accepted", "succeeded")
+        return track.grace
+    finally:
+        port.close()
+
+
+def test_goal_feedback_grace_reaches_the_goal_track(tmp_path: Path) -> None:
+    # default: the ROS version's own
+    assert _grace(RuntimeConfig(robot="r"), "ros2") == FEEDBACK_GRACE["ros2"] == 0.01
+    assert _grace(RuntimeConfig(robot="r"), "ros1") == FEEDBACK_GRACE["ros1"] == 0.1
+    # the YAML key and the environment variable (which wins), for both ROS versions
+    path = tmp_path / "robot.yaml"
+    path.write_text("robot: r\ngoal_feedback_grace: 0\n")
+    assert load_config(path, env={}).goal_feedback_grace == 0.0
+    assert _grace(load_config(path, env={}), "ros2") == 0.0
+    assert _grace(load_config(path, env={}), "ros1") == 0.0
+    configured = load_config(path, env={"TD2ADAPTOR_GOAL_FEEDBACK_GRACE": "0.002"})
+    assert _grace(configured, "ros2") == 0.002
+    # the ROS 1 bridge tells its child, per robot (None: the child's ROS 1 default)
+    bridge = Ros1Bridge(
+        Layout(("CountComponent",)),
+        "pkg",
+        [("r", "r"), ("s", "s")],
+        python="python3",
+        feedback_grace={"r": 0.002, "s": None},
+    )
+    assert bridge.init_request()["feedback_grace"] == {"r": 0.002, "s": None}
+    for bad in ("-0.1", "2"):
+        with pytest.raises(ConfigError, match="goal_feedback_grace"):
+            load_config(path, env={"TD2ADAPTOR_GOAL_FEEDBACK_GRACE": bad})

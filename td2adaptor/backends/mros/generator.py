@@ -393,7 +393,10 @@ def _skip_actions(model: Model, partial: bool, diags: Diagnostics) -> list[Skipp
                     "MROS907",
                     message,
                     a.pointer,
-                    hint="pass --partial to generate the topics and skip the actions, or use the rclpy backend",
+                    hint=(
+                        "pass --partial to generate the topics and skip the actions, or use the rospy backend "
+                        "(ROS 1 actions on actionlib; rclpy for ROS 2)"
+                    ),
                 )
             skipped.append(SkippedAction(a.name, a.ros_name.binding_form(), a.type_name, "ROS action"))
     return skipped
