@@ -260,9 +260,10 @@ def expose(
     (the topic in each href's path too), its id unique per robot; `run` publishes the same text, retained, on
     td2adaptor/<robot>/td while it runs. (`gen -b events` writes the fleet's Thing Model, td.mqtt.json.)
     """
-    from td2adaptor.backends.events.generator import dump, exposed_td
     from td2adaptor.model.events import ALL_ROBOTS, ROBOT_ID, build_catalog
+    from td2adaptor.model.exposed import exposed_td
     from td2adaptor.runtime.security import SecurityError, parse_broker_url
+    from td2adaptor.support.jsondump import dump
 
     if not ROBOT_ID.match(robot) or robot == ALL_ROBOTS:
         _fail("expose", f"robot id {robot!r} must be 1-128 letters, digits, '_', '.', '-' (and not {ALL_ROBOTS!r})")

@@ -66,7 +66,8 @@ def td_message(config: RuntimeConfig, model: Model, catalog: EventCatalog | None
     broker = td_broker(config)
     if broker is None:
         return None
-    from td2adaptor.backends.events.generator import dump, exposed_td
+    from td2adaptor.model.exposed import exposed_td
+    from td2adaptor.support.jsondump import dump
 
     text = dump(exposed_td(model, catalog, robot=config.robot, broker=broker, root=config.topic_root))
     return Message(td_topic(config.robot, config.topic_root), text.encode("utf-8"), retain=True)

@@ -24,12 +24,13 @@ from typing import Any
 import pytest
 from jsonschema import Draft202012Validator  # type: ignore[import-untyped, unused-ignore]
 
-from td2adaptor.backends.events.generator import dump, exposed_td
 from td2adaptor.model import Model
 from td2adaptor.model.events import Kind, build_catalog
+from td2adaptor.model.exposed import exposed_td
 from td2adaptor.model.wot import wot_data, wot_specs
 from td2adaptor.runtime import RuntimeConfig, serve
 from td2adaptor.runtime.simport import SimPort
+from td2adaptor.support.jsondump import dump
 from tests.conftest import REPO
 from tests.runtime.broker import Mosquitto
 from tests.runtime.edge import until

@@ -22,9 +22,10 @@ from typing import Any
 
 import pytest
 
-from td2adaptor.backends.events.generator import dump, exposed_td
+from td2adaptor.model.exposed import exposed_td
 from td2adaptor.runtime import RuntimeConfig, serve
 from td2adaptor.runtime.simport import SimPort
+from td2adaptor.support.jsondump import dump
 from tests.conftest import REPO
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient

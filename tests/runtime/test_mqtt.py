@@ -400,7 +400,8 @@ def _now() -> str:
 def test_the_robot_td_is_retained_while_online_and_cleared_on_stop(broker: Broker) -> None:
     """`run` publishes the TD `expose` writes, byte for byte, retained before the online status; a clean stop
     clears it (an empty retained message) before the offline status."""
-    from td2adaptor.backends.events.generator import dump, exposed_td
+    from td2adaptor.model.exposed import exposed_td
+    from td2adaptor.support.jsondump import dump
 
     model = rb1_model()
     public = "mqtt://robots.example:1883"  # what clients are told, not the address the node connects to

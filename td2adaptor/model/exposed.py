@@ -1,0 +1,222 @@
+"""The Thing Description a robot exposes on the bus (and the fleet's Thing Model): its affordances with W3C MQTT
+binding forms on the adaptor's topics.
+
+It lives with the model, not in the events backend, because the edge node publishes it at run time
+(`td2adaptor run`, `td2adaptor expose`) as well as the backend writing the fleet's Thing Model.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+from urllib.parse import quote
+
+from td2adaptor.frontend.terms import DATA_SCHEMA
+from td2adaptor.model import Model, thaw
+from td2adaptor.model.events import TOPIC_ROOT, EventCatalog, EventSpec, Kind, build_catalog
+from td2adaptor.model.wot import wot_data, wot_topic
+
+TD_CONTEXT = "https://www.w3.org/2022/wot/td/v1.1"
+MQV_NAMESPACE = "http://www.example.org/mqtt-binding#"
+ROBOT_PLACEHOLDER = "{{robotName}}"
+BROKER_PLACEHOLDER = "{{mqttBroker}}"
+#: the runtime publishes and subscribes with QoS 1 (the binding's `mqv:qos` is a string)
+MQTT_QOS = "1"
+
+
+def td_schema(schema: Any) -> Any:
+    """A JSON Schema reduced to TD data-schema terms (a TD has no `$ref`, `not`, `false` schemas, ...)."""
+    if not isinstance(schema, Mapping):
+        return {}
+    out: dict[str, Any] = {}
+    for key, value in schema.items():
+        if key not in DATA_SCHEMA:
+            continue
+        if key == "properties" and isinstance(value, Mapping):
+            out[key] = {n: td_schema(s) for n, s in value.items() if s is not False}
+        elif key == "items" and isinstance(value, Mapping):
+            out[key] = td_schema(value)
+        elif key in ("oneOf", "allOf", "anyOf") and isinstance(value, list):
+            out[key] = [td_schema(s) for s in value if isinstance(s, Mapping)]
+        else:
+            out[key] = value
+    if "required" in out and "properties" in out:
+        out["required"] = [r for r in out["required"] if r in out["properties"]]
+    return out
+
+
+def texts(data: Mapping[str, Any]) -> dict[str, Any]:
+    """`title` and (when not empty) `description` of `data`."""
+    out: dict[str, Any] = {"title": data["title"]}
+    if data.get("description"):
+        out["description"] = data["description"]
+    return out
+
+
+def _wot_description(spec: EventSpec) -> str:
+    if spec.kind is Kind.ERROR:
+        return (
+            "A request to an affordance (an action's input, a written value) was refused or failed: a stable "
+            "code, a message in user words, the affordance and, when known, the correlationId and mission."
+        )
+    return f"{spec.description} Carries the correlationId sent with the action's input and the mission id."
+
+
+def standalone(spec: EventSpec, catalog: EventCatalog) -> dict[str, Any]:
+    """The event schema with the envelope merged in, as a self-contained TD data schema."""
+    props: dict[str, Any] = {}
+    for name, sub in catalog.envelope["properties"].items():
+        own = spec.schema["properties"].get(name)
+        if own is False:
+            continue
+        merged = dict(sub)
+        if isinstance(own, Mapping) and "$ref" not in own:  # a reference is to `sub` itself
+            merged.update({k: v for k, v in own.items() if k != "not"})
+            if "const" in own:
+                merged.pop("enum", None)
+        props[name] = merged
+    schema: dict[str, Any] = {
+        "title": spec.title,
+        "type": "object",
+        "properties": props,
+        "required": list(spec.schema["required"]),
+    }
+    if spec.description:
+        schema["description"] = spec.description
+    return dict(td_schema(schema))
+
+
+def topic_href(broker: str, topic: str, *, model: bool = False) -> str:
+    """`broker` with `topic` as its path, percent-encoded where a URI needs it (in a Thing Model the
+    `{{...}}` placeholders stay as written, to be filled in textually): clients such as node-wot 0.8 take the
+    topic from the href, others from `mqv:topic` / `mqv:filter`."""
+    return f"{broker.rstrip('/')}/{quote(topic, safe='/{}' if model else '/')}"
+
+
+def _form(
+    broker: str,
+    topic: str,
+    op: str | list[str],
+    packet: str,
+    *,
+    model: bool,
+    retain: bool = False,
+) -> dict[str, Any]:
+    """A form of the W3C MQTT binding: the topic in the href path and in `mqv:topic` (publish) or `mqv:filter`
+    (subscribe, unsubscribe); QoS 1 as the runtime uses; `mqv:retain` where the runtime retains."""
+    form: dict[str, Any] = {"href": topic_href(broker, topic, model=model), "op": op, "contentType": "application/json"}
+    form["mqv:controlPacket"] = packet
+    form["mqv:topic" if packet == "publish" else "mqv:filter"] = topic
+    if packet != "unsubscribe":
+        form["mqv:qos"] = MQTT_QOS
+    if retain:
+        form["mqv:retain"] = True
+    return form
+
+
+def thing_id(model: Model, robot: str) -> str:
+    """The exposed Thing's id: the TD's own with the robot id appended, else a URN of package and robot."""
+    if model.thing.id:
+        return f"{model.thing.id}:{robot}"
+    return f"urn:td2adaptor:{model.package_name}:{robot}"
+
+
+def exposed_td(
+    model: Model,
+    catalog: EventCatalog | None = None,
+    *,
+    robot: str | None = None,
+    broker: str | None = None,
+    root: str = TOPIC_ROOT,
+) -> dict[str, Any]:
+    """The Thing Description of robot `robot` on `broker` (`mqtt://host:port`): the robot's affordances with
+    MQTT forms on the adaptor's topics. Without them, the Thing Model of the fleet: `{{robotName}}` and
+    `{{mqttBroker}}` stand for the robot id and the broker URL."""
+    catalog = catalog or build_catalog(model)
+    is_model = robot is None or broker is None
+    robot = ROBOT_PLACEHOLDER if robot is None else robot
+    broker = BROKER_PLACEHOLDER if broker is None else broker
+    thing = model.thing
+    context: list[Any] = [TD_CONTEXT, {"mqv": MQV_NAMESPACE}]
+    td: dict[str, Any] = {"@context": context, "@type": "tm:ThingModel" if is_model else "Thing"}
+    td["id"] = thing_id(model, robot)
+    td["title"] = thing.title
+    description = f"{thing.title} ({robot}) through its td2adaptor event adaptor."
+    if thing.description:
+        description = f"{thing.description} {description}"
+    td["description"] = description
+    if thing.version:
+        td["version"] = {"model" if is_model else "instance": thing.version}
+    security = thaw(thing.security) if isinstance(thing.security, Mapping) and thing.security else None
+    if not security:
+        security = {"nosec_sc": {"scheme": "nosec"}}
+    td["securityDefinitions"] = security
+    td["security"] = list(security)
+    properties: dict[str, Any] = {}
+    actions: dict[str, Any] = {}
+    events: dict[str, Any] = {}
+
+    def form(topic: str, op: str | list[str], packet: str, retain: bool = False) -> dict[str, Any]:
+        return _form(broker, topic, op, packet, model=is_model, retain=retain)
+
+    runs = {s.run: s for s in catalog.specs if s.kind is Kind.QUERY and s.run}
+    stops = {s.run: s for s in catalog.specs if s.kind is Kind.CANCEL and s.run}
+    for spec in catalog.specs:
+        topic = wot_topic(spec, robot, root)
+        if topic is None:  # the status event: only its envelope topic, described as it travels
+            data = standalone(spec, catalog)
+            event = texts(data)
+            event["data"] = {k: v for k, v in data.items() if k not in ("title", "description")}
+            event["forms"] = [
+                form(spec.topic(robot, root), "subscribeevent", "subscribe", retain=True),
+                form(spec.topic(robot, root), "unsubscribeevent", "unsubscribe"),
+            ]
+            events[spec.kind.value] = event
+            continue
+        data = dict(td_schema(wot_data(spec)))
+        if spec.kind is Kind.PROPERTY and spec.affordance:
+            prop = {**texts({"title": spec.title, "description": spec.description}), **data}
+            prop.update(readOnly=True, writeOnly=False, observable=True)
+            prop["forms"] = [
+                form(topic, ["readproperty", "observeproperty"], "subscribe", retain=True),
+                form(topic, "unobserveproperty", "unsubscribe"),
+            ]
+            properties[spec.affordance] = prop
+        elif spec.kind is Kind.WRITE and spec.affordance:
+            prop = {**texts({"title": spec.title, "description": spec.description}), **data}
+            prop.update(readOnly=False, writeOnly=True, observable=False)
+            prop["forms"] = [form(topic, "writeproperty", "publish")]
+            properties[spec.affordance] = prop
+        elif spec.kind in (Kind.INVOKE, Kind.QUERY, Kind.CANCEL) and spec.affordance:
+            action = texts({"title": spec.title, "description": spec.description})
+            action["input"] = data
+            action["safe"] = spec.kind is Kind.QUERY
+            action["idempotent"] = spec.kind is not Kind.INVOKE
+            action["synchronous"] = False
+            action["forms"] = [form(topic, "invokeaction", "publish")]
+            # TD 1.1's own operations on the run action, for clients that offer them: the same messages as
+            # the query and cancel actions (answered by the run's state event)
+            for op, linked in (
+                ("queryaction", runs.get(spec.affordance) if spec.kind is Kind.INVOKE else None),
+                ("cancelaction", stops.get(spec.affordance) if spec.kind is Kind.INVOKE else None),
+            ):
+                linked_topic = None if linked is None else wot_topic(linked, robot, root)
+                if linked_topic is not None:
+                    action["forms"].append(form(linked_topic, op, "publish"))
+            # a ROS action's query and cancel have no TD affordance of their own: name them after it
+            suffix = spec.kind.value.capitalize() if spec.goal_control else ""
+            actions[spec.affordance + suffix] = action
+        else:
+            name = {Kind.FEEDBACK: "Feedback", Kind.STATE: "State"}.get(spec.kind, "")
+            key = f"{spec.affordance}{name}" if spec.affordance else spec.kind.value
+            event = texts({"title": spec.title, "description": _wot_description(spec)})
+            event["data"] = data
+            event["forms"] = [
+                form(topic, "subscribeevent", "subscribe"),
+                form(topic, "unsubscribeevent", "unsubscribe"),
+            ]
+            events[key] = event
+    for name, section in (("properties", properties), ("actions", actions), ("events", events)):
+        if section:
+            td[name] = section
+    return td
