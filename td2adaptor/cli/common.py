@@ -158,7 +158,7 @@ def _compile_units(
     values, problems = _placeholder_values(sets, values_file)
     if any(d.severity.value == "error" for d in problems):
         return [Result(None, tuple(problems))]
-    results = []
+    results: list[Result] = []
     for unit in _units(sources) if units is None else units:
         result = compile(
             list(unit),
