@@ -123,23 +123,70 @@ def _compile(
     no_cache: bool = False,
     max_affordances: int = 20_000,
 ) -> Result:
+    """Compile `sources` as one input (one TD, or RosClasses config files)."""
+    return _compile_units(
+        sources,
+        interfaces,
+        sets,
+        values_file,
+        strict,
+        max_bytes,
+        package,
+        no_cache,
+        max_affordances,
+        units=[list(sources)],
+    )[0]
+
+
+def _compile_units(
+    sources: Sequence[str],
+    interfaces: Sequence[Path],
+    sets: Sequence[str],
+    values_file: Path | None,
+    strict: bool,
+    max_bytes: int,
+    package: str | None = None,
+    no_cache: bool = False,
+    max_affordances: int = 20_000,
+    *,
+    units: Sequence[Sequence[str]] | None = None,
+) -> list[Result]:
+    """One Result per input that `sources` make, grouped as gen and check group them (`_units`); problems with
+    --set/--values come once, with the first. Never empty."""
     from td2adaptor.compiler.pipeline import Result, compile
 
     values, problems = _placeholder_values(sets, values_file)
     if any(d.severity.value == "error" for d in problems):
-        return Result(None, tuple(problems))
-    result = compile(
-        list(sources),
-        interfaces=list(interfaces),
-        values=values,
-        strict=strict,
-        package=package,
-        max_bytes=max_bytes,
-        max_affordances=max_affordances,
-        use_cache=not no_cache,
-        parallel=True,
-    )
-    return Result(result.model, tuple(problems) + result.diagnostics, result.input)
+        return [Result(None, tuple(problems))]
+    results: list[Result] = []
+    for unit in _units(sources) if units is None else units:
+        result = compile(
+            list(unit),
+            interfaces=list(interfaces),
+            values=values,
+            strict=strict,
+            package=package,
+            max_bytes=max_bytes,
+            max_affordances=max_affordances,
+            use_cache=not no_cache,
+            parallel=True,
+        )
+        before = () if results else tuple(problems)
+        results.append(Result(result.model, before + result.diagnostics, result.input))
+    return results
+
+
+def _units(sources: Sequence[str]) -> list[list[str]]:
+    """The inputs `sources` make, as `generation.build.compile_units` groups a target's files: every RosClasses
+    config file together, each TD alone. Spelled as given; stdin ('-') can be read only once, so arguments
+    with it stay one input."""
+    if len(sources) < 2 or "-" in sources:
+        return [list(sources)]
+    from td2adaptor.generation.build import compile_units
+
+    paths = [Path(s) for s in sources]
+    spelled = {id(p): s for p, s in zip(paths, sources, strict=True)}
+    return [[spelled[id(p)] for p in unit] for unit in compile_units(paths)]
 
 
 def report(

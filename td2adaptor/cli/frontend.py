@@ -11,7 +11,7 @@ from td2adaptor.cli.common import (
     EXIT_INVALID,
     EXIT_OK,
     EXIT_USAGE,
-    _compile,
+    _compile_units,
     _format_option,
     _input_options,
     _label,
@@ -42,11 +42,14 @@ def validate(
     fmt: str,
     package_name: str | None,
 ) -> None:
-    """Validate a TD, Thing Model or legacy config ('-' reads stdin) and resolve its ROS types."""
-    result = _compile(
+    """Validate TDs, Thing Models or legacy config files ('-' reads stdin) and resolve their ROS types.
+
+    Several arguments are grouped as gen groups them: each TD alone, all RosClasses config files as one input.
+    """
+    results = _compile_units(
         sources, interfaces, sets, values_file, strict, max_bytes, package_name, no_cache, max_affordances
     )
-    ok = report(result.diagnostics, fmt, label=_label(sources))
+    ok = report([d for result in results for d in result.diagnostics], fmt, label=_label(sources))
     sys.exit(EXIT_OK if ok else EXIT_INVALID)
 
 
@@ -65,20 +68,27 @@ def types(
     max_affordances: int,
     fmt: str,
 ) -> None:
-    """Show components, their services and topics, and the resolved ROS types."""
+    """Show components, their services and topics, and the resolved ROS types (one table per input).
+
+    Several arguments are grouped as gen groups them: each TD alone, all RosClasses config files as one input.
+    With --format json, `types` is one input's object, or a list of them for several inputs.
+    """
     from td2adaptor.cli.typestable import types_json, types_text
 
-    result = _compile(sources, interfaces, sets, values_file, strict, max_bytes, None, no_cache, max_affordances)
-    if result.model is None:
-        report(result.diagnostics, fmt, label=_label(sources))
+    results = _compile_units(sources, interfaces, sets, values_file, strict, max_bytes, None, no_cache, max_affordances)
+    diagnostics = [d for result in results for d in result.diagnostics]
+    models = [result.model for result in results if result.model is not None]
+    if len(models) < len(results):
+        report(diagnostics, fmt, label=_label(sources))
         sys.exit(EXIT_INVALID)
     if fmt == "json":
-        report(result.diagnostics, fmt, label=_label(sources), extra={"types": types_json(result.model)})
+        tables = [types_json(model) for model in models]
+        report(diagnostics, fmt, label=_label(sources), extra={"types": tables[0] if len(tables) == 1 else tables})
     else:
-        click.echo(types_text(result.model), nl=False)
+        click.echo("\n".join(types_text(model) for model in models), nl=False)
         sys.stdout.flush()
-        if result.diagnostics:
-            report(result.diagnostics, fmt, label=_label(sources))
+        if diagnostics:
+            report(diagnostics, fmt, label=_label(sources))
     sys.exit(EXIT_OK)
 
 

@@ -151,7 +151,9 @@ def run(
         report(result.diagnostics, "human", label=_label([source]))
         sys.exit(EXIT_INVALID)
     if result.diagnostics:
-        _summarise(result.diagnostics, source)
+        given = [*(a for folder in interfaces for a in ("-I", str(folder))), *(a for v in sets for a in ("--set", v))]
+        given += ["--values", str(values_file)] if values_file is not None else []
+        _summarise(result.diagnostics, source, given)
     from td2adaptor.runtime.config import ConfigError, load_fleet
 
     overrides: dict[str, Any] = {
@@ -380,9 +382,11 @@ def _checkout_module(name: str) -> Any:
     return importlib.import_module(name)
 
 
-def _summarise(diagnostics: Sequence[Diagnostic], source: str) -> None:
+def _summarise(diagnostics: Sequence[Diagnostic], source: str, given: Sequence[str] = ()) -> None:
     """The TD's problems at start-up: errors and the first warning in full, the rest (warnings, notes)
-    counted by code; a node restarts often, and `validate` is where to read them all."""
+    counted by code; a node restarts often, and `validate` is where to read them all. `given`: the -I, --set
+    and --values arguments run got, which the suggested validate command needs to find the same problems."""
+    import shlex
     from collections import Counter
 
     errors = [d for d in diagnostics if d.severity.value == "error"]
@@ -395,4 +399,5 @@ def _summarise(diagnostics: Sequence[Diagnostic], source: str) -> None:
     report([*errors, *([first] if first else [])], "human", label=_label([source]), counted=diagnostics)
     counts = Counter(d.code for d in rest)
     codes = ", ".join(f"{code} x{n}" for code, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
-    click.echo(f"... and {len(rest)} more ({codes}); `td2adaptor validate {source}` lists them", err=True)
+    command = shlex.join(["td2adaptor", "validate", source, *given])
+    click.echo(f"... and {len(rest)} more ({codes}); `{command}` lists them", err=True)

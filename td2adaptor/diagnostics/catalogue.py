@@ -310,7 +310,10 @@ _ENTRIES: tuple[Entry, ...] = (
     Entry("GEN803", (_W,), "file no longer generated but edited by hand: kept"),
     Entry("GEN804", (_E,), "unknown or unavailable backend"),
     Entry(
-        "GEN805", (_E,), "two TDs generate different contents for the same file", "give them different package names"
+        "GEN805",
+        (_E,),
+        "two inputs (TDs, RosClasses configurations) generate different contents for one file",
+        "give them different package names",
     ),
     Entry(
         "GEN806",

@@ -163,6 +163,7 @@ def _build(
 
     merged: dict[Path, GeneratedTree] = {}
     backends: dict[Path, str] = {}
+    origin: dict[Path, str] = {}  # each generated file: the input that generated it first
     ok = True
     for target in targets:
         names, problem = resolve_backends(target.backends)
@@ -207,13 +208,16 @@ def _build(
                 into = merged.setdefault(root, GeneratedTree())
                 for rel, data in tree:
                     if rel in into.files and into.files[rel] != data:
-                        diags.error(
+                        diags.add(
                             "GEN805",
-                            f"two TDs generate different {root / rel}",
-                            hint="give them different package names",
+                            Severity.ERROR,
+                            f"two inputs generate different {root / rel} (the other: {origin[root / rel]})",
+                            hint="give them different package names (a target's --package-name names every input)",
+                            file=str(unit[0]),
                         )
                         ok = False
                     into.files[rel] = data
+                    origin.setdefault(root / rel, ", ".join(map(str, unit)))
                 into.executable |= tree.executable
     if not ok:
         return None
@@ -225,15 +229,26 @@ def _build(
 
 
 def compile_units(tds: Sequence[Path]) -> list[list[Path]]:
-    """The inputs a target's TDs make: each TD or Thing Model alone, but RosClasses config files together.
+    """The inputs a target's TDs make: each TD or Thing Model alone, and all its RosClasses config files together.
 
     A RosClasses configuration is split over several files (service.json, topic.json) that only make one
-    adaptor together, as `validate` and `migrate` read them; a target whose files are all RosClasses files is
-    therefore one input. Any other mix stays one input per file (the compiler refuses several TDs at once).
+    adaptor together, as `validate` and `migrate` read them; every RosClasses file of a target therefore goes
+    into one input, placed where the first of them is. Each TD is its own input beside it (the compiler
+    refuses several TDs at once). `validate` and `types` group their arguments the same way.
     """
-    if len(tds) > 1 and all(_is_rosclasses(td) for td in tds):
-        return [list(tds)]
-    return [[td] for td in tds]
+    if len(tds) < 2:
+        return [[td] for td in tds]
+    units: list[list[Path]] = []
+    config: list[Path] | None = None
+    for td in tds:
+        if _is_rosclasses(td):
+            if config is None:
+                config = []
+                units.append(config)
+            config.append(td)
+        else:
+            units.append([td])
+    return units
 
 
 def _is_rosclasses(path: Path) -> bool:

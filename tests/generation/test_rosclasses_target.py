@@ -72,3 +72,40 @@ def test_td_targets_still_compile_each_td_alone(tmp_path: Path) -> None:
     job = target([td, td], backends=["events"], output=tmp_path, interfaces=IFACES, partial=True)
     outcome = generate([job], use_cache=False)
     assert outcome.ok, [d.message for d in outcome.diagnostics]
+
+
+DOOR = REPO / "examples" / "warehouse" / "door.td.json"
+
+
+@pytest.mark.parametrize(
+    "order", [[*CONFIG, DOOR], [CONFIG[0], DOOR, CONFIG[1]]], ids=["configs_then_td", "td_between_configs"]
+)
+def test_config_files_and_a_td_in_one_target_make_two_packages(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, order: list[Path]
+) -> None:
+    """All RosClasses files of a target are one input wherever they stand, and each TD is its own: the
+    migrating user's service.json + topic.json + door TD generate both adaptors into one output."""
+    monkeypatch.chdir(tmp_path)
+    args = [*map(str, order), "-I", str(IFACES[0]), "-b", "rclpy", "-o", "out", "--partial", "--no-cache"]
+    gen = CliRunner().invoke(cli, ["gen", *args])
+    assert gen.exit_code == 0, gen.output
+    assert "GEN805" not in gen.output
+    packages = sorted(p.name for p in (tmp_path / "out" / "rclpy").iterdir() if p.is_dir())
+    assert packages == ["ros_edge_node_adaptor", "warehouse_door_adaptor"]
+    components = (tmp_path / "out/rclpy/ros_edge_node_adaptor/ros_edge_node_adaptor/components.py").read_text()
+    assert "class GoToComponent" in components and "class DoorComponent" in components
+    check = CliRunner().invoke(cli, ["check", *args])
+    assert (check.exit_code, check.output) == (0, "td2adaptor check: generated code is current\n")
+
+
+def test_a_collision_between_inputs_is_located_at_a_file(tmp_path: Path) -> None:
+    job = target([*CONFIG, DOOR], backends=["events"], output=tmp_path, interfaces=IFACES, package_name="same")
+    outcome = generate([job], use_cache=False)
+    assert not outcome.ok
+    collisions = [d for d in outcome.diagnostics if d.code == "GEN805"]
+    assert collisions
+    assert {d.file for d in collisions} == {str(DOOR)}, "at the input that collided, never <input>"
+    readme = tmp_path / "events" / "same" / "README.md"
+    assert any(
+        d.message == f"two inputs generate different {readme} (the other: {CONFIG[0]}, {CONFIG[1]})" for d in collisions
+    )

@@ -5,6 +5,7 @@ test_edge_node_ros2.py, test_edge_node_ros1.py and test_demo_warehouse.py.
 
 from __future__ import annotations
 
+import shlex
 from pathlib import Path
 
 import pytest
@@ -106,11 +107,16 @@ def test_demo_refuses_what_cannot_work() -> None:
 
 def test_run_summarises_the_tds_warnings_instead_of_reprinting_them() -> None:
     dialect = str(EXAMPLE / "td.reference-dialect.json")
-    code, out = run("run", dialect, *IFACE, "--robot", "r1", "--bus", "nope://x")
+    given = [*IFACE, "--set", "robotName=r 1"]  # the input options run got, one with a space
+    code, out = run("run", dialect, *given, "--robot", "r1", "--bus", "nope://x")
     assert code == 1 and "use mqtt://host:port" in out
     printed = [line for line in out.splitlines() if " warning " in line or " info " in line]
     assert len(printed) == 1, printed  # the first warning in full
     (summary,) = [line for line in out.splitlines() if line.startswith("... and ")]
-    assert "ROS412 x12" in summary and f"td2adaptor validate {dialect}" in summary
+    suggested = shlex.join(["td2adaptor", "validate", dialect, *given])
+    assert "ROS412 x12" in summary and f"`{suggested}` lists them" in summary
     verdict = next(line for line in out.splitlines() if line.startswith(f"{dialect}: valid"))
     assert "(0 errors, 39 warnings)" in verdict  # counts every warning, not the one shown
+    # the suggested command, run as printed, lists the same warnings (without -I it found 6 errors)
+    code, out = run(*shlex.split(suggested)[1:])
+    assert code == 0 and out.splitlines()[-1] == verdict

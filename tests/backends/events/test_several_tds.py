@@ -138,7 +138,8 @@ def test_one_package_name_for_two_tds_still_collides(tmp_path: Path) -> None:
     outcome = generate([job])
     assert not outcome.ok and not (tmp_path / "events").exists()
     collisions = {d.message for d in outcome.diagnostics if d.code == "GEN805"}
-    assert f"two TDs generate different {tmp_path / 'events' / 'same' / 'README.md'}" in collisions
+    readme = tmp_path / "events" / "same" / "README.md"
+    assert f"two inputs generate different {readme} (the other: {RB1})" in collisions
 
 
 def test_the_index_keeps_hostile_titles_as_text() -> None:
