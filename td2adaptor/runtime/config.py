@@ -161,6 +161,17 @@ def from_env(env: Mapping[str, str]) -> dict[str, Any]:
     return out
 
 
+def _yaml_problem(exc: yaml.YAMLError) -> str:
+    """What is wrong with a YAML file and where, without PyYAML's quote of the line: the line may be the
+    password's (`password: S3cr3t: oops` is a syntax error)."""
+    if not isinstance(exc, yaml.MarkedYAMLError):
+        return f"not valid YAML ({type(exc).__name__})"
+    mark = exc.problem_mark or exc.context_mark
+    where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else ""
+    what = "; ".join(part for part in (exc.context, exc.problem) if part)
+    return f"not valid YAML: {where}{what or 'syntax error'}"
+
+
 def load_fleet(
     path: str | Path | None = None,
     *,
@@ -174,8 +185,10 @@ def load_fleet(
     if path is not None:
         try:
             data = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
-        except (OSError, yaml.YAMLError) as exc:
+        except OSError as exc:
             raise ConfigError(f"{path}: {exc}") from None
+        except yaml.YAMLError as exc:
+            raise ConfigError(f"{path}: {_yaml_problem(exc)}") from None
         base = _section(data, str(path))
         if isinstance(data, Mapping) and "robots" in data:
             items = data["robots"]
