@@ -1,6 +1,6 @@
 """Commands are fresh and unique (issue 16, findings 3-5): a stale command is answered, not run; an id is
-handled once however many events come between and across a restart; an id reused on another topic is
-answered with an error."""
+handled once however many events come between and across a restart; an id reused on another topic, or on
+the same topic with other content, is answered with an error."""
 
 from __future__ import annotations
 
@@ -47,6 +47,39 @@ def test_the_guard_decides_by_time_id_and_topic(tmp_path: Path) -> None:
     assert again.check("b", "t/1", None) is Verdict.NEW
     assert len(again) == 1
     again.close()
+
+
+def test_the_same_id_on_the_same_topic_with_other_content_is_reused_not_a_redelivery(tmp_path: Path) -> None:
+    """Audit gap 6: the guard keyed on id and topic, so another command under a used id was dropped in silence."""
+    clock = Clock(parse_time("2026-11-23T12:00:00Z") or 0.0)
+    guard = ReplayGuard(tmp_path / "ids.sqlite3", window=300, skew=30, clock=clock)
+    sent = "2026-11-23T11:59:00Z"
+    assert guard.check("a", "t/1", sent, digest="d1") is Verdict.NEW
+    assert guard.check("a", "t/1", sent, digest="d1") is Verdict.DUPLICATE  # a redelivery, byte for byte
+    assert guard.check("a", "t/1", sent, digest="d2") is Verdict.REUSED  # other content under the same id
+    assert guard.check("a", "t/2", sent, digest="d1") is Verdict.REUSED  # another topic, as before
+    guard.close()
+    again = ReplayGuard(tmp_path / "ids.sqlite3", window=300, skew=30, clock=clock)  # durable, with the digest
+    assert again.check("a", "t/1", sent, digest="d1") is Verdict.DUPLICATE
+    assert again.check("a", "t/1", sent, digest="d2") is Verdict.REUSED
+    again.close()
+
+
+def test_a_store_written_before_digests_still_knows_its_ids(tmp_path: Path) -> None:
+    import sqlite3
+
+    path = tmp_path / "ids.sqlite3"
+    db = sqlite3.connect(path)
+    db.execute("CREATE TABLE seen (id TEXT PRIMARY KEY, topic TEXT NOT NULL, until REAL)")
+    db.execute("INSERT INTO seen VALUES ('old', 't/1', ?)", (time.time() + 300,))
+    db.commit()
+    db.close()
+    guard = ReplayGuard(path, window=300, skew=30)
+    assert guard.check("old", "t/1", None, digest="any") is Verdict.DUPLICATE  # content unknown: as before
+    assert guard.check("old", "t/2", None, digest="any") is Verdict.REUSED
+    assert guard.check("new", "t/1", None, digest="d") is Verdict.NEW
+    assert guard.check("new", "t/1", None, digest="e") is Verdict.REUSED
+    guard.close()
 
 
 def test_many_events_do_not_push_an_id_out_while_it_could_be_fresh(tmp_path: Path) -> None:
@@ -100,6 +133,34 @@ def test_a_replay_after_a_restart_runs_once_and_a_reused_id_is_answered(tmp_path
         assert error["payload"]["code"] == "id-reused" and "'once'" in error["payload"]["message"]
         time.sleep(0.2)
         assert len(app.of("feedback", "c2")) == runs  # no second mission
+        assert engine.stats.get("duplicates") == 1
+    finally:
+        engine.stop()
+    check_outbound(app.events)
+
+
+def test_another_command_under_a_used_id_is_answered_and_not_run(tmp_path: Path) -> None:
+    """Audit gap 6 through the engine: the same id and topic with another goal gets `id-reused`; the same
+    bytes again (a redelivery) are still ignored in silence; an equal event with its keys in another order
+    is the same content."""
+    broker, model, robot = LocalBroker(), rb1_model(), sim(0.05)
+    app = LocalApp(broker)
+    sent = now_text()
+    engine = serve(model, SimPort(model, robot), _config(tmp_path), broker=broker)
+    try:
+        first = {"id": "one-id", "correlation": "c4", "time": sent, "payload": GOAL}
+        app.send(GOTO, first)
+        app.wait(terminal("feedback", "c4"))
+        runs = len(app.of("feedback", "c4"))
+        app.send(GOTO, dict(reversed(list(first.items()))))  # the same event, serialised otherwise
+        other = {**first, "correlation": "c5"}
+        app.send(GOTO, other)
+        app.wait(lambda ev: bool(app.of("error", "c5")))
+        (error,) = app.of("error", "c5")
+        assert error["payload"]["code"] == "id-reused" and "'one-id'" in error["payload"]["message"]
+        time.sleep(0.2)
+        assert len(app.of("feedback", "c4")) == runs and not app.of("feedback", "c5")
+        assert not app.of("error", "c4")
         assert engine.stats.get("duplicates") == 1
     finally:
         engine.stop()
