@@ -40,6 +40,7 @@ from td2adaptor.runtime.goals import GoalRunner
 from td2adaptor.runtime.port import NoValue, PortError, RobotPort, StartResult
 from td2adaptor.runtime.procedures import ProcedureStatus, read
 from td2adaptor.runtime.replay import ReplayGuard, Verdict, digest
+from td2adaptor.runtime.thingbus import WOT_SOURCE
 from td2adaptor.runtime.words import INTERNAL, describe
 
 log = logging.getLogger("td2adaptor.runtime")
@@ -301,6 +302,20 @@ class Engine:
             return
         event_id = event.get("id")
         sent = event.get("time")
+        if self.config.require_id_and_time and not (isinstance(event_id, str) and isinstance(sent, str)):
+            self._count("refused")
+            wot = event.get("source") == WOT_SOURCE
+            self._error(
+                "no-id-or-time",
+                "not run: this node requires every inbound event to carry an id and a time "
+                + ("(a WoT message: a correlationId) " if wot else "")
+                + "(require_id_and_time), so that a replayed or long-queued command cannot run",
+                topic=msg.topic,
+                affordance=spec.affordance,
+                correlation=event.get("correlation") if isinstance(event.get("correlation"), str) else None,
+                mission=event.get("mission") if isinstance(event.get("mission"), int) else None,
+            )
+            return
         verdict = self.guard.check(
             event_id if isinstance(event_id, str) else None,
             msg.topic,

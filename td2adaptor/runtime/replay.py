@@ -41,7 +41,11 @@ class Verdict(str, Enum):
 
 
 def digest(event: Any) -> str:
-    """A digest of an event's content (a parsed JSON document): equal for the same event however serialised."""
+    """A digest of an event's content (a parsed JSON document): equal for the same event however serialised.
+    Its `time` is left out: the same command sent again later is still the same command (and a WoT message,
+    which the node stamps on arrival, would otherwise never be one)."""
+    if isinstance(event, dict):
+        event = {k: v for k, v in event.items() if k != "time"}
     text = json.dumps(event, sort_keys=True, separators=(",", ":"), ensure_ascii=False, default=str)
     return hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest()
 

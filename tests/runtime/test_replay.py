@@ -165,3 +165,63 @@ def test_another_command_under_a_used_id_is_answered_and_not_run(tmp_path: Path)
     finally:
         engine.stop()
     check_outbound(app.events)
+
+
+def test_require_id_and_time_refuses_what_the_guard_cannot_protect(tmp_path: Path) -> None:
+    """Audit gaps 1-2, opt-in: with `require_id_and_time`, an envelope command without `id` or `time` is
+    answered `no-id-or-time` and not run; a WoT command needs a correlationId, which becomes its event id, so a
+    replay of it is a redelivery (not run) and another goal under it is `id-reused`."""
+    from td2adaptor.model.wot import CORRELATION, WOT_LEVEL
+
+    broker, model, robot = LocalBroker(), rb1_model(), sim(0.05)
+    app = LocalApp(broker)
+    wot_goto = f"td2adaptor/{ROBOT}/{WOT_LEVEL}/GoToComponent/gotoRun"
+    engine = serve(model, SimPort(model, robot), _config(tmp_path, require_id_and_time=True), broker=broker)
+    try:
+        app.send(GOTO, {"correlation": "no-id", "time": now_text(), "payload": GOAL})
+        app.send(GOTO, {"id": "no-time", "correlation": "no-time", "payload": GOAL})
+        app.send(wot_goto, GOAL)  # a WoT command without correlationId
+        app.wait(lambda ev: len(app.of("error")) >= 3)
+        codes = [e["payload"]["code"] for e in app.of("error")]
+        assert codes == ["no-id-or-time"] * 3, codes
+        assert "require_id_and_time" in app.of("error", "no-time")[0]["payload"]["message"]
+        time.sleep(0.2)
+        assert (robot.x, robot.y) == (0.0, 0.0) and not app.of("feedback")
+        app.send(GOTO, {"id": "both", "correlation": "both", "time": now_text(), "payload": GOAL})
+        app.wait(terminal("feedback", "both"))
+        app.send(wot_goto, {**GOAL, CORRELATION: "wot-1"})
+        app.wait(terminal("feedback", "wot-1"))
+        runs = len(app.of("feedback", "wot-1"))
+        app.send(wot_goto, {**GOAL, CORRELATION: "wot-1"})  # replayed: a redelivery, not run
+        other = {"procedure": {"goals": [{"pose": {"x": 2.0, "y": 1.0, "theta": 0.0}}]}}
+        app.send(wot_goto, {**other, CORRELATION: "wot-1"})  # another goal under the same id
+        app.wait(lambda ev: bool(app.of("error", "wot-1")))
+        assert app.of("error", "wot-1")[0]["payload"]["code"] == "id-reused"
+        time.sleep(0.2)
+        assert len(app.of("feedback", "wot-1")) == runs
+        assert engine.stats.get("duplicates") == 1
+    finally:
+        engine.stop()
+    check_outbound(app.events)
+
+
+def test_without_require_id_and_time_a_replayed_wot_command_runs_again(tmp_path: Path) -> None:
+    """The default, as docs/security.md says: a WoT message is stamped on arrival, so a replay runs."""
+    from td2adaptor.model.wot import CORRELATION, WOT_LEVEL
+
+    broker, model, robot = LocalBroker(), rb1_model(), sim(0.05)
+    app = LocalApp(broker)
+    wot_goto = f"td2adaptor/{ROBOT}/{WOT_LEVEL}/GoToComponent/gotoRun"
+    engine = serve(model, SimPort(model, robot), _config(tmp_path), broker=broker)
+    try:
+
+        def ended() -> int:
+            return len([e for e in app.of("feedback", "twice") if e["payload"]["terminal"]])
+
+        app.send(wot_goto, {**GOAL, CORRELATION: "twice"})
+        app.wait(lambda ev: ended() == 1)
+        app.send(wot_goto, {**GOAL, CORRELATION: "twice"})  # the same message again
+        app.wait(lambda ev: ended() == 2)  # a second mission
+        assert not app.of("error")
+    finally:
+        engine.stop()
