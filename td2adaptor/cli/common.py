@@ -31,7 +31,39 @@ def _print_version(ctx: click.Context, _param: click.Parameter, value: bool) -> 
         ctx.exit(0)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 110})
+class _Group(click.Group):
+    """The group, whose usage errors never quote a URL's credentials: click echoes what it could not place
+    (`Got unexpected extra argument (mqtt://edge:pw@host)` for a forgotten --bus), and the message ends up in
+    terminals and logs like any other."""
+
+    def make_context(
+        self, info_name: str | None, args: list[str], parent: click.Context | None = None, **extra: Any
+    ) -> click.Context:
+        try:
+            return super().make_context(info_name, args, parent, **extra)
+        except click.ClickException as exc:
+            raise _redacted(exc) from None
+
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except click.ClickException as exc:
+            raise _redacted(exc) from None
+
+
+def _redacted(exc: click.ClickException) -> click.ClickException:
+    from td2adaptor.runtime.security import redact_text
+
+    said = exc.format_message()
+    shown = redact_text(said)
+    if shown == said:
+        return exc
+    if isinstance(exc, click.UsageError):  # keeps the usage line and exit code 2
+        return click.UsageError(shown, exc.ctx)
+    return click.ClickException(shown)
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 110})
 @click.option(
     "--version",
     is_flag=True,

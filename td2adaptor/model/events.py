@@ -95,6 +95,7 @@ ERROR_CODES = (
     "expired",
     "from-the-future",
     "id-reused",
+    "no-id-or-time",
 )
 
 

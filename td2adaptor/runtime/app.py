@@ -135,7 +135,11 @@ def serve(
     td = td_message(config, model, catalog)
     announce = () if td is None else (td,)
     bus = thing_bus(
-        open_bus(config, model, broker=broker, env=env, announce=announce), catalog, config.robot, config.topic_root
+        open_bus(config, model, broker=broker, env=env, announce=announce),
+        catalog,
+        config.robot,
+        config.topic_root,
+        correlation_ids=config.require_id_and_time,
     )
     engine = Engine(model, port, bus, config, catalog=catalog, td=td)
     engine.start()

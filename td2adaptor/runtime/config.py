@@ -55,6 +55,7 @@ class RuntimeConfig:
     ros_domain_id: int | None = None  # for the ROS 2 adapter
     freshness_window: float = 300.0  # an inbound event older than this (by its `time`) is expired, not run
     clock_skew: float = 30.0  # tolerated difference between the sender's clock and ours
+    require_id_and_time: bool = False  # refuse inbound events without `id` or `time` (WoT: without correlationId)
     state_dir: str | None = None  # where event ids are remembered (default: the user cache's state/; "" keeps none)
     directory: str | None = None  # a W3C WoT Thing Description Directory to register the robot's TD with
     directory_ttl: int = 600  # seconds the directory keeps the TD without a refresh (0: until it is deleted)
@@ -166,6 +167,17 @@ def from_env(env: Mapping[str, str]) -> dict[str, Any]:
     return out
 
 
+def _yaml_problem(exc: yaml.YAMLError) -> str:
+    """What is wrong with a YAML file and where, without PyYAML's quote of the line: the line may be the
+    password's (`password: S3cr3t: oops` is a syntax error)."""
+    if not isinstance(exc, yaml.MarkedYAMLError):
+        return f"not valid YAML ({type(exc).__name__})"
+    mark = exc.problem_mark or exc.context_mark
+    where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else ""
+    what = "; ".join(part for part in (exc.context, exc.problem) if part)
+    return f"not valid YAML: {where}{what or 'syntax error'}"
+
+
 def load_fleet(
     path: str | Path | None = None,
     *,
@@ -179,8 +191,10 @@ def load_fleet(
     if path is not None:
         try:
             data = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
-        except (OSError, yaml.YAMLError) as exc:
+        except OSError as exc:
             raise ConfigError(f"{path}: {exc}") from None
+        except yaml.YAMLError as exc:
+            raise ConfigError(f"{path}: {_yaml_problem(exc)}") from None
         base = _section(data, str(path))
         if isinstance(data, Mapping) and "robots" in data:
             items = data["robots"]

@@ -11,9 +11,10 @@ Policies (documented in README of the generated events):
   terminal `failed` feedback (`reason: busy`) for its correlation — never queued, never silently dropped;
 * query and cancel use the mission id the robot returned; -1 (the robot's "last one") only when it gave none;
 * every failure of a robot call becomes failure feedback or an error event; nothing ends the process;
-* inbound events are fresh and unique (replay.py): an `id` seen before on the same topic (a QoS 1
-  redelivery) is handled once, on another topic it is answered with an error, and an event older than the
-  freshness window is answered with an error instead of run; ids are remembered across restarts;
+* inbound events are fresh and unique (replay.py): an `id` seen before on the same topic with the same
+  content (a QoS 1 redelivery) is handled once, on another topic or with other content it is answered with
+  an error, and an event older than the freshness window is answered with an error instead of run; ids are
+  remembered across restarts;
 * feedback carries `correlation` (the requester's, else the invoke event's id) and `payload.seq` 1, 2, ...
 """
 
@@ -38,7 +39,8 @@ from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope,
 from td2adaptor.runtime.goals import GoalRunner
 from td2adaptor.runtime.port import NoValue, PortError, RobotPort, StartResult
 from td2adaptor.runtime.procedures import ProcedureStatus, read
-from td2adaptor.runtime.replay import ReplayGuard, Verdict
+from td2adaptor.runtime.replay import ReplayGuard, Verdict, digest
+from td2adaptor.runtime.thingbus import WOT_SOURCE
 from td2adaptor.runtime.words import INTERNAL, describe
 
 log = logging.getLogger("td2adaptor.runtime")
@@ -49,7 +51,8 @@ _DEFAULT_MISSION_PATH = ("state", "header", "id")
 _REFUSALS = {
     Verdict.EXPIRED: "not run: sent at {time}, more than {window:g} s ago (the freshness window)",
     Verdict.FUTURE: "not run: sent at {time}, later than this node's clock allows",
-    Verdict.REUSED: "not run: event id {id!r} was already used on another topic",
+    Verdict.REUSED: "not run: event id {id!r} was already used by another event (on another topic or with other "
+    "content); give every event an id of its own",
 }
 
 
@@ -299,8 +302,25 @@ class Engine:
             return
         event_id = event.get("id")
         sent = event.get("time")
+        if self.config.require_id_and_time and not (isinstance(event_id, str) and isinstance(sent, str)):
+            self._count("refused")
+            wot = event.get("source") == WOT_SOURCE
+            self._error(
+                "no-id-or-time",
+                "not run: this node requires every inbound event to carry an id and a time "
+                + ("(a WoT message: a correlationId) " if wot else "")
+                + "(require_id_and_time), so that a replayed or long-queued command cannot run",
+                topic=msg.topic,
+                affordance=spec.affordance,
+                correlation=event.get("correlation") if isinstance(event.get("correlation"), str) else None,
+                mission=event.get("mission") if isinstance(event.get("mission"), int) else None,
+            )
+            return
         verdict = self.guard.check(
-            event_id if isinstance(event_id, str) else None, msg.topic, sent if isinstance(sent, str) else None
+            event_id if isinstance(event_id, str) else None,
+            msg.topic,
+            sent if isinstance(sent, str) else None,
+            digest(event) if isinstance(event_id, str) else None,
         )
         if verdict is Verdict.DUPLICATE:
             self._count("duplicates")

@@ -320,15 +320,19 @@ class MqttBus:
 def accepts_anonymous(
     address: BrokerAddress, tls: TlsOptions | None, *, timeout: float = 5.0, mqtt_version: str = "5"
 ) -> bool:
-    """Whether the broker lets a client connect without credentials (with the same TLS settings).
+    """Whether the broker lets a client connect without credentials: no username, no password and no client
+    certificate (`tls` gives the CA to trust the broker by; its certificate and key are left out).
 
     A TD that requires authentication is only kept if the broker enforces it: otherwise anyone who can reach
-    the broker can command the robot or forge its feedback. An unreachable broker counts as refusing here;
-    the node's own connection reports it.
+    the broker can command the robot or forge its feedback. A broker that identifies clients by certificate
+    (mosquitto `require_certificate` + `use_identity_as_username`) refuses a client without one in the TLS
+    handshake: that is refusing anonymous clients, and the node's own certificate must not hide it. An
+    unreachable broker counts as refusing here; the node's own connection reports it.
     """
+    anonymous_tls = None if tls is None else TlsOptions(ca_file=tls.ca_file)
     probe = MqttBus(
         address,
-        ConnectionSecurity(None, None, tls, ()),
+        ConnectionSecurity(None, None, anonymous_tls, ()),
         client_id=f"td2adaptor-probe-{os.urandom(4).hex()}",
         clean_start=True,
         session_expiry=0,

@@ -6,8 +6,10 @@ while the node was away; a recorded command can also be published again by anyon
 * an event whose `time` is older than `freshness_window` (plus `clock_skew`), or more than `clock_skew` in
   the future, is answered with an error event and not run (`expired` / `from-the-future`);
 * an event id is remembered for as long as an event carrying it could still be fresh, in a small SQLite file
-  per robot (so a restart forgets nothing that could still be replayed): the same id on the same topic is a
-  redelivery and handled once; the same id on another topic is answered with an error (`id-reused`).
+  per robot (so a restart forgets nothing that could still be replayed), with a digest of the event: the same
+  id on the same topic with the same content is a redelivery and handled once (ignored in silence); the same
+  id on another topic, or with other content, is another command under a used id and is answered with an
+  error (`id-reused`).
 
 The store is bounded by the window, not by a count: ids older than the window are dropped as they age out.
 Events without `time` are accepted and remembered for the window from their arrival.
@@ -15,6 +17,8 @@ Events without `time` are accepted and remembered for the window from their arri
 
 from __future__ import annotations
 
+import hashlib
+import json
 import re
 import sqlite3
 import threading
@@ -23,16 +27,27 @@ from collections.abc import Callable
 from datetime import datetime, timezone
 from enum import Enum
 from pathlib import Path
+from typing import Any
 
 _RFC3339 = re.compile(r"^(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d(?:\.\d+)?)(Z|[+-]\d\d:\d\d)$", re.IGNORECASE)
 
 
 class Verdict(str, Enum):
     NEW = "new"
-    DUPLICATE = "duplicate"  # the same id on the same topic: a redelivery, handled once
-    REUSED = "id-reused"  # the same id on another topic: answered with an error
+    DUPLICATE = "duplicate"  # the same id, topic and content: a redelivery, handled once
+    REUSED = "id-reused"  # the same id on another topic or with other content: answered with an error
     EXPIRED = "expired"
     FUTURE = "from-the-future"
+
+
+def digest(event: Any) -> str:
+    """A digest of an event's content (a parsed JSON document): equal for the same event however serialised.
+    Its `time` is left out: the same command sent again later is still the same command (and a WoT message,
+    which the node stamps on arrival, would otherwise never be one)."""
+    if isinstance(event, dict):
+        event = {k: v for k, v in event.items() if k != "time"}
+    text = json.dumps(event, sort_keys=True, separators=(",", ":"), ensure_ascii=False, default=str)
+    return hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest()
 
 
 def parse_time(text: str) -> float | None:
@@ -70,11 +85,18 @@ class ReplayGuard:
         self._db = sqlite3.connect(target, check_same_thread=False, isolation_level=None)
         self._db.execute("PRAGMA journal_mode=WAL")
         self._db.execute("PRAGMA synchronous=NORMAL")
-        self._db.execute("CREATE TABLE IF NOT EXISTS seen (id TEXT PRIMARY KEY, topic TEXT NOT NULL, until REAL)")
+        self._db.execute(
+            "CREATE TABLE IF NOT EXISTS seen (id TEXT PRIMARY KEY, topic TEXT NOT NULL, until REAL, digest TEXT)"
+        )
+        columns = {row[1] for row in self._db.execute("PRAGMA table_info(seen)")}
+        if "digest" not in columns:  # a store written before digests: its ids keep an unknown content (NULL)
+            self._db.execute("ALTER TABLE seen ADD COLUMN digest TEXT")
         self._next_prune = 0.0
 
-    def check(self, event_id: str | None, topic: str, sent: str | None) -> Verdict:
-        """The verdict for an event; a NEW id is remembered until it could no longer be fresh."""
+    def check(self, event_id: str | None, topic: str, sent: str | None, digest: str | None = None) -> Verdict:
+        """The verdict for an event (`digest`: of its content, see `digest()`); a NEW id is remembered, with the
+        topic and digest, until it could no longer be fresh. Where either digest is unknown, the same id on the
+        same topic counts as a redelivery."""
         now = self.clock()
         stamp = parse_time(sent) if sent is not None else None
         if stamp is not None:
@@ -87,10 +109,13 @@ class ReplayGuard:
         until = (stamp if stamp is not None else now) + self.window + self.skew
         with self._lock:
             self._prune(now)
-            row = self._db.execute("SELECT topic FROM seen WHERE id = ?", (event_id,)).fetchone()
+            row = self._db.execute("SELECT topic, digest FROM seen WHERE id = ?", (event_id,)).fetchone()
             if row is not None:
-                return Verdict.DUPLICATE if row[0] == topic else Verdict.REUSED
-            self._db.execute("INSERT INTO seen (id, topic, until) VALUES (?, ?, ?)", (event_id, topic, until))
+                same = row[0] == topic and (row[1] is None or digest is None or row[1] == digest)
+                return Verdict.DUPLICATE if same else Verdict.REUSED
+            self._db.execute(
+                "INSERT INTO seen (id, topic, until, digest) VALUES (?, ?, ?, ?)", (event_id, topic, until, digest)
+            )
         return Verdict.NEW
 
     def _prune(self, now: float) -> None:

@@ -61,12 +61,36 @@ class ConnectionSecurity:
     schemes: tuple[str, ...] = ()
 
 
-_USERINFO = re.compile(r"^([A-Za-z][A-Za-z0-9+.-]*://)[^/?#]*@")
+# what stays shown before the credentials: leading blanks and a scheme only when slashes follow it ("mqtt://",
+# "mqtt:/", "//"); in "edge:pw@host" the "edge:" is the user, not a scheme, and is hidden with the password
+_URL_PREFIX = re.compile(r"\s*(?:[A-Za-z][A-Za-z0-9+.-]*:(?=/))?/*")
+_WORD_WITH_AT = re.compile(r"\S*@\S*")
+_OPENINGS = "([{'\"`<"
 
 
 def redact_url(url: str) -> str:
-    """`url` fit for a message: any `user:password@` replaced by `***@` (messages end up in logs)."""
-    return _USERINFO.sub(r"\1***@", url)
+    """`url` fit for a message (messages end up in logs): everything between the scheme and the last `@`, the
+    `user:password@` of a URL, is replaced by `***@`, whatever the password holds ('#', '/', '?', '@') and
+    whether or not the URL is well formed (`edge:pw@host`, `//edge:pw@host`, `mqtt:/edge:pw@host`): what
+    precedes the last `@` of a string is never shown, beyond a scheme. A string without `@` is returned as is."""
+    at = url.rfind("@")
+    if at < 0:
+        return url
+    prefix = _URL_PREFIX.match(url)
+    start = prefix.end() if prefix and prefix.end() <= at else 0
+    return f"{url[:start]}***{url[at:]}"
+
+
+def redact_text(text: str) -> str:
+    """`text` with every blank-separated word holding an `@` redacted as a URL (`redact_url`), opening
+    brackets and quotes kept: for messages that may quote what a user typed (a URL with credentials)."""
+
+    def word(match: re.Match[str]) -> str:
+        found = match.group()
+        opening = len(found) - len(found.lstrip(_OPENINGS))
+        return found[:opening] + redact_url(found[opening:])
+
+    return _WORD_WITH_AT.sub(word, text)
 
 
 def parse_broker_url(url: str) -> BrokerAddress:

@@ -21,6 +21,7 @@ from __future__ import annotations
 import json
 import logging
 from collections.abc import Mapping
+from hashlib import sha256
 from typing import Any
 
 from td2adaptor.model.events import ALL_ROBOTS, TOPIC_ROOT, EventCatalog, EventSpec, Kind
@@ -36,8 +37,11 @@ WOT_SOURCE = "wot"
 class ThingBus:
     """`bus` with the WoT topics of robot `robot` served beside the envelope topics (a `Bus` itself)."""
 
-    def __init__(self, bus: Bus, catalog: EventCatalog, robot: str, root: str = TOPIC_ROOT) -> None:
+    def __init__(
+        self, bus: Bus, catalog: EventCatalog, robot: str, root: str = TOPIC_ROOT, *, correlation_ids: bool = False
+    ) -> None:
         self.bus = bus
+        self.correlation_ids = correlation_ids  # the event id is the consumer's correlationId (or none)
         self.catalog = catalog
         self.robot = robot
         self.root = root
@@ -98,11 +102,15 @@ class ThingBus:
         if spec.kind is Kind.WRITE:
             event["payload"] = data
             return encode(event)
+        if self.correlation_ids:  # require_id_and_time: no correlationId, no id, and the engine refuses it
+            del event["id"]
         if isinstance(data, dict) and takes_correlation(spec):
             data = dict(data)
             correlation = data.pop(CORRELATION, None)
             if correlation is not None:
                 event["correlation"] = correlation  # the engine's schema checks it
+                if self.correlation_ids and isinstance(correlation, str) and correlation:
+                    event["id"] = correlation if len(correlation) <= 128 else sha256(correlation.encode()).hexdigest()
         if spec.kind in (Kind.QUERY, Kind.CANCEL) and isinstance(data, dict):
             mission = data.pop("mission", None)
             if mission is not None:
@@ -145,8 +153,11 @@ class ThingBus:
         return topic, data
 
 
-def thing_bus(bus: Bus, catalog: EventCatalog, robot: str, root: str = TOPIC_ROOT) -> Bus:
-    """`bus` serving WoT consumers too (the all-robots id has no Thing of its own)."""
+def thing_bus(
+    bus: Bus, catalog: EventCatalog, robot: str, root: str = TOPIC_ROOT, *, correlation_ids: bool = False
+) -> Bus:
+    """`bus` serving WoT consumers too (the all-robots id has no Thing of its own); `correlation_ids`
+    (require_id_and_time): a WoT message's correlationId is its event id, and one without has none."""
     if robot == ALL_ROBOTS:
         return bus
-    return ThingBus(bus, catalog, robot, root)
+    return ThingBus(bus, catalog, robot, root, correlation_ids=correlation_ids)

@@ -41,6 +41,8 @@ class Mosquitto:
         tls: tuple[Path, Path, Path] | None = None,
         anonymous: bool | None = None,
         acl: Path | None = None,
+        require_certificate: bool = True,
+        identity_as_username: bool = False,
     ) -> None:
         self.dir = workdir
         self.dir.mkdir(parents=True, exist_ok=True)
@@ -61,11 +63,14 @@ class Mosquitto:
             "set_tcp_nodelay true",
             "max_inflight_messages 100",
         ]
-        if tls is not None:  # (CA, server certificate, server key); clients must present a certificate
+        if tls is not None:  # (CA, server certificate, server key); clients present a certificate if required
             ca, cert, key = tls
-            lines += [f"cafile {ca}", f"certfile {cert}", f"keyfile {key}", "require_certificate true"]
+            lines += [f"cafile {ca}", f"certfile {cert}", f"keyfile {key}"]
+            lines.append(f"require_certificate {'true' if require_certificate else 'false'}")
+            if identity_as_username:  # the client certificate's CN is the user: no password needed
+                lines.append("use_identity_as_username true")
         if users is None:
-            lines.append("allow_anonymous true")
+            lines.append(f"allow_anonymous {'false' if anonymous is False else 'true'}")
         else:
             passwd = self.dir / "passwd"
             passwd.touch(mode=0o600)

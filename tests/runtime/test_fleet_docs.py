@@ -16,7 +16,8 @@ def test_every_setting_is_a_row_with_its_environment_variable() -> None:
     rows = dict(re.findall(r"^\| `(\w+)` \|[^|]*\| `(TD2ADAPTOR_\w+)`", DOC, re.MULTILINE))
     assert sorted(rows) == sorted(f.name for f in dataclasses.fields(RuntimeConfig))
     for name, variable in rows.items():
-        value = "1" if name in ("robot", "namespace") else "true" if name.startswith("allow_") else "7"
+        boolean = str(RuntimeConfig.__dataclass_fields__[name].type).startswith("bool")
+        value = "1" if name in ("robot", "namespace") else "true" if boolean else "7"
         assert name in from_env({variable: value}), (name, variable)
 
 

@@ -14,6 +14,7 @@ import pytest
 
 from td2adaptor.runtime import BusError, RuntimeConfig, SecurityError, open_bus, serve
 from td2adaptor.runtime.mqttbus import MqttBus
+from td2adaptor.runtime.security import TlsOptions
 from td2adaptor.runtime.simport import SimPort
 from tests.conftest import REPO
 from tests.runtime.broker import Amqtt, Broker, Mosquitto
@@ -174,6 +175,69 @@ def test_tls_with_a_client_certificate(tmp_path: Path) -> None:
             engine.stop()
     finally:
         broker.stop()
+
+
+def test_a_broker_that_identifies_clients_by_certificate_is_not_taken_for_an_anonymous_one(tmp_path: Path) -> None:
+    """Issue 16 (audit gap 4): with `require_certificate` + `use_identity_as_username` (docs/security.md), the
+    node's client certificate is its identity and a client without one is refused in the TLS handshake. The
+    anonymous probe used to present the node's certificate, so it got in and the node refused to start."""
+    from td2adaptor.runtime.mqttbus import accepts_anonymous
+    from td2adaptor.runtime.security import parse_broker_url
+
+    certs = make_certs(tmp_path / "certs")
+    tls = (certs.ca, certs.server_cert, certs.server_key)
+    broker = Mosquitto(tmp_path / "broker", tls=tls, identity_as_username=True, anonymous=False)
+    broker.start()
+    url = f"mqtts://127.0.0.1:{broker.port}"
+    node_tls = {"tls_ca_file": str(certs.ca), "tls_cert_file": str(certs.client_cert)}
+    node_tls["tls_key_file"] = str(certs.client_key)
+    env = {"TD2ADAPTOR_MQTT_USERNAME": "client", "TD2ADAPTOR_MQTT_PASSWORD": "unused-by-this-broker"}
+    try:
+        model = td_with_security(tmp_path, {"basic_sc": {"scheme": "basic"}})
+        # what the probe must find: a client with the CA only does not get in
+        assert not accepts_anonymous(parse_broker_url(url), TlsOptions(ca_file=str(certs.ca)), timeout=5)
+        engine = serve(model, SimPort(model, sim(0.1)), config(url, **node_tls), env=env)
+        try:
+            bus_of(engine).publish(GOTO, b'{"correlation": "by-cert", "payload": {"procedure": {}}}')
+            assert until(lambda: engine.stats.get("out.feedback", 0) >= 2, timeout=10)
+        finally:
+            engine.stop()
+    finally:
+        broker.stop()
+
+
+def test_basic_credentials_over_tls_with_only_the_ca(tmp_path: Path) -> None:
+    """The remote set-up docs/security.md prescribes: `mqtts://`, the broker's CA, a username and password (no
+    client certificate); and the anonymous probe over TLS, both ways."""
+    certs = make_certs(tmp_path / "certs")
+    tls = (certs.ca, certs.server_cert, certs.server_key)
+    model = td_with_security(tmp_path, {"basic_sc": {"scheme": "basic"}})
+    env = {"TD2ADAPTOR_MQTT_USERNAME": "robot", "TD2ADAPTOR_MQTT_PASSWORD": "s3cret"}
+    for anonymous in (False, True):
+        broker = Mosquitto(
+            tmp_path / f"broker-{anonymous}",
+            tls=tls,
+            require_certificate=False,
+            users={"robot": "s3cret"},
+            anonymous=anonymous,
+        )
+        broker.start()
+        cfg = config(f"mqtts://127.0.0.1:{broker.port}", tls_ca_file=str(certs.ca))
+        try:
+            if anonymous:
+                with pytest.raises(SecurityError, match="accepts clients without credentials"):
+                    serve(model, SimPort(model, sim(0.1)), cfg, env=env)
+                continue
+            with pytest.raises(BusError, match="refused user 'robot'"):
+                serve(model, SimPort(model, sim(0.1)), cfg, env={**env, "TD2ADAPTOR_MQTT_PASSWORD": "wrong"})
+            engine = serve(model, SimPort(model, sim(0.1)), cfg, env=env)
+            try:
+                bus_of(engine).publish(GOTO, b'{"correlation": "tls-basic", "payload": {"procedure": {}}}')
+                assert until(lambda e=engine: e.stats.get("out.feedback", 0) >= 2, timeout=10)
+            finally:
+                engine.stop()
+        finally:
+            broker.stop()
 
 
 def test_unreachable_broker_is_a_clear_error() -> None:

@@ -1,6 +1,6 @@
 """Commands are fresh and unique (issue 16, findings 3-5): a stale command is answered, not run; an id is
-handled once however many events come between and across a restart; an id reused on another topic is
-answered with an error."""
+handled once however many events come between and across a restart; an id reused on another topic, or on
+the same topic with other content, is answered with an error."""
 
 from __future__ import annotations
 
@@ -47,6 +47,39 @@ def test_the_guard_decides_by_time_id_and_topic(tmp_path: Path) -> None:
     assert again.check("b", "t/1", None) is Verdict.NEW
     assert len(again) == 1
     again.close()
+
+
+def test_the_same_id_on_the_same_topic_with_other_content_is_reused_not_a_redelivery(tmp_path: Path) -> None:
+    """Audit gap 6: the guard keyed on id and topic, so another command under a used id was dropped in silence."""
+    clock = Clock(parse_time("2026-11-23T12:00:00Z") or 0.0)
+    guard = ReplayGuard(tmp_path / "ids.sqlite3", window=300, skew=30, clock=clock)
+    sent = "2026-11-23T11:59:00Z"
+    assert guard.check("a", "t/1", sent, digest="d1") is Verdict.NEW
+    assert guard.check("a", "t/1", sent, digest="d1") is Verdict.DUPLICATE  # a redelivery, byte for byte
+    assert guard.check("a", "t/1", sent, digest="d2") is Verdict.REUSED  # other content under the same id
+    assert guard.check("a", "t/2", sent, digest="d1") is Verdict.REUSED  # another topic, as before
+    guard.close()
+    again = ReplayGuard(tmp_path / "ids.sqlite3", window=300, skew=30, clock=clock)  # durable, with the digest
+    assert again.check("a", "t/1", sent, digest="d1") is Verdict.DUPLICATE
+    assert again.check("a", "t/1", sent, digest="d2") is Verdict.REUSED
+    again.close()
+
+
+def test_a_store_written_before_digests_still_knows_its_ids(tmp_path: Path) -> None:
+    import sqlite3
+
+    path = tmp_path / "ids.sqlite3"
+    db = sqlite3.connect(path)
+    db.execute("CREATE TABLE seen (id TEXT PRIMARY KEY, topic TEXT NOT NULL, until REAL)")
+    db.execute("INSERT INTO seen VALUES ('old', 't/1', ?)", (time.time() + 300,))
+    db.commit()
+    db.close()
+    guard = ReplayGuard(path, window=300, skew=30)
+    assert guard.check("old", "t/1", None, digest="any") is Verdict.DUPLICATE  # content unknown: as before
+    assert guard.check("old", "t/2", None, digest="any") is Verdict.REUSED
+    assert guard.check("new", "t/1", None, digest="d") is Verdict.NEW
+    assert guard.check("new", "t/1", None, digest="e") is Verdict.REUSED
+    guard.close()
 
 
 def test_many_events_do_not_push_an_id_out_while_it_could_be_fresh(tmp_path: Path) -> None:
@@ -104,3 +137,91 @@ def test_a_replay_after_a_restart_runs_once_and_a_reused_id_is_answered(tmp_path
     finally:
         engine.stop()
     check_outbound(app.events)
+
+
+def test_another_command_under_a_used_id_is_answered_and_not_run(tmp_path: Path) -> None:
+    """Audit gap 6 through the engine: the same id and topic with another goal gets `id-reused`; the same
+    bytes again (a redelivery) are still ignored in silence; an equal event with its keys in another order
+    is the same content."""
+    broker, model, robot = LocalBroker(), rb1_model(), sim(0.05)
+    app = LocalApp(broker)
+    sent = now_text()
+    engine = serve(model, SimPort(model, robot), _config(tmp_path), broker=broker)
+    try:
+        first = {"id": "one-id", "correlation": "c4", "time": sent, "payload": GOAL}
+        app.send(GOTO, first)
+        app.wait(terminal("feedback", "c4"))
+        runs = len(app.of("feedback", "c4"))
+        app.send(GOTO, dict(reversed(list(first.items()))))  # the same event, serialised otherwise
+        other = {**first, "correlation": "c5"}
+        app.send(GOTO, other)
+        app.wait(lambda ev: bool(app.of("error", "c5")))
+        (error,) = app.of("error", "c5")
+        assert error["payload"]["code"] == "id-reused" and "'one-id'" in error["payload"]["message"]
+        time.sleep(0.2)
+        assert len(app.of("feedback", "c4")) == runs and not app.of("feedback", "c5")
+        assert not app.of("error", "c4")
+        assert engine.stats.get("duplicates") == 1
+    finally:
+        engine.stop()
+    check_outbound(app.events)
+
+
+def test_require_id_and_time_refuses_what_the_guard_cannot_protect(tmp_path: Path) -> None:
+    """Audit gaps 1-2, opt-in: with `require_id_and_time`, an envelope command without `id` or `time` is
+    answered `no-id-or-time` and not run; a WoT command needs a correlationId, which becomes its event id, so a
+    replay of it is a redelivery (not run) and another goal under it is `id-reused`."""
+    from td2adaptor.model.wot import CORRELATION, WOT_LEVEL
+
+    broker, model, robot = LocalBroker(), rb1_model(), sim(0.05)
+    app = LocalApp(broker)
+    wot_goto = f"td2adaptor/{ROBOT}/{WOT_LEVEL}/GoToComponent/gotoRun"
+    engine = serve(model, SimPort(model, robot), _config(tmp_path, require_id_and_time=True), broker=broker)
+    try:
+        app.send(GOTO, {"correlation": "no-id", "time": now_text(), "payload": GOAL})
+        app.send(GOTO, {"id": "no-time", "correlation": "no-time", "payload": GOAL})
+        app.send(wot_goto, GOAL)  # a WoT command without correlationId
+        app.wait(lambda ev: len(app.of("error")) >= 3)
+        codes = [e["payload"]["code"] for e in app.of("error")]
+        assert codes == ["no-id-or-time"] * 3, codes
+        assert "require_id_and_time" in app.of("error", "no-time")[0]["payload"]["message"]
+        time.sleep(0.2)
+        assert (robot.x, robot.y) == (0.0, 0.0) and not app.of("feedback")
+        app.send(GOTO, {"id": "both", "correlation": "both", "time": now_text(), "payload": GOAL})
+        app.wait(terminal("feedback", "both"))
+        app.send(wot_goto, {**GOAL, CORRELATION: "wot-1"})
+        app.wait(terminal("feedback", "wot-1"))
+        runs = len(app.of("feedback", "wot-1"))
+        app.send(wot_goto, {**GOAL, CORRELATION: "wot-1"})  # replayed: a redelivery, not run
+        other = {"procedure": {"goals": [{"pose": {"x": 2.0, "y": 1.0, "theta": 0.0}}]}}
+        app.send(wot_goto, {**other, CORRELATION: "wot-1"})  # another goal under the same id
+        app.wait(lambda ev: bool(app.of("error", "wot-1")))
+        assert app.of("error", "wot-1")[0]["payload"]["code"] == "id-reused"
+        time.sleep(0.2)
+        assert len(app.of("feedback", "wot-1")) == runs
+        assert engine.stats.get("duplicates") == 1
+    finally:
+        engine.stop()
+    check_outbound(app.events)
+
+
+def test_without_require_id_and_time_a_replayed_wot_command_runs_again(tmp_path: Path) -> None:
+    """The default, as docs/security.md says: a WoT message is stamped on arrival, so a replay runs."""
+    from td2adaptor.model.wot import CORRELATION, WOT_LEVEL
+
+    broker, model, robot = LocalBroker(), rb1_model(), sim(0.05)
+    app = LocalApp(broker)
+    wot_goto = f"td2adaptor/{ROBOT}/{WOT_LEVEL}/GoToComponent/gotoRun"
+    engine = serve(model, SimPort(model, robot), _config(tmp_path), broker=broker)
+    try:
+
+        def ended() -> int:
+            return len([e for e in app.of("feedback", "twice") if e["payload"]["terminal"]])
+
+        app.send(wot_goto, {**GOAL, CORRELATION: "twice"})
+        app.wait(lambda ev: ended() == 1)
+        app.send(wot_goto, {**GOAL, CORRELATION: "twice"})  # the same message again
+        app.wait(lambda ev: ended() == 2)  # a second mission
+        assert not app.of("error")
+    finally:
+        engine.stop()

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from td2adaptor.runtime.security import redact_url
+from td2adaptor.runtime.security import redact_text, redact_url
 from tests.conftest import EXAMPLE, REPO
 from tests.runtime.broker import Mosquitto, free_port
 
@@ -41,11 +41,16 @@ def broker(tmp_path: Path) -> Iterator[Mosquitto]:
 
 
 def _run(td: Path, *args: str, env: dict[str, str] | None = None) -> str:
-    environ = {k: v for k, v in os.environ.items() if not k.startswith("TD2ADAPTOR_MQTT")}
+    return _run_raw(
+        "run", str(td), "-I", str(EXAMPLE / "interfaces"), "--robot", "r1", "--log-level", "debug", *args, env=env
+    )
+
+
+def _run_raw(*args: str, env: dict[str, str] | None = None) -> str:
+    environ = {k: v for k, v in os.environ.items() if not k.startswith("TD2ADAPTOR_")}
     environ.update(env or {})
     proc = subprocess.run(
-        [sys.executable, "-m", "td2adaptor", "run", str(td), "-I", str(EXAMPLE / "interfaces"), "--robot", "r1"]
-        + ["--log-level", "debug", *args],
+        [sys.executable, "-m", "td2adaptor", *args],
         cwd=REPO,
         capture_output=True,
         text=True,
@@ -62,11 +67,66 @@ def test_redact_url() -> None:
     assert redact_url(f"mqtt://edge:{SECRET}@host:1883") == "mqtt://***@host:1883"
     assert redact_url(f"mqtts://{SECRET}@host") == "mqtts://***@host"
     assert redact_url("mqtt://host:1883") == "mqtt://host:1883"
+    assert redact_url("https://tdd.example:8443/api") == "https://tdd.example:8443/api"
+    # characters that end the authority in a URL parser, a password with '@', no scheme, a damaged scheme
+    for password in ("S3#cr3t", "S3/cr3t", "S3?cr3t", "S3@cr3t", "S3:cr3t", "S3(cr3t"):
+        assert redact_url(f"mqtt://edge:{password}@host:1") == "mqtt://***@host:1", password
+    assert redact_url(f"edge:{SECRET}@127.0.0.1:1") == "***@127.0.0.1:1"
+    assert redact_url(f"//edge:{SECRET}@127.0.0.1:1") == "//***@127.0.0.1:1"
+    assert redact_url(f"mqtt:/edge:{SECRET}@127.0.0.1:1") == "mqtt:/***@127.0.0.1:1"
+    assert redact_url(f"mqtt:edge:{SECRET}@127.0.0.1:1") == "***@127.0.0.1:1"
+    assert redact_url(f"  mqtt://edge:{SECRET}@h") == "  mqtt://***@h"
+
+
+def test_redact_text_hides_every_url_password_in_a_message() -> None:
+    message = f"Got unexpected extra arguments (mqtt://edge:{SECRET}@h https://a:{SECRET}@tdd x)"
+    assert redact_text(message) == "Got unexpected extra arguments (mqtt://***@h https://***@tdd x)"
+    assert redact_text(f"bus URL 'edge:{SECRET}@h' is bad") == "bus URL '***@h' is bad"
+    assert redact_text("nothing to hide: mqtt://h:1") == "nothing to hide: mqtt://h:1"
+
+
+@pytest.mark.parametrize(
+    "url",
+    [
+        f"mqtt://edge:S3#{SECRET}@127.0.0.1:1",
+        f"mqtt://edge:S3/{SECRET}@127.0.0.1:1",
+        f"mqtt://edge:S3?{SECRET}@127.0.0.1:1",
+        f"edge:{SECRET}@127.0.0.1:1",
+        f"//edge:{SECRET}@127.0.0.1:1",
+        f"mqtt:/edge:{SECRET}@127.0.0.1:1",
+        f"mqtt://edge:{SECRET}@[::1",
+    ],
+)
+def test_every_refused_bus_or_directory_url_is_shown_redacted(url: str) -> None:
+    from td2adaptor.runtime.discovery import check_directory_url
+    from td2adaptor.runtime.security import SecurityError, parse_broker_url
+
+    with pytest.raises(SecurityError) as bus:
+        parse_broker_url(url)
+    with pytest.raises(ValueError) as directory:
+        check_directory_url(url.replace("mqtt", "https"))
+    for failure in (bus, directory):
+        assert SECRET not in str(failure.value), str(failure.value)
+        assert "***@" in str(failure.value), str(failure.value)
+
+
+def test_a_yaml_syntax_error_says_where_without_quoting_the_line(tmp_path: Path) -> None:
+    from td2adaptor.runtime.config import ConfigError, load_fleet
+
+    config = tmp_path / "fleet.yaml"
+    config.write_text(f"robot: r1\nusername: edge\npassword: {SECRET}: oops\n")
+    with pytest.raises(ConfigError) as failure:
+        load_fleet(config, env={})
+    said = str(failure.value)
+    assert SECRET not in said, said
+    assert str(config) in said and "line 3" in said and "mapping values are not allowed" in said, said
 
 
 def test_no_secret_in_any_failure_output_of_the_command(basic_td: Path, broker: Mosquitto, tmp_path: Path) -> None:
     config = tmp_path / "fleet.yaml"
     config.write_text(f"bus: {broker.url}\nusername: edge\npassword: {SECRET}\n")
+    broken = tmp_path / "broken.yaml"
+    broken.write_text(f"bus: {broker.url}\nusername: edge\npassword: {SECRET}: oops\n")
     bad_setting = tmp_path / "bad.yaml"
     bad_setting.write_text(f"bus: {broker.url}\nusername: edge\npassword: {SECRET}\npoll_period: -1\n")
     env = {"TD2ADAPTOR_MQTT_USERNAME": "edge", "TD2ADAPTOR_MQTT_PASSWORD": SECRET}
@@ -77,6 +137,22 @@ def test_no_secret_in_any_failure_output_of_the_command(basic_td: Path, broker: 
         "a configuration file (then no adaptor package)": _run(basic_td, "--config", str(config)),
         "a bad setting beside the password": _run(basic_td, "--config", str(bad_setting)),
         "the environment (then no adaptor package)": _run(basic_td, "--bus", broker.url, env=env),
+        "a YAML syntax error on the password line": _run(basic_td, "--config", str(broken)),
+        "a '#' in the URL password": _run(basic_td, "--bus", f"mqtt://edge:S3#{SECRET}@127.0.0.1:{broker.port}"),
+        "a '/' in the URL password": _run(basic_td, "--bus", f"mqtt://edge:S3/{SECRET}@127.0.0.1:{broker.port}"),
+        "a '?' in the URL password": _run(basic_td, "--bus", f"mqtt://edge:S3?{SECRET}@127.0.0.1:{broker.port}"),
+        "a URL without scheme": _run(basic_td, "--bus", f"edge:{SECRET}@127.0.0.1:{broker.port}"),
+        "a URL without scheme, in the environment": _run(
+            basic_td, env={"TD2ADAPTOR_BUS": f"edge:{SECRET}@127.0.0.1:{broker.port}"}
+        ),
+        "a URL with '//' only": _run(basic_td, "--bus", f"//edge:{SECRET}@127.0.0.1:{broker.port}"),
+        "a URL with one '/'": _run(basic_td, "--bus", f"mqtt:/edge:{SECRET}@127.0.0.1:{broker.port}"),
+        "a directory URL with a password": _run(
+            basic_td, "--bus", broker.url, "--directory", f"https://a:S3#{SECRET}@tdd.example"
+        ),
+        "a forgotten --bus (an extra argument)": _run(basic_td, f"mqtt://edge:{SECRET}@127.0.0.1:{broker.port}"),
+        "an unknown command": _run_raw("--no-such-option", f"mqtt://edge:{SECRET}@h"),
+        "a URL given as the command": _run_raw(f"mqtt://edge:{SECRET}@h"),
     }
     for what, out in cases.items():
         assert SECRET not in out, f"{what}:\n{out}"
@@ -85,6 +161,8 @@ def test_no_secret_in_any_failure_output_of_the_command(basic_td: Path, broker: 
         "carries credentials" in cases["credentials in the bus URL"] and "***@" in cases["credentials in the bus URL"]
     )
     assert "poll_period" in cases["a bad setting beside the password"]
+    assert "line 3" in cases["a YAML syntax error on the password line"]
+    assert "unexpected extra argument (mqtt://***@127.0.0.1" in cases["a forgotten --bus (an extra argument)"]
 
 
 def test_no_secret_when_the_broker_refuses_or_is_not_there(
