@@ -210,7 +210,13 @@ def test_goal_feedback_result_rejected_aborted(
         last = payloads[-1]
         assert (last["state"], last["result"], last["message"]) == ("finished", "succeeded", "done")
         assert last["output"] == {"sequence": sequence(5)}
-        assert edge.check(edge.app.events) >= len(payloads)  # the WoT form of each feedback event, checked too
+        # the WoT form of each feedback event (published after the envelope's), checked too
+        edge.app.wait(
+            lambda ev: any(
+                f"/{WOT_LEVEL}/" in t and e.get("correlationId") == "five" and e.get("terminal") for t, e in ev
+            )
+        )
+        assert edge.check(edge.app.events) >= len(payloads)
 
         edge.send("", {"correlation": "neg", "payload": {"order": -1}})
         (refused,) = edge.ended("neg")
