@@ -123,15 +123,16 @@ def serve(
     *,
     broker: LocalBroker | None = None,
     env: Mapping[str, str] | None = None,
-    distro: str = "ros2",
+    distro: str | None = None,
 ) -> Engine:
     """Connect and start serving (the robot's TD published, retained, with the online status, and registered
     with the configured TD directory); `Engine.stop()` ends it (and clears the TD, here and there). `distro`:
-    the robot's ROS version, whose message layouts the events follow.
+    the robot's ROS version ("ros1" or "ros2"), whose message layouts the events and the TD follow; by default
+    the one `port` declares in a `distro` attribute (a ROS 1 bridge's port says "ros1"), else "ros2".
 
     The engine's bus is wrapped in a `ThingBus`: WoT consumers of the published TD use the robot on its WoT
     topics, native clients on the envelope topics."""
-    catalog = build_catalog(model, distro)
+    catalog = build_catalog(model, port_distro(port) if distro is None else distro)
     td = td_message(config, model, catalog)
     announce = () if td is None else (td,)
     bus = thing_bus(
@@ -147,6 +148,12 @@ def serve(
     if registration is not None:
         engine.on_stop.append(registration.stop)
     return engine
+
+
+def port_distro(port: RobotPort) -> str:
+    """The ROS version `port` declares (its `distro` attribute), "ros2" when it declares none."""
+    distro = getattr(port, "distro", None)
+    return distro if isinstance(distro, str) else "ros2"
 
 
 def register(config: RuntimeConfig, td: Message | None) -> Registration | None:
@@ -179,9 +186,10 @@ def serve_fleet(
     *,
     broker: LocalBroker | None = None,
     env: Mapping[str, str] | None = None,
-    distro: str = "ros2",
+    distro: str | None = None,
 ) -> list[Engine]:
-    """One engine per robot in one process (each with its own bus client and port); all or none start."""
+    """One engine per robot in one process (each with its own bus client and port); all or none start.
+    `distro` as in `serve` (by default each port's own)."""
     engines: list[Engine] = []
     try:
         for config in configs:

@@ -346,6 +346,8 @@ class Ros1Bridge:
 class BridgePort:
     """The `RobotPort` of one robot served by a `Ros1Bridge`."""
 
+    distro = "ros1"  # its messages have ROS 1 layouts (times in secs/nsecs): what `serve` follows by default
+
     def __init__(self, bridge: Ros1Bridge, robot: str) -> None:
         self.bridge = bridge
         self.robot = robot

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import stat
 import subprocess
 import sys
 from pathlib import Path
@@ -218,6 +219,25 @@ def test_a_name_too_long_for_a_file_is_refused_at_validate_and_nothing_is_writte
     result = runner.invoke(cli, ["gen", str(td), *IFACE, "--partial", "-o", str(out), "--no-cache"])
     assert result.exit_code == 1 and "internal error" not in result.output
     assert not out.exists()
+
+
+def test_expose_output_follows_the_umask(runner: CliRunner, tmp_path: Path) -> None:
+    """`-o FILE` gets the mode any file the user writes gets (it was 0600 whatever the umask), a file it
+    replaces too, as generated trees do; the atomic write's temporary file is gone."""
+    out = tmp_path / "r1.td.json"
+    out.write_text("old", encoding="utf-8")
+    out.chmod(0o600)
+    for mask, mode in ((0o022, 0o644), (0o002, 0o664), (0o077, 0o600)):
+        previous = os.umask(mask)
+        try:
+            result = runner.invoke(cli, ["expose", TD, *IFACE, "--robot", "r1", "--broker", "mqtt://h:1883", "-o",
+                                         str(out)])  # fmt: skip
+        finally:
+            os.umask(previous)
+        assert result.exit_code == 0, result.output
+        assert json.loads(out.read_text(encoding="utf-8"))["@type"] == "Thing"
+        assert stat.S_IMODE(out.stat().st_mode) == mode, oct(mask)
+    assert [p.name for p in tmp_path.iterdir()] == [out.name]
 
 
 def test_expose_writes_the_td_of_one_robot(runner: CliRunner, tmp_path: Path) -> None:

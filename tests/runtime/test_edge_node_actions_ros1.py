@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from jsonschema import Draft202012Validator  # type: ignore[import-untyped, unused-ignore]
 
 import td2adaptor
 from td2adaptor.diagnostics import Diagnostics, Severity
@@ -28,7 +29,7 @@ from td2adaptor.generation.backend import GenOptions
 from td2adaptor.generation.registry import load as load_backend
 from td2adaptor.model import Model
 from td2adaptor.model.events import Kind, build_catalog
-from td2adaptor.model.wot import WOT_LEVEL
+from td2adaptor.model.wot import WOT_LEVEL, wot_data, wot_specs, wot_topic
 from td2adaptor.runtime import RuntimeConfig, serve
 from td2adaptor.runtime.bridge import Ros1Bridge
 from td2adaptor.runtime.events import EventValidator
@@ -135,10 +136,16 @@ class Edge:
             environ=master.env(),
         )
         self.bridge.start()
-        self.engine = serve(model, self.bridge.port(robot), self.config)
+        self.engine = serve(model, self.bridge.port(robot), self.config, distro="ros1")
         self.app = AppClient(broker.url, [f"td2adaptor/{robot}/#"])
-        self.catalog = build_catalog(model)
+        self.catalog = build_catalog(model, "ros1")
         self.validator = EventValidator(self.catalog)
+        # what the node sends WoT consumers, per topic: validated with unknown keys forbidden too
+        self.wot = {
+            topic: (spec, Draft202012Validator(wot_data(spec)))
+            for spec in wot_specs(self.catalog)
+            if not spec.kind.inbound and (topic := wot_topic(spec, robot)) is not None
+        }
 
     def send(self, suffix: str, event: dict[str, Any]) -> None:
         self.app.send(f"td2adaptor/{self.config.robot}/{COMPONENT}/fibonacci{suffix}", {"source": "test", **event})
@@ -154,14 +161,22 @@ class Edge:
 
         return found(self.app.wait(lambda ev: bool(found(ev)), timeout=10))
 
-    def check(self, events: list[Event]) -> None:
+    def check(self, events: list[Event]) -> int:
+        """Every event and WoT message the node sent conforms to its strict ROS 1 schema; how many WoT messages."""
+        wot = 0
         for where, event in events:
-            if self.catalog.route(where) is not None or where.endswith("/td") or f"/{WOT_LEVEL}/" in where:
-                continue  # sent by the test, the robot's TD, or the WoT consumers' form of an event
+            if self.catalog.route(where) is not None or where.endswith("/td"):
+                continue  # sent by the test, or the robot's TD
+            if f"/{WOT_LEVEL}/" in where:
+                assert where in self.wot, where
+                assert list(self.wot[where][1].iter_errors(event)) == [], (where, event)
+                wot += 1
+                continue
             kind = Kind(event["type"])
             spec = self.catalog.find(kind, event.get("affordance") if kind not in (Kind.ERROR, Kind.STATUS) else None)
             assert spec.topic(event["robot"]) == where
             assert self.validator.errors(spec, event) == [], (where, event)
+        return wot
 
     def close(self) -> None:
         self.app.close()
@@ -193,6 +208,13 @@ def test_goal_feedback_result_rejected_aborted(
         last = payloads[-1]
         assert (last["state"], last["result"], last["message"]) == ("finished", "succeeded", "done")
         assert last["output"] == {"sequence": sequence(5)}
+        # the WoT form of each feedback event (published after the envelope's), checked too
+        edge.app.wait(
+            lambda ev: any(
+                f"/{WOT_LEVEL}/" in t and e.get("correlationId") == "five" and e.get("terminal") for t, e in ev
+            )
+        )
+        assert edge.check(edge.app.events) >= len(payloads)
 
         edge.send("", {"correlation": "neg", "payload": {"order": -1}})
         (refused,) = edge.ended("neg")

@@ -19,9 +19,11 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from click.testing import CliRunner
 
 import td2adaptor
 from td2adaptor.backends.rospy import generator as backend
+from td2adaptor.cli.main import cli
 from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.generation.backend import GenOptions
 from td2adaptor.runtime import LocalBroker, PortCallFailed, PortTimeout, PortUnavailable, RuntimeConfig, serve
@@ -233,6 +235,19 @@ def test_rosrun_edge_node_serves_a_robot_over_mosquitto(
     try:
         run.wait_ready()
         assert "via ROS 1 via /usr/bin/python3" in run.output()
+        # the TD it publishes (retained) is the one `expose --ros 1` writes for this robot: ROS 1 time names
+        exposed = CliRunner().invoke(
+            cli, ["expose", str(EXAMPLE / "td.json"), "-I", str(EXAMPLE / "interfaces"), "--robot", ROBOT,
+                  "--broker", broker.url, "--ros", "1"],
+        )  # fmt: skip
+        assert exposed.exit_code == 0, exposed.output
+        assert '"nsecs"' in exposed.output and '"nanosec"' not in exposed.output
+        late = AppClient(broker.url, [f"td2adaptor/{ROBOT}/td"], client_id="edge-ros1-late")  # gets it retained
+        try:
+            (published,) = [e for _, e in late.wait(lambda ev: bool(ev), timeout=10)]
+        finally:
+            late.close()
+        assert published == json.loads(exposed.output)
         goal = {"procedure": {"goals": [{"pose": {"x": 3.0, "y": 3.0, "theta": 0.0}}]}}
         app.send(f"td2adaptor/{ROBOT}/GoToComponent/gotoRun", {"correlation": "cli", "payload": goal})
         app.wait(terminal("feedback", "cli"), timeout=20)

@@ -6,13 +6,16 @@ from __future__ import annotations
 import array
 import json
 import os
+import re
 import sys
 from typing import Any
 
+from td2adaptor.model.events import ERROR_CODES
 from td2adaptor.runtime import NoValue, PortCallFailed, PortTimeout, PortUnavailable
 from td2adaptor.runtime.bridge import child_environment
 from td2adaptor.runtime.genport import Layout, _port_error, to_plain
 from td2adaptor.runtime.words import INTERNAL, describe
+from tests.conftest import REPO
 from tests.runtime.rb1 import rb1_model
 
 
@@ -74,6 +77,13 @@ def test_failures_are_told_in_user_words_never_class_names() -> None:
     for exc in (silent, PortUnavailable(), PortTimeout(), PortCallFailed(), NoValue(), KeyError("k")):
         text = describe(_port_error(exc) if exc is silent else exc)
         assert "Port" not in text and "Error" not in text and "Timeout" not in text, text
+
+
+def test_every_error_code_is_documented_in_order() -> None:
+    """Error codes are for programs to branch on: docs/wot.md says what each means and what to do."""
+    text = (REPO / "docs" / "wot.md").read_text(encoding="utf-8")
+    codes = re.findall(r"^\| `([a-z-]+)` \| ", text, re.MULTILINE)
+    assert codes[0] == "code" and codes[1:] == list(ERROR_CODES)  # the header, then one row per code
 
 
 def test_the_ros1_bridge_child_gets_no_ros2_and_none_of_our_site_packages() -> None:

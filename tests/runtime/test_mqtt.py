@@ -487,6 +487,35 @@ def test_the_robot_td_is_retained_while_online_and_cleared_on_stop(broker: Broke
     assert status is not None and json.loads(status)["payload"]["state"] == "offline"
 
 
+def test_serve_follows_the_ros_version_the_port_declares() -> None:
+    """`serve` without `distro`: the port's own ROS version (a ROS 1 bridge's port says "ros1"), "ros2" for a
+    port that declares none; an explicit `distro` still wins."""
+    from td2adaptor.backends.events.generator import exposed_td
+    from td2adaptor.runtime.bridge import BridgePort
+    from td2adaptor.runtime.localbus import LocalBroker
+    from tests.runtime.rb1 import LocalApp, rb1_catalog
+
+    class Ros1SimPort(SimPort):
+        distro = "ros1"
+
+    assert BridgePort.distro == "ros1"
+    model, public = rb1_model(), "mqtt://robots.example:1883"
+    for port, distro, expected in [
+        (SimPort(model, sim()), None, "ros2"),
+        (Ros1SimPort(model, sim()), None, "ros1"),
+        (Ros1SimPort(model, sim()), "ros2", "ros2"),
+    ]:
+        local = LocalBroker()
+        app = LocalApp(local, f"td2adaptor/{ROBOT}/td")
+        engine = serve(model, port, config("local", td_broker=public), broker=local, distro=distro)
+        try:
+            (td,) = [e for _, e in app.wait(lambda ev: bool(ev))]
+        finally:
+            engine.stop()
+        assert td == exposed_td(model, rb1_catalog(expected), robot=ROBOT, broker=public), (distro, expected)
+        assert ("nsecs" in json.dumps(td)) == (expected == "ros1")
+
+
 def test_a_td_broker_with_credentials_is_refused() -> None:
     with pytest.raises(SecurityError, match="credentials"):
         serve(rb1_model(), SimPort(rb1_model(), sim()), config("local", td_broker="mqtt://u:secret@h:1883"))

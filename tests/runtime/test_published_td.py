@@ -1,7 +1,8 @@
 """The Thing Description the edge node publishes (retained on td2adaptor/<robot>/td of a real mosquitto, as
-`td2adaptor run` does) conforms: to the official W3C TD 1.1 JSON Schema, to our own validator (`td2adaptor
-validate`), to the W3C MQTT binding template's JSON Schema, and to the Thingweb Playground's core validator
-(npm, pinned by .ci/setup-wot.sh), whose only remark is one we leave on purpose (see the last test)."""
+`td2adaptor run` does; the RB-1's, and nav_base's with its ROS actions) conforms: to the official W3C TD 1.1
+JSON Schema, to our own validator (`td2adaptor validate`), to the W3C MQTT binding template's JSON Schema, and
+to the Thingweb Playground's core validator (npm, pinned by .ci/setup-wot.sh), whose only remark is one we
+leave on purpose (see the last test)."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ import pytest
 
 import td2adaptor
 from td2adaptor.diagnostics import Severity
+from td2adaptor.model import Model
 from td2adaptor.runtime import RuntimeConfig, serve
 from td2adaptor.runtime.app import td_message
 from td2adaptor.runtime.simport import SimPort
@@ -32,19 +34,37 @@ BINDING_SCHEMA = wot_corpus.SHARED_WOT / "bindings" / "mqtt.schema.json"
 PLAYGROUND = Path(__file__).parent / "playground_validate.js"
 
 
-@pytest.fixture(scope="module")
-def published(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any]]:
-    """The TD as a client finds it on the broker while the robot is online."""
+NAV_BASE = REPO / "examples" / "nav_base"
+
+
+def nav_base_model() -> Model:
+    result = td2adaptor.compile(NAV_BASE / "td.json", interfaces=[NAV_BASE / "interfaces"])
+    assert result.model is not None, [d.message for d in result.diagnostics]
+    return result.model
+
+
+@pytest.fixture(scope="module", params=["rb1", "nav_base"])
+def published(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any]]:
+    """The TD as a client finds it on the broker while the robot is online: the RB-1's (procedures), and
+    nav_base's, whose long tasks are ROS actions (their own queryaction/cancelaction forms, `goal` inputs)."""
     broker = Mosquitto(tmp_path_factory.mktemp("broker"))
     broker.start()
-    model = rb1_model()
+    if request.param == "rb1":
+        model = rb1_model()
+        port = SimPort(model, sim())
+    else:  # only its TD is looked at: a port that has no value to give and writes nothing is enough
+        model = nav_base_model()
+        port = SimPort(model, sim(), readers={}, writers={})
     config = RuntimeConfig(robot=ROBOT, bus=broker.url, property_period=0, state_dir="")
-    engine = serve(model, SimPort(model, sim()), config)
+    engine = serve(model, port, config)
     app = AppClient(broker.url, [f"td2adaptor/{ROBOT}/td"])
     try:
         (_, td), *_ = app.wait(lambda ev: any("id" in e for _, e in ev), 20)
         message = td_message(config, model)
         assert message is not None and json.loads(message.payload) == td  # the text `run` publishes
+        if request.param == "nav_base":  # what it is here for
+            ops = [{f["op"] for f in a["forms"]} for a in td["actions"].values()]
+            assert sum({"invokeaction", "queryaction", "cancelaction"} <= o for o in ops) >= 3, ops
         yield td
     finally:
         app.close()
