@@ -127,6 +127,21 @@ def test_namespaces_with_the_same_interfaces_are_a_fleet_and_given_ones_that_dif
     assert "SCF104" in diags.codes()
 
 
+def test_a_robot_namespace_of_several_segments_is_refused_not_silently_ignored() -> None:
+    fleet = [topic(f"/fleet/{r}/{t}") for r in ("r1", "r2") for t in ("odom", "scan")]
+    for given in (("fleet/r1", "fleet/r2"), ("/fleet/r1",), ("r1", "/fleet/r2/")):
+        doc, diags = run(fleet, robot_namespaces=given)
+        assert doc is None and diags.codes() == ["SCF112"], given
+        assert "{{robotName}}" in diags.errors()[0].message
+    # found, not given: the first segment is the robot namespace (one Thing, robotName = fleet)
+    doc, diags = run(fleet)
+    assert doc is not None and doc["@type"] == "Thing" and "SCF105" in diags.codes()
+    assert doc["properties"]["r1Odom"]["forms"][0]["rosv:name"] == "/{{robotName}}/r1/odom"
+    # one segment given: replaced
+    doc, _ = run([topic(f"/{r}/{t}") for r in ("r1", "r2") for t in ("odom", "scan")], robot_namespaces=("/r1/",))
+    assert doc is not None and doc["properties"]["odom"]["forms"][0]["rosv:name"] == "/{{robotName}}/odom"
+
+
 def test_nothing_left_is_an_error() -> None:
     doc, diags = run([topic("/rosout")])
     assert doc is None and diags.codes() == ["SCF102"]
