@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from td2adaptor.diagnostics import Diagnostics
-from td2adaptor.model import ActionDef, MessageDef, ServiceDef
+from td2adaptor.model import ActionDef, ArrayKind, Constant, MessageDef, ServiceDef, TypeTable
 from td2adaptor.model.msgschema import message_schema
 from td2adaptor.rostypes.registry import TypeRegistry
 from td2adaptor.scaffold.layout import Layout, Plan
@@ -44,6 +44,46 @@ def td_style(schema: Any) -> Any:
     return out
 
 
+def _constant_groups(msg: MessageDef) -> dict[str, list[Constant]]:
+    """Field name -> the constants that enumerate its values: same type as the (scalar, primitive) field,
+    named `<FIELD NAME IN UPPER CASE>_...`, at least two of them; a constant matching several fields' prefixes
+    goes to the longest (`STATUS_CODE_X` to `status_code`, not `status`)."""
+    fields = [f for f in msg.fields if not f.type.is_message and f.type.array is ArrayKind.NONE]
+    groups: dict[str, list[Constant]] = {}
+    for const in msg.constants:
+        owners = [f for f in fields if f.type.base == const.type and const.name.startswith(f.name.upper() + "_")]
+        if owners:
+            groups.setdefault(max(owners, key=lambda f: len(f.name)).name, []).append(const)
+    return {name: group for name, group in groups.items() if len(group) >= 2}
+
+
+def with_enums(schema: dict[str, Any], msg: MessageDef, table: TypeTable) -> dict[str, Any]:
+    """`schema` (the TD style schema of `msg`) with `enum` (and a description naming the constants) on each
+    field a group of the message's constants enumerates (`_constant_groups`), in nested messages too. A TD
+    affair only: the event contract's message schema stays as wide as the type."""
+    props = schema.get("properties")
+    if not isinstance(props, dict):
+        return schema
+    groups = _constant_groups(msg)
+    for f in msg.fields:
+        sub = props.get(f.name)
+        if not isinstance(sub, dict):
+            continue
+        if f.name in groups:
+            consts = groups[f.name]
+            sub["enum"] = [c.value for c in consts]
+            named = ", ".join(
+                f"{c.name} = {c.value!r}" if isinstance(c.value, str) else f"{c.name} = {c.value}" for c in consts
+            )
+            sub["description"] = f"One of the message's constants: {named}."
+        elif f.type.is_message:
+            nested = table.get(f.type.base)
+            inner = sub.get("items") if f.type.array is not ArrayKind.NONE else sub
+            if isinstance(nested, MessageDef) and isinstance(inner, dict):
+                with_enums(inner, nested, table)
+    return schema
+
+
 class Schemas:
     """JSON Schemas of interface types, from the ROS 2 registry first, then ROS 1 (each built once)."""
 
@@ -72,11 +112,14 @@ class Schemas:
                 continue
             found = table.get(type_name)
             if isinstance(found, MessageDef):
-                return [td_style(message_schema(found, table))]
-            if isinstance(found, ServiceDef):
-                return [td_style(message_schema(m, table)) for m in (found.request, found.response)]
-            if isinstance(found, ActionDef):
-                return [td_style(message_schema(m, table)) for m in (found.goal, found.result, found.feedback)]
+                messages: tuple[MessageDef, ...] = (found,)
+            elif isinstance(found, ServiceDef):
+                messages = (found.request, found.response)
+            elif isinstance(found, ActionDef):
+                messages = (found.goal, found.result, found.feedback)
+            else:
+                continue
+            return [with_enums(td_style(message_schema(m, table)), m, table) for m in messages]
         return None
 
 

@@ -3,11 +3,16 @@ namespaces and fleets (the real graphs are in test_ros2 / test_ros1 / test_offli
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from td2adaptor.diagnostics import Diagnostics
+from td2adaptor.model.msgschema import message_schema
+from td2adaptor.rostypes.registry import TypeRegistry
 from td2adaptor.scaffold import Options, scaffold
 from td2adaptor.scaffold.graph import Endpoint, Filters, Graph, select
+from td2adaptor.scaffold.writer import Schemas
+from tests.scaffold.common import compiled_errors, w3c_errors
 
 F64, TRIGGER = "std_msgs/msg/Float64", "std_srvs/srv/Trigger"
 
@@ -197,3 +202,45 @@ def test_the_five_topics_of_an_actionlib_server_are_one_action_and_four_of_them_
     assert [(e.kind, e.name, e.type) for e in folded] == [("action", "/r/move", "nav_msgs/action/Move")]
     partial = select(Graph("g", five[:4]), Filters(), Diagnostics())
     assert [e.kind for e in partial] == ["topic"] * 4
+
+
+def test_a_group_of_constants_named_after_a_field_becomes_its_enum(tmp_path: Path) -> None:
+    doc, diags = run([topic("/robot/battery", type_="sensor_msgs/msg/BatteryState")])
+    assert doc is not None and not diags.has_errors
+    battery = doc["properties"]["battery"]["properties"]
+    status = battery["power_supply_status"]
+    assert status["enum"] == [0, 1, 2, 3, 4] and status["type"] == "integer"
+    assert "POWER_SUPPLY_STATUS_CHARGING = 1" in status["description"]
+    assert battery["power_supply_technology"]["enum"] == list(range(9))
+    assert "enum" not in battery["voltage"] and "enum" not in battery["present"]
+    assert compiled_errors(doc, tmp_path) == [] and w3c_errors(doc) == []
+    # nested, in an array: action_msgs/GoalStatus.status and its STATUS_* constants
+    schemas = Schemas([], Diagnostics())
+    status_list = schemas.parts("action_msgs/msg/GoalStatusArray")[0]["properties"]["status_list"]  # type: ignore[index]
+    assert status_list["items"]["properties"]["status"]["enum"] == [0, 1, 2, 3, 4, 5, 6]
+    # constants not named after a field (Marker's ARROW, ADD, ... for `type` and `action`): no enum
+    marker = schemas.parts("visualization_msgs/msg/Marker")[0]["properties"]  # type: ignore[index]
+    assert not [name for name, sub in marker.items() if "enum" in sub]
+    # the event contract's message schema is not narrowed
+    table = TypeRegistry("ros2", [], Diagnostics()).table(["sensor_msgs/msg/BatteryState"])
+    contract = message_schema(table.get("sensor_msgs/msg/BatteryState"), table)  # type: ignore[arg-type]
+    assert "enum" not in contract["properties"]["power_supply_status"]
+
+
+def test_the_enum_rule_wants_the_same_type_two_constants_and_takes_the_longest_prefix(tmp_path: Path) -> None:
+    folder = tmp_path / "enum_test_msgs" / "msg"
+    folder.mkdir(parents=True)
+    (folder / "Modes.msg").write_text(
+        "uint8 MODE_IDLE=0\nuint8 MODE_RUN=1\nuint8 MODE_LIMIT_LOW=2\nuint8 MODE_LIMIT_HIGH=9\n"
+        "int32 LEVEL_A=1\nint32 LEVEL_B=2\nuint8 SOLO_ONE=1\nstring COLOUR_RED=red\nstring COLOUR_BLUE=blue\n"
+        "uint8 mode\nuint8 mode_limit\nuint8 level\nuint8 solo\nstring colour\nuint8[] mode_list\n",
+        encoding="utf-8",
+    )
+    parts = Schemas([tmp_path], Diagnostics()).parts("enum_test_msgs/msg/Modes")
+    assert parts is not None
+    props = parts[0]["properties"]
+    assert props["mode"]["enum"] == [0, 1] and props["mode_limit"]["enum"] == [2, 9]
+    assert props["colour"]["enum"] == ["red", "blue"] and "COLOUR_RED = 'red'" in props["colour"]["description"]
+    assert "enum" not in props["level"]  # LEVEL_* are int32, the field uint8
+    assert "enum" not in props["solo"]  # one constant is not a group (more likely a limit)
+    assert "enum" not in props["mode_list"] and "enum" not in props["mode_list"]["items"]
