@@ -57,9 +57,56 @@ def _constant_groups(msg: MessageDef) -> dict[str, list[Constant]]:
     return {name: group for name, group in groups.items() if len(group) >= 2}
 
 
-def with_enums(schema: dict[str, Any], msg: MessageDef, table: TypeTable) -> dict[str, Any]:
-    """`schema` (the TD style schema of `msg`) with `enum` (and a description naming the constants) on each
-    field a group of the message's constants enumerates (`_constant_groups`), in nested messages too. A TD
+#: units a comment may name: symbols (alone, or in brackets: `[m/s]`) and words after "in" (`in Volts`)
+_UNIT_SYMBOLS = frozenset(
+    {"m", "mm", "cm", "km", "m/s", "m/s^2", "m/s2", "rad", "rad/s", "rad/s^2", "deg", "s", "ms", "us", "ns", "Hz"}
+    | {"V", "mV", "A", "mA", "Ah", "W", "Wh", "J", "N", "Nm", "Pa", "kg", "g", "K", "%"}
+)
+_UNIT_WORDS = {
+    "volts": "V",
+    "volt": "V",
+    "amperes": "A",
+    "amps": "A",
+    "watts": "W",
+    "meters": "m",
+    "metres": "m",
+    "seconds": "s",
+    "radians": "rad",
+    "kelvin": "K",
+    "celsius": "°C",
+    "hertz": "Hz",
+    "percent": "%",
+    "kilograms": "kg",
+    "minutes": "min",
+    "hours": "h",
+}
+
+
+def _only_unit(comment: str) -> bool:
+    text = comment.strip().rstrip(".")
+    return text in _UNIT_SYMBOLS or text.lower() in _UNIT_WORDS
+
+
+def unit_of(comment: str) -> str | None:
+    """The unit a field's comment names where that is plain: the whole comment a unit symbol (`V`), a
+    symbol in brackets (`speed [m/s]`), or a unit word after "in" (`Voltage in Volts`, `in degrees Celsius`)."""
+    text = comment.strip().rstrip(".")
+    if text in _UNIT_SYMBOLS:
+        return text
+    if text.lower() in _UNIT_WORDS:
+        return _UNIT_WORDS[text.lower()]
+    for inner in re.findall(r"\[([^\]]+)\]", text):
+        symbol = str(inner).strip()
+        if symbol in _UNIT_SYMBOLS:
+            return symbol
+    found = re.search(r"\bin (?:degrees )?([A-Za-z]+)", text)
+    return _UNIT_WORDS.get(found[1].lower()) if found else None
+
+
+def annotated(schema: dict[str, Any], msg: MessageDef, table: TypeTable) -> dict[str, Any]:
+    """`schema` (the TD style schema of `msg`) with, on each field and in nested messages: the field's .msg
+    comment as `description` (and its `unit` when `unit_of` finds one), and `enum` with the constants named
+    in the description on a field a group of the message's constants enumerates (`_constant_groups`). A TD
     affair only: the event contract's message schema stays as wide as the type."""
     props = schema.get("properties")
     if not isinstance(props, dict):
@@ -69,18 +116,25 @@ def with_enums(schema: dict[str, Any], msg: MessageDef, table: TypeTable) -> dic
         sub = props.get(f.name)
         if not isinstance(sub, dict):
             continue
+        unit = unit_of(f.comment) if f.comment else None
+        # a comment that only names the unit (`# V`, `# minutes`) is the unit, not a description
+        texts = [f.comment] if f.comment and not _only_unit(f.comment) else []
         if f.name in groups:
             consts = groups[f.name]
             sub["enum"] = [c.value for c in consts]
             named = ", ".join(
                 f"{c.name} = {c.value!r}" if isinstance(c.value, str) else f"{c.name} = {c.value}" for c in consts
             )
-            sub["description"] = f"One of the message's constants: {named}."
-        elif f.type.is_message:
+            texts.append(f"One of the message's constants: {named}.")
+        if texts:
+            sub["description"] = " ".join(texts)
+        if unit is not None:
+            sub["unit"] = unit
+        if f.type.is_message:
             nested = table.get(f.type.base)
             inner = sub.get("items") if f.type.array is not ArrayKind.NONE else sub
             if isinstance(nested, MessageDef) and isinstance(inner, dict):
-                with_enums(inner, nested, table)
+                annotated(inner, nested, table)
     return schema
 
 
@@ -119,7 +173,7 @@ class Schemas:
                 messages = (found.goal, found.result, found.feedback)
             else:
                 continue
-            return [with_enums(td_style(message_schema(m, table)), m, table) for m in messages]
+            return [annotated(td_style(message_schema(m, table)), m, table) for m in messages]
         return None
 
 

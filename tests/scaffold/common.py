@@ -71,14 +71,15 @@ def w3c_errors(doc: dict[str, Any]) -> list[str]:
 
 
 def without_texts(schema: Any) -> Any:
-    """A data schema without title/description (the example's are hand-written; property names are kept)."""
+    """A data schema without title/description/unit (the example's are hand-written, the scaffold's come from
+    .msg comments; property names are kept)."""
     if isinstance(schema, list):
         return [without_texts(s) for s in schema]
     if not isinstance(schema, dict):
         return schema
     out = {}
     for key, value in schema.items():
-        if key in ("title", "description"):
+        if key in ("title", "description", "unit"):
             continue
         if key == "properties" and isinstance(value, dict):
             out[key] = {k: without_texts(v) for k, v in value.items()}

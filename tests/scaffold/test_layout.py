@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from td2adaptor.diagnostics import Diagnostics
+from td2adaptor.model import MessageDef
 from td2adaptor.model.msgschema import message_schema
 from td2adaptor.rostypes.registry import TypeRegistry
 from td2adaptor.scaffold import Options, scaffold
@@ -244,3 +245,61 @@ def test_the_enum_rule_wants_the_same_type_two_constants_and_takes_the_longest_p
     assert "enum" not in props["level"]  # LEVEL_* are int32, the field uint8
     assert "enum" not in props["solo"]  # one constant is not a group (more likely a limit)
     assert "enum" not in props["mode_list"] and "enum" not in props["mode_list"]["items"]
+
+
+def test_field_comments_of_interface_files_become_descriptions_and_units(tmp_path: Path) -> None:
+    folder = tmp_path / "comment_test_msgs" / "msg"
+    folder.mkdir(parents=True)
+    text = (
+        "# The message's own comment: no field's.\n"
+        "float32 voltage  # Voltage in Volts\n"
+        "\n"
+        "# How fast it goes,\n"
+        "# measured at the wheels.\n"
+        "float64 speed  # [m/s]\n"
+        "float32 charge  # %\n"
+        "uint8 MODE_IDLE=0  # idle\n"
+        "uint8 MODE_RUN=1\n"
+        "# the mode\n"
+        "uint8 mode\n"
+        "float32 temperature  # in degrees Celsius\n"
+        "string name\n"
+        "Inner inner  # the nested part\n"
+    )
+    (folder / "Commented.msg").write_text(text, encoding="utf-8")
+    (folder / "Inner.msg").write_text("int32 count  # how many; not a unit\n", encoding="utf-8")
+    schemas = Schemas([tmp_path], Diagnostics())
+    parts = schemas.parts("comment_test_msgs/msg/Commented")
+    assert parts is not None
+    props = parts[0]["properties"]
+    assert props["voltage"]["description"] == "Voltage in Volts" and props["voltage"]["unit"] == "V"
+    speed = props["speed"]
+    assert speed["description"] == "How fast it goes, measured at the wheels. [m/s]" and speed["unit"] == "m/s"
+    assert props["charge"] == {"type": "number", "unit": "%"}  # a comment that only names the unit
+    assert props["mode"]["description"].startswith("the mode One of the message's constants: MODE_IDLE = 0")
+    assert props["temperature"]["unit"] == "°C"
+    assert "description" not in props["name"] and "unit" not in props["name"]
+    inner = props["inner"]
+    assert inner["description"] == "the nested part"
+    assert inner["properties"]["count"] == {
+        "type": "integer", "minimum": -(2**31), "maximum": 2**31 - 1, "description": "how many; not a unit",
+    }  # fmt: skip
+    # a comment is text only: the definition (equality, hash, ROS 1 md5) is the one without comments
+    registry = TypeRegistry("ros1", [tmp_path], Diagnostics())
+    plain = tmp_path / "plain"
+    (plain / "comment_test_msgs" / "msg").mkdir(parents=True)
+    for name, body in (("Commented", text), ("Inner", "int32 count\n")):
+        lines = [line.split("#")[0].rstrip() for line in body.splitlines() if line.split("#")[0].strip()]
+        (plain / "comment_test_msgs" / "msg" / f"{name}.msg").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    bare = TypeRegistry("ros1", [plain], Diagnostics())
+    name = "comment_test_msgs/msg/Commented"
+    commented = registry.table([name]).get(name)
+    assert isinstance(commented, MessageDef) and commented == bare.table([name]).get(name)
+    assert [f.comment for f in commented.fields][:2] == [
+        "Voltage in Volts",
+        "How fast it goes, measured at the wheels. [m/s]",
+    ]
+    assert registry.ros1_definition(name)[1] == bare.ros1_definition(name)[1]
+    # the built-in type sets (rosbags' stores) carry no comments
+    battery = schemas.parts("sensor_msgs/msg/BatteryState")
+    assert battery is not None and "description" not in battery[0]["properties"]["voltage"]
