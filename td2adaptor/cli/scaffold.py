@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -137,7 +138,9 @@ def scaffold(
         from td2adaptor.scaffold.merge import merge
 
         doc = merge(existing, doc, diags)
-    ok = report(list(diags), fmt if output != "-" else "human", label=f"scaffold {source}")
+    # located at the source (the listing or bag, ros2, ros1) unless a diagnostic names its own file
+    located = [d if d.file else replace(d, file=source) for d in diags]
+    ok = report(located, fmt if output != "-" else "human", label=f"scaffold {source}")
     if doc is None or not ok:
         sys.exit(EXIT_INVALID)
     write_json(doc, output)

@@ -352,6 +352,12 @@ _ENTRIES: tuple[Entry, ...] = (
     Entry("SCF109", (_W,), "--merge: an affordance of the existing TD is not in the source; it is kept as it is"),
     Entry("SCF110", (_E,), "--merge: the existing TD cannot be read or is not a TD"),
     Entry("SCF111", (_E,), "scaffold listing: an entry is not a name with a type"),
+    Entry(
+        "SCF112",
+        (_E,),
+        "--robot-namespace of several segments: {{robotName}} stands for one name segment",
+        "give one segment (e.g. rb1_base_a): robotName is also the robot id and its MQTT topic root",
+    ),
     # -- CFG9: project configuration ---------------------------------------------------------------------
     Entry("CFG900", (_E,), "configuration file cannot be read"),
     Entry("CFG901", (_E,), "configuration file is not valid TOML"),

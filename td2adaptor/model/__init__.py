@@ -87,6 +87,9 @@ class MessageField:
     name: str
     type: FieldType
     default: Any = None  # ROS 2 default value from the definition, if any
+    #: the field's comment in its interface file (the comment lines right above it and its trailing comment);
+    #: "" from a type store. Text only: not part of equality or hash, so it changes no definition or md5.
+    comment: str = field(default="", compare=False)
 
 
 @dataclass(frozen=True)

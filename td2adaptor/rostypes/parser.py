@@ -67,6 +67,11 @@ def _strip_comment(line: str) -> str:
     return line
 
 
+def _comment_text(text: str) -> str:
+    """The words of a comment (`  # Voltage in Volts` → `Voltage in Volts`); "" for no comment."""
+    return text.strip().lstrip("#").strip()
+
+
 def _unquote(text: str) -> str:
     """A quoted ROS 2 string literal → its value; unquoted text is returned as is."""
     if len(text) >= 2 and text[0] == text[-1] and text[0] in "\"'":
@@ -218,10 +223,18 @@ class FileParser:
         texts: list[str] = []
         field_names: set[str] = set()
         constant_names: set[str] = set()
+        above: list[str] = []  # comment lines right above the current line
+        opening = True  # nothing but comments so far: a comment block here is the message's, not a field's
         for lineno, line in lines:
             code = _strip_comment(line).strip()
             if not code:
+                if line.strip():
+                    above.append(_comment_text(line))
+                else:
+                    above, opening = [], False
                 continue
+            leading, above = ([] if opening else above), []
+            opening = False
             indent = len(line) - len(line.lstrip())
             pieces = code.split(None, 1)
             token, rest = pieces[0], pieces[1] if len(pieces) > 1 else ""
@@ -263,7 +276,8 @@ class FileParser:
             if default_text:
                 default_col = line.find(default_text, line.find(fname, indent + len(token)) + len(fname)) + 1
                 default = self.default(ftype, default_text, lineno, default_col)
-            fields.append(MessageField(fname, ftype, default))
+            comment = " ".join(t for t in (*leading, _comment_text(line[len(_strip_comment(line)) :])) if t)
+            fields.append(MessageField(fname, ftype, default, comment))
             field_lines.append(lineno)
         msg = MessageDef(name, tuple(fields), tuple(constants), origin=self.origin)
         return ParsedDef(msg, tuple(texts), tuple(field_lines), self.file)

@@ -43,6 +43,8 @@ def scaffold(graph: Graph, options: Options, diags: Diagnostics) -> dict[str, An
         )
         return None
     namespaces = robot_namespaces(endpoints, options.robot_namespaces, diags)
+    if diags.has_errors:
+        return None
     if namespaces:
         kind = "robot namespaces (a fleet: a Thing Model)" if len(namespaces) > 1 else "robot namespace"
         diags.info("SCF105", f"{kind}: {', '.join(namespaces)} written as {{{{robotName}}}}")

@@ -83,7 +83,17 @@ def robot_namespaces(endpoints: Sequence[Endpoint], given: Sequence[str], diags:
     """The robot namespace(s): given ones, else several with the same interfaces (a fleet), else the one
     holding most endpoints when it holds at least two and at least half of them, else none."""
     if given:
-        return [g.strip("/") for g in given if g.strip("/")]
+        chosen = [g.strip("/") for g in given if g.strip("/")]
+        deep = [ns for ns in chosen if "/" in ns]
+        if deep:
+            diags.error(
+                "SCF112",
+                f"robot namespace {', '.join(deep)} has several segments: {PLACEHOLDER} stands for the first "
+                "segment of a name only",
+                hint="give one segment (e.g. rb1_base_a): robotName is also the robot id and its MQTT topic root",
+            )
+            return []
+        return chosen
     counts = Counter(ns for e in endpoints if (ns := _first(e.name)) is not None)
     signatures = _signatures(endpoints)
     groups: dict[Signature, list[str]] = defaultdict(list)

@@ -4,9 +4,10 @@ Affordances are matched by their ROS name (`rosv:name` of the first form), not b
 hand-chosen name survives. From the existing TD are kept: every Thing-level member, affordance names,
 titles, descriptions, semantic annotations (`@type`, any prefixed term, `rosv:component`,
 `rosv:procedure`), `safe`/`idempotent`, extra forms and form members the scaffold does not own, and the
-titles, descriptions and units inside data schemas. From the source come the ROS binding (type, role,
-interface, QoS) and the data schemas' structure. Existing affordances the source does not show are kept
-(SCF109); new ones are added.
+titles, descriptions, units and enums inside data schemas (wherever the existing TD has the schema, also
+when it has none of them: the scaffold's texts and enums go only into what is new). From the source come
+the ROS binding (type, role, interface, QoS) and the data schemas' structure. Existing affordances the
+source does not show are kept (SCF109); new ones are added.
 """
 
 from __future__ import annotations
@@ -20,6 +21,9 @@ SECTIONS = ("properties", "actions", "events")
 _OWNED_FORM_KEYS = frozenset({"href", "op", "rosv:name", "rosv:type", "rosv:interface", "rosv:role", "rosv:latch"})
 #: data schema members that describe rather than constrain: always the existing TD's
 _ANNOTATIONS = frozenset({"title", "titles", "description", "descriptions", "unit", "@type", "comment", "default"})
+#: what the existing TD decides wherever it has the schema, also by leaving it out: its texts, and `enum` (the
+#: scaffold's, from a message's constants, may be narrower than what the robot sends)
+_PERSONS = _ANNOTATIONS | {"enum"}
 #: affordance members a person decides: the existing TD's when it has them
 _DECIDED = frozenset({"safe", "idempotent"})
 
@@ -36,9 +40,9 @@ def merge_schema(old: Any, new: Any) -> Any:
     """`new`'s structure with `old`'s annotations wherever the two share a path."""
     if not isinstance(old, dict) or not isinstance(new, dict):
         return new
-    out = dict(new)
+    out = {k: v for k, v in new.items() if k not in _PERSONS}
     for key, value in old.items():
-        if key in _ANNOTATIONS or (":" in key and key not in out):
+        if key in _PERSONS or (":" in key and key not in out):
             out[key] = value
     for key in ("items", "input", "output"):
         if key in old and key in new:

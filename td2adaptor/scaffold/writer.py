@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from td2adaptor.diagnostics import Diagnostics
-from td2adaptor.model import ActionDef, MessageDef, ServiceDef
+from td2adaptor.model import ActionDef, ArrayKind, Constant, MessageDef, ServiceDef, TypeTable
 from td2adaptor.model.msgschema import message_schema
 from td2adaptor.rostypes.registry import TypeRegistry
 from td2adaptor.scaffold.layout import Layout, Plan
@@ -44,6 +44,100 @@ def td_style(schema: Any) -> Any:
     return out
 
 
+def _constant_groups(msg: MessageDef) -> dict[str, list[Constant]]:
+    """Field name -> the constants that enumerate its values: same type as the (scalar, primitive) field,
+    named `<FIELD NAME IN UPPER CASE>_...`, at least two of them; a constant matching several fields' prefixes
+    goes to the longest (`STATUS_CODE_X` to `status_code`, not `status`)."""
+    fields = [f for f in msg.fields if not f.type.is_message and f.type.array is ArrayKind.NONE]
+    groups: dict[str, list[Constant]] = {}
+    for const in msg.constants:
+        owners = [f for f in fields if f.type.base == const.type and const.name.startswith(f.name.upper() + "_")]
+        if owners:
+            groups.setdefault(max(owners, key=lambda f: len(f.name)).name, []).append(const)
+    return {name: group for name, group in groups.items() if len(group) >= 2}
+
+
+#: units a comment may name: symbols (alone, or in brackets: `[m/s]`) and words after "in" (`in Volts`)
+_UNIT_SYMBOLS = frozenset(
+    {"m", "mm", "cm", "km", "m/s", "m/s^2", "m/s2", "rad", "rad/s", "rad/s^2", "deg", "s", "ms", "us", "ns", "Hz"}
+    | {"V", "mV", "A", "mA", "Ah", "W", "Wh", "J", "N", "Nm", "Pa", "kg", "g", "K", "%"}
+)
+_UNIT_WORDS = {
+    "volts": "V",
+    "volt": "V",
+    "amperes": "A",
+    "amps": "A",
+    "watts": "W",
+    "meters": "m",
+    "metres": "m",
+    "seconds": "s",
+    "radians": "rad",
+    "kelvin": "K",
+    "celsius": "°C",
+    "hertz": "Hz",
+    "percent": "%",
+    "kilograms": "kg",
+    "minutes": "min",
+    "hours": "h",
+}
+
+
+def _only_unit(comment: str) -> bool:
+    text = comment.strip().rstrip(".")
+    return text in _UNIT_SYMBOLS or text.lower() in _UNIT_WORDS
+
+
+def unit_of(comment: str) -> str | None:
+    """The unit a field's comment names where that is plain: the whole comment a unit symbol (`V`), a
+    symbol in brackets (`speed [m/s]`), or a unit word after "in" (`Voltage in Volts`, `in degrees Celsius`)."""
+    text = comment.strip().rstrip(".")
+    if text in _UNIT_SYMBOLS:
+        return text
+    if text.lower() in _UNIT_WORDS:
+        return _UNIT_WORDS[text.lower()]
+    for inner in re.findall(r"\[([^\]]+)\]", text):
+        symbol = str(inner).strip()
+        if symbol in _UNIT_SYMBOLS:
+            return symbol
+    found = re.search(r"\bin (?:degrees )?([A-Za-z]+)", text)
+    return _UNIT_WORDS.get(found[1].lower()) if found else None
+
+
+def annotated(schema: dict[str, Any], msg: MessageDef, table: TypeTable) -> dict[str, Any]:
+    """`schema` (the TD style schema of `msg`) with, on each field and in nested messages: the field's .msg
+    comment as `description` (and its `unit` when `unit_of` finds one), and `enum` with the constants named
+    in the description on a field a group of the message's constants enumerates (`_constant_groups`). A TD
+    affair only: the event contract's message schema stays as wide as the type."""
+    props = schema.get("properties")
+    if not isinstance(props, dict):
+        return schema
+    groups = _constant_groups(msg)
+    for f in msg.fields:
+        sub = props.get(f.name)
+        if not isinstance(sub, dict):
+            continue
+        unit = unit_of(f.comment) if f.comment else None
+        # a comment that only names the unit (`# V`, `# minutes`) is the unit, not a description
+        texts = [f.comment] if f.comment and not _only_unit(f.comment) else []
+        if f.name in groups:
+            consts = groups[f.name]
+            sub["enum"] = [c.value for c in consts]
+            named = ", ".join(
+                f"{c.name} = {c.value!r}" if isinstance(c.value, str) else f"{c.name} = {c.value}" for c in consts
+            )
+            texts.append(f"One of the message's constants: {named}.")
+        if texts:
+            sub["description"] = " ".join(texts)
+        if unit is not None:
+            sub["unit"] = unit
+        if f.type.is_message:
+            nested = table.get(f.type.base)
+            inner = sub.get("items") if f.type.array is not ArrayKind.NONE else sub
+            if isinstance(nested, MessageDef) and isinstance(inner, dict):
+                annotated(inner, nested, table)
+    return schema
+
+
 class Schemas:
     """JSON Schemas of interface types, from the ROS 2 registry first, then ROS 1 (each built once)."""
 
@@ -72,11 +166,14 @@ class Schemas:
                 continue
             found = table.get(type_name)
             if isinstance(found, MessageDef):
-                return [td_style(message_schema(found, table))]
-            if isinstance(found, ServiceDef):
-                return [td_style(message_schema(m, table)) for m in (found.request, found.response)]
-            if isinstance(found, ActionDef):
-                return [td_style(message_schema(m, table)) for m in (found.goal, found.result, found.feedback)]
+                messages: tuple[MessageDef, ...] = (found,)
+            elif isinstance(found, ServiceDef):
+                messages = (found.request, found.response)
+            elif isinstance(found, ActionDef):
+                messages = (found.goal, found.result, found.feedback)
+            else:
+                continue
+            return [annotated(td_style(message_schema(m, table)), m, table) for m in messages]
         return None
 
 

@@ -3,11 +3,17 @@ namespaces and fleets (the real graphs are in test_ros2 / test_ros1 / test_offli
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from td2adaptor.diagnostics import Diagnostics
+from td2adaptor.model import MessageDef
+from td2adaptor.model.msgschema import message_schema
+from td2adaptor.rostypes.registry import TypeRegistry
 from td2adaptor.scaffold import Options, scaffold
 from td2adaptor.scaffold.graph import Endpoint, Filters, Graph, select
+from td2adaptor.scaffold.writer import Schemas
+from tests.scaffold.common import compiled_errors, w3c_errors
 
 F64, TRIGGER = "std_msgs/msg/Float64", "std_srvs/srv/Trigger"
 
@@ -127,6 +133,21 @@ def test_namespaces_with_the_same_interfaces_are_a_fleet_and_given_ones_that_dif
     assert "SCF104" in diags.codes()
 
 
+def test_a_robot_namespace_of_several_segments_is_refused_not_silently_ignored() -> None:
+    fleet = [topic(f"/fleet/{r}/{t}") for r in ("r1", "r2") for t in ("odom", "scan")]
+    for given in (("fleet/r1", "fleet/r2"), ("/fleet/r1",), ("r1", "/fleet/r2/")):
+        doc, diags = run(fleet, robot_namespaces=given)
+        assert doc is None and diags.codes() == ["SCF112"], given
+        assert "{{robotName}}" in diags.errors()[0].message
+    # found, not given: the first segment is the robot namespace (one Thing, robotName = fleet)
+    doc, diags = run(fleet)
+    assert doc is not None and doc["@type"] == "Thing" and "SCF105" in diags.codes()
+    assert doc["properties"]["r1Odom"]["forms"][0]["rosv:name"] == "/{{robotName}}/r1/odom"
+    # one segment given: replaced
+    doc, _ = run([topic(f"/{r}/{t}") for r in ("r1", "r2") for t in ("odom", "scan")], robot_namespaces=("/r1/",))
+    assert doc is not None and doc["properties"]["odom"]["forms"][0]["rosv:name"] == "/{{robotName}}/odom"
+
+
 def test_nothing_left_is_an_error() -> None:
     doc, diags = run([topic("/rosout")])
     assert doc is None and diags.codes() == ["SCF102"]
@@ -182,3 +203,103 @@ def test_the_five_topics_of_an_actionlib_server_are_one_action_and_four_of_them_
     assert [(e.kind, e.name, e.type) for e in folded] == [("action", "/r/move", "nav_msgs/action/Move")]
     partial = select(Graph("g", five[:4]), Filters(), Diagnostics())
     assert [e.kind for e in partial] == ["topic"] * 4
+
+
+def test_a_group_of_constants_named_after_a_field_becomes_its_enum(tmp_path: Path) -> None:
+    doc, diags = run([topic("/robot/battery", type_="sensor_msgs/msg/BatteryState")])
+    assert doc is not None and not diags.has_errors
+    battery = doc["properties"]["battery"]["properties"]
+    status = battery["power_supply_status"]
+    assert status["enum"] == [0, 1, 2, 3, 4] and status["type"] == "integer"
+    assert "POWER_SUPPLY_STATUS_CHARGING = 1" in status["description"]
+    assert battery["power_supply_technology"]["enum"] == list(range(9))
+    assert "enum" not in battery["voltage"] and "enum" not in battery["present"]
+    assert compiled_errors(doc, tmp_path) == [] and w3c_errors(doc) == []
+    # nested, in an array: action_msgs/GoalStatus.status and its STATUS_* constants
+    schemas = Schemas([], Diagnostics())
+    status_list = schemas.parts("action_msgs/msg/GoalStatusArray")[0]["properties"]["status_list"]  # type: ignore[index]
+    assert status_list["items"]["properties"]["status"]["enum"] == [0, 1, 2, 3, 4, 5, 6]
+    # constants not named after a field (Marker's ARROW, ADD, ... for `type` and `action`): no enum
+    marker = schemas.parts("visualization_msgs/msg/Marker")[0]["properties"]  # type: ignore[index]
+    assert not [name for name, sub in marker.items() if "enum" in sub]
+    # the event contract's message schema is not narrowed
+    table = TypeRegistry("ros2", [], Diagnostics()).table(["sensor_msgs/msg/BatteryState"])
+    contract = message_schema(table.get("sensor_msgs/msg/BatteryState"), table)  # type: ignore[arg-type]
+    assert "enum" not in contract["properties"]["power_supply_status"]
+
+
+def test_the_enum_rule_wants_the_same_type_two_constants_and_takes_the_longest_prefix(tmp_path: Path) -> None:
+    folder = tmp_path / "enum_test_msgs" / "msg"
+    folder.mkdir(parents=True)
+    (folder / "Modes.msg").write_text(
+        "uint8 MODE_IDLE=0\nuint8 MODE_RUN=1\nuint8 MODE_LIMIT_LOW=2\nuint8 MODE_LIMIT_HIGH=9\n"
+        "int32 LEVEL_A=1\nint32 LEVEL_B=2\nuint8 SOLO_ONE=1\nstring COLOUR_RED=red\nstring COLOUR_BLUE=blue\n"
+        "uint8 mode\nuint8 mode_limit\nuint8 level\nuint8 solo\nstring colour\nuint8[] mode_list\n",
+        encoding="utf-8",
+    )
+    parts = Schemas([tmp_path], Diagnostics()).parts("enum_test_msgs/msg/Modes")
+    assert parts is not None
+    props = parts[0]["properties"]
+    assert props["mode"]["enum"] == [0, 1] and props["mode_limit"]["enum"] == [2, 9]
+    assert props["colour"]["enum"] == ["red", "blue"] and "COLOUR_RED = 'red'" in props["colour"]["description"]
+    assert "enum" not in props["level"]  # LEVEL_* are int32, the field uint8
+    assert "enum" not in props["solo"]  # one constant is not a group (more likely a limit)
+    assert "enum" not in props["mode_list"] and "enum" not in props["mode_list"]["items"]
+
+
+def test_field_comments_of_interface_files_become_descriptions_and_units(tmp_path: Path) -> None:
+    folder = tmp_path / "comment_test_msgs" / "msg"
+    folder.mkdir(parents=True)
+    text = (
+        "# The message's own comment: no field's.\n"
+        "float32 voltage  # Voltage in Volts\n"
+        "\n"
+        "# How fast it goes,\n"
+        "# measured at the wheels.\n"
+        "float64 speed  # [m/s]\n"
+        "float32 charge  # %\n"
+        "uint8 MODE_IDLE=0  # idle\n"
+        "uint8 MODE_RUN=1\n"
+        "# the mode\n"
+        "uint8 mode\n"
+        "float32 temperature  # in degrees Celsius\n"
+        "string name\n"
+        "Inner inner  # the nested part\n"
+    )
+    (folder / "Commented.msg").write_text(text, encoding="utf-8")
+    (folder / "Inner.msg").write_text("int32 count  # how many; not a unit\n", encoding="utf-8")
+    schemas = Schemas([tmp_path], Diagnostics())
+    parts = schemas.parts("comment_test_msgs/msg/Commented")
+    assert parts is not None
+    props = parts[0]["properties"]
+    assert props["voltage"]["description"] == "Voltage in Volts" and props["voltage"]["unit"] == "V"
+    speed = props["speed"]
+    assert speed["description"] == "How fast it goes, measured at the wheels. [m/s]" and speed["unit"] == "m/s"
+    assert props["charge"] == {"type": "number", "unit": "%"}  # a comment that only names the unit
+    assert props["mode"]["description"].startswith("the mode One of the message's constants: MODE_IDLE = 0")
+    assert props["temperature"]["unit"] == "°C"
+    assert "description" not in props["name"] and "unit" not in props["name"]
+    inner = props["inner"]
+    assert inner["description"] == "the nested part"
+    assert inner["properties"]["count"] == {
+        "type": "integer", "minimum": -(2**31), "maximum": 2**31 - 1, "description": "how many; not a unit",
+    }  # fmt: skip
+    # a comment is text only: the definition (equality, hash, ROS 1 md5) is the one without comments
+    registry = TypeRegistry("ros1", [tmp_path], Diagnostics())
+    plain = tmp_path / "plain"
+    (plain / "comment_test_msgs" / "msg").mkdir(parents=True)
+    for name, body in (("Commented", text), ("Inner", "int32 count\n")):
+        lines = [line.split("#")[0].rstrip() for line in body.splitlines() if line.split("#")[0].strip()]
+        (plain / "comment_test_msgs" / "msg" / f"{name}.msg").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    bare = TypeRegistry("ros1", [plain], Diagnostics())
+    name = "comment_test_msgs/msg/Commented"
+    commented = registry.table([name]).get(name)
+    assert isinstance(commented, MessageDef) and commented == bare.table([name]).get(name)
+    assert [f.comment for f in commented.fields][:2] == [
+        "Voltage in Volts",
+        "How fast it goes, measured at the wheels. [m/s]",
+    ]
+    assert registry.ros1_definition(name)[1] == bare.ros1_definition(name)[1]
+    # the built-in type sets (rosbags' stores) carry no comments
+    battery = schemas.parts("sensor_msgs/msg/BatteryState")
+    assert battery is not None and "description" not in battery[0]["properties"]["voltage"]

@@ -230,7 +230,8 @@ def test_bad_input_is_a_diagnostic(tmp_path: Path) -> None:
     (tmp_path / "notd.json").write_text("[1, 2]", encoding="utf-8")
     _expect([str(good), "--merge", str(tmp_path / "notd.json")], "SCF110", tmp_path)
     # a port nobody listens on: no master
-    _expect(["ros1", "--master-uri", "http://127.0.0.1:9/", "--wait", "2"], "SCF101", tmp_path)
+    stderr = _expect(["ros1", "--master-uri", "http://127.0.0.1:9/", "--wait", "2"], "SCF101", tmp_path)
+    assert "ros1: error SCF101" in stderr, stderr
 
 
 def test_an_unknown_type_leaves_the_affordance_without_a_schema_and_says_why(tmp_path: Path) -> None:
@@ -238,6 +239,8 @@ def test_an_unknown_type_leaves_the_affordance_without_a_schema_and_says_why(tmp
     listing.write_text("publishes:\n  /robot/odd: odd_msgs/msg/Odd\n  /robot/ok: std_msgs/msg/Bool\n", encoding="utf-8")
     done = scaffold([str(listing)], tmp_path / "td.json")
     assert done.code == 0 and "SCF103" in done.stderr and "--interfaces" in done.stderr, done.stderr
+    # located at the listing, not at <input>
+    assert f"{listing}: warning SCF103" in done.stderr and "<input>" not in done.stderr, done.stderr
     assert done.doc is not None and "properties" not in done.doc["properties"]["odd"]
     assert done.doc["properties"]["ok"]["properties"] == {"data": {"type": "boolean"}}
 
