@@ -7,12 +7,13 @@ models with these helpers, so the two generated packages wrap, sort and reserve 
 from __future__ import annotations
 
 from td2adaptor.backends._python.imports import import_block, import_line, member_key
-from td2adaptor.backends._python.names import defined_names, reserved_names
+from td2adaptor.backends._python.names import METHOD_NAMES, defined_names, param_name, reserved_names
 from td2adaptor.backends._python.runtime import SHARED, common_names, constant, error_classes, shared_source
 from td2adaptor.backends._python.stubs import StubClass, StubField, StubModule
 from td2adaptor.backends._python.text import LINE, docstring, wrap
 
 __all__ = [
+    "METHOD_NAMES",
     "LINE",
     "SHARED",
     "StubClass",
@@ -21,6 +22,7 @@ __all__ = [
     "common_names",
     "constant",
     "defined_names",
+    "param_name",
     "docstring",
     "error_classes",
     "import_block",

@@ -10,7 +10,7 @@ from __future__ import annotations
 import ast
 import builtins
 import keyword
-from collections.abc import Iterable
+from collections.abc import Collection, Iterable
 
 
 def defined_names(source: bytes) -> set[str]:
@@ -33,3 +33,19 @@ def reserved_names(sources: Iterable[bytes], extra: Iterable[str]) -> frozenset[
     for source in sources:
         names |= defined_names(source)
     return frozenset(names)
+
+
+#: names a generated method already has besides message fields: its own parameters (`timeout` of call_X and
+#: get_X_value, `mission_id`, `request`, `goal`, `self`) and locals of the method bodies (`item`, `response`)
+METHOD_NAMES = frozenset({"self", "timeout", "mission_id", "request", "response", "goal", "item"})
+
+
+def param_name(name: str, reserved: Collection[str]) -> str:
+    """A message field as a keyword parameter of a generated method: the field's name, with a trailing `_`
+    when it is a keyword, a builtin, a name of `reserved` (the module's runtime and imported names) or of
+    METHOD_NAMES. The rclpy and rospy generators both use it, so one TD gives both packages the same names."""
+    clash = keyword.iskeyword(name) or name in _BUILTINS or name in METHOD_NAMES or name in reserved
+    return name + "_" if clash else name
+
+
+_BUILTINS = frozenset(dir(builtins))

@@ -11,7 +11,6 @@ rosidl's Python messages carry no type information, and of the parts of launch/l
 
 from __future__ import annotations
 
-import keyword
 import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -81,11 +80,6 @@ def text_paragraphs(text: Text, name: str) -> list[str]:
     if text.description and text.description.strip() != (text.title or "").strip():
         out.extend(p for p in re.split(r"\n\s*\n", text.description) if p.strip())
     return out
-
-
-def pyname(name: str) -> str:
-    """A message field as a Python parameter name (keywords and `self` get a trailing `_`)."""
-    return name + "_" if keyword.iskeyword(name) or name == "self" else name
 
 
 def module_of(type_name: str) -> tuple[str, str]:
@@ -443,10 +437,11 @@ class Builder:
     def params(self, msg: MessageDef, namer: Namer, *, mapping: bool) -> list[ParamView]:
         """Parameters of a `construct_*` method (mapping=False) or the field conversions of a converter."""
         out = []
+        taken = RESERVED | set(namer.local.values())
         for f in msg.fields:
             local = namer[f.type.base] if f.type.is_message else ""
             conv = converter_name(f.type.base) if f.type.is_message else None
-            name = pyname(f.name)
+            name = py.param_name(f.name, taken)
             p = rt.param(f, local, conv, name)
             value = f"value[{ts.py_str(f.name)}]" if mapping else name
             if not mapping:

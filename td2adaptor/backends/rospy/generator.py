@@ -190,7 +190,7 @@ def module_imports(views: list[ComponentView], imports: _Imports) -> list[str]:
     for v in views:
         for s in v.services:
             text += [p.annotation + " " + p.value for p in s.params] + s.ros_name
-            text += [s.returns, s.fail_condition or "", s.mission_expr or ""]
+            text += [s.returns, s.fail_condition or "", s.fail_message or "", s.mission_expr or ""]
         for sub in v.subscribers:
             text += [*sub.ros_name, "Callable TopicSubscriber"]
         for pub in v.publishers:
@@ -212,6 +212,8 @@ def module_imports(views: list[ComponentView], imports: _Imports) -> list[str]:
     members = [("collections.abc", n) for n in used("Callable", "Mapping", "Sequence")]
     members += [("typing", n) for n in used("Any")] + imports.pairs()
     runtime = ["DEFAULT_TIMEOUT", "DEFAULT_WAIT_TIMEOUT", "check_robot_name", "check_timeout", "require_node"] + used(
+        "ERROR_WITHOUT_MESSAGE",
+        "FAILURE_WITHOUT_MESSAGE",
         "LAST_MISSION",
         "ServiceClient",
         "Started",
@@ -246,7 +248,7 @@ def _params(msg: MessageDef, imports: _Imports, diags: Diagnostics, where: str) 
             continue
         if f.type.is_message:
             imports.use(f.type.base)
-        param = f.name if f.name not in _RESERVED and f.name not in imports.taken else f.name + "_"
+        param = py.param_name(f.name, _RESERVED | imports.taken)
         out.append(field_view(f, param, imports.local))
     return out
 
@@ -275,9 +277,10 @@ def _path(msg: MessageDef, types: TypeTable, path: tuple[str, ...], want: str) -
 def _failure(resp: MessageDef, types: TypeTable) -> tuple[str | None, str | None]:
     """How a response says it failed: procedures_msgs style (result.result == "error"), std_srvs style (success)."""
     if _path(resp, types, ("result", "result"), "str") and _path(resp, types, ("result", "message"), "str"):
-        return 'response.result.result == "error"', "response.result.message"
+        return 'response.result.result == "error"', "response.result.message or ERROR_WITHOUT_MESSAGE"
     if _path(resp, types, ("success",), "bool"):
-        message = "response.message" if _path(resp, types, ("message",), "str") else '"the robot reported failure"'
+        has_message = _path(resp, types, ("message",), "str")
+        message = "response.message or FAILURE_WITHOUT_MESSAGE" if has_message else "FAILURE_WITHOUT_MESSAGE"
         return "not response.success", message
     return None, None
 

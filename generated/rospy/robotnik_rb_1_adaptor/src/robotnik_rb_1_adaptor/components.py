@@ -31,6 +31,7 @@ from ._runtime import ServiceClient, TopicPublisher, TopicSubscriber, require_no
 from .common import (
     DEFAULT_TIMEOUT,
     DEFAULT_WAIT_TIMEOUT,
+    ERROR_WITHOUT_MESSAGE,
     LAST_MISSION,
     Started,
     check_robot_name,
@@ -139,7 +140,7 @@ class GoToComponent:
             request = self.construct_gotoRun_Msg()
         response = self._svc_gotoRun.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_gotoRun.name, response.result.message, response)
+            raise CallFailed(self._svc_gotoRun.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         self._mission_gotoRun = response.state.header.id
         return Started(response.state.header.id, response)
 
@@ -182,7 +183,7 @@ class GoToComponent:
             raise ValueError("pass either a request or a mission_id, not both")
         response = self._svc_gotoCancel.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_gotoCancel.name, response.result.message, response)
+            raise CallFailed(self._svc_gotoCancel.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         return response
 
     def construct_gotoQuery_Msg(
@@ -224,7 +225,7 @@ class GoToComponent:
             raise ValueError("pass either a request or a mission_id, not both")
         response = self._svc_gotoQuery.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_gotoQuery.name, response.result.message, response)
+            raise CallFailed(self._svc_gotoQuery.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         return response
 
     def _timeout(self, timeout: float | None) -> float:
@@ -328,7 +329,7 @@ class PickComponent:
             request = self.construct_pickRun_Msg()
         response = self._svc_pickRun.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_pickRun.name, response.result.message, response)
+            raise CallFailed(self._svc_pickRun.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         self._mission_pickRun = response.state.header.id
         return Started(response.state.header.id, response)
 
@@ -371,7 +372,7 @@ class PickComponent:
             raise ValueError("pass either a request or a mission_id, not both")
         response = self._svc_pickCancel.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_pickCancel.name, response.result.message, response)
+            raise CallFailed(self._svc_pickCancel.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         return response
 
     def construct_pickQuery_Msg(
@@ -413,7 +414,7 @@ class PickComponent:
             raise ValueError("pass either a request or a mission_id, not both")
         response = self._svc_pickQuery.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_pickQuery.name, response.result.message, response)
+            raise CallFailed(self._svc_pickQuery.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         return response
 
     def _timeout(self, timeout: float | None) -> float:
@@ -517,7 +518,7 @@ class PlaceComponent:
             request = self.construct_placeRun_Msg()
         response = self._svc_placeRun.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_placeRun.name, response.result.message, response)
+            raise CallFailed(self._svc_placeRun.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         self._mission_placeRun = response.state.header.id
         return Started(response.state.header.id, response)
 
@@ -560,7 +561,7 @@ class PlaceComponent:
             raise ValueError("pass either a request or a mission_id, not both")
         response = self._svc_placeCancel.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_placeCancel.name, response.result.message, response)
+            raise CallFailed(self._svc_placeCancel.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         return response
 
     def construct_placeQuery_Msg(
@@ -602,7 +603,7 @@ class PlaceComponent:
             raise ValueError("pass either a request or a mission_id, not both")
         response = self._svc_placeQuery.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_placeQuery.name, response.result.message, response)
+            raise CallFailed(self._svc_placeQuery.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         return response
 
     def _timeout(self, timeout: float | None) -> float:

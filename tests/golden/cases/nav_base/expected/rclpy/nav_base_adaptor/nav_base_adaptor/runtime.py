@@ -30,7 +30,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.subscription import Subscription
 from rclpy.task import Future
 
-from .common import Callbacks, check_timeout
+from .common import ERROR_WITHOUT_MESSAGE, FAILURE_WITHOUT_MESSAGE, Callbacks, check_timeout
 from .errors import (
     CallFailed,
     CallTimeout,
@@ -248,14 +248,14 @@ class SuccessStyleResponse(Protocol):
 def procedure_failure(response: ProcedureStyleResponse) -> str | None:
     """The robot's message when a procedures_msgs-style response reports an error, else None."""
     if response.result.result == "error":
-        return response.result.message or "the robot reported an error"
+        return response.result.message or ERROR_WITHOUT_MESSAGE
     return None
 
 
 def success_failure(response: SuccessStyleResponse) -> str | None:
     """The robot's message when a std_srvs-style response reports failure, else None."""
     if not response.success:
-        return response.message or "the robot reported a failure"
+        return response.message or FAILURE_WITHOUT_MESSAGE
     return None
 
 
@@ -306,6 +306,7 @@ class ServiceClient(Generic[RequestT, ResponseT]):
 
     def call(self, request: RequestT, timeout: float, wait_timeout: float) -> ResponseT:
         """Send `request` and wait for the response (see the class docstring)."""
+        timeout, wait_timeout = check_timeout(timeout, "timeout"), check_timeout(wait_timeout, "wait_timeout")
         client = self._client()
         ensure_can_block(self.node, self.name)
         if not self._seen_server:
@@ -332,6 +333,7 @@ class ServiceClient(Generic[RequestT, ResponseT]):
 
     async def call_async(self, request: RequestT, timeout: float, wait_timeout: float) -> ResponseT:
         """Like `call`, awaitable in a coroutine callback of the node's executor: no thread ever blocks."""
+        timeout, wait_timeout = check_timeout(timeout, "timeout"), check_timeout(wait_timeout, "wait_timeout")
         client = self._client()
         if not self._seen_server and not client.service_is_ready():
             if not await self._server_within(client, wait_timeout):
@@ -420,6 +422,7 @@ class TopicSubscriber(Generic[MessageT]):
 
     def latest(self, timeout: float) -> MessageT:
         """The latest message, waiting at most `timeout` seconds for the first one (NoMessage after that)."""
+        timeout = check_timeout(timeout, "timeout")
         with self._cond:
             if self._latest is not None:
                 return self._latest
@@ -688,6 +691,7 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
 
     def send(self, goal: GoalT, timeout: float, wait_timeout: float) -> GoalHandle[ResultT, FeedbackT]:
         """Send `goal` (see the class docstring); feedback is collected from the first message on."""
+        timeout, wait_timeout = check_timeout(timeout, "timeout"), check_timeout(wait_timeout, "wait_timeout")
         client = self._client()
         ensure_can_block(self.node, self.name)
         api = cast(_ActionClientApi, client)

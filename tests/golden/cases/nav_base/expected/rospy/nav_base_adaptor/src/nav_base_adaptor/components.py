@@ -32,7 +32,14 @@ from std_srvs.srv import SetBool, SetBoolRequest, SetBoolResponse, Trigger, Trig
 
 from ._actions import ActionGoalClient, GoalHandle
 from ._runtime import ServiceClient, TopicPublisher, TopicSubscriber, require_node, to_msg
-from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, check_robot_name, check_timeout, in_namespace
+from .common import (
+    DEFAULT_TIMEOUT,
+    DEFAULT_WAIT_TIMEOUT,
+    FAILURE_WITHOUT_MESSAGE,
+    check_robot_name,
+    check_timeout,
+    in_namespace,
+)
 from .errors import CallFailed
 
 __all__ = [
@@ -364,7 +371,7 @@ class BaseComponent:
             request = self.construct_stop_Msg()
         response = self._svc_stop.call(request, self._timeout(timeout), self.wait_timeout)
         if not response.success:
-            raise CallFailed(self._svc_stop.name, response.message, response)
+            raise CallFailed(self._svc_stop.name, response.message or FAILURE_WITHOUT_MESSAGE, response)
         return response
 
     def construct_enableMotors_Msg(
@@ -397,7 +404,7 @@ class BaseComponent:
             request = self.construct_enableMotors_Msg()
         response = self._svc_enableMotors.call(request, self._timeout(timeout), self.wait_timeout)
         if not response.success:
-            raise CallFailed(self._svc_enableMotors.name, response.message, response)
+            raise CallFailed(self._svc_enableMotors.name, response.message or FAILURE_WITHOUT_MESSAGE, response)
         return response
 
     def get_odom_value(self, *, timeout: float | None = None) -> Odometry:

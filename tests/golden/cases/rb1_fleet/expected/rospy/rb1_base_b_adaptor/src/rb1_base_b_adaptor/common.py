@@ -20,6 +20,10 @@ DEFAULT_TIMEOUT = 10.0
 DEFAULT_WAIT_TIMEOUT = 5.0
 #: the mission id that asks a robot_local_control procedure service for its last procedure
 LAST_MISSION = -1
+#: what CallFailed says when the robot reports an error (procedures_msgs style) with an empty message
+ERROR_WITHOUT_MESSAGE = "the robot reported an error"
+#: what CallFailed says when the robot reports failure (std_srvs style) with an empty or no message
+FAILURE_WITHOUT_MESSAGE = "the robot reported a failure"
 
 ResponseT = TypeVar("ResponseT")
 MessageT = TypeVar("MessageT")

@@ -28,7 +28,15 @@ from robot_local_control_msgs.srv import (
 from std_msgs.msg import Float64
 
 from ._runtime import ServiceClient, TopicPublisher, TopicSubscriber, require_node, to_msg
-from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, LAST_MISSION, Started, check_robot_name, check_timeout
+from .common import (
+    DEFAULT_TIMEOUT,
+    DEFAULT_WAIT_TIMEOUT,
+    ERROR_WITHOUT_MESSAGE,
+    LAST_MISSION,
+    Started,
+    check_robot_name,
+    check_timeout,
+)
 from .errors import CallFailed
 
 __all__ = [
@@ -131,7 +139,7 @@ class GoToComponent:
             request = self.construct_gotoRun_Msg()
         response = self._svc_gotoRun.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_gotoRun.name, response.result.message, response)
+            raise CallFailed(self._svc_gotoRun.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         self._mission_gotoRun = response.state.header.id
         return Started(response.state.header.id, response)
 
@@ -174,7 +182,7 @@ class GoToComponent:
             raise ValueError("pass either a request or a mission_id, not both")
         response = self._svc_gotoCancel.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_gotoCancel.name, response.result.message, response)
+            raise CallFailed(self._svc_gotoCancel.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         return response
 
     def construct_gotoQuery_Msg(
@@ -216,7 +224,7 @@ class GoToComponent:
             raise ValueError("pass either a request or a mission_id, not both")
         response = self._svc_gotoQuery.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_gotoQuery.name, response.result.message, response)
+            raise CallFailed(self._svc_gotoQuery.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         return response
 
     def _timeout(self, timeout: float | None) -> float:
@@ -320,7 +328,7 @@ class PickComponent:
             request = self.construct_pickRun_Msg()
         response = self._svc_pickRun.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_pickRun.name, response.result.message, response)
+            raise CallFailed(self._svc_pickRun.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         self._mission_pickRun = response.state.header.id
         return Started(response.state.header.id, response)
 
@@ -363,7 +371,7 @@ class PickComponent:
             raise ValueError("pass either a request or a mission_id, not both")
         response = self._svc_pickCancel.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_pickCancel.name, response.result.message, response)
+            raise CallFailed(self._svc_pickCancel.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         return response
 
     def construct_pickQuery_Msg(
@@ -405,7 +413,7 @@ class PickComponent:
             raise ValueError("pass either a request or a mission_id, not both")
         response = self._svc_pickQuery.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_pickQuery.name, response.result.message, response)
+            raise CallFailed(self._svc_pickQuery.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         return response
 
     def _timeout(self, timeout: float | None) -> float:
@@ -509,7 +517,7 @@ class PlaceComponent:
             request = self.construct_placeRun_Msg()
         response = self._svc_placeRun.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_placeRun.name, response.result.message, response)
+            raise CallFailed(self._svc_placeRun.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         self._mission_placeRun = response.state.header.id
         return Started(response.state.header.id, response)
 
@@ -552,7 +560,7 @@ class PlaceComponent:
             raise ValueError("pass either a request or a mission_id, not both")
         response = self._svc_placeCancel.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_placeCancel.name, response.result.message, response)
+            raise CallFailed(self._svc_placeCancel.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         return response
 
     def construct_placeQuery_Msg(
@@ -594,7 +602,7 @@ class PlaceComponent:
             raise ValueError("pass either a request or a mission_id, not both")
         response = self._svc_placeQuery.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_placeQuery.name, response.result.message, response)
+            raise CallFailed(self._svc_placeQuery.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         return response
 
     def _timeout(self, timeout: float | None) -> float:

@@ -26,6 +26,7 @@ from ._runtime import ServiceClient, TopicPublisher, TopicSubscriber, require_no
 from .common import (
     DEFAULT_TIMEOUT,
     DEFAULT_WAIT_TIMEOUT,
+    ERROR_WITHOUT_MESSAGE,
     LAST_MISSION,
     Started,
     check_robot_name,
@@ -131,7 +132,7 @@ class GoToComponent:
             request = self.construct_gotoRun_Msg()
         response = self._svc_gotoRun.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_gotoRun.name, response.result.message, response)
+            raise CallFailed(self._svc_gotoRun.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         self._mission_gotoRun = response.state.header.id
         return Started(response.state.header.id, response)
 
@@ -172,7 +173,7 @@ class GoToComponent:
             raise ValueError("pass either a request or a mission_id, not both")
         response = self._svc_gotoCancle.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_gotoCancle.name, response.result.message, response)
+            raise CallFailed(self._svc_gotoCancle.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         return response
 
     def construct_gotoQuery_Msg(
@@ -212,7 +213,7 @@ class GoToComponent:
             raise ValueError("pass either a request or a mission_id, not both")
         response = self._svc_gotoQuery.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_gotoQuery.name, response.result.message, response)
+            raise CallFailed(self._svc_gotoQuery.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         return response
 
     def _timeout(self, timeout: float | None) -> float:
@@ -314,7 +315,7 @@ class PickComponent:
             request = self.construct_pickRun_Msg()
         response = self._svc_pickRun.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_pickRun.name, response.result.message, response)
+            raise CallFailed(self._svc_pickRun.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         self._mission_pickRun = response.state.header.id
         return Started(response.state.header.id, response)
 
@@ -355,7 +356,7 @@ class PickComponent:
             raise ValueError("pass either a request or a mission_id, not both")
         response = self._svc_pickCancle.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_pickCancle.name, response.result.message, response)
+            raise CallFailed(self._svc_pickCancle.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         return response
 
     def construct_pickQuery_Msg(
@@ -395,7 +396,7 @@ class PickComponent:
             raise ValueError("pass either a request or a mission_id, not both")
         response = self._svc_pickQuery.call(request, self._timeout(timeout), self.wait_timeout)
         if response.result.result == "error":
-            raise CallFailed(self._svc_pickQuery.name, response.result.message, response)
+            raise CallFailed(self._svc_pickQuery.name, response.result.message or ERROR_WITHOUT_MESSAGE, response)
         return response
 
     def _timeout(self, timeout: float | None) -> float:

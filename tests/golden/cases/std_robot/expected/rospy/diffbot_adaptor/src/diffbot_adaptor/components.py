@@ -27,7 +27,14 @@ from std_srvs.srv import (
 )
 
 from ._runtime import ServiceClient, TopicPublisher, TopicSubscriber, require_node, to_msg
-from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, check_robot_name, check_timeout, in_namespace
+from .common import (
+    DEFAULT_TIMEOUT,
+    DEFAULT_WAIT_TIMEOUT,
+    FAILURE_WITHOUT_MESSAGE,
+    check_robot_name,
+    check_timeout,
+    in_namespace,
+)
 from .errors import CallFailed
 
 __all__ = [
@@ -307,7 +314,7 @@ class PowerComponent:
             request = self.construct_enableMotors_Msg()
         response = self._svc_enableMotors.call(request, self._timeout(timeout), self.wait_timeout)
         if not response.success:
-            raise CallFailed(self._svc_enableMotors.name, response.message, response)
+            raise CallFailed(self._svc_enableMotors.name, response.message or FAILURE_WITHOUT_MESSAGE, response)
         return response
 
     def construct_dock_Msg(self) -> TriggerRequest:
@@ -334,7 +341,7 @@ class PowerComponent:
             request = self.construct_dock_Msg()
         response = self._svc_dock.call(request, self._timeout(timeout), self.wait_timeout)
         if not response.success:
-            raise CallFailed(self._svc_dock.name, response.message, response)
+            raise CallFailed(self._svc_dock.name, response.message or FAILURE_WITHOUT_MESSAGE, response)
         return response
 
     def get_battery_value(self, *, timeout: float | None = None) -> BatteryState:
