@@ -3,14 +3,15 @@
 Three layers, later ones overriding earlier ones: the rosbags typestore of the distribution (ROS 1 Noetic or
 ROS 2 Jazzy: messages only; `typestore`), the service definitions bundled with td2adaptor (`interfaces/`, for
 standard packages such as std_srvs that no typestore has), and the user's interface folders (read by
-`parser`). ROS 1 definition texts and md5 sums come from `md5`.
+`parser`). A fourth, `recorded`, only fills gaps: message definitions a recording carries (a bag's connection
+texts), used for the types no other layer defines. ROS 1 definition texts and md5 sums come from `md5`.
 """
 
 from __future__ import annotations
 
 import difflib
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
@@ -96,7 +97,9 @@ class TypeRegistry:
         distro: Distro,
         interface_dirs: Sequence[Path] = (),
         diags: Diagnostics | None = None,
+        recorded: Mapping[str, tuple[str, str]] | None = None,
     ) -> None:
+        """`recorded`: canonical message name → (where it was recorded, its .msg text), e.g. from a bag."""
         if distro not in STORE_NAMES:
             raise ValueError(f"unknown ROS distribution {distro!r}: expected 'ros1' or 'ros2'")
         self.distro: Distro = distro
@@ -112,6 +115,8 @@ class TypeRegistry:
         self._load_dir(BUNDLED_DIR, bundled=True)
         for directory in interface_dirs:
             self._load_dir(Path(directory), bundled=False)
+        if recorded:
+            self._load_recorded(recorded)
         self._check_references()
 
     # -- loading ----------------------------------------------------------------------------------------
@@ -208,6 +213,34 @@ class TypeRegistry:
             self._actions[name] = (defs[0].msg.name, defs[1].msg.name, defs[2].msg.name)
             if self.distro == "ros1":
                 self._derived.update((m.name, m) for m in _genaction(name, path.as_posix()))
+
+    def _load_recorded(self, recorded: Mapping[str, tuple[str, str]]) -> None:
+        """The recorded definitions of the types no other layer has. A recording is not the user's file: one
+        that does not parse here (a ROS 2 bounded type in a ROS 1 registry, say), or uses a type nobody
+        defines, is left out quietly, and its topics get no schema (the caller says so)."""
+        added: list[str] = []
+        for name, (where, text) in recorded.items():
+            pieces = name.split("/")
+            if len(pieces) != 3 or pieces[1] != "msg" or name in self._defs or self._message(name) is not None:
+                continue
+            scratch = Diagnostics()
+            parser = FileParser(Path(where), pieces[0], self.distro, scratch, f"recorded:{where}")
+            sections, _, _ = split_sections(text, genmsg=self.distro == "ros1")
+            if len(sections) != 1:
+                continue
+            parsed = parser.section(name, sections[0])
+            if parser.ok and not scratch.has_errors:
+                self._defs[name] = parsed
+                added.append(name)
+        changed = True
+        while changed:  # drop those using a type that does not resolve (or a dropped one)
+            changed = False
+            for name in added:
+                if name in self._defs and not all(
+                    self._message(f.type.base) is not None for f in self._defs[name].msg.fields if f.type.is_message
+                ):
+                    del self._defs[name]
+                    changed = True
 
     def _warn_if_replacing(self, name: str, defs: Sequence[ParsedDef], parser: FileParser, bundled: bool) -> None:
         """Overriding is allowed, but a silently different definition would change behaviour and md5s."""

@@ -52,6 +52,5 @@ def scaffold(graph: Graph, options: Options, diags: Diagnostics) -> dict[str, An
     if graph.complete is not None:
         for p in layout.plans:
             p.endpoint = graph.complete(p.endpoint)
-    return write(
-        layout, Schemas(options.interfaces, diags), diags, title=options.title or graph.title, label=graph.label
-    )
+    schemas = Schemas(options.interfaces, diags, graph.definitions)
+    return write(layout, schemas, diags, title=options.title or graph.title, label=graph.label)

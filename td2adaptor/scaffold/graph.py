@@ -59,6 +59,8 @@ class Graph:
     title: str | None = None
     #: fills in what is costly to read for every endpoint (ROS 2 QoS), for those the TD describes
     complete: Callable[[Endpoint], Endpoint] | None = None
+    #: message definitions the source carries (a bag's): canonical name → (where, .msg text)
+    definitions: dict[str, tuple[str, str]] = field(default_factory=dict)
 
 
 def is_infrastructure(kind: Kind, name: str, keep: Iterable[str] = ()) -> bool:

@@ -8,7 +8,7 @@ ROS 1 has. A type that resolves nowhere keeps its affordance without a schema (S
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -141,15 +141,27 @@ def annotated(schema: dict[str, Any], msg: MessageDef, table: TypeTable) -> dict
 class Schemas:
     """JSON Schemas of interface types, from the ROS 2 registry first, then ROS 1 (each built once)."""
 
-    def __init__(self, interfaces: Sequence[Path], diags: Diagnostics) -> None:
+    def __init__(
+        self,
+        interfaces: Sequence[Path],
+        diags: Diagnostics,
+        recorded: Mapping[str, tuple[str, str]] | None = None,
+    ) -> None:
+        """`recorded`: the source's own message definitions (a bag's), for the types nothing else defines."""
         self._interfaces = list(interfaces)
+        self._recorded = dict(recorded or {})
         self._registries: dict[str, TypeRegistry] = {}
         self._diags = diags
         self._cache: dict[str, list[dict[str, Any]] | None] = {}
 
     def _registry(self, distro: str) -> TypeRegistry:
         if distro not in self._registries:
-            self._registries[distro] = TypeRegistry(distro, self._interfaces, self._diags)  # type: ignore[arg-type]
+            self._registries[distro] = TypeRegistry(
+                distro,  # type: ignore[arg-type]
+                self._interfaces,
+                self._diags,
+                self._recorded,
+            )
         return self._registries[distro]
 
     def parts(self, type_name: str) -> list[dict[str, Any]] | None:

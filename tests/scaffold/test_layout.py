@@ -303,3 +303,46 @@ def test_field_comments_of_interface_files_become_descriptions_and_units(tmp_pat
     # the built-in type sets (rosbags' stores) carry no comments
     battery = schemas.parts("sensor_msgs/msg/BatteryState")
     assert battery is not None and "description" not in battery[0]["properties"]["voltage"]
+
+
+def test_a_recording_s_definitions_fill_only_the_gaps_and_never_fail() -> None:
+    from td2adaptor.scaffold.bag import definitions
+
+    text = (
+        "# the probe's reading\nHeader header\nReading[<=4] readings  # at most four\n"
+        + "=" * 80
+        + "\nMSG: probe_msgs/Reading\nfloat64 volts  # Voltage in Volts\n"
+        + "=" * 80
+        + "\nMSG: std_msgs/Float64\nstring data\n"  # a different Float64: the store's wins
+        + "=" * 80
+        + "\nMSG: probe_msgs/Broken\nNowhere missing\n"
+    )
+    recorded = {name: (f"bag:{name}", body) for name, body in definitions("probe_msgs/msg/Probe", text).items()}
+    assert sorted(recorded) == ["probe_msgs/msg/Broken", "probe_msgs/msg/Probe", "probe_msgs/msg/Reading", F64]
+    diags = Diagnostics()
+    schemas = Schemas([], diags, recorded)
+    (probe,) = schemas.parts("probe_msgs/msg/Probe") or []
+    readings = probe["properties"]["readings"]
+    assert readings["maxItems"] == 4 and readings["items"]["properties"]["volts"]["type"] == "number"
+    assert "Volts" in readings["items"]["properties"]["volts"].get("description", "")
+    assert schemas.parts(F64) == [{"type": "object", "properties": {"data": {"type": "number"}}}]
+    assert schemas.parts("probe_msgs/msg/Broken") is None  # uses a type nobody defines: left out quietly
+    assert list(diags) == [], [str(d) for d in diags]
+    # the ROS 1 registry cannot take a bounded sequence: Probe is left out there, without a diagnostic
+    ros1 = TypeRegistry("ros1", [], diags, recorded)
+    assert ros1.resolve("probe_msgs/msg/Reading") is not None and ros1.resolve("probe_msgs/msg/Probe") is None
+    assert list(diags) == []
+
+
+def test_without_the_w3c_schema_only_that_check_is_skipped(monkeypatch: Any) -> None:
+    import pytest
+
+    from tests import wot_corpus
+    from tests.scaffold.common import W3CSchemaMissing
+
+    def missing(name: str) -> Any:
+        pytest.skip(f"needs ../shared/wot/official/{name} (test)")
+
+    monkeypatch.setattr(wot_corpus, "official_json", missing)
+    with pytest.warns(W3CSchemaMissing, match="td-schema-v1.1.json"):
+        assert w3c_errors({"@type": "Thing"}) == []  # the test goes on: its other assertions still run

@@ -1,7 +1,8 @@
 """`td2adaptor scaffold ros2` on real ROS 2 Jazzy (PyPI wheels): the simulated RB-1 scaffolds to the example's
 affordances; the scaffolded TD, untouched, is generated (rclpy) and served by `td2adaptor run`, and a
 mission goes end to end over a real mosquitto; three namespaced robots give one Thing Model; a Fibonacci
-action server (rclpy ActionServer) gives a ROS 2 action that the generated rclpy adaptor then drives.
+action server (rclpy ActionServer) gives a ROS 2 action that the generated rclpy adaptor then drives; a bag
+recorded here from the sim (rclpy subscriptions + rosbags' Writer) scaffolds without -I and generates.
 """
 
 from __future__ import annotations
@@ -9,6 +10,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -222,3 +224,97 @@ def _fibonacci(td: Path, out: Path, order: int) -> list[int]:
         spinner.stop()
         node.destroy_node()
         rclpy.shutdown(context=context)
+
+
+def _record(prefix: Path, namespace: str, bag: Path, seconds: float = 3.0) -> dict[str, int]:
+    """Record a rosbag2 (MCAP, Jazzy's default) of the topics published under `namespace`, as `ros2 bag
+    record` would (it is not in the pip wheels): an rclpy subscription per topic taking the serialized
+    messages, QoS as offered, written with rosbags' Writer; the type definitions are those of the installed
+    interface packages (`prefix/share/<pkg>/msg/*.msg`) and the Jazzy set. Returns messages per topic."""
+    import importlib
+
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from rclpy.signals import SignalHandlerOptions
+    from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types: dict[str, Any] = {}
+    for msg in sorted((prefix / "share").glob("*/msg/*.msg")):
+        types.update(get_types_from_msg(msg.read_text(encoding="utf-8"), f"{msg.parts[-3]}/msg/{msg.stem}"))
+    store.register(types)
+
+    context = Context()
+    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node("scaffold_recorder", context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    counts: dict[str, int] = {}
+    try:
+        deadline = time.monotonic() + 10
+        topics: list[tuple[str, str]] = []
+        while time.monotonic() < deadline and len(topics) < 2:  # the sim's state and markers
+            executor.spin_once(timeout_sec=0.1)
+            topics = [(name, kinds[0]) for name, kinds in node.get_topic_names_and_types()
+                      if name.startswith(f"/{namespace}/") and node.count_publishers(name) > 0]  # fmt: skip
+        assert len(topics) >= 2, topics
+        zero = QosTime(0, 0)
+        with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+            for name, msgtype in topics:
+                offered = node.get_publishers_info_by_topic(name)[0].qos_profile
+                reliable = offered.reliability == ReliabilityPolicy.RELIABLE
+                latched = offered.durability == DurabilityPolicy.TRANSIENT_LOCAL
+                qos = Qos(QosHistory.KEEP_LAST, offered.depth,
+                          QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
+                          QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
+                          zero, zero, QosLiveliness.AUTOMATIC, zero, False)  # fmt: skip
+                conn = writer.add_connection(name, msgtype, typestore=store, offered_qos_profiles=[qos])
+                package, _, short = msgtype.split("/")
+                cls = getattr(importlib.import_module(f"{package}.msg"), short)
+                counts[name] = 0
+
+                def on_message(data: bytes, conn: Any = conn, name: str = name) -> None:
+                    writer.write(conn, time.time_ns(), data)
+                    counts[name] += 1
+
+                profile = QoSProfile(depth=10, reliability=offered.reliability, durability=offered.durability)
+                node.create_subscription(cls, name, on_message, profile, raw=True)
+            stop = time.monotonic() + seconds
+            while time.monotonic() < stop:
+                executor.spin_once(timeout_sec=0.05)
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=context)
+    return counts
+
+
+def test_a_bag_recorded_from_the_sim_scaffolds_without_interfaces_and_generates(
+    robot: Process, rb1_prefix: Path, tmp_path: Path
+) -> None:
+    counts = _record(rb1_prefix, ROBOT, tmp_path / "recorded")
+    assert counts and all(n > 0 for n in counts.values()), counts
+    done = scaffold([str(tmp_path / "recorded"), "--title", "Recorded RB-1"], tmp_path / "td.json")  # no -I
+    assert done.code == 0 and "(0 errors, 0 warnings)" in done.stderr, done.stderr
+    doc = done.doc
+    assert doc is not None and sorted(doc["properties"]) == ["arPoseMarker", "state"], doc
+    # the recording's own definitions give the schemas: the example's, for the same Status topic
+    state = doc["properties"]["state"]
+    example = example_td()["properties"]["availability"]
+    assert state["forms"][0]["rosv:name"] == "/{{robotName}}/robot_local_control/state"
+    assert state["properties"].keys() == example["properties"].keys()
+    markers = doc["properties"]["arPoseMarker"]["properties"]["markers"]
+    assert markers["type"] == "array" and "pose" in markers["items"]["properties"]
+    assert compiled_errors(doc, tmp_path) == []
+    assert w3c_errors(doc) == []
+    gen = subprocess.run(
+        [sys.executable, "-m", "td2adaptor", "gen", str(tmp_path / "td.json"), "-I", str(INTERFACES), "-b", "rclpy",
+         "-o", str(tmp_path / "gen")],
+        cwd=REPO, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert gen.returncode == 0, gen.stderr
+    assert list((tmp_path / "gen" / "rclpy").iterdir()), "gen wrote nothing"
