@@ -25,6 +25,7 @@ from tests.runtime.rb1 import GOAL, check_outbound, rb1_model, sim, td_with_secu
 
 ROBOT = "rb1_base_a"
 GOTO = f"td2adaptor/{ROBOT}/GoToComponent/gotoRun"
+WOT_GOTO = f"td2adaptor/{ROBOT}/wot-thing/GoToComponent/gotoRun"
 
 
 def config(where: str | Broker, **kw: Any) -> RuntimeConfig:
@@ -453,6 +454,32 @@ def _queued_while_away(broker: Broker) -> None:
     finally:
         engine.stop()
         app.close()
+
+
+def test_a_wot_command_sent_while_the_node_was_away_does_not_run_when_it_comes_back(tmp_path: Path) -> None:
+    """Issue 16: a WoT message carries no time, so the node could not tell a WoT command the broker kept for it
+    from a fresh one. It subscribes the WoT command topics at QoS 0: mosquitto queues nothing there for its
+    session, while an envelope command (QoS 1, with a time) sent meanwhile is kept and runs, being fresh; a WoT
+    command sent once the node is back runs."""
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    model = rb1_model()
+    robot = sim(0.05)
+    engine = serve(model, SimPort(model, robot), config(broker))
+    engine.stop()  # the node's session (and its subscriptions) stays with the broker
+    app = AppClient(broker, [f"td2adaptor/{ROBOT}/#"], client_id="wot-away-app")
+    try:
+        app.send(WOT_GOTO, {**GOAL, "correlationId": "wot-away"})
+        app.send(GOTO, {"id": "queued-1", "correlation": "queued", "time": _now(), "payload": GOAL})
+        engine = serve(model, SimPort(model, robot), config(broker))
+        app.wait(terminal("feedback", "queued"))  # the envelope topic's session kept it: fresh, it runs
+        app.send(WOT_GOTO, {**GOAL, "correlationId": "wot-back"})
+        app.wait(terminal("feedback", "wot-back"))
+        assert not [e for _, e in app.events if e.get("correlation") == "wot-away"]
+    finally:
+        engine.stop()
+        app.close()
+        broker.stop()
 
 
 def _now() -> str:
