@@ -65,6 +65,22 @@ def tls_context(options: TlsOptions) -> ssl.SSLContext:
     return context
 
 
+_HOSTNAME_MISMATCH = 62  # X509_V_ERR_HOSTNAME_MISMATCH
+
+
+def _tls_hint(exc: ssl.SSLError, tls: TlsOptions | None, host: str) -> str:
+    """What to change when the broker's certificate is not accepted: the CA the node trusts, or the host name."""
+    if not isinstance(exc, ssl.SSLCertVerificationError):
+        return ""
+    if exc.verify_code == _HOSTNAME_MISMATCH:
+        return f" (the broker's certificate is not for {host!r}: connect by a name or address it names)"
+    trusted = f"the CA in tls_ca_file {tls.ca_file}" if tls is not None and tls.ca_file else "the system's CAs"
+    return (
+        f" (this node trusts {trusted}, which did not sign the broker's certificate: set tls_ca_file "
+        "(TD2ADAPTOR_TLS_CA_FILE) to the CA certificate that did)"
+    )
+
+
 class MqttBus:
     """One MQTT client; `connect()` returns once the broker has accepted it (or raises `BusError`)."""
 
@@ -173,7 +189,8 @@ class MqttBus:
             else:
                 client.connect(self.address.host, self.address.port, self.keepalive)
         except ssl.SSLError as exc:
-            raise BusError(f"TLS handshake with the MQTT broker at {self.address} failed: {exc}") from None
+            hint = _tls_hint(exc, self.security.tls, self.address.host)
+            raise BusError(f"TLS handshake with the MQTT broker at {self.address} failed: {exc}{hint}") from None
         except OSError as exc:
             raise BusError(f"cannot reach the MQTT broker at {self.address}: {exc.strerror or exc}") from None
         client.loop_start()

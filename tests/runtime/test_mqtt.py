@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import ssl
 import subprocess
 import sys
 import threading
@@ -14,7 +15,7 @@ from typing import Any
 import pytest
 
 from td2adaptor.runtime import BusError, RuntimeConfig, SecurityError, open_bus, serve
-from td2adaptor.runtime.mqttbus import MqttBus
+from td2adaptor.runtime.mqttbus import MqttBus, _tls_hint
 from td2adaptor.runtime.security import TlsOptions
 from td2adaptor.runtime.simport import SimPort
 from tests.conftest import REPO
@@ -156,11 +157,17 @@ def test_tls_with_a_client_certificate(tmp_path: Path) -> None:
     url = f"mqtts://127.0.0.1:{broker.port}"
     remote_ok = {"tls_ca_file": str(certs.ca), "tls_cert_file": str(certs.client_cert)}
     try:
-        with pytest.raises(BusError, match="TLS handshake .* failed: .*certificate verify failed"):
+        with pytest.raises(BusError, match="TLS handshake .* failed: .*certificate verify failed") as refused:
             serve(model, SimPort(model, sim()), config(url), env={})  # the system CAs do not know ours
+        assert "trusts the system's CAs, which did not sign the broker's certificate: set tls_ca_file" in str(
+            refused.value
+        )
         other = make_certs(tmp_path / "other-ca")  # a CA of its own, but not the broker's
-        with pytest.raises(BusError, match="TLS handshake .* failed: .*certificate verify failed"):
+        with pytest.raises(BusError, match="TLS handshake .* failed: .*certificate verify failed") as refused:
             serve(model, SimPort(model, sim()), config(url, tls_ca_file=str(other.ca)), env={})
+        assert f"trusts the CA in tls_ca_file {other.ca}, which did not sign" in str(refused.value)
+        assert "set tls_ca_file (TD2ADAPTOR_TLS_CA_FILE) to the CA certificate that did" in str(refused.value)
+
         with pytest.raises(BusError, match="closed the connection before accepting it|TLS handshake"):
             serve(model, SimPort(model, sim()), config(url, tls_ca_file=str(certs.ca)), env={})  # no client cert
         engine = serve(
@@ -177,6 +184,14 @@ def test_tls_with_a_client_certificate(tmp_path: Path) -> None:
             engine.stop()
     finally:
         broker.stop()
+
+
+def test_a_certificate_for_another_host_is_named_as_such() -> None:
+    """The test certificates name both 127.0.0.1 and localhost, so the host name case is checked here."""
+    exc = ssl.SSLCertVerificationError(1, "certificate verify failed: Hostname mismatch")
+    exc.verify_code = 62
+    assert "certificate is not for 'edge.example'" in _tls_hint(exc, TlsOptions("ca.pem"), "edge.example")
+    assert _tls_hint(ssl.SSLError(1, "wrong version number"), None, "h") == ""
 
 
 def test_a_broker_that_identifies_clients_by_certificate_is_not_taken_for_an_anonymous_one(tmp_path: Path) -> None:
