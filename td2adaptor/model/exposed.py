@@ -20,7 +20,9 @@ TD_CONTEXT = "https://www.w3.org/2022/wot/td/v1.1"
 MQV_NAMESPACE = "http://www.example.org/mqtt-binding#"
 ROBOT_PLACEHOLDER = "{{robotName}}"
 BROKER_PLACEHOLDER = "{{mqttBroker}}"
-#: the runtime publishes and subscribes with QoS 1 (the binding's `mqv:qos` is a string)
+#: the QoS a consumer publishes and subscribes with (the binding's `mqv:qos` is a string): 1, as the runtime
+#: publishes. (The node subscribes the WoT command topics at QoS 0, so that the broker does not queue commands
+#: for it while it is away; that is its own subscription, not what the consumer's forms say.)
 MQTT_QOS = "1"
 
 

@@ -2,7 +2,9 @@
 
 Two implementations share these semantics: `localbus.LocalBus` (in-process) and `mqttbus.MqttBus` (paho-mqtt
 against a real broker). Delivery is at least once (QoS 1) and ordered per topic; handlers run on the bus's
-own thread and must return quickly (the engine only queues the message).
+own thread and must return quickly (the engine only queues the message). A subscription at QoS 0 is at most
+once: what arrives while the client is away is not kept for it (the WoT command topics, whose messages carry
+no time by which a stale one could be told apart, see `thingbus`).
 """
 
 from __future__ import annotations
@@ -31,8 +33,9 @@ class Bus(Protocol):
         """Connect (or attach to the local broker); raises `BusError` with a clear message on failure."""
         ...
 
-    def subscribe(self, pattern: str, handler: Handler) -> None:
-        """Receive messages on `pattern` (`+` one level, `#` the rest), also after reconnects."""
+    def subscribe(self, pattern: str, handler: Handler, *, qos: int = 1) -> None:
+        """Receive messages on `pattern` (`+` one level, `#` the rest), also after reconnects; `qos` 0: not
+        what was published while this client was away (the broker does not queue it for the session)."""
         ...
 
     def publish(self, topic: str, payload: bytes, *, retain: bool = False) -> None:

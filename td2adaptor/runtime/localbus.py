@@ -1,7 +1,8 @@
 """An in-process bus with the MQTT semantics the engine relies on, for single-process use, demos and tests.
 
 * sessions by client id survive a disconnect (like `clean_start=False`): their subscriptions stay and
-  messages published meanwhile are queued and delivered on reconnect;
+  messages published meanwhile are queued and delivered on reconnect (not those only QoS 0 subscriptions
+  match, as mosquitto by default);
 * each client has one delivery thread, so messages arrive in publish order (per topic and overall);
 * a handler that raises gets the message again (at least once, up to `attempts` times);
 * retained messages are delivered to new subscriptions; an empty retained payload deletes;
@@ -26,12 +27,14 @@ log = logging.getLogger("td2adaptor.runtime.bus")
 class _Session:
     client_id: str
     patterns: list[str] = field(default_factory=list)
+    qos: dict[str, int] = field(default_factory=dict)
     queue: deque[Message] = field(default_factory=deque)
     attached: bool = False
     dropped: int = 0
 
     def matches(self, topic: str) -> bool:
-        return any(topic_matches(p, topic) for p in self.patterns)
+        """Whether `topic` is for this session now: a QoS 0 subscription only while it is attached."""
+        return any(topic_matches(p, topic) and (self.attached or self.qos.get(p, 1) > 0) for p in self.patterns)
 
 
 class LocalBroker:
@@ -72,10 +75,11 @@ class LocalBroker:
         if will is not None:
             self.publish(will)
 
-    def subscribe(self, session: _Session, pattern: str) -> None:
+    def subscribe(self, session: _Session, pattern: str, qos: int = 1) -> None:
         with self.cond:
             if pattern not in session.patterns:
                 session.patterns.append(pattern)
+            session.qos[pattern] = max(qos, session.qos.get(pattern, 0))
             for topic, msg in self._retained.items():
                 if topic_matches(pattern, topic):
                     self._enqueue(session, msg)
@@ -126,6 +130,7 @@ class LocalBus:
         self.clean_start = clean_start
         self.attempts = attempts
         self._handlers: list[tuple[str, Handler]] = []
+        self._qos: dict[str, int] = {}
         self._session: _Session | None = None
         self._thread: threading.Thread | None = None
         self._stop = False
@@ -139,19 +144,20 @@ class LocalBus:
         self._thread = threading.Thread(target=self._deliver, name=f"localbus-{self.client_id}", daemon=True)
         self._thread.start()
         for pattern, _ in self._handlers:
-            self.broker.subscribe(self._session, pattern)
+            self.broker.subscribe(self._session, pattern, self._qos[pattern])
         for message in self.announce:
             self.broker.publish(message)
         if self.birth is not None:
             self.broker.publish(self.birth)
 
-    def subscribe(self, pattern: str, handler: Handler) -> None:
+    def subscribe(self, pattern: str, handler: Handler, *, qos: int = 1) -> None:
         if not valid_filter(pattern):
             raise BusError(f"invalid topic filter {pattern!r}")
         with self.broker.cond:
             self._handlers.append((pattern, handler))
+            self._qos[pattern] = max(qos, self._qos.get(pattern, 0))
         if self._session is not None:
-            self.broker.subscribe(self._session, pattern)
+            self.broker.subscribe(self._session, pattern, qos)
 
     def publish(self, topic: str, payload: bytes, *, retain: bool = False) -> None:
         if not valid_topic(topic):

@@ -2,7 +2,8 @@
 
 MQTT 5 (or 3.1.1 for brokers that speak only that: `mqtt_version`), QoS 1 both ways, a persistent session
 (`clean_start=False` with a session expiry; in 3.1.1 `clean_session=False`, kept as long as the broker keeps
-sessions) so that neither side loses messages while the other is away; paho reconnects by itself with
+sessions) so that neither side loses messages while the other is away (except on the filters subscribed at
+QoS 0, which the broker does not queue for an absent client); paho reconnects by itself with
 back-off, keeps unacknowledged QoS 1 publishes and resends them; we resubscribe and republish the birth
 message on every (re)connect.
 The will (the retained `offline` status) is published by the broker when the connection drops uncleanly.
@@ -64,6 +65,22 @@ def tls_context(options: TlsOptions) -> ssl.SSLContext:
     return context
 
 
+_HOSTNAME_MISMATCH = 62  # X509_V_ERR_HOSTNAME_MISMATCH
+
+
+def _tls_hint(exc: ssl.SSLError, tls: TlsOptions | None, host: str) -> str:
+    """What to change when the broker's certificate is not accepted: the CA the node trusts, or the host name."""
+    if not isinstance(exc, ssl.SSLCertVerificationError):
+        return ""
+    if exc.verify_code == _HOSTNAME_MISMATCH:
+        return f" (the broker's certificate is not for {host!r}: connect by a name or address it names)"
+    trusted = f"the CA in tls_ca_file {tls.ca_file}" if tls is not None and tls.ca_file else "the system's CAs"
+    return (
+        f" (this node trusts {trusted}, which did not sign the broker's certificate: set tls_ca_file "
+        "(TD2ADAPTOR_TLS_CA_FILE) to the CA certificate that did)"
+    )
+
+
 class MqttBus:
     """One MQTT client; `connect()` returns once the broker has accepted it (or raises `BusError`)."""
 
@@ -100,6 +117,7 @@ class MqttBus:
         self.connects = 0  # successful CONNACKs, for tests and logs
         self.probe = False  # a connection made only to learn what the broker allows: its refusal is no error
         self._handlers: list[tuple[str, Handler]] = []
+        self._qos: dict[str, int] = {}  # each filter's QoS: the highest any of its subscriptions asked for
         self._lock = threading.Condition()
         self._pending: set[int] = set()
         self._acked_early: set[int] = set()
@@ -171,7 +189,8 @@ class MqttBus:
             else:
                 client.connect(self.address.host, self.address.port, self.keepalive)
         except ssl.SSLError as exc:
-            raise BusError(f"TLS handshake with the MQTT broker at {self.address} failed: {exc}") from None
+            hint = _tls_hint(exc, self.security.tls, self.address.host)
+            raise BusError(f"TLS handshake with the MQTT broker at {self.address} failed: {exc}{hint}") from None
         except OSError as exc:
             raise BusError(f"cannot reach the MQTT broker at {self.address}: {exc.strerror or exc}") from None
         client.loop_start()
@@ -219,9 +238,9 @@ class MqttBus:
         self.connects += 1
         self._connected = True
         with self._lock:
-            patterns = list(dict.fromkeys(p for p, _ in self._handlers))
+            patterns = [(p, self._qos[p]) for p in dict.fromkeys(p for p, _ in self._handlers)]
         if patterns:
-            client.subscribe([(p, 1) for p in patterns])
+            client.subscribe(patterns)
         for message in (*self.announce, *([self.birth] if self.birth is not None else [])):
             self._send(client, message.topic, message.payload, message.retain)
         if self.connects > 1:
@@ -268,16 +287,19 @@ class MqttBus:
 
     # -- bus API -------------------------------------------------------------------------------------------
 
-    def subscribe(self, pattern: str, handler: Handler) -> None:
+    def subscribe(self, pattern: str, handler: Handler, *, qos: int = 1) -> None:
         if not valid_filter(pattern):
             raise BusError(f"invalid topic filter {pattern!r}")
+        if qos not in (0, 1):
+            raise BusError(f"QoS {qos} is not used here (0 or 1)")
         with self._lock:
-            known = any(p == pattern for p, _ in self._handlers)
+            known = pattern in self._qos and self._qos[pattern] >= qos
+            self._qos[pattern] = max(qos, self._qos.get(pattern, 0))
             self._handlers.append((pattern, handler))
         client = self._client
         if client is None or known or not self._connected:
             return  # subscribed on (re)connect
-        rc, mid = client.subscribe(pattern, qos=1)  # never under self._lock: paho calls back holding its own
+        rc, mid = client.subscribe(pattern, qos=qos)  # never under self._lock: paho calls back holding its own
         if rc is not MQTTErrorCode.MQTT_ERR_SUCCESS or mid is None:
             return  # not connected after all: subscribed on reconnect
         with self._lock:

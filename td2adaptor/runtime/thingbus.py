@@ -7,7 +7,10 @@ serves:
   affordance; a WoT message there (an action's input, a written value) is wrapped into the envelope event the
   engine expects (a fresh id and time, `source` "wot", `correlationId` → `correlation`, query/cancel
   `mission`) and handed to the engine as if it had arrived on the envelope topic, so it is validated, refused
-  or run by the same code;
+  or run by the same code. The WoT topics are subscribed at QoS 0: a WoT message carries no time, so one the
+  broker kept for the node while it was away could not be told from a fresh one when it comes back (however
+  old, it would run); at QoS 0 the broker does not queue it (mosquitto unless `queue_qos0_messages`), and the
+  consumer, which still publishes at QoS 1 to the broker, gets no answer and can send it again;
 * when the engine publishes an event, publishes it unchanged and, for a property value, a feedback, a state or
   an error about an affordance, its WoT form on the WoT topic (the value alone, retained like the event; the
   outcome with `correlationId` and `mission` beside the payload).
@@ -54,8 +57,8 @@ class ThingBus:
     def connect(self) -> None:
         self.bus.connect()
 
-    def subscribe(self, pattern: str, handler: Handler) -> None:
-        self.bus.subscribe(pattern, handler)
+    def subscribe(self, pattern: str, handler: Handler, *, qos: int = 1) -> None:
+        self.bus.subscribe(pattern, handler, qos=qos)
         spec = self._inbound.get(pattern)
         topic = None if spec is None else wot_topic(spec, self.robot, self.root)
         if spec is None or topic is None:
@@ -64,7 +67,7 @@ class ThingBus:
         def inbound(msg: Message, spec: EventSpec = spec, native: str = pattern) -> None:
             handler(Message(native, self.wrap(spec, msg.payload), msg.retain))
 
-        self.bus.subscribe(topic, inbound)
+        self.bus.subscribe(topic, inbound, qos=0)  # not queued while the node is away (see above)
 
     def publish(self, topic: str, payload: bytes, *, retain: bool = False) -> None:
         self.bus.publish(topic, payload, retain=retain)

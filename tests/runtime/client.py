@@ -75,9 +75,14 @@ class AppClient:
             self.events.append((msg.topic, data))
             self.cond.notify_all()
 
-    def send(self, topic: str, event: Any) -> None:
+    def send(self, topic: str, event: Any, *, while_offline: bool = False) -> None:
+        """Publish with QoS 1 and wait for the PUBACK; `while_offline`: if the client is disconnected (a broker
+        restart), leave the message to paho, which sends it once reconnected, instead of failing."""
         payload = event if isinstance(event, bytes) else json.dumps(event).encode()
-        self.client.publish(topic, payload, qos=1).wait_for_publish(10)
+        info = self.client.publish(topic, payload, qos=1)
+        if while_offline and info.rc == mqtt.MQTT_ERR_NO_CONN:
+            return
+        info.wait_for_publish(10)
 
     def wait(self, predicate: Callable[[list[Event]], bool], timeout: float = 10.0) -> list[Event]:
         with self.cond:

@@ -114,6 +114,28 @@ def test_persistent_session_keeps_messages_while_away(make_bus: BusFactory) -> N
     assert [m.payload for m in got] == [b"before"] + [f"away{i}".encode() for i in range(5)]
 
 
+def test_a_qos_0_subscription_keeps_nothing_while_away(make_bus: BusFactory) -> None:
+    """What the WoT command topics rely on (issue 16): mosquitto and the local bus queue for an absent client
+    only what its QoS 1 subscriptions match."""
+    sub, pub = make_bus("half-keeper"), make_bus("pub")
+    kept, dropped = Inbox(), Inbox()
+    sub.subscribe("q/#", kept)
+    sub.subscribe("w/#", dropped, qos=0)
+    sub.connect()
+    pub.connect()
+    sub.close()
+    pub.publish("q/1", b"away")
+    pub.publish("w/1", b"away")
+    assert pub.flush(5)
+    again = make_bus("half-keeper")
+    again.subscribe("q/#", kept)
+    again.subscribe("w/#", dropped, qos=0)
+    again.connect()
+    assert [m.payload for m in kept.wait(1)] == [b"away"]
+    pub.publish("w/1", b"back")
+    assert [m.payload for m in dropped.wait(1)] == [b"back"]  # the one sent while away never came
+
+
 def test_local_redelivers_when_a_handler_fails() -> None:
     broker = LocalBroker()
     bus = LocalBus(broker, "flaky")
