@@ -96,6 +96,7 @@ ERROR_CODES = (
     "from-the-future",
     "id-reused",
     "no-id-or-time",
+    "retained",
 )
 
 

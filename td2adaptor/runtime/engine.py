@@ -279,6 +279,19 @@ class Engine:
         spec, robot = routed
         if robot not in (self.config.robot, ALL_ROBOTS):
             return
+        if msg.retain and spec.kind.inbound:  # the broker would hand it over again at every reconnect
+            self._count("refused")
+            corr, mission = salvage(msg.payload)
+            self._error(
+                "retained",
+                "not run: a command published with the retain flag would run again at every reconnect; publish "
+                "commands without retain, and clear this one with an empty retained message on its topic",
+                topic=msg.topic,
+                affordance=spec.affordance,
+                correlation=corr,
+                mission=mission,
+            )
+            return
         problem: Problem | None
         event: dict[str, Any] | None
         if len(msg.payload) > self.config.max_event_bytes:

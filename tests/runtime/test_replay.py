@@ -4,6 +4,7 @@ the same topic with other content, is answered with an error."""
 
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 from typing import Any
@@ -225,3 +226,26 @@ def test_without_require_id_and_time_a_replayed_wot_command_runs_again(tmp_path:
         assert not app.of("error")
     finally:
         engine.stop()
+
+
+def test_a_retained_command_is_refused_not_run_at_every_reconnect(tmp_path: Path) -> None:
+    """A command (envelope or WoT) published retained would reach the node at each (re)subscription: refused."""
+    from td2adaptor.model.wot import CORRELATION, WOT_LEVEL
+
+    broker, model, robot = LocalBroker(), rb1_model(), sim(0.05)
+    app = LocalApp(broker)
+    wot_goto = f"td2adaptor/{ROBOT}/{WOT_LEVEL}/GoToComponent/gotoRun"
+    app.bus.publish(wot_goto, json.dumps({**GOAL, CORRELATION: "kept"}).encode(), retain=True)
+    app.bus.publish(GOTO, json.dumps({"id": "r1", "correlation": "kept-env", "payload": GOAL}).encode(), retain=True)
+    engine = serve(model, SimPort(model, robot), _config(tmp_path), broker=broker)
+    try:
+        app.wait(lambda ev: bool(app.of("error", "kept")) and bool(app.of("error", "kept-env")))
+        for correlation in ("kept", "kept-env"):
+            (error,) = app.of("error", correlation)
+            assert error["payload"]["code"] == "retained" and "retain" in error["payload"]["message"]
+        app.send(GOTO, {"id": "fresh", "correlation": "c2", "time": now_text(), "payload": GOAL})
+        app.wait(terminal("feedback", "c2"))  # a command sent as usual still runs
+        assert not app.of("feedback", "kept") and not app.of("feedback", "kept-env")
+    finally:
+        engine.stop()
+    check_outbound(app.events)
