@@ -46,6 +46,8 @@ def plain_td() -> dict[str, Any]:
     """procedure_td's task procedure with a Trigger cancel, plus two plain std_srvs actions."""
     procedure = {"missionId": "int64_value", "state": "uint8_value", "states": STATES, "message": "string_value"}
     td = procedure_td("test_msgs/srv/BasicTypes", procedure)
+    # a package name of its own: another test of this worker may have imported procedure_td's task_bot_adaptor
+    td["title"] = "Plain Services Bot"
     td["actions"]["taskCancel"]["forms"][0]["rosv:type"] = "std_srvs/srv/Trigger"
     for name, rtype in (("stop", "std_srvs/srv/Trigger"), ("enableMotors", "std_srvs/srv/SetBool")):
         form = {"href": f"ros:base/{name}", "op": "invokeaction", "rosv:name": f"/{{{{robotName}}}}/base/{name}"}
