@@ -47,14 +47,19 @@ def _parse_backend_options(
     return tuple(sorted(out.items()))
 
 
+class _BackendOption(click.Option):
+    """`--backend`, whose help names the backends found (a new backend folder shows up without an edit here);
+    found only when the help is printed, since finding them imports every backend."""
+
+    def get_help_record(self, ctx: click.Context) -> tuple[str, str] | None:
+        from td2adaptor.generation.registry import modules
+
+        self.help = f"{', '.join(modules())} or all (repeatable; default all)."
+        return super().get_help_record(ctx)
+
+
 def _gen_options(f: Any) -> Any:
-    f = click.option(
-        "--backend",
-        "-b",
-        "backends",
-        multiple=True,
-        help="rclpy, rospy, mros, events or all (repeatable; default all).",
-    )(f)
+    f = click.option("--backend", "-b", "backends", multiple=True, cls=_BackendOption)(f)
     f = click.option(
         "-o",
         "--output",

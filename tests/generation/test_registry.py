@@ -55,3 +55,37 @@ def test_an_entry_point_adds_a_backend(tmp_path: Path, monkeypatch: pytest.Monke
 def test_unknown_backend_names_the_known_ones() -> None:
     names, problem = resolve_backends(["nope"])
     assert names == [] and problem is not None and "rclpy" in problem and "all" in problem
+
+
+def test_a_new_backend_folder_is_found_listed_in_the_help_and_generates(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, fresh_registry: None
+) -> None:
+    """Adding a backend is adding a folder: nothing else names it (the CLI's help neither)."""
+    from click.testing import CliRunner
+
+    from td2adaptor.cli import cli
+
+    extra = tmp_path / "more_backends"
+    (extra / "toy" / "templates").mkdir(parents=True)
+    (extra / "toy" / "__init__.py").write_text(
+        "from td2adaptor.generation.backend import GeneratedTree\n"
+        "NAME = 'toy'\nDISTRO = None\nORDER = 60\n"
+        "def generate(model, options, diags):\n"
+        "    tree = GeneratedTree()\n"
+        "    tree.add('toy.txt', model.thing.title.encode())\n"
+        "    return tree\n"
+    )
+    monkeypatch.setattr(td2adaptor.backends, "__path__", [*td2adaptor.backends.__path__, str(extra)])
+    try:
+        assert registry.available() == ["rclpy", "rospy", "mros", "toy", "events"]
+        runner = CliRunner()
+        help_text = runner.invoke(cli, ["gen", "--help"]).output
+        assert "rclpy, rospy, mros, toy, events or all" in " ".join(help_text.split())
+        td = Path(__file__).resolve().parents[2] / "examples" / "robotnik_rb1" / "td.json"
+        interfaces = td.parent / "interfaces"
+        out = tmp_path / "out"
+        result = runner.invoke(cli, ["gen", str(td), "-I", str(interfaces), "-b", "toy", "-o", str(out), "--no-cache"])
+        assert result.exit_code == 0, result.output
+        assert (out / "toy" / "toy.txt").read_text() == "Robotnik RB-1"
+    finally:
+        sys.modules.pop("td2adaptor.backends.toy", None)
