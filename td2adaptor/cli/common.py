@@ -132,6 +132,8 @@ def _format_option(f: Any) -> Any:
 
 
 def _placeholder_values(sets: Sequence[str], values_file: Path | None) -> tuple[dict[str, Any], list[Diagnostic]]:
+    if not sets and values_file is None:
+        return {}, []  # nothing to parse: the Thing Model code stays unloaded (start-up time)
     from td2adaptor.diagnostics import Diagnostics
     from td2adaptor.frontend.thingmodel import load_placeholder_map, parse_set_options
 

@@ -10,12 +10,14 @@ import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, BinaryIO, Literal
+from typing import TYPE_CHECKING, Any, BinaryIO, Literal
 
 from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity, escalate
 from td2adaptor.frontend.jsonsrc import DEFAULT_MAX_BYTES, JsonDocument, load_path
-from td2adaptor.frontend.legacy import LegacyInput, is_legacy, to_reference_td
-from td2adaptor.model import Model
+
+if TYPE_CHECKING:  # loaded when something is compiled: a result-cache hit needs none of it (start-up time)
+    from td2adaptor.frontend.legacy import LegacyInput
+    from td2adaptor.model import Model
 
 Source = str | Path
 InputKind = Literal["td", "tm", "legacy"]
@@ -87,6 +89,8 @@ def load(
     if not docs:
         diags.add("TD000", Severity.ERROR, "no input given", file="<input>")
         return None
+    from td2adaptor.frontend.legacy import is_legacy, to_reference_td
+
     legacy = [is_legacy(d.data) for d in docs]
     if all(legacy):
         lin = to_reference_td(docs, diags)
