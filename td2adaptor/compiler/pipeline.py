@@ -185,16 +185,21 @@ def compile(  # noqa: A001 - the public name the docs promise
     max_affordances: int = DEFAULT_MAX_AFFORDANCES,
     use_cache: bool = False,
     parallel: bool = False,
+    need_model: bool = True,
 ) -> Result:
     """Load, validate and lower `sources` into the canonical model.
 
     `model` is None when there are errors; `diagnostics` always lists every problem found, in input order.
-    With `use_cache`, an unchanged input is answered from the result cache (`Result.input` is then None).
+    With `use_cache`, an unchanged input is answered from the result cache (`Result.input` is then None);
+    a caller that only reports diagnostics (`validate`) passes `need_model=False`, and a hit then leaves
+    `model` None without loading the model's classes (start-up time).
     `parallel` lets the CLI run the JSON-LD stage in a forked child (same diagnostics, less wall time).
     """
     from td2adaptor.support import cache
 
     if use_cache and cache.cache_dir() is not None and "-" not in _sources(sources):
+        import pickle
+
         from td2adaptor.compiler import resultcache
 
         srcs = _sources(sources)
@@ -202,7 +207,9 @@ def compile(  # noqa: A001 - the public name the docs promise
         options = (sorted((values or {}).items()), strict, package, max_bytes, max_affordances)
         cache_key = resultcache.key(srcs, dirs, repr(options))
 
-        def fresh() -> tuple[Model | None, tuple[Diagnostic, ...]]:
+        computed: list[Model | None] = []
+
+        def fresh() -> tuple[bytes | None, tuple[Diagnostic, ...]]:
             r = compile(
                 srcs,
                 interfaces=dirs,
@@ -213,9 +220,16 @@ def compile(  # noqa: A001 - the public name the docs promise
                 max_affordances=max_affordances,
                 parallel=parallel,
             )
-            return r.model, r.diagnostics
+            computed.append(r.model)
+            # the model is pickled apart, so that reading the entry loads only the diagnostics' classes
+            blob = None if r.model is None else pickle.dumps(r.model, protocol=pickle.HIGHEST_PROTOCOL)
+            return blob, r.diagnostics
 
-        model, diagnostics = resultcache.cached(cache_key, fresh)
+        blob, diagnostics = resultcache.cached(cache_key, fresh)
+        if computed:
+            model = computed[0]
+        else:
+            model = pickle.loads(blob) if blob is not None and need_model else None
         return Result(model, diagnostics, None)
     from td2adaptor.frontend.extract import REFERENCE, extract
     from td2adaptor.lowering.lower import lower
