@@ -132,6 +132,8 @@ def _format_option(f: Any) -> Any:
 
 
 def _placeholder_values(sets: Sequence[str], values_file: Path | None) -> tuple[dict[str, Any], list[Diagnostic]]:
+    if not sets and values_file is None:
+        return {}, []  # nothing to parse: the Thing Model code stays unloaded (start-up time)
     from td2adaptor.diagnostics import Diagnostics
     from td2adaptor.frontend.thingmodel import load_placeholder_map, parse_set_options
 
@@ -182,9 +184,11 @@ def _compile_units(
     max_affordances: int = 20_000,
     *,
     units: Sequence[Sequence[str]] | None = None,
+    need_model: bool = True,
 ) -> list[Result]:
     """One Result per input that `sources` make, grouped as gen and check group them (`_units`); problems with
-    --set/--values come once, with the first. Never empty."""
+    --set/--values come once, with the first. Never empty. Without `need_model`, a result-cache hit leaves
+    `model` None (see `compile`)."""
     from td2adaptor.compiler.pipeline import Result, compile
 
     values, problems = _placeholder_values(sets, values_file)
@@ -202,6 +206,7 @@ def _compile_units(
             max_affordances=max_affordances,
             use_cache=not no_cache,
             parallel=True,
+            need_model=need_model,
         )
         before = () if results else tuple(problems)
         results.append(Result(result.model, before + result.diagnostics, result.input))

@@ -47,7 +47,16 @@ def validate(
     Several arguments are grouped as gen groups them: each TD alone, all RosClasses config files as one input.
     """
     results = _compile_units(
-        sources, interfaces, sets, values_file, strict, max_bytes, package_name, no_cache, max_affordances
+        sources,
+        interfaces,
+        sets,
+        values_file,
+        strict,
+        max_bytes,
+        package_name,
+        no_cache,
+        max_affordances,
+        need_model=False,  # only the diagnostics are reported
     )
     ok = report([d for result in results for d in result.diagnostics], fmt, label=_label(sources))
     sys.exit(EXIT_OK if ok else EXIT_INVALID)

@@ -6,6 +6,18 @@ recompiling, and the JSON-LD stage may run in a forked child while the rest goes
 
 from __future__ import annotations
 
-from td2adaptor.compiler.pipeline import Input, Result, compile, load, validate
+from typing import TYPE_CHECKING, Any
 
 __all__ = ["Input", "Result", "compile", "load", "validate"]
+
+if TYPE_CHECKING:
+    from td2adaptor.compiler.pipeline import Input, Result, compile, load, validate
+
+
+def __getattr__(name: str) -> Any:
+    """The pipeline loads on first use: `resultcache`, which the CLI needs first, is importable without it."""
+    if name in __all__:
+        from td2adaptor.compiler import pipeline
+
+        return getattr(pipeline, name)
+    raise AttributeError(f"module 'td2adaptor.compiler' has no attribute {name!r}")

@@ -10,12 +10,14 @@ import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, BinaryIO, Literal
+from typing import TYPE_CHECKING, Any, BinaryIO, Literal
 
 from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity, escalate
 from td2adaptor.frontend.jsonsrc import DEFAULT_MAX_BYTES, JsonDocument, load_path
-from td2adaptor.frontend.legacy import LegacyInput, is_legacy, to_reference_td
-from td2adaptor.model import Model
+
+if TYPE_CHECKING:  # loaded when something is compiled: a result-cache hit needs none of it (start-up time)
+    from td2adaptor.frontend.legacy import LegacyInput
+    from td2adaptor.model import Model
 
 Source = str | Path
 InputKind = Literal["td", "tm", "legacy"]
@@ -87,6 +89,8 @@ def load(
     if not docs:
         diags.add("TD000", Severity.ERROR, "no input given", file="<input>")
         return None
+    from td2adaptor.frontend.legacy import is_legacy, to_reference_td
+
     legacy = [is_legacy(d.data) for d in docs]
     if all(legacy):
         lin = to_reference_td(docs, diags)
@@ -181,16 +185,21 @@ def compile(  # noqa: A001 - the public name the docs promise
     max_affordances: int = DEFAULT_MAX_AFFORDANCES,
     use_cache: bool = False,
     parallel: bool = False,
+    need_model: bool = True,
 ) -> Result:
     """Load, validate and lower `sources` into the canonical model.
 
     `model` is None when there are errors; `diagnostics` always lists every problem found, in input order.
-    With `use_cache`, an unchanged input is answered from the result cache (`Result.input` is then None).
+    With `use_cache`, an unchanged input is answered from the result cache (`Result.input` is then None);
+    a caller that only reports diagnostics (`validate`) passes `need_model=False`, and a hit then leaves
+    `model` None without loading the model's classes (start-up time).
     `parallel` lets the CLI run the JSON-LD stage in a forked child (same diagnostics, less wall time).
     """
     from td2adaptor.support import cache
 
     if use_cache and cache.cache_dir() is not None and "-" not in _sources(sources):
+        import pickle
+
         from td2adaptor.compiler import resultcache
 
         srcs = _sources(sources)
@@ -198,7 +207,9 @@ def compile(  # noqa: A001 - the public name the docs promise
         options = (sorted((values or {}).items()), strict, package, max_bytes, max_affordances)
         cache_key = resultcache.key(srcs, dirs, repr(options))
 
-        def fresh() -> tuple[Model | None, tuple[Diagnostic, ...]]:
+        computed: list[Model | None] = []
+
+        def fresh() -> tuple[bytes | None, tuple[Diagnostic, ...]]:
             r = compile(
                 srcs,
                 interfaces=dirs,
@@ -209,9 +220,16 @@ def compile(  # noqa: A001 - the public name the docs promise
                 max_affordances=max_affordances,
                 parallel=parallel,
             )
-            return r.model, r.diagnostics
+            computed.append(r.model)
+            # the model is pickled apart, so that reading the entry loads only the diagnostics' classes
+            blob = None if r.model is None else pickle.dumps(r.model, protocol=pickle.HIGHEST_PROTOCOL)
+            return blob, r.diagnostics
 
-        model, diagnostics = resultcache.cached(cache_key, fresh)
+        blob, diagnostics = resultcache.cached(cache_key, fresh)
+        if computed:
+            model = computed[0]
+        else:
+            model = pickle.loads(blob) if blob is not None and need_model else None
         return Result(model, diagnostics, None)
     from td2adaptor.frontend.extract import REFERENCE, extract
     from td2adaptor.lowering.lower import lower

@@ -9,6 +9,7 @@ hit. Entries are pickles written by td2adaptor itself into the user's cache dire
 from __future__ import annotations
 
 import hashlib
+import os
 import pickle
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -25,11 +26,23 @@ def _code_fingerprint() -> str:
     """Sizes and mtimes of td2adaptor's sources and data (templates and verbatim files included, since cached
     generated trees depend on them): any edit or upgrade invalidates the cache."""
     h = hashlib.sha256()
-    for path in sorted(_PKG.rglob("*")):
-        if "__pycache__" not in path.parts and path.is_file():
-            st = path.stat()
-            h.update(f"{path}:{st.st_size}:{st.st_mtime_ns}\n".encode())
+    for path, st in sorted(_files(str(_PKG))):
+        h.update(f"{path}:{st.st_size}:{st.st_mtime_ns}\n".encode())
     return h.hexdigest()
+
+
+def _files(folder: str) -> list[tuple[str, os.stat_result]]:
+    """Every file under `folder` outside `__pycache__` (as `Path.rglob` and `is_file` see them: symbolic links
+    followed) with its stat; os.scandir, since pathlib took a third of a cache hit's time."""
+    out = []
+    with os.scandir(folder) as entries:
+        for entry in entries:
+            if entry.is_dir():
+                if entry.name != "__pycache__":
+                    out += _files(entry.path)
+            elif entry.is_file():
+                out.append((entry.path, entry.stat()))
+    return out
 
 
 def _file_digest(path: Path) -> str:

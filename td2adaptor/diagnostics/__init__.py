@@ -10,10 +10,10 @@ so a new code cannot go undocumented. `python -m td2adaptor.diagnostics.docs` wr
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, replace
+from typing import Any
 
-from td2adaptor.diagnostics.catalogue import CATALOGUE
 from td2adaptor.diagnostics.severity import Severity
 
 __all__ = ["Diagnostic", "Diagnostics", "Severity", "escalate", "pointer_join", "pointer_tokens"]
@@ -115,8 +115,16 @@ class Diagnostics:
         return [d.code for d in self._items]
 
 
+_CATALOGUE: Mapping[str, Any] | None = None
+
+
 def _check_code(code: str) -> None:
-    if code not in CATALOGUE:
+    global _CATALOGUE  # loaded on the first `add`: a result-cache hit adds none (start-up time)
+    if _CATALOGUE is None:
+        from td2adaptor.diagnostics.catalogue import CATALOGUE
+
+        _CATALOGUE = CATALOGUE
+    if code not in _CATALOGUE:
         raise ValueError(f"diagnostic code {code!r} is not in td2adaptor.diagnostics.catalogue: add it there")
 
 

@@ -14,10 +14,11 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
-from td2adaptor.diagnostics import Diagnostics
-from td2adaptor.model import Model
+if TYPE_CHECKING:  # annotations only: what the generation driver needs from here loads without the model
+    from td2adaptor.diagnostics import Diagnostics
+    from td2adaptor.model import Model
 
 
 @dataclass(frozen=True)

@@ -7,15 +7,16 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity, escalate
 from td2adaptor.generation import registry as backend_registry
 from td2adaptor.generation.backend import GeneratedTree, GenOptions
 from td2adaptor.generation.emit import EmitReport, discard, plan, stage, swap
 from td2adaptor.generation.targets import Target
-from td2adaptor.lowering.rosnames import package_name_problem
-from td2adaptor.model import Model
+
+if TYPE_CHECKING:  # the model loads when something is compiled: a result-cache hit needs none of it
+    from td2adaptor.model import Model
 
 
 def resolve_backends(requested: Sequence[str]) -> tuple[list[str], str | None]:
@@ -52,6 +53,8 @@ def generate_trees(
     and says what it left out. A backend named explicitly, or --strict, keeps its errors.
     """
     if package_name:
+        from td2adaptor.lowering.rosnames import package_name_problem
+
         problem = package_name_problem(package_name)
         if problem:
             diags.error("GEN800", f"package name {package_name!r} {problem}")
@@ -145,9 +148,7 @@ def _build_key(targets: Sequence[Target]) -> str | None:
 
     if cache.cache_dir() is None:
         return None
-    from importlib.metadata import entry_points
-
-    if any(True for _ in entry_points(group=backend_registry.ENTRY_POINT_GROUP)):
+    if backend_registry.entry_points():
         return None
     from td2adaptor.compiler import resultcache
 

@@ -14,8 +14,6 @@ import hashlib
 import json
 import os
 import posixpath
-import shutil
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -154,6 +152,8 @@ def stage(tree: GeneratedTree, root: Path, report: EmitReport) -> Path | None:
     """
     if not report.written and not report.removed and _manifest_bytes(tree) == _read(root / MANIFEST):
         return None
+    import tempfile  # here, not at the top: `check` never writes (start-up time)
+
     _recover(root)
     root.parent.mkdir(parents=True, exist_ok=True)
     staged = Path(tempfile.mkdtemp(prefix=f".{root.name}.td2a-new-", dir=root.parent))
@@ -186,6 +186,8 @@ def stage(tree: GeneratedTree, root: Path, report: EmitReport) -> Path | None:
 
 def swap(staged: Path, root: Path) -> None:
     """Put a staged tree in place of `root` with one atomic exchange: the old tree or the new, never a mix."""
+    import shutil
+
     if root.exists():
         _exchange(staged, root)
         shutil.rmtree(staged)  # now holds the old tree
@@ -195,6 +197,8 @@ def swap(staged: Path, root: Path) -> None:
 
 def discard(staged: Path) -> None:
     """Drop a staged tree that will not be swapped in."""
+    import shutil
+
     shutil.rmtree(staged, ignore_errors=True)
 
 
@@ -231,6 +235,8 @@ def _replicate(src: Path, dst: Path, skip: set[str]) -> None:
             try:
                 os.link(src / rel, target)
             except OSError:
+                import shutil
+
                 shutil.copy2(src / rel, target)
 
 
@@ -281,5 +287,7 @@ def _recover(root: Path) -> None:
     backup = root.with_name(f".{root.name}.td2a-old")
     if backup.is_dir() and not root.exists():
         os.rename(backup, root)
+    import shutil
+
     for leftover in root.parent.glob(f".{root.name}.td2a-*") if root.parent.is_dir() else ():
         shutil.rmtree(leftover, ignore_errors=True)

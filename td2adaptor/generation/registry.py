@@ -6,14 +6,60 @@ folder; nothing here lists them.
 from __future__ import annotations
 
 import importlib
+import os
 import pkgutil
+import sys
 from functools import cache
-from importlib.metadata import entry_points
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from td2adaptor.generation.backend import Backend
+if TYPE_CHECKING:
+    from importlib.metadata import EntryPoint
+
+    from td2adaptor.generation.backend import Backend
 
 ENTRY_POINT_GROUP = "td2adaptor.backends"
+
+
+def entry_points() -> list[EntryPoint]:
+    """The entry points of ENTRY_POINT_GROUP that installed distributions declare.
+
+    `importlib.metadata` costs tens of milliseconds to import and to ask (it parses every distribution's
+    metadata), which the pre-commit `check` of an unchanged project would spend to learn that there are none.
+    So the `entry_points.txt` files it would read are looked at first: when none of them names the group, it
+    cannot find any. It is asked whenever it might: a file names the group, a `sys.path` entry is not a
+    folder (a zip), or a finder other than the standard one can find distributions.
+    """
+    if not _may_declare(ENTRY_POINT_GROUP):
+        return []
+    from importlib.metadata import entry_points as find
+
+    return list(find(group=ENTRY_POINT_GROUP))
+
+
+def _may_declare(group: str) -> bool:
+    import importlib.machinery
+
+    for finder in sys.meta_path:
+        if finder is not importlib.machinery.PathFinder and hasattr(finder, "find_distributions"):
+            return True
+    needle = group.encode()
+    for entry in sys.path:
+        root = entry or "."
+        try:
+            with os.scandir(root) as found:
+                infos = [e.name for e in found if e.name.lower().endswith((".dist-info", ".egg-info"))]
+        except NotADirectoryError:
+            return True  # a zip file or some other kind of entry: importlib.metadata knows
+        except OSError:
+            continue  # missing: importlib.metadata finds nothing there either
+        for name in infos:
+            try:
+                with open(os.path.join(root, name, "entry_points.txt"), "rb") as fh:
+                    if needle in fh.read():
+                        return True
+            except OSError:
+                continue
+    return False
 
 
 @cache
@@ -25,7 +71,7 @@ def modules() -> dict[str, str]:
     for info in pkgutil.iter_modules(package.__path__):
         if info.ispkg and not info.name.startswith("_"):
             found[info.name] = f"{package.__name__}.{info.name}"
-    for ep in entry_points(group=ENTRY_POINT_GROUP):
+    for ep in entry_points():
         found.setdefault(ep.name, ep.value)
     return dict(sorted(found.items(), key=lambda kv: (_order(kv[1]), kv[0])))
 

@@ -54,6 +54,10 @@ class Config:
     targets: tuple[Target, ...] = field(default_factory=tuple)
 
 
+#: pyproject.toml files `find` parsed, with their text: `load` of the same unchanged text takes the parse once
+_FOUND: dict[str, tuple[str, dict[str, Any]]] = {}
+
+
 def find(start: Path | None = None) -> Path | None:
     """The nearest td2adaptor.toml, or pyproject.toml with a [tool.td2adaptor] table, from `start` upwards."""
     here = (start or Path.cwd()).resolve()
@@ -64,7 +68,10 @@ def find(start: Path | None = None) -> Path | None:
         pyproject = folder / "pyproject.toml"
         if pyproject.is_file():
             try:
-                if "td2adaptor" in tomllib.loads(pyproject.read_text(encoding="utf-8")).get("tool", {}):
+                text = pyproject.read_text(encoding="utf-8")
+                data = tomllib.loads(text)
+                if "td2adaptor" in data.get("tool", {}):
+                    _FOUND[str(pyproject)] = (text, data)
                     return pyproject
             except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError):
                 continue
@@ -75,7 +82,9 @@ def load(path: Path, diags: Diagnostics) -> Config | None:
     """Parse and check a configuration file; every problem is a diagnostic (CFG90x), never an exception."""
     name = str(path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        text = path.read_text(encoding="utf-8")
+        found = _FOUND.pop(name, None)
+        data = found[1] if found is not None and found[0] == text else tomllib.loads(text)
     except (OSError, UnicodeDecodeError) as exc:
         diags.add("CFG900", _err(), f"cannot read {name}: {exc}", file=name)
         return None

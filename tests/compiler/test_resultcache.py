@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -35,6 +37,22 @@ def test_hit_equals_fresh_result(work: Path) -> None:
     assert second.model == first.model and second.diagnostics == first.diagnostics
     assert second.input is None  # answered from the cache
     assert _entries(work) == 1
+
+
+def test_a_hit_without_need_model_gives_the_diagnostics_and_loads_no_model(work: Path) -> None:
+    """`validate` only reports: its hits leave the model (and its classes) unloaded (start-up time, issue 17)."""
+    first = _compile(work / "td.json", work)
+    probe = (
+        "import sys, td2adaptor\n"
+        f"r = td2adaptor.compile({str(work / 'td.json')!r}, interfaces=[{str(work / 'interfaces')!r}], "
+        "use_cache=True, need_model=False)\n"
+        "print(r.model is None, r.input is None, 'td2adaptor.model' in sys.modules, len(r.diagnostics))"
+    )
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["True", "True", "False", str(len(first.diagnostics))]
+    hit = td2adaptor.compile(work / "td.json", interfaces=[work / "interfaces"], use_cache=True, need_model=False)
+    assert hit.model is None and hit.diagnostics == first.diagnostics
+    assert _compile(work / "td.json", work).model == first.model  # the model is still there for those who need it
 
 
 def test_changed_td_or_interface_is_a_miss(work: Path) -> None:

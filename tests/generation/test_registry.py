@@ -89,3 +89,22 @@ def test_a_new_backend_folder_is_found_listed_in_the_help_and_generates(
         assert (out / "toy" / "toy.txt").read_text() == "Robotnik RB-1"
     finally:
         sys.modules.pop("td2adaptor.backends.toy", None)
+
+
+def test_the_quick_look_for_entry_points_agrees_with_importlib_metadata(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`registry.entry_points` reads the entry_points.txt files before asking importlib.metadata (start-up time)."""
+    from importlib.metadata import entry_points
+
+    assert registry.entry_points() == list(entry_points(group=registry.ENTRY_POINT_GROUP)) == []
+    assert not registry._may_declare(registry.ENTRY_POINT_GROUP)
+    other = tmp_path / "other-1.0.dist-info"
+    other.mkdir()
+    (other / "entry_points.txt").write_text("[console_scripts]\nother = other:main\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    assert not registry._may_declare(registry.ENTRY_POINT_GROUP)
+    archive = tmp_path / "eggs.zip"
+    archive.write_bytes(b"")
+    monkeypatch.syspath_prepend(str(archive))  # not a folder: only importlib.metadata can say what it holds
+    assert registry._may_declare(registry.ENTRY_POINT_GROUP)
