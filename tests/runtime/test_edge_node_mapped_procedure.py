@@ -9,8 +9,6 @@ in `string_value`; a run whose `string_value` is "refuse" is answered 3 (failed)
 
 from __future__ import annotations
 
-import json
-import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -18,10 +16,6 @@ from typing import Any
 
 import pytest
 
-import td2adaptor
-from td2adaptor.diagnostics import Diagnostics, Severity
-from td2adaptor.generation.backend import GenOptions
-from td2adaptor.generation.registry import load as load_backend
 from td2adaptor.model import Model
 from td2adaptor.runtime import PortTimeout, PortUnavailable, RuntimeConfig, serve
 from td2adaptor.runtime.ros import connect
@@ -30,6 +24,7 @@ from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.edge import check_mission, until
 from tests.runtime.rb1 import terminal
+from tests.runtime.rclpy_robot import ServiceRobot, generate_rclpy
 
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain
 
@@ -37,19 +32,13 @@ ROBOT = "task_robot"
 RUNNING_AFTER = 0.3
 
 
-class TaskRobot:
+class TaskRobot(ServiceRobot):
     """The BasicTypes robot (see the module docstring); a task lasts `float64_value` seconds."""
 
     def __init__(self, namespace: str) -> None:
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.executors import MultiThreadedExecutor
         from test_msgs.srv import BasicTypes
 
-        self.context = Context()
-        rclpy.init(context=self.context)
-        self.node: Any = rclpy.create_node("task_robot", context=self.context)
-        self.lock = threading.Lock()
+        super().__init__("task_robot")
         self.tasks: dict[int, dict[str, Any]] = {}
         self.next_id = 41
 
@@ -93,39 +82,20 @@ class TaskRobot:
                     task["cancelled"] = True
             return query(request, response)
 
-        self.services = [
-            self.node.create_service(BasicTypes, f"/{namespace}/task/{name}", handler)
-            for name, handler in (("run", run), ("query", query), ("cancel", cancel))
-        ]
-        self.executor = MultiThreadedExecutor(num_threads=2, context=self.context)
-        self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
-
-    def stop(self) -> None:
-        import rclpy
-
-        self.executor.shutdown(timeout_sec=5)
-        self.thread.join(5)
-        self.node.destroy_node()
-        rclpy.shutdown(context=self.context)
+        self.serve(
+            [
+                (BasicTypes, f"/{namespace}/task/{name}", handler)
+                for name, handler in (("run", run), ("query", query), ("cancel", cancel))
+            ]
+        )
 
 
 @pytest.fixture(scope="module")
 def task_build(ros2_domain: int, tmp_path_factory: pytest.TempPathFactory) -> tuple[Model, Path]:
-    base = tmp_path_factory.mktemp("task-edge")
-    td = base / "td.json"
-    td.write_text(json.dumps(procedure_td("test_msgs/srv/BasicTypes", MAPPED)), encoding="utf-8")
-    result = td2adaptor.compile(td, interfaces=[INTERFACES])
-    assert result.model is not None, [d.message for d in result.diagnostics]
-    diags = Diagnostics()
-    tree = load_backend("rclpy").generate(result.model, GenOptions(), diags)
-    assert not [d for d in diags if d.severity is Severity.ERROR], [d.message for d in diags]
-    for rel, data in tree:
-        path = base / "src" / rel
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_bytes(data)
-    return result.model, base / "src" / result.model.package_name
+    model, src, _ = generate_rclpy(
+        procedure_td("test_msgs/srv/BasicTypes", MAPPED), INTERFACES, tmp_path_factory.mktemp("task-edge")
+    )
+    return model, src
 
 
 @pytest.fixture

@@ -15,8 +15,6 @@ and driven through `connect` (GeneratedPort), nothing mocked.
 
 from __future__ import annotations
 
-import json
-import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -24,10 +22,7 @@ from typing import Any
 
 import pytest
 
-import td2adaptor
-from td2adaptor.diagnostics import Diagnostics, Severity
-from td2adaptor.generation.backend import GenOptions
-from td2adaptor.generation.registry import load as load_backend
+from td2adaptor.diagnostics import Severity
 from td2adaptor.model import Model
 from td2adaptor.runtime import LocalBroker, PortTimeout, PortUnavailable, RuntimeConfig, serve
 from td2adaptor.runtime.genport import GeneratedPort, _takes_mission_id
@@ -35,6 +30,7 @@ from td2adaptor.runtime.ros import RosLink, connect
 from tests.lowering.test_procedures import INTERFACES, STATES, procedure_td
 from tests.runtime.edge import check_mission, until
 from tests.runtime.rb1 import LocalApp, terminal
+from tests.runtime.rclpy_robot import ServiceRobot, generate_rclpy
 
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain
 
@@ -55,22 +51,16 @@ def plain_td() -> dict[str, Any]:
     return td
 
 
-class PlainRobot:
+class PlainRobot(ServiceRobot):
     """stop (Trigger), enableMotors (SetBool: `false` is refused, success false), and the task procedure:
     run (BasicTypes: a task of `float64_value` seconds, its id in `int64_value`), query by id, cancel (Trigger:
     cancels whatever task runs, as a robot that cannot be told which one would)."""
 
     def __init__(self, namespace: str) -> None:
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.executors import MultiThreadedExecutor
         from std_srvs.srv import SetBool, Trigger
         from test_msgs.srv import BasicTypes
 
-        self.context = Context()
-        rclpy.init(context=self.context)
-        self.node: Any = rclpy.create_node("plain_robot", context=self.context)
-        self.lock = threading.Lock()
+        super().__init__("plain_robot")
         self.tasks: dict[int, dict[str, Any]] = {}
         self.calls: list[str] = []
 
@@ -122,37 +112,14 @@ class PlainRobot:
             (BasicTypes, "task/query", query),
             (Trigger, "task/cancel", cancel),
         ]
-        self.services = [self.node.create_service(t, f"/{namespace}/{n}", h) for t, n, h in services]
-        self.executor = MultiThreadedExecutor(num_threads=2, context=self.context)
-        self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
-
-    def stop(self) -> None:
-        import rclpy
-
-        self.executor.shutdown(timeout_sec=5)
-        self.thread.join(5)
-        self.node.destroy_node()
-        rclpy.shutdown(context=self.context)
+        self.serve([(t, f"/{namespace}/{n}", h) for t, n, h in services])
 
 
 @pytest.fixture(scope="module")
 def plain_build(ros2_domain: int, tmp_path_factory: pytest.TempPathFactory) -> tuple[Model, Path]:
-    base = tmp_path_factory.mktemp("plain-edge")
-    td = base / "td.json"
-    td.write_text(json.dumps(plain_td()), encoding="utf-8")
-    result = td2adaptor.compile(td, interfaces=[INTERFACES])
-    assert result.model is not None, [d.message for d in result.diagnostics]
-    assert [d.code for d in result.diagnostics if d.severity is Severity.WARNING] == ["ROS447"]
-    diags = Diagnostics()
-    tree = load_backend("rclpy").generate(result.model, GenOptions(), diags)
-    assert not [d for d in diags if d.severity is Severity.ERROR], [d.message for d in diags]
-    for rel, data in tree:
-        path = base / "src" / rel
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_bytes(data)
-    return result.model, base / "src" / result.model.package_name
+    model, src, diagnostics = generate_rclpy(plain_td(), INTERFACES, tmp_path_factory.mktemp("plain-edge"))
+    assert [d.code for d in diagnostics if d.severity is Severity.WARNING] == ["ROS447"]
+    return model, src
 
 
 @pytest.fixture(scope="module")
