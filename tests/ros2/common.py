@@ -16,6 +16,7 @@ from typing import Any
 import pytest
 
 import td2adaptor
+from td2adaptor.compiler.pipeline import Result
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GenOptions
 from td2adaptor.generation.registry import load as load_backend
@@ -39,7 +40,15 @@ def require_ros2() -> None:
 
 def generate_rclpy(td: Path, out: Path, *, package_name: str | None = None) -> Path:
     """Run the rclpy backend on `td` (RB-1 interfaces) and write the tree; the package directory."""
-    result = td2adaptor.compile(td, interfaces=[EXAMPLE / "interfaces"])
+    return build_rclpy(td, out, package_name=package_name)[1]
+
+
+def build_rclpy(
+    td: Path, out: Path, *, interfaces: Path = EXAMPLE / "interfaces", package_name: str | None = None
+) -> tuple[Result, Path]:
+    """Compile `td` against `interfaces`, run the rclpy backend and write its tree under `out`: the compile
+    result (its model is never None) and the package directory."""
+    result = td2adaptor.compile(td, interfaces=[interfaces])
     assert result.model is not None, [d.message for d in result.diagnostics]
     diags = Diagnostics()
     tree = load_backend("rclpy").generate(result.model, GenOptions(package_name=package_name), diags)
@@ -48,7 +57,7 @@ def generate_rclpy(td: Path, out: Path, *, package_name: str | None = None) -> P
         path = out / rel
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(data)
-    return out / (package_name or result.model.package_name)
+    return result, out / (package_name or result.model.package_name)
 
 
 class Process:

@@ -9,11 +9,10 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-import td2adaptor
-from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity
-from td2adaptor.generation.backend import GenOptions
-from td2adaptor.generation.registry import load as load_backend
+from td2adaptor.diagnostics import Diagnostic
 from td2adaptor.model import Model
+from td2adaptor.runtime import PortTimeout, PortUnavailable
+from tests.ros2.common import build_rclpy
 
 Service = tuple[Any, str, Callable[[Any, Any], Any]]  # (type, full name, handler)
 
@@ -49,17 +48,20 @@ class ServiceRobot:
 
 
 def generate_rclpy(td: dict[str, Any], interfaces: Path, base: Path) -> tuple[Model, Path, list[Diagnostic]]:
-    """Compile `td` (written to `base`), generate its rclpy package under `base/src`: the model, the package's
+    """Write `td` to `base`, compile it and write its rclpy package under `base/src`: the model, the package's
     folder and the compile diagnostics."""
     path = base / "td.json"
     path.write_text(json.dumps(td), encoding="utf-8")
-    result = td2adaptor.compile(path, interfaces=[interfaces])
-    assert result.model is not None, [d.message for d in result.diagnostics]
-    diags = Diagnostics()
-    tree = load_backend("rclpy").generate(result.model, GenOptions(), diags)
-    assert not [d for d in diags if d.severity is Severity.ERROR], [d.message for d in diags]
-    for rel, data in tree:
-        out = base / "src" / rel
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_bytes(data)
-    return result.model, base / "src" / result.model.package_name, list(result.diagnostics)
+    result, package = build_rclpy(path, base / "src", interfaces=interfaces)
+    assert result.model is not None
+    return result.model, package, list(result.diagnostics)
+
+
+def task_query_answers(port: Any) -> bool:
+    """Whether the robot answers a (side-effect free) query of procedure_td's task: a ROS 2 service can be
+    discovered before its server matched the client's response reader, losing the first answers."""
+    try:
+        port.query("TaskComponent", "taskQuery", 0, 1.0)
+    except (PortUnavailable, PortTimeout):
+        return False
+    return True

@@ -9,7 +9,6 @@ query and cancel; the throttle; the robot killed mid-goal → failure within the
 
 from __future__ import annotations
 
-import json
 import signal
 import sys
 import time
@@ -19,10 +18,6 @@ from typing import Any
 
 import pytest
 
-import td2adaptor
-from td2adaptor.diagnostics import Diagnostics, Severity
-from td2adaptor.generation.backend import GenOptions
-from td2adaptor.generation.registry import load as load_backend
 from td2adaptor.model import Model
 from td2adaptor.model.events import Kind, build_catalog
 from td2adaptor.model.wot import WOT_LEVEL
@@ -37,6 +32,7 @@ from tests.runtime.client import AppClient, Event
 from tests.runtime.edge import feedback, until
 from tests.runtime.fibo_ros2 import ABORT, SLOW, sequence
 from tests.runtime.rb1 import terminal
+from tests.runtime.rclpy_robot import generate_rclpy
 
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain
 
@@ -52,19 +48,8 @@ def topic(robot: str, suffix: str = "") -> str:
 @pytest.fixture(scope="module")
 def fibo_build(ros2_domain: int, tmp_path_factory: pytest.TempPathFactory) -> tuple[Model, Path]:
     """The model and the generated rclpy adaptor's source folder (it goes on sys.path)."""
-    base = tmp_path_factory.mktemp("fibo-edge")
-    td = base / "td.json"
-    td.write_text(json.dumps(action_td()), encoding="utf-8")
-    result = td2adaptor.compile(td, interfaces=[INTERFACES])
-    assert result.model is not None, [d.message for d in result.diagnostics]
-    diags = Diagnostics()
-    tree = load_backend("rclpy").generate(result.model, GenOptions(), diags)
-    assert not [d for d in diags if d.severity is Severity.ERROR], [d.message for d in diags]
-    for rel, data in tree:
-        path = base / "src" / rel
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_bytes(data)
-    return result.model, base / "src" / result.model.package_name
+    model, src, _ = generate_rclpy(action_td(), INTERFACES, tmp_path_factory.mktemp("fibo-edge"))
+    return model, src
 
 
 def robot_process(*namespaces: str) -> Process:

@@ -17,14 +17,14 @@ from typing import Any
 import pytest
 
 from td2adaptor.model import Model
-from td2adaptor.runtime import PortTimeout, PortUnavailable, RuntimeConfig, serve
+from td2adaptor.runtime import RuntimeConfig, serve
 from td2adaptor.runtime.ros import connect
 from tests.lowering.test_procedures import INTERFACES, MAPPED, procedure_td
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.edge import check_mission, until
 from tests.runtime.rb1 import terminal
-from tests.runtime.rclpy_robot import ServiceRobot, generate_rclpy
+from tests.runtime.rclpy_robot import ServiceRobot, generate_rclpy, task_query_answers
 
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain
 
@@ -124,7 +124,7 @@ def test_mapped_procedure_over_mqtt(
     port = link.ports[ROBOT]
     # a ROS 2 service can be discovered before its server matched our response reader: the first answer may be
     # lost, so wait for one answered (side-effect free) query before relying on a call
-    assert until(lambda: answers(port), 30, 0.1)
+    assert until(lambda: task_query_answers(port), 30, 0.1)
     engine = serve(model, port, config)
     app = AppClient(broker.url, [f"td2adaptor/{ROBOT}/#"])
     run = f"td2adaptor/{ROBOT}/TaskComponent/taskRun"
@@ -157,14 +157,6 @@ def test_mapped_procedure_over_mqtt(
         app.close()
         engine.stop()
         link.close()
-
-
-def answers(port: Any) -> bool:
-    try:
-        port.query("TaskComponent", "taskQuery", 0, 1.0)
-    except (PortUnavailable, PortTimeout):
-        return False
-    return True
 
 
 def _fb(events: list[Any], correlation: str) -> list[dict[str, Any]]:

@@ -24,13 +24,13 @@ import pytest
 
 from td2adaptor.diagnostics import Severity
 from td2adaptor.model import Model
-from td2adaptor.runtime import LocalBroker, PortTimeout, PortUnavailable, RuntimeConfig, serve
+from td2adaptor.runtime import LocalBroker, RuntimeConfig, serve
 from td2adaptor.runtime.genport import GeneratedPort, _takes_mission_id
 from td2adaptor.runtime.ros import RosLink, connect
 from tests.lowering.test_procedures import INTERFACES, STATES, procedure_td
 from tests.runtime.edge import check_mission, until
 from tests.runtime.rb1 import LocalApp, terminal
-from tests.runtime.rclpy_robot import ServiceRobot, generate_rclpy
+from tests.runtime.rclpy_robot import ServiceRobot, generate_rclpy, task_query_answers
 
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain
 
@@ -136,19 +136,11 @@ def link(plain_build: tuple[Model, Path], robot: PlainRobot) -> Iterator[RosLink
     ros = connect(model, model.package_name, [config], ros=2, package_paths=[src])
     # a ROS 2 service can be discovered before its server matched our response reader: the first answer may
     # be lost, so wait for one answered (side-effect free) query before relying on a call
-    assert until(lambda: _answers(ros.ports[ROBOT]), 30, 0.1)
+    assert until(lambda: task_query_answers(ros.ports[ROBOT]), 30, 0.1)
     try:
         yield ros
     finally:
         ros.close()
-
-
-def _answers(port: Any) -> bool:
-    try:
-        port.query("TaskComponent", "taskQuery", 0, 1.0)
-    except (PortUnavailable, PortTimeout):
-        return False
-    return True
 
 
 @pytest.fixture
