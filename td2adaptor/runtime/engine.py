@@ -35,7 +35,7 @@ from td2adaptor.model import Model, Procedure
 from td2adaptor.model.events import ALL_ROBOTS, EventCatalog, EventSpec, Kind, build_catalog
 from td2adaptor.runtime.bus import Bus, BusError, Message
 from td2adaptor.runtime.config import RuntimeConfig
-from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope, excerpt, salvage
+from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope, excerpt, references, salvage
 from td2adaptor.runtime.goals import GoalRunner
 from td2adaptor.runtime.port import NoValue, PortError, RobotPort, StartResult
 from td2adaptor.runtime.procedures import ProcedureStatus, read
@@ -224,6 +224,15 @@ class Engine:
         event = self._event(Kind.ERROR, payload, affordance=affordance, correlation=correlation, mission=mission)
         self._publish(self.catalog.find(Kind.ERROR), event)
 
+    def _refuse(
+        self, code: str, message: str, msg: Message, spec: EventSpec, refs: tuple[str | None, int | None]
+    ) -> None:
+        """Answer an inbound event that is not run (retained, stale, replayed, ...) with an error event carrying
+        `refs`, its correlation and mission."""
+        self._count("refused")
+        corr, mission = refs
+        self._error(code, message, topic=msg.topic, affordance=spec.affordance, correlation=corr, mission=mission)
+
     def _state(
         self,
         run: str,
@@ -280,16 +289,13 @@ class Engine:
         if robot not in (self.config.robot, ALL_ROBOTS):
             return
         if msg.retain and spec.kind.inbound:  # the broker would hand it over again at every reconnect
-            self._count("refused")
-            corr, mission = salvage(msg.payload)
-            self._error(
+            self._refuse(
                 "retained",
                 "not run: a command published with the retain flag would run again at every reconnect; publish "
                 "commands without retain, and clear this one with an empty retained message on its topic",
-                topic=msg.topic,
-                affordance=spec.affordance,
-                correlation=corr,
-                mission=mission,
+                msg,
+                spec,
+                salvage(msg.payload),
             )
             return
         problem: Problem | None
@@ -316,17 +322,15 @@ class Engine:
         event_id = event.get("id")
         sent = event.get("time")
         if self.config.require_id_and_time and not (isinstance(event_id, str) and isinstance(sent, str)):
-            self._count("refused")
             wot = event.get("source") == WOT_SOURCE
-            self._error(
+            self._refuse(
                 "no-id-or-time",
                 "not run: this node requires every inbound event to carry an id and a time "
                 + ("(a WoT message: a correlationId) " if wot else "")
                 + "(require_id_and_time), so that a replayed or long-queued command cannot run",
-                topic=msg.topic,
-                affordance=spec.affordance,
-                correlation=event.get("correlation") if isinstance(event.get("correlation"), str) else None,
-                mission=event.get("mission") if isinstance(event.get("mission"), int) else None,
+                msg,
+                spec,
+                references(event),
             )
             return
         verdict = self.guard.check(
@@ -340,14 +344,13 @@ class Engine:
             log.info("duplicate event %s on %s ignored", event_id, msg.topic)
             return
         if verdict is not Verdict.NEW:
-            self._count("refused")
-            self._error(
+            corr, mission = references(event)
+            self._refuse(
                 verdict.value,
                 _REFUSALS[verdict].format(id=event_id, time=sent, window=self.config.freshness_window),
-                topic=msg.topic,
-                affordance=spec.affordance,
-                correlation=event.get("correlation") or (event_id if isinstance(event_id, str) else None),
-                mission=event.get("mission") if isinstance(event.get("mission"), int) else None,
+                msg,
+                spec,
+                (corr or (event_id if isinstance(event_id, str) else None), mission),
             )
             return
         component = self.model.component(spec.component or "")

@@ -133,6 +133,11 @@ def salvage(raw: bytes) -> tuple[str | None, int | None]:
         data = loads(raw)
     except (UnicodeDecodeError, ValueError, RecursionError):
         return None, None
+    return references(data)
+
+
+def references(data: Any) -> tuple[str | None, int | None]:
+    """Correlation and mission of a parsed event, each where it is of the kind the envelope allows."""
     if not isinstance(data, dict):
         return None, None
     corr = data.get("correlation")
