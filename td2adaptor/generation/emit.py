@@ -154,11 +154,13 @@ def stage(tree: GeneratedTree, root: Path, report: EmitReport) -> Path | None:
         return None
     import tempfile  # here, not at the top: `check` never writes (start-up time)
 
+    from td2adaptor.support.fsutil import umask
+
     _recover(root)
     root.parent.mkdir(parents=True, exist_ok=True)
     staged = Path(tempfile.mkdtemp(prefix=f".{root.name}.td2a-new-", dir=root.parent))
     try:
-        mask = _umask()
+        mask = umask()
         os.chmod(staged, 0o777 & ~mask)  # mkdtemp makes it 0700, and the swap keeps the mode
         skip = set(report.written) | set(report.removed) | {MANIFEST}
         if root.is_dir():
@@ -200,12 +202,6 @@ def discard(staged: Path) -> None:
     import shutil
 
     shutil.rmtree(staged, ignore_errors=True)
-
-
-def _umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
 
 
 def _manifest_bytes(tree: GeneratedTree) -> bytes:
