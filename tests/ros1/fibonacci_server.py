@@ -7,7 +7,9 @@
 * `picky`: an actionlib ActionServer that rejects goals with a negative order (text "order must not be
   negative") and succeeds at once otherwise.
 * `stuck`: an actionlib ActionServer that never answers a goal (it stays pending).
-Prints `ready` once all three serve.
+* `hasty`: an actionlib ActionServer that publishes `order` feedback messages and the result right after the
+  last one, with no pause: feedback and result travel on two connections, so the result often arrives first.
+Prints `ready` once all four serve.
 """
 
 from __future__ import annotations
@@ -53,6 +55,17 @@ def main() -> None:
     picky.start()
     stuck = actionlib.ActionServer(f"/{namespace}/stuck", FibonacciAction, lambda handle: None, auto_start=False)
     stuck.start()
+
+    def hasty_goal(handle: actionlib.ServerGoalHandle) -> None:
+        handle.set_accepted("fine")
+        sequence = [0, 1]
+        for i in range(handle.get_goal().order):
+            handle.publish_feedback(FibonacciFeedback(sequence=sequence[: i + 1]))
+            sequence.append(sequence[-1] + sequence[-2])
+        handle.set_succeeded(FibonacciResult(sequence=sequence[:-2]), "done")
+
+    hasty = actionlib.ActionServer(f"/{namespace}/hasty", FibonacciAction, hasty_goal, auto_start=False)
+    hasty.start()
     print("ready", flush=True)
     rospy.spin()
 

@@ -193,6 +193,31 @@ def test_goal_feedback_result(master: Master, path: list[Path], server: None) ->
     assert (out["status"], out["done"], out["cancel"]) == ("succeeded", True, False)
 
 
+def test_feedback_published_right_before_the_result_is_kept(master: Master, path: list[Path], server: None) -> None:
+    """The hasty server publishes its last feedback message and the result back to back; they travel on two
+    connections, so the result often arrives first. actionlib's own client drops feedback after the result;
+    the goal handle keeps every message, in order (callbacks and the iterator's buffer)."""
+    out = client(
+        master,
+        path,
+        f"{RAW_CLIENT}import time\n"
+        "hasty = raw_client('hasty')\n"
+        "runs = []\n"
+        "for n in range(1, 16):\n"
+        "    goal = hasty.send(G(order=n), 10.0, 10.0)\n"
+        "    goal.result(10.0)\n"
+        "    deadline = time.monotonic() + 5\n"
+        "    while len(seen := [list(fb.sequence) for fb in goal.feedback(timeout=1)]) < n:\n"
+        "        if time.monotonic() > deadline:\n"
+        "            break\n"
+        "        time.sleep(0.02)\n"
+        "    runs.append(seen)\n"
+        "emit(runs)\n",
+    )
+    sequence = [0, 1, 1, 2, 3, 5, 8, 13, 21, 34, 55, 89, 144, 233, 377]
+    assert out == [[sequence[: i + 1] for i in range(n)] for n in range(1, 16)]
+
+
 def test_cancel_mid_goal(master: Master, path: list[Path], server: None) -> None:
     out = client(
         master,

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import threading
 import time
+import weakref
 from collections import deque
 from collections.abc import Callable, Iterator
 from typing import Any, Generic, TypeVar, cast
@@ -68,10 +69,12 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
     `goal_id` is actionlib's goal id (a string), `status` the goal's latest status ("pending", "executing",
     "canceling", "succeeded", "canceled", "aborted", "rejected", "lost"; "unknown" before the first report).
     Feedback arrives in rospy's receive thread: `on_feedback(callback)` calls a callback with each message,
-    `feedback(timeout=...)` iterates over them in the caller's thread until the goal ends. `result(timeout=...)`
-    waits for the end; `cancel(timeout=...)` asks the server to cancel the goal. No method waits longer than
-    its timeout, and a wait ends early with ServiceUnavailable when the action server goes away (ROS 1 would
-    not tell otherwise: a dead server just stops publishing).
+    `feedback(timeout=...)` iterates over them in the caller's thread until the goal ends. Feedback and result
+    travel on two connections, so a message the server published right before the result may arrive just
+    after it: it still reaches the callbacks and the buffer (actionlib's own client would drop it).
+    `result(timeout=...)` waits for the end; `cancel(timeout=...)` asks the server to cancel the goal. No
+    method waits longer than its timeout, and a wait ends early with ServiceUnavailable when the action server
+    goes away (ROS 1 would not tell otherwise: a dead server just stops publishing).
     """
 
     def __init__(self, action: str, timeout: float, server_alive: Callable[[], bool] = lambda: True) -> None:
@@ -103,8 +106,8 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
                 self._done, self._result = True, result
             self._cond.notify_all()
 
-    def deliver(self, handle: actionlib.ClientGoalHandle, feedback: FeedbackT) -> None:
-        """One feedback message (actionlib's feedback callback; not for callers)."""
+    def deliver(self, feedback: FeedbackT) -> None:
+        """One feedback message of this goal (from ActionGoalClient's feedback subscription; not for callers)."""
         with self._cond:
             self._feedback.append(feedback)
             self._received += 1
@@ -259,6 +262,12 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
         self.feedback_class = feedback_class
         self._lock = threading.Lock()
         self._client: actionlib.ActionClient | None = None
+        # actionlib's client drops a feedback message that arrives after the goal's result (update_feedback
+        # ignores it once DONE), which happens whenever the server publishes the two back to back: this
+        # client subscribes to the feedback topic itself and hands each message to its goal's handle.
+        self._feedback_sub: rospy.Subscriber | None = None
+        self._goals: weakref.WeakValueDictionary[str, GoalHandle[ResultT, FeedbackT]] = weakref.WeakValueDictionary()
+        self._goals_lock = threading.Lock()  # held while a goal is sent and filed, so its feedback finds it
 
     def register(self) -> None:
         """Create the action client (its goal/cancel publishers and status/feedback/result subscribers)."""
@@ -266,12 +275,25 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
             require_node()
             with self._lock:
                 if self._client is None:
-                    self._client = actionlib.ActionClient(self.name, self._action_class)
+                    client = actionlib.ActionClient(self.name, self._action_class)
+                    topic = client.feedback_sub.resolved_name
+                    self._feedback_sub = rospy.Subscriber(topic, client.ActionFeedback, self._on_feedback)
+                    self._client = client
+
+    def _on_feedback(self, message: Any) -> None:
+        """A message on the feedback topic (rospy's receive thread): to its goal's handle, if it is ours."""
+        with self._goals_lock:
+            handle = self._goals.get(str(message.status.goal_id.id))
+        if handle is not None:
+            handle.deliver(cast(FeedbackT, message.feedback))
 
     def close(self) -> None:
         """Unregister the client's publishers and subscribers; register() (or send) sets them up again."""
         with self._lock:
             client, self._client = self._client, None
+            subscription, self._feedback_sub = self._feedback_sub, None
+        if subscription is not None:
+            subscription.unregister()
         if client is not None:
             client.stop()
 
@@ -308,8 +330,10 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
         client = self._client
         if client is None:  # closed by another thread meanwhile
             raise ServiceUnavailable(self.name, "the client was closed")
-        raw = client.send_goal(goal, transition_cb=handle.transition, feedback_cb=handle.deliver)
-        handle.attach(raw)
+        with self._goals_lock:
+            raw = client.send_goal(goal, transition_cb=handle.transition)
+            handle.attach(raw)
+            self._goals[handle.goal_id] = handle
         if not handle.wait_taken_up(timeout):
             raw.cancel()  # the server may take it up later: nobody would follow it
             if not self.server_ready():

@@ -22,6 +22,7 @@ class ActionClient:
     status_sub: rospy.Subscriber
     result_sub: rospy.Subscriber
     feedback_sub: rospy.Subscriber
+    ActionFeedback: type[Any]
     def __init__(self, ns: str, ActionSpec: Any) -> None: ...
     def send_goal(
         self,

@@ -37,6 +37,7 @@ class Publisher:
     def get_num_connections(self) -> int: ...
 
 class Subscriber:
+    resolved_name: str
     def __init__(
         self,
         name: str,
