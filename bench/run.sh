@@ -26,4 +26,6 @@ run "gen next to a peer generator (issue 3)" "$PY" bench/peer.py
 [ -f bench/discovery.py ] && run "discovery: TD registered with a TD directory at start (issue 11)" "$PY" bench/discovery.py
 [ -f bench/scaffold.py ] && run "scaffold a 100-node ROS 2 graph (issue 15)" "$PY" bench/scaffold.py
 [ -f bench/edge_node_actions_ros2.py ] && run "edge node: ROS 2 action goal -> feedback and result events (issue 12)" "$PY" bench/edge_node_actions_ros2.py
+[ -f bench/fleet_ros2.py ] && run "a fleet of 100 robots on one broker: one edge node per robot, one for the fleet (issue 17)" "$PY" bench/fleet_ros2.py
+[ -f bench/sensor_stream_ros2.py ] && run "sensor streams (odom 100 Hz, scan 10 Hz) as property events (issue 17)" "$PY" bench/sensor_stream_ros2.py
 exit $status

@@ -5,6 +5,12 @@ One command starts it (one node per robot, all in this process):
     .venv/bin/python -m examples.robotnik_rb1.sim.ros2 --namespace rb1_base_a --duration 1.0
 
     --namespace NS   a robot namespace; repeat it for several robots (rb1_base_a, rb1_base_b, rb1_base_c)
+    --count N        a fleet: N robots NS_0 ... NS_<N-1> (NS: the one --namespace, default rb1_base), e.g.
+                     `--count 100` serves rb1_base_0 ... rb1_base_99 in this one process
+    --quiet          no `call` lines (a fleet's hundreds of calls per second)
+    --executor KIND  `single` (rclpy's SingleThreadedExecutor, the default) or `events` (rclpy's experimental
+                     EventsExecutor, in C++: a Python executor rebuilds its wait set of every service, timer
+                     and subscription at each wake-up, which for 100 robots costs a core at idle)
     --duration S     how long a procedure runs (default 1.0); --queue-time S before it starts (default 0.05)
     --rate HZ        how often Status and AlvarMarkers are published (default 10)
     --run-for S      exit after S seconds (default: until SIGINT/SIGTERM)
@@ -17,7 +23,8 @@ query_state}` with the robot's semantics (`core.py`), publishes `/NS/robot_local
 (ar_track_alvar_msgs/AlvarMarkers: the markers the robot sees where it stands), and subscribes to the door
 command `/door1/door_controller/command` (std_msgs/Float64, transient local, so a latched command arrives).
 It prints one JSON object per line on stdout: `{"event": "ready", ...}` once everything is up, then
-`{"event": "door", "value": ...}` for each door command and `{"event": "call", ...}` for each service call.
+`{"event": "door", "value": ...}` for each door command and `{"event": "call", ...}` for each service call
+(unless --quiet).
 """
 
 from __future__ import annotations
@@ -69,7 +76,7 @@ def use_prefix(prefix: Path) -> None:
 class RobotNode:
     """One simulated robot: a node in namespace `ns` serving core.RobotSim."""
 
-    def __init__(self, context: Any, ns: str, robot: RobotSim, rate: float) -> None:
+    def __init__(self, context: Any, ns: str, robot: RobotSim, rate: float, *, quiet: bool = False) -> None:
         import rclpy
         from ar_track_alvar_msgs.msg import AlvarMarkers
         from procedures_msgs.srv import ProcedureQuery
@@ -78,6 +85,7 @@ class RobotNode:
 
         self.ns = ns
         self.robot = robot
+        self.quiet = quiet
         self.node: Any = rclpy.create_node("rb1_sim", namespace="/" + ns, context=context)
         petitions = {"GoToComponent": GoToPetition, "PickComponent": PickPetition, "PlaceComponent": PlacePetition}
         base = f"/{ns}/robot_local_control/NavigationComponent"
@@ -114,6 +122,8 @@ class RobotNode:
                 params = {"pick_frame_id": procedure.pick_frame_id}
             reply = self.robot.components[comp].add(params)
             self._fill(response, reply, self.node.get_clock().now().to_msg())
+            if self.quiet:
+                return response
             emit(
                 "call",
                 robot=self.ns,
@@ -132,6 +142,8 @@ class RobotNode:
             mission = int(request.header.id)
             reply = component.cancel(mission) if cancel else component.query(mission)
             self._fill(response, reply, self.node.get_clock().now().to_msg())
+            if self.quiet:
+                return response
             emit(
                 "call",
                 robot=self.ns,
@@ -191,12 +203,27 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         prog="python -m examples.robotnik_rb1.sim.ros2", description=__doc__.split("\n")[0]
     )
     parser.add_argument("--namespace", action="append", help="robot namespace (repeatable; default rb1_base_a)")
+    parser.add_argument("--count", type=int, default=None, help="a fleet of N robots: NS_0 ... NS_<N-1>")
+    parser.add_argument("--quiet", action="store_true", help="no `call` event lines")
+    parser.add_argument("--executor", choices=("single", "events"), default="single", help="rclpy executor")
     parser.add_argument("--duration", type=float, default=1.0, help="seconds a procedure runs")
     parser.add_argument("--queue-time", type=float, default=0.05, help="seconds before a procedure starts")
     parser.add_argument("--rate", type=float, default=10.0, help="Status/AlvarMarkers publishing rate (Hz)")
     parser.add_argument("--run-for", type=float, default=None, help="exit after this many seconds")
     parser.add_argument("--prefix", action="append", default=[], help="install prefix of the RB-1 interfaces")
     return parser.parse_args(argv)
+
+
+def namespaces(args: argparse.Namespace) -> list[str]:
+    """The robots to serve: the --namespace values, or with --count N the fleet NS_0 ... NS_<N-1>."""
+    if args.count is None:
+        return list(args.namespace or ["rb1_base_a"])
+    if args.count < 1:
+        raise SystemExit("--count must be at least 1")
+    if args.namespace and len(args.namespace) > 1:
+        raise SystemExit("--count takes one --namespace (the fleet's prefix)")
+    prefix = args.namespace[0] if args.namespace else "rb1_base"
+    return [f"{prefix}_{i}" for i in range(args.count)]
 
 
 def ensure_interfaces(prefixes: Sequence[str]) -> str | None:
@@ -231,6 +258,7 @@ def ensure_interfaces(prefixes: Sequence[str]) -> str | None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
+    names = namespaces(args)
     problem = ensure_interfaces(args.prefix)
     if problem is not None:
         print(f"sim: {problem}", file=sys.stderr)
@@ -242,7 +270,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     from rclpy.signals import SignalHandlerOptions
     from std_msgs.msg import Float64
 
-    namespaces = args.namespace or ["rb1_base_a"]
     context = Context()
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
     stop = threading.Event()
@@ -254,8 +281,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     signal.signal(signal.SIGINT, on_signal)
 
     robots = [
-        RobotNode(context, ns, RobotSim(ns, duration=args.duration, queue_time=args.queue_time), args.rate)
-        for ns in namespaces
+        RobotNode(
+            context, ns, RobotSim(ns, duration=args.duration, queue_time=args.queue_time), args.rate, quiet=args.quiet
+        )
+        for ns in names
     ]
 
     def on_door(msg: Float64) -> None:
@@ -267,10 +296,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
     )
     robots[0].node.create_subscription(Float64, DOOR_TOPIC, on_door, door_qos)
-    executor = SingleThreadedExecutor(context=context)
+    executor: Any
+    if args.executor == "events":
+        from rclpy.experimental import EventsExecutor
+
+        executor = EventsExecutor(context=context)
+    else:
+        executor = SingleThreadedExecutor(context=context)
     for r in robots:
         executor.add_node(r.node)
-    emit("ready", namespaces=namespaces, duration=args.duration)
+    emit("ready", namespaces=names, duration=args.duration)
     deadline = None if args.run_for is None else time.monotonic() + args.run_for
     try:
         while not stop.is_set() and (deadline is None or time.monotonic() < deadline):
