@@ -146,10 +146,10 @@ def _td_checks(inp: Input, diags: Diagnostics, *, reference: bool, parallel: boo
     )
 
     def jsonld() -> list[Diagnostic]:
-        from td2adaptor.frontend.jsonld import expand
+        from td2adaptor.frontend.jsonld import check
 
         found = Diagnostics()
-        expand(doc, found)
+        check(doc, found)
         return list(found)
 
     background = Background(jsonld, enabled=parallel)
