@@ -233,7 +233,7 @@ def _representatives(data: Any) -> dict[str, Any] | None:
     aliases = _keyword_aliases()
 
     def kept(key: str) -> bool:
-        return key.startswith("@") or key in aliases or key.split(":", 1)[0] in aliases
+        return key.startswith("@") or key in aliases or (":" in key and key.split(":", 1)[0] in aliases)
 
     def shape(value: Any) -> Any:
         if isinstance(value, str):
@@ -259,28 +259,16 @@ def _grouped(data: dict[str, Any], shape: Callable[[Any], Any]) -> dict[str, Any
         seen: set[str] = set()
         chosen: dict[str, Any] = {}
         for name, affordance in affordances.items():
-            if name.startswith("@") or _has_context(affordance):  # expanded as it is, not as one of a group
+            group = json.dumps(shape(affordance))
+            # keys and kept strings are written as they are: a context anywhere shows as "@context"
+            if name.startswith("@") or '"@context"' in group:  # expanded as it is, not as one of a group
                 chosen[name] = affordance
                 continue
-            group = json.dumps(shape(affordance))
             if group not in seen:
                 seen.add(group)
                 chosen[name] = affordance
         reduced[kind] = chosen
     return reduced
-
-
-def _has_context(value: Any) -> bool:
-    stack = [value]
-    while stack:
-        node = stack.pop()
-        if isinstance(node, dict):
-            if "@context" in node:
-                return True
-            stack.extend(node.values())
-        elif isinstance(node, list):
-            stack.extend(node)
-    return False
 
 
 def to_rdf(
