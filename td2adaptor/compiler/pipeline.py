@@ -139,13 +139,17 @@ def _td_checks(inp: Input, diags: Diagnostics, *, reference: bool, parallel: boo
     from td2adaptor.frontend.thingmodel import check_against_model
 
     assert inp.td is not None
-    doc = inp.doc if inp.kind == "td" else JsonDocument(inp.doc.name, inp.doc.text, inp.td, inp.doc.path)
+    doc = (
+        inp.doc
+        if inp.kind == "td"
+        else JsonDocument(inp.doc.name, inp.doc.text, inp.td, inp.doc.path, unique_keys=inp.doc.unique_keys)
+    )
 
     def jsonld() -> list[Diagnostic]:
-        from td2adaptor.frontend.jsonld import expand
+        from td2adaptor.frontend.jsonld import check
 
         found = Diagnostics()
-        expand(doc, found)
+        check(doc, found)
         return list(found)
 
     background = Background(jsonld, enabled=parallel)

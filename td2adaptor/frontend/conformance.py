@@ -649,7 +649,7 @@ def _emit(doc: JsonDocument, diags: Diagnostics, findings: list[_Finding]) -> No
     """Report in document order (positions are only computed when there is something to report)."""
     if not findings:
         return
-    order = {f.pointer: doc.source_map.offset(f.pointer) or 0 for f in findings} if doc.text else {}
+    order = {f.pointer: doc.offset(f.pointer) or 0 for f in findings} if doc.text else {}
     for f in sorted(findings, key=lambda f: order.get(f.pointer, 0)):
         diags.add(f.code, f.severity, f.message, f.pointer, f.hint)
 

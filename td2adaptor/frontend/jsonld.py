@@ -12,8 +12,10 @@ CLI start-up time.
 
 from __future__ import annotations
 
+import functools
+import json
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from td2adaptor.diagnostics import Diagnostics, pointer_join
@@ -165,6 +167,108 @@ def expand(doc: JsonDocument, diags: Diagnostics, *, loader: OfflineLoader | Non
     _report_refused(doc, loader, diags)
     result: list[Any] = expanded
     return result
+
+
+def check(doc: JsonDocument, diags: Diagnostics) -> None:
+    """Report what `expand(doc, diags)` reports, with less work when a TD has many alike affordances.
+
+    Expansion fails, or not, on an affordance for reasons its layout gives (keys, nesting, non-string
+    values, keyword values, @type values) and never for the text of an ordinary string: a description, a
+    form's href or a ROS name expand the same way whatever they say. So when the TD uses only bundled
+    contexts, pyld first expands one representative of each group of affordances that differ only in such
+    strings. That succeeding without a diagnostic means the whole TD does; anything else (an error, a
+    refused context) and the whole TD is expanded, so every reported diagnostic comes from the full run.
+    """
+    reduced = _representatives(doc.data)
+    if reduced is not None:
+        loader = OfflineLoader()
+        found = Diagnostics()
+        stand_in = JsonDocument(doc.name, doc.text, reduced, doc.path)
+        if expand(stand_in, found, loader=loader) is not None and not found.items and not loader.refused:
+            return
+    expand(doc, diags)
+
+
+_AFFORDANCE_MAPS = ("properties", "actions", "events")
+_ANY_STRING = "_"  # what a group's strings are compared as (never a kept string: those are "" or "@...")
+
+
+@functools.cache
+def _keyword_aliases() -> frozenset[str]:
+    """Every term that any bundled context (scoped ones included) maps to a keyword or defines in reverse."""
+    found: set[str] = set()
+    stack: list[Any] = [load_schema(name) for name in set(BUNDLED_CONTEXTS.values())]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, dict):
+            context = node.get("@context")
+            if isinstance(context, dict):
+                for term, definition in context.items():
+                    target = definition.get("@id", "") if isinstance(definition, dict) else definition
+                    if (isinstance(target, str) and target.startswith("@")) or (
+                        isinstance(definition, dict) and "@reverse" in definition
+                    ):
+                        found.add(term)
+            stack.extend(node.values())
+        elif isinstance(node, list):
+            stack.extend(node)
+    return frozenset(found)
+
+
+def _representatives(data: Any) -> dict[str, Any] | None:
+    """`data` with one affordance of each group of alike ones, or None when grouping is not known safe.
+
+    Safe when every context is a bundled one named at the top (no inline context can make a key a keyword
+    alias or give a term a base); an affordance holding a context anywhere, or named like a keyword, is
+    kept on its own. Within an affordance, keys, nesting and every non-string value are compared as they
+    are, and so is everything under a keyword or a keyword alias (`@type`, `type`, `id`, `@context`, ...);
+    other strings count as equal unless they are empty or look like a keyword.
+    """
+    if not isinstance(data, dict):
+        return None
+    contexts = data.get("@context")
+    contexts = contexts if isinstance(contexts, list) else [contexts]
+    if not all(isinstance(c, str) and c in BUNDLED_CONTEXTS for c in contexts):
+        return None
+    aliases = _keyword_aliases()
+
+    def kept(key: str) -> bool:
+        return key.startswith("@") or key in aliases or (":" in key and key.split(":", 1)[0] in aliases)
+
+    def shape(value: Any) -> Any:
+        if isinstance(value, str):
+            return value if not value or value.startswith("@") else _ANY_STRING
+        if isinstance(value, dict):
+            return {k: (v if kept(k) else shape(v)) for k, v in value.items()}
+        if isinstance(value, list):
+            return [shape(v) for v in value]
+        return value
+
+    try:
+        return _grouped(data, shape)
+    except (TypeError, ValueError, RecursionError):  # not plain JSON data: expanded as it is
+        return None
+
+
+def _grouped(data: dict[str, Any], shape: Callable[[Any], Any]) -> dict[str, Any]:
+    reduced = dict(data)
+    for kind in _AFFORDANCE_MAPS:
+        affordances = data.get(kind)
+        if not isinstance(affordances, dict) or len(affordances) < 2:
+            continue
+        seen: set[str] = set()
+        chosen: dict[str, Any] = {}
+        for name, affordance in affordances.items():
+            group = json.dumps(shape(affordance))
+            # keys and kept strings are written as they are: a context anywhere shows as "@context"
+            if name.startswith("@") or '"@context"' in group:  # expanded as it is, not as one of a group
+                chosen[name] = affordance
+                continue
+            if group not in seen:
+                seen.add(group)
+                chosen[name] = affordance
+        reduced[kind] = chosen
+    return reduced
 
 
 def to_rdf(

@@ -1,8 +1,9 @@
 """JSON documents that remember where every value came from.
 
-Parsing uses the C `json` module (fast, strict); positions are computed lazily by a small scanner only when a
-diagnostic needs a `line:col`, so valid input pays nothing for them. The scanner also finds duplicate keys,
-which `json.loads` silently collapses.
+Parsing uses the C `json` module (fast, strict); positions are computed lazily, only when a diagnostic needs a
+`line:col`, so valid input pays nothing for them. A few positions are found by walking the text along the
+pointer (`_walk`: the C decoder skips every value off the path); many, by mapping every position once
+(`SourceMap`, a small scanner that also finds the duplicate keys `json.loads` silently collapses).
 """
 
 from __future__ import annotations
@@ -10,7 +11,9 @@ from __future__ import annotations
 import bisect
 import json
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from json.scanner import make_scanner
 from pathlib import Path
 from typing import Any
 
@@ -131,6 +134,77 @@ def _scan(text: str) -> tuple[dict[str, int], dict[str, int], list[tuple[str, st
             return values, keys, dups
 
 
+# the C decoder's pieces: a value's end, a key's text (both typed here: the stubs do not say)
+_scan_once: Callable[[str, int], tuple[Any, int]] = make_scanner(json.JSONDecoder())  # type: ignore[arg-type]
+_scanstring: Callable[[str, int], tuple[str, int]] = json.decoder.scanstring  # type: ignore[attr-defined]
+_FULL_MAP = -2  # `_walk`: this pointer needs the full source map
+
+
+def _escape(name: str) -> str:
+    return name.replace("~", "~0").replace("/", "~1")
+
+
+def _walk(text: str, pointer: str, *, unique_keys: bool, key: bool) -> int | None:
+    """`SourceMap.build(text).offset(pointer, key=key)` without mapping the whole text.
+
+    Descends along `pointer`, skipping each value off the path with the C decoder. The full map records the
+    first occurrence of a value (and the last object's occurrence of a key) when a key is repeated; rather
+    than copy that rule, a key repeated on the path answers `_FULL_MAP`. Unless `unique_keys` (the parser
+    found no duplicate anywhere), that means reading every member of each object on the path.
+    """
+    if pointer and not pointer.startswith("/"):
+        return _FULL_MAP
+    scan_once, scanstring = _scan_once, _scanstring
+    ws = _WS.match
+    i = ws(text, 1 if text.startswith("\ufeff") else 0).end()  # type: ignore[union-attr]
+    key_at: int | None = None
+    try:
+        for token in pointer.split("/")[1:]:
+            c = text[i]
+            if c == "{":
+                found: tuple[int, int] | None = None
+                j = ws(text, i + 1).end()  # type: ignore[union-attr]
+                while text[j] != "}":
+                    name, end = scanstring(text, j + 1)
+                    at = j
+                    j = ws(text, ws(text, end).end() + 1).end()  # type: ignore[union-attr]  # past ':'
+                    if _escape(name) == token:
+                        if found is not None:
+                            return _FULL_MAP
+                        found = (at, j)
+                        if unique_keys:
+                            break
+                    j = ws(text, scan_once(text, j)[1]).end()  # type: ignore[union-attr]
+                    if text[j] == ",":
+                        j = ws(text, j + 1).end()  # type: ignore[union-attr]
+                    else:
+                        break
+                if found is None:
+                    return i
+                key_at, i = found
+            elif c == "[":
+                if not (token.isascii() and token.isdigit() and str(int(token)) == token):
+                    return i
+                j = ws(text, i + 1).end()  # type: ignore[union-attr]
+                if text[j] == "]":
+                    return i
+                for _ in range(int(token)):
+                    j = ws(text, scan_once(text, j)[1]).end()  # type: ignore[union-attr]
+                    if text[j] != ",":
+                        return i
+                    j = ws(text, j + 1).end()  # type: ignore[union-attr]
+                key_at, i = None, j
+            else:
+                return i
+    except (IndexError, ValueError, StopIteration):  # not a JSON text after all: the full map's answer
+        return _FULL_MAP
+    return key_at if key and key_at is not None else i
+
+
+#: Positions found by walking the text before the document maps it whole (a walk reads up to all of it).
+_WALKS = 8
+
+
 @dataclass
 class JsonDocument:
     """A parsed JSON document with its text, for positions, and its path, for relative references."""
@@ -140,6 +214,9 @@ class JsonDocument:
     data: Any
     path: Path | None = None
     _map: SourceMap | None = field(default=None, repr=False)
+    #: The parser found no key repeated in an object of `text` (set by `parse_json`).
+    unique_keys: bool = field(default=False, repr=False)
+    _walks: int = field(default=0, repr=False)
 
     @property
     def source_map(self) -> SourceMap:
@@ -147,12 +224,23 @@ class JsonDocument:
             self._map = SourceMap.build(self.text)
         return self._map
 
+    def offset(self, pointer: str, *, key: bool = False) -> int | None:
+        """Character offset of the value (or its key) at `pointer`, else of its nearest existing ancestor."""
+        if self._map is None and self._walks < _WALKS:
+            self._walks += 1
+            off = _walk(self.text, pointer, unique_keys=self.unique_keys, key=key)
+            if off != _FULL_MAP:
+                return off
+        return self.source_map.offset(pointer, key=key)
+
     def position(self, pointer: str, *, key: bool = False) -> tuple[int, int] | None:
         if not pointer and self._map is None:  # the whole document: no need to map a large text for it
             start = 1 if self.text.startswith("\ufeff") else 0
             return doc_line_col(self.text, _WS.match(self.text, start).end())  # type: ignore[union-attr]
-        off = self.source_map.offset(pointer, key=key)
-        return None if off is None else self.source_map.line_col(off)
+        off = self.offset(pointer, key=key)
+        if off is None:
+            return None
+        return self._map.line_col(off) if self._map is not None else doc_line_col(self.text, off)
 
     def locate(self, diag: Diagnostic) -> Diagnostic:
         """Attach this document's file name and the line:col of the diagnostic's pointer."""
@@ -298,7 +386,7 @@ def parse_json(
             file=name,
         )
         return None
-    doc = JsonDocument(name, text, data, path)
+    doc = JsonDocument(name, text, data, path, unique_keys=not flag[0])
     if _SURROGATE_ESCAPE.search(text) and (bad := _lone_surrogates(data)):
         for ptr, is_key in bad:
             what = "a member name" if is_key else "a string"

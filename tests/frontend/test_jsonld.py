@@ -17,6 +17,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.frontend import jsonld
@@ -317,3 +319,118 @@ def test_canonical_output_is_stable_under_key_order() -> None:
 def test_pyld_is_imported_lazily() -> None:
     code = "import sys, td2adaptor.frontend.jsonld; sys.exit('pyld' in sys.modules)"
     assert subprocess.run([sys.executable, "-c", code], cwd=REPO, check=False).returncode == 0
+
+
+# -- the compile's check: one affordance of each alike group first, the whole TD when that finds anything --
+
+
+def _outcome(run: Any, data: Any) -> list[tuple[Any, ...]]:
+    diags = Diagnostics()
+    run(document(data), diags)
+    return [(d.code, d.severity, d.message, d.pointer, d.hint) for d in diags]
+
+
+def test_check_reports_what_expansion_reports_on_every_corpus_and_example_td() -> None:
+    found = wot_corpus.corpus()
+    paths = [f.path for f in found.files()] if found is not None else []
+    paths += sorted(REPO.glob("examples/**/*.json")) + sorted(REPO.glob("tests/golden/cases/*/*.json"))
+    paths += sorted(REPO.glob("tests/data/**/*.json"))
+    assert len(paths) > 10
+    for path in paths:
+        try:
+            data = json.loads(path.read_bytes())
+        except ValueError:
+            continue
+        assert _outcome(jsonld.check, data) == _outcome(jsonld.expand, data), path
+
+
+def _alike_td(n: int) -> dict[str, Any]:
+    """A TD whose affordances differ only in ordinary strings (one group each for properties and actions)."""
+    return {
+        "@context": [jsonld.TD_CONTEXT_V11, jsonld.ROSV_CONTEXT],
+        "title": "alike",
+        "properties": {
+            f"p{i}": {
+                "type": "object",
+                "title": f"property {i}",
+                "properties": {"data": {"type": "number", "unit": f"u{i}"}},
+                "forms": [{"href": f"ros:topic/p{i}", "op": ["readproperty"], "rosv:type": "std_msgs/msg/Float64"}],
+            }
+            for i in range(n)
+        },
+        "actions": {
+            f"a{i}": {"input": {"type": "string"}, "forms": [{"href": f"ros:svc/a{i}", "rosv:name": f"/s{i}"}]}
+            for i in range(n)
+        },
+    }
+
+
+_EDITS: list[tuple[str, tuple[str, ...], Any]] = [
+    (kind, path, value)
+    for kind in ("properties", "actions")
+    for path, value in [
+        (("@direction",), "sideways"),
+        (("@direction",), "ltr"),
+        (("@id",), 5),
+        (("@id",), "urn:x"),
+        (("@type",), 5),
+        (("@type",), "@json"),
+        (("@type",), ["x", {"a": 1}]),
+        (("type",), 5),
+        (("type",), "number"),
+        (("title",), 5),
+        (("title",), {"@value": "x", "@language": 5}),
+        (("title",), {"@value": "x", "@type": "relative"}),
+        (("titles",), {"en": 5}),
+        (("titles",), {"en": "x", "de": ["y", None]}),
+        (("description",), ["a", {"@list": ["x"], "b": 1}]),
+        (("forms", "0", "href"), ""),
+        (("forms", "0", "href"), "@keywordlike"),
+        (("forms", "0", "href"), 7),
+        (("forms", "0", "rosv:qos"), {"depth": "x"}),
+        (("@context",), "https://example.org/unknown.jsonld"),
+        (("@context",), {"kind": "@type", "@base": "rel"}),
+        (("kind",), "Thing"),
+        (("@index",), 5),
+        (("@reverse",), "x"),
+        (("@value",), "x"),
+        (("input", "type"), {"nested": "object"}),
+        (("input", "@context"), {"@version": 1.0}),
+        ((), "a bare string"),
+        ((), 5),
+        ((), ["x", {"@id": 5}]),
+    ]
+]
+
+
+def _apply(td: dict[str, Any], kind: str, index: int, path: tuple[str, ...], value: Any) -> None:
+    names = list(td[kind])
+    name = names[index % len(names)]
+    if not path:
+        td[kind][name] = value
+        return
+    node: Any = td[kind][name]
+    for step in path[:-1]:
+        if not isinstance(node, (dict, list)):
+            return
+        node = node[int(step)] if isinstance(node, list) else node.setdefault(step, {})
+    if isinstance(node, dict):
+        node[path[-1]] = value
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from(_EDITS), st.integers(0, 5)), max_size=3))
+def test_check_reports_what_expansion_reports_when_one_affordance_differs(
+    edits: list[tuple[tuple[str, tuple[str, ...], Any], int]],
+) -> None:
+    td = _alike_td(6)
+    for (kind, path, value), index in edits:
+        _apply(td, kind, index, path, value)
+    assert _outcome(jsonld.check, td) == _outcome(jsonld.expand, td)
+
+
+def test_check_expands_one_affordance_of_each_alike_group() -> None:
+    reduced = jsonld._representatives(_alike_td(50))
+    assert reduced is not None and list(reduced["properties"]) == ["p0"] and list(reduced["actions"]) == ["a0"]
+    # an inline context anywhere: no grouping at all
+    assert jsonld._representatives({**_alike_td(3), "@context": [jsonld.TD_CONTEXT_V11, {"x": "@id"}]}) is None

@@ -6,7 +6,7 @@ import io
 import json
 
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from td2adaptor.diagnostics import Diagnostics, Severity
@@ -135,3 +135,51 @@ def test_every_syntax_error_is_explained_inside_the_text(text: str) -> None:
         assert 0 <= problem.offset <= len(text) and problem.message.startswith("invalid JSON") and problem.hint
     except RecursionError:
         pass
+
+
+# JSON texts with random layout and, sometimes, a key repeated in an object (what the full map has rules for)
+_keys = st.sampled_from(["a", "b", "0", "1", "a/b", "~x", 'q"', ""])
+_scalars = st.sampled_from(["1", "-2.5e3", "true", "null", '"s"', '"x\\"y"'])
+_space = st.sampled_from(["", " ", "\n", "\t\r\n  "])
+
+
+@st.composite
+def _json_texts(draw: st.DrawFn, depth: int = 0) -> str:
+    kind = draw(st.sampled_from(["scalar", "object", "array"] if depth < 4 else ["scalar"]))
+    if kind == "scalar":
+        return draw(_scalars)
+    items = []
+    for _ in range(draw(st.integers(0, 4))):
+        value = draw(_json_texts(depth + 1))
+        items.append(f"{json.dumps(draw(_keys))}{draw(_space)}:{draw(_space)}{value}" if kind == "object" else value)
+    sep = f"{draw(_space)},{draw(_space)}"
+    inner = draw(_space) + sep.join(items) + draw(_space)
+    return "{" + inner + "}" if kind == "object" else "[" + inner + "]"
+
+
+@settings(max_examples=200, deadline=None)
+@given(_json_texts(), st.lists(st.sampled_from(["a", "b", "0", "1", "2", "01", "a~1b", "~0x", 'q"', "", "-1"])))
+def test_walking_to_a_pointer_finds_what_the_full_source_map_finds(text: str, extra: list[str]) -> None:
+    # a diagnostic on a large TD is located without mapping every position of it (issue 17)
+    from td2adaptor.frontend.jsonsrc import _FULL_MAP, SourceMap, _walk
+
+    for lead in ("", " \n", "\ufeff"):
+        doc = parse_json(lead + text, "w.json", Diagnostics())
+        assert doc is not None
+        full = SourceMap.build(doc.text)
+        pointers = {*full.values, *full.keys, "/" + "/".join(extra), *(p + "/zz" for p in full.values)}
+        for pointer in pointers:
+            for key in (False, True):
+                expected = full.offset(pointer, key=key)
+                for unique in {False, doc.unique_keys}:
+                    found = _walk(doc.text, pointer, unique_keys=unique, key=key)
+                    assert found in (expected, _FULL_MAP), (pointer, key, unique)
+                    assert found != _FULL_MAP or full.duplicates
+        # and through the document: a few walks, then the map (the same answers)
+        for key in (False, True):
+            fresh = parse_json(lead + text, "w.json", Diagnostics())
+            assert fresh is not None
+            for pointer in sorted(pointers):
+                expected = full.offset(pointer, key=key)
+                assert fresh.offset(pointer, key=key) == expected
+                assert fresh.position(pointer, key=key) == full.line_col(expected or 0)
