@@ -54,6 +54,7 @@ MessageT = TypeVar("MessageT")
 GoalT = TypeVar("GoalT")
 ResultT = TypeVar("ResultT")
 FeedbackT = TypeVar("FeedbackT")
+ReturnT = TypeVar("ReturnT")
 
 
 class _Future(Protocol):
@@ -502,6 +503,50 @@ class _ActionClientApi(Protocol):
     def send_goal_async(self, goal: Any, feedback_callback: Callable[[Any], None] | None = None) -> Any: ...
 
 
+#: guards the counts of requests being sent (`_RequestingActionClient._sending`)
+_SENDING_LOCK = threading.Lock()
+
+
+class _RequestingActionClient(ActionClient):
+    """rclpy's ActionClient, which takes no response while one of its requests is being sent.
+
+    rclpy (7.1, Jazzy; ros2/rclpy#1123) sends a goal, cancel or result request first and records its sequence
+    number after. A response the executor's thread takes in between answers no request it knows: rclpy logs
+    "Ignoring unexpected goal response" (or cancel, result), drops it, and the request's future never
+    completes. A preempted caller (a loaded machine) and a quick server are enough. Requests sent through
+    `request(...)` close that window: until they are recorded, the client tells the executor it has nothing
+    ready, so the response waits in the middleware and is taken, in order, right after.
+    """
+
+    _sending = 0  # this client's requests between being sent and being recorded (under _SENDING_LOCK)
+
+    def request(self, send: Callable[[], ReturnT]) -> ReturnT:
+        """Call `send` (which sends a request through rclpy and returns its future) with no response taken
+        until it returned."""
+        with _SENDING_LOCK:
+            self._sending += 1
+        try:
+            return send()
+        finally:
+            with _SENDING_LOCK:
+                self._sending -= 1
+
+    def is_ready(self, wait_set: Any) -> bool:
+        """The executor's question (rclpy's Waitable API): nothing is ready while a request is being sent."""
+        base: Any = super()  # rclpy leaves is_ready unannotated
+        ready = bool(base.is_ready(wait_set))
+        with _SENDING_LOCK:
+            return ready and self._sending == 0
+
+
+#: how a GoalHandle sends its result and cancel requests: `_RequestingActionClient.request` of its client
+_Request = Callable[[Callable[[], Any]], Any]
+
+
+def _send_now(send: Callable[[], Any]) -> Any:
+    return send()
+
+
 def _wait(future: _Future, timeout: float) -> bool:
     """Wait at most `timeout` seconds for `future` (completed by the executor's thread); whether it is done."""
     done = threading.Event()
@@ -519,11 +564,14 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
     `cancel(timeout=...)` asks the server to cancel the goal. No method waits longer than its timeout.
     """
 
-    def __init__(self, action: str, handle: _ClientGoalHandle, node: Node, timeout: float) -> None:
+    def __init__(
+        self, action: str, handle: _ClientGoalHandle, node: Node, timeout: float, request: _Request = _send_now
+    ) -> None:
         self.action = action
         self.node = node
         self.timeout = timeout
         self._handle = handle
+        self._request = request
         self.goal_id: str = bytes(handle.goal_id.uuid).hex()
         self._cond = threading.Condition()
         self._feedback: deque[FeedbackT] = deque(maxlen=FEEDBACK_BUFFER)
@@ -532,7 +580,7 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
         self._final: int | None = None  # the GoalStatus code the goal ended with
         self._result: Any = None
         self._error: BaseException | None = None
-        self._result_future = cast(_Future, handle.get_result_async())
+        self._result_future = cast(_Future, request(handle.get_result_async))
         self._result_future.add_done_callback(self._finished)
 
     # called in the executor's thread
@@ -644,7 +692,7 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
         if self.done:
             return False
         ensure_can_block(self.node, self.action)
-        future = cast(_Future, self._handle.cancel_goal_async())
+        future = cast(_Future, self._request(self._handle.cancel_goal_async))
         if not _wait(future, wait):
             raise CallTimeout(self.action + " (cancel)", wait)
         error = future.exception()
@@ -669,13 +717,13 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
         self.node = node
         self.action_type = action_type
         self.name = name
-        self.client: ActionClient | None = None
+        self.client: _RequestingActionClient | None = None
         self._group = ReentrantCallbackGroup()
 
     def register(self) -> None:
         with _REGISTER_LOCK:
             if self.client is None:
-                new_client = cast("Callable[..., ActionClient]", ActionClient)
+                new_client = cast("Callable[..., _RequestingActionClient]", _RequestingActionClient)
                 self.client = new_client(
                     self.node,
                     self.action_type,
@@ -684,10 +732,10 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
                     feedback_sub_qos_profile=FEEDBACK_QOS,
                 )
 
-    def _client(self) -> ActionClient:
+    def _client(self) -> _RequestingActionClient:
         if self.client is None:
             self.register()
-        return cast(ActionClient, self.client)
+        return cast(_RequestingActionClient, self.client)
 
     def send(self, goal: GoalT, timeout: float, wait_timeout: float) -> GoalHandle[ResultT, FeedbackT]:
         """Send `goal` (see the class docstring); feedback is collected from the first message on."""
@@ -715,7 +763,7 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
                 handle = holder[0]
             handle.deliver(feedback)
 
-        future = cast(_Future, api.send_goal_async(goal, feedback_callback=on_feedback))
+        future = cast(_Future, client.request(lambda: api.send_goal_async(goal, feedback_callback=on_feedback)))
         if not _wait(future, timeout):
             future.add_done_callback(self._cancel_late)
             if not server_is_ready():
@@ -727,18 +775,17 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
         raw = cast(_ClientGoalHandle, future.result())
         if not raw.accepted:
             raise GoalRejected(self.name)
-        handle: GoalHandle[ResultT, FeedbackT] = GoalHandle(self.name, raw, self.node, timeout)
+        handle: GoalHandle[ResultT, FeedbackT] = GoalHandle(self.name, raw, self.node, timeout, client.request)
         with lock:
             for feedback in early:
                 handle.deliver(feedback)
             holder.append(handle)
         return handle
 
-    @staticmethod
-    def _cancel_late(future: Any) -> None:
+    def _cancel_late(self, future: Any) -> None:
         """A goal accepted after send() gave up waiting: nobody follows it, so cancel it."""
         done = cast(_Future, future)
         if done.exception() is None:
             raw = cast(_ClientGoalHandle, done.result())
             if raw.accepted:
-                raw.cancel_goal_async()
+                self._client().request(raw.cancel_goal_async)
