@@ -42,7 +42,6 @@ class RuntimeConfig:
     property_period: float = 1.0  # property events: at most one per property and period (0: off)
     property_mode: str = "sample"  # "sample": every property_period; "message": one event per ROS message
     property_interval: float = 0.0  # message mode: at least this long between two events of a property (0: none)
-    ros_executor: str = "single"  # ROS 2: the rclpy executor spinning the node, "single" or "events" (EventsExecutor)
     max_event_bytes: int = 65536
     username: str | None = None
     password: str | None = field(default=None, repr=False)
@@ -85,8 +84,6 @@ class RuntimeConfig:
             raise ConfigError(f"property_mode {self.property_mode!r} must be sample or message")
         if not 0 <= self.property_interval < float("inf"):
             raise ConfigError("property_interval must be >= 0 (0: every message)")
-        if self.ros_executor not in ("single", "events"):
-            raise ConfigError(f"ros_executor {self.ros_executor!r} must be single or events")
         if self.mqtt_version not in ("5", "3.1.1"):
             raise ConfigError(f"mqtt_version {self.mqtt_version!r} must be 5 or 3.1.1")
         if self.directory is not None:

@@ -181,25 +181,11 @@ def connect_ros2(model: Model, package: str, configs: Sequence[RuntimeConfig], *
                 port = make_port(model, module, config, "ros2", node)
                 link.closers.append(port.close)
                 link.ports[config.robot] = port
-            link.closers.insert(first, _spin(spin, node, members).stop)  # stopped after the ports closed
+            link.closers.insert(first, spin(node).stop)  # stopped after the ports closed
     except BaseException:
         link.close()
         raise
     return link
-
-
-def _spin(spin: Callable[..., Any], node: Any, configs: Sequence[RuntimeConfig]) -> Any:
-    """The generated package's spinner for `node`, with the executor the robots ask for (`ros_executor`)."""
-    if all(c.ros_executor == "single" for c in configs):
-        return spin(node)
-    try:
-        return spin(node, executor="events")
-    except TypeError:
-        raise RosSetupError(
-            "ros_executor events: this adaptor package predates it (generate it again with this td2adaptor)"
-        ) from None
-    except Exception as exc:  # ExecutorError: no EventsExecutor in this rclpy
-        raise RosSetupError(str(exc)) from None
 
 
 def connect_ros1(

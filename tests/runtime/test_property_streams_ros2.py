@@ -1,5 +1,5 @@
 """Property events per ROS message (`property_mode: message`, runtime/streams.py) on real ROS 2 Jazzy (PyPI
-wheels) and a real mosquitto, with the generated package spun by either executor (`ros_executor`): every
+wheels) and a real mosquitto, with the generated package spun as the edge node spins it: every
 message becomes one event, in order, on the envelope and the WoT topic; a throttled property publishes the
 latest message and never withholds the last one. No mocks.
 """
@@ -56,7 +56,7 @@ def nav(ros2_domain: int, tmp_path_factory: pytest.TempPathFactory) -> tuple[Any
 
 @pytest.fixture(params=["single"])
 def node(request: pytest.FixtureRequest, nav: tuple[Any, ModuleType]) -> Iterator[Any]:
-    """A node of its own context, to be spun by the adaptor's spinner on each of the two executors (`spin`)."""
+    """A node of its own context, to be spun by the adaptor's spinner (`spin`) once the port made its entities."""
     import rclpy
     from rclpy.context import Context
 
@@ -64,7 +64,7 @@ def node(request: pytest.FixtureRequest, nav: tuple[Any, ModuleType]) -> Iterato
     rclpy.init(context=context)
     node: Any = rclpy.create_node(f"streams_{request.param}", context=context)
     spinners: list[Any] = []
-    node.spin = lambda: spinners.append(nav[1].spin_in_background(node, executor=request.param))
+    node.spin = lambda: spinners.append(nav[1].spin_in_background(node))
     try:
         yield node
     finally:

@@ -3,9 +3,7 @@
 rclpy completes a service call or delivers a message only while an executor spins the node in some thread.
 The blocking methods of the components therefore need one, in another thread than the caller's:
 `spin_in_background(node)` starts a single-threaded executor in a daemon thread (a context manager that stops
-it again): rclpy's `SingleThreadedExecutor`, or with `executor="events"` its `EventsExecutor` (Jazzy and
-later, `rclpy.experimental`), which waits in C++ and costs far less CPU per message and at idle with many
-entities. A blocking call made from a callback of the node's own single-threaded executor could never
+it again). A blocking call made from a callback of the node's own single-threaded executor could never
 complete; it raises `ExecutorError` at once instead of deadlocking (detected for the executors
 `spin_in_background` runs and for the `on_*` callbacks of the components). In callbacks, use the `*_async` methods
 (`await` them in a coroutine callback).
@@ -147,37 +145,15 @@ def qos_profile(reliability: str, durability: str, history: str, depth: int) -> 
 # executors
 
 
-#: the executors `Spinner` can run: rclpy's SingleThreadedExecutor, and its EventsExecutor
-EXECUTORS = ("single", "events")
-
-
-def _new_executor(kind: str, context: Any) -> Executor:
-    if kind == "single":
-        return SingleThreadedExecutor(context=context)
-    if kind != "events":
-        raise ValueError(f"executor must be one of {', '.join(EXECUTORS)}, not {kind!r}")
-    try:
-        from rclpy.experimental.events_executor import EventsExecutor
-    except ImportError as exc:
-        raise ExecutorError(f"executor 'events' needs rclpy's EventsExecutor (ROS 2 Jazzy or later): {exc}") from exc
-    return EventsExecutor(context=context)
-
-
-def _one_thread(executor: Executor) -> bool:
-    """Whether `executor` runs every callback in the thread that spins it."""
-    return isinstance(executor, SingleThreadedExecutor) or type(executor).__name__ == "EventsExecutor"
-
-
 class Spinner:
     """A single-threaded executor spinning nodes in a daemon thread, so that blocking calls can complete.
 
-    `executor` is "single" (rclpy's SingleThreadedExecutor) or "events" (its EventsExecutor). Use it as a
-    context manager (`with spin_in_background(node): ...`) or call `stop()`; stopping leaves the nodes and the
-    rclpy context alive.
+    Use it as a context manager (`with spin_in_background(node): ...`) or call `stop()`; stopping leaves the
+    nodes and the rclpy context alive.
     """
 
-    def __init__(self, *nodes: Node, executor: str = "single") -> None:
-        self.executor = _new_executor(executor, nodes[0].context if nodes else None)
+    def __init__(self, *nodes: Node) -> None:
+        self.executor = SingleThreadedExecutor(context=nodes[0].context if nodes else None)
         self.nodes = nodes
         self._thread: threading.Thread | None = None
 
@@ -223,10 +199,9 @@ class Spinner:
         self.stop()
 
 
-def spin_in_background(*nodes: Node, executor: str = "single") -> Spinner:
-    """Spin `nodes` in a new daemon thread with their own single-threaded executor ("single", or "events": rclpy's
-    EventsExecutor); returns the started Spinner."""
-    return Spinner(*nodes, executor=executor).start()
+def spin_in_background(*nodes: Node) -> Spinner:
+    """Spin `nodes` in a new daemon thread with their own single-threaded executor; returns the started Spinner."""
+    return Spinner(*nodes).start()
 
 
 def ensure_can_block(node: Node, what: str) -> None:
@@ -234,7 +209,7 @@ def ensure_can_block(node: Node, what: str) -> None:
     executor = node.executor
     if executor is None:
         raise ExecutorError(f"{what}: no executor spins node {node.get_name()!r}; call spin_in_background(node) first")
-    if _this_thread.executor is executor and _one_thread(executor):
+    if isinstance(executor, SingleThreadedExecutor) and _this_thread.executor is executor:
         raise ExecutorError(
             f"{what}: a blocking call from a callback of the single-threaded executor that spins node "
             f"{node.get_name()!r} would deadlock; await the *_async method instead"
