@@ -40,6 +40,8 @@ class RuntimeConfig:
     goal_feedback_grace: float | None = None  # after a goal's result, wait this long for trailing feedback; None:
     # the ROS version's default (genport.FEEDBACK_GRACE: 0.01 s on ROS 2, 0.1 s on ROS 1)
     property_period: float = 1.0  # property events: at most one per property and period (0: off)
+    property_mode: str = "sample"  # "sample": every property_period; "message": one event per ROS message
+    property_interval: float = 0.0  # message mode: at least this long between two events of a property (0: none)
     max_event_bytes: int = 65536
     username: str | None = None
     password: str | None = field(default=None, repr=False)
@@ -78,6 +80,10 @@ class RuntimeConfig:
             raise ConfigError(f"goal_feedback_grace must be between 0 and {TRAIL_LIMIT:g} seconds")
         if self.property_period < 0 or self.max_query_failures < 1 or self.max_event_bytes < 256:
             raise ConfigError("property_period >= 0, max_query_failures >= 1 and max_event_bytes >= 256 required")
+        if self.property_mode not in ("sample", "message"):
+            raise ConfigError(f"property_mode {self.property_mode!r} must be sample or message")
+        if not 0 <= self.property_interval < float("inf"):
+            raise ConfigError("property_interval must be >= 0 (0: every message)")
         if self.mqtt_version not in ("5", "3.1.1"):
             raise ConfigError(f"mqtt_version {self.mqtt_version!r} must be 5 or 3.1.1")
         if self.directory is not None:

@@ -40,6 +40,7 @@ from td2adaptor.runtime.goals import GoalRunner
 from td2adaptor.runtime.port import NoValue, PortError, RobotPort, StartResult
 from td2adaptor.runtime.procedures import ProcedureStatus, read
 from td2adaptor.runtime.replay import ReplayGuard, Verdict, digest
+from td2adaptor.runtime.streams import PropertyStreams, streams
 from td2adaptor.runtime.thingbus import WOT_SOURCE
 from td2adaptor.runtime.words import INTERNAL, describe
 
@@ -128,6 +129,7 @@ class Engine:
         self._missions: set[threading.Thread] = set()
         self._pool = ThreadPoolExecutor(max_workers=4, thread_name_prefix=f"td2adaptor-{config.robot}-call")
         self._goals = GoalRunner(self)
+        self._streams: PropertyStreams | None = None
 
     # -- life cycle ----------------------------------------------------------------------------------------
 
@@ -139,8 +141,14 @@ class Engine:
                 self.bus.subscribe(spec.topic(robot, root), self._inbox.put)
         self.bus.connect()
         self._spawn(self._dispatch, "dispatch")
-        if self.config.property_period > 0 and any(s.kind is Kind.PROPERTY for s in self.catalog.specs):
-            self._spawn(self._properties, "properties")
+        properties = [s for s in self.catalog.specs if s.kind is Kind.PROPERTY]
+        if self.config.property_period > 0 and properties:
+            if self.config.property_mode == "message":  # one event per ROS message (runtime/streams.py)
+                self._streams = streams(self, properties)
+            if self._streams is not None:
+                self._streams.start()
+            else:
+                self._spawn(self._properties, "properties")
         log.info("serving robot %s (namespace %s)", self.config.robot, self.config.ros_namespace)
 
     def _spawn(self, target: Callable[[], None], name: str) -> None:
@@ -160,6 +168,8 @@ class Engine:
             except Exception:  # a hook must not keep the robot from going offline cleanly
                 log.exception("while stopping robot %s", self.config.robot)
         self._inbox.put(None)
+        if self._streams is not None:
+            self._streams.stop()
         with self._lock:
             missions = list(self._active.values())
         for m in missions:

@@ -341,6 +341,11 @@ class GeneratedPort:
         get = self._method(component, f"get_{name}_value")
         return self._guarded(component, lambda: to_plain(get(timeout=timeout)))
 
+    def watch_property(self, component: str, name: str, callback: Callable[[Any], None]) -> Callable[[], None]:
+        """Call `callback` with every message of a subscribed property (the raw ROS message, on the ROS
+        side's thread: it must not block); returns what removes it (property_mode message, streams.py)."""
+        return self._method(component, f"on_{name}")(callback)  # type: ignore[no-any-return]
+
     def write_property(self, component: str, name: str, value: Any) -> None:
         construct = self._method(component, f"construct_{name}_Msg")
         publish = self._method(component, f"publish_{name}_Msg")

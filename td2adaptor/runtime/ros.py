@@ -174,12 +174,14 @@ def connect_ros2(model: Model, package: str, configs: Sequence[RuntimeConfig], *
             suffix = f"_d{domain}" if domain is not None and len(configs) > len(members) else ""
             node: Any = rclpy.create_node((name or node_name(members)) + suffix, context=context)
             link.closers.append(node.destroy_node)
-            spinner = spin(node)
-            link.closers.append(spinner.stop)
+            # every client and subscription is created before the node spins: an EventsExecutor cannot take
+            # new ones while it spins (rclpy 7.1 blocks), and a SingleThreadedExecutor rebuilds its wait set
+            first = len(link.closers)
             for config in members:
                 port = make_port(model, module, config, "ros2", node)
                 link.closers.append(port.close)
                 link.ports[config.robot] = port
+            link.closers.insert(first, spin(node).stop)  # stopped after the ports closed
     except BaseException:
         link.close()
         raise
