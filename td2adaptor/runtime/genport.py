@@ -5,7 +5,9 @@ The generated packages (issue 3) offer, per component, `construct_<action>_Msg(*
 cancels accept `mission_id=`), `get_<property>_value(timeout=)`, `construct_<property>_Msg` /
 `publish_<property>_Msg`, and raise `ServiceUnavailable` / `CallTimeout` / `CallFailed` / `NoMessage`.
 This adapter turns dicts into those calls and messages back into dicts, and maps the errors onto
-`PortError`s. One lock per component: the generated clients are used from the engine's mission threads.
+`PortError`s. The engine calls it from several threads at once: on ROS 2 the calls overlap (an rclpy client
+takes concurrent requests, each with its own future; the engine keeps one mission per component); on ROS 1
+the calls of one component are made one at a time (one lock per component).
 
 Values use the field names of the robot's own ROS version, as the event schemas and the robot's published
 TD declare them: a ROS 1 time or duration is `{"secs": ..., "nsecs": ...}`, a ROS 2 one `{"sec": ...,
@@ -282,7 +284,8 @@ class GeneratedPort:
             instance = cls(*args, timeout=timeout, wait_timeout=wait_timeout)
             instance.register()
             self.components[name] = instance
-            self._locks[name] = threading.Lock()
+            if distro == "ros1":
+                self._locks[name] = threading.Lock()
 
     def _method(self, component: str, name: str) -> Callable[..., Any]:
         try:
@@ -291,8 +294,11 @@ class GeneratedPort:
             raise PortCallFailed(f"the adaptor has no {component}.{name}") from None
 
     def _guarded(self, component: str, fn: Callable[[], Any]) -> Any:
+        lock = self._locks.get(component)
         try:
-            with self._locks[component]:
+            if lock is None:
+                return fn()
+            with lock:
                 return fn()
         except PortError:
             raise
