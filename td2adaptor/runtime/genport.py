@@ -53,6 +53,10 @@ TRAIL_LIMIT = 1.0
 FEEDBACK_KEEP = 1000
 
 
+#: per message type: its field names (rosidl's get_fields_and_field_types builds a new dict at every call)
+_FIELDS: dict[type, tuple[str, ...]] = {}
+
+
 def to_plain(value: Any) -> Any:
     """A ROS 1 (genpy) or ROS 2 (rosidl) message, or a value inside one, as JSON-compatible data.
 
@@ -67,9 +71,13 @@ def to_plain(value: Any) -> Any:
         return list(value)
     if isinstance(value, Mapping):
         return {str(k): to_plain(v) for k, v in value.items()}
+    names = _FIELDS.get(type(value))
+    if names is not None:
+        return {name: to_plain(getattr(value, name)) for name in names}
     fields = getattr(value, "get_fields_and_field_types", None)
     if callable(fields):  # rosidl message
-        return {name: to_plain(getattr(value, name)) for name in fields()}
+        names = _FIELDS[type(value)] = tuple(fields())
+        return {name: to_plain(getattr(value, name)) for name in names}
     slots = getattr(type(value), "__slots__", None)
     if isinstance(slots, (list, tuple)) and list(slots) == ["secs", "nsecs"]:  # genpy Time / Duration
         return {"secs": int(value.secs), "nsecs": int(value.nsecs)}
@@ -273,6 +281,7 @@ class GeneratedPort:
         self._locks: dict[str, threading.Lock] = {}
         self._goals: dict[tuple[str, str, str], GoalTrack] = {}
         self._goals_lock = threading.Lock()
+        self._takes: dict[tuple[str, str], bool] = {}  # whether call_<action> takes mission_id= (inspect is slow)
         for name in self.layout.components:
             cls = getattr(module, name, None)
             if cls is None:
@@ -324,7 +333,10 @@ class GeneratedPort:
         """Call a query or cancel; the mission id goes where the generated method takes one (`mission_id=`),
         else the robot is asked about its current procedure (a request that cannot name it: ROS447)."""
         call = self._method(component, f"call_{action}")
-        if _takes_mission_id(call):
+        takes = self._takes.get((component, action))
+        if takes is None:
+            takes = self._takes[(component, action)] = _takes_mission_id(call)
+        if takes:
             return self._guarded(component, lambda: to_plain(call(mission_id=mission_id, timeout=timeout)))  # type: ignore[no-any-return]
         return self._guarded(component, lambda: to_plain(call(timeout=timeout)))  # type: ignore[no-any-return]
 
