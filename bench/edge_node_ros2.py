@@ -20,7 +20,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import os
 import statistics
+import subprocess
 import sys
 import tempfile
 import threading
@@ -61,7 +63,11 @@ PROCEDURES = {
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--runs", type=int, default=300)
+    parser.add_argument("--app", metavar="URL", help=argparse.SUPPRESS)  # the application process (see AppProcess)
     args = parser.parse_args()
+    if args.app:
+        app_process(args.app)
+        return
     if not env.ros2_available():
         print("ROS 2 Jazzy wheels not installed (bash .ci/setup-ros2.sh): skipped")
         return
@@ -159,11 +165,15 @@ def run(adaptor: Any, node: Any, runs: int) -> None:
                 send(f"{ROOT}/gotoQuery", {"correlation": f"f{i}", "mission": mid})
             replies.wait(lambda: replies.count - start >= FLOOD, timeout=120)
             rate = FLOOD / (time.perf_counter() - t0)
-            direct_8, edge_8 = [], []
+            direct_8, edge_8, apart_8 = [], [], []
             pipeline.round(CONCURRENT * 10)  # warm-up
-            for _ in range(ROUNDS):  # interleaved rounds: both sides see the same machine state
+            outside = AppProcess(url, lanes)
+            outside.round(CONCURRENT * 10)
+            for _ in range(ROUNDS):  # interleaved rounds: all see the same machine state
                 direct_8.append(concurrent_direct(lanes, PER_ROUND))
                 edge_8.append(pipeline.round(PER_ROUND))
+                apart_8.append(outside.round(PER_ROUND))
+            outside.close()
         finally:
             engine.stop()
             engine2.stop()
@@ -188,11 +198,13 @@ def run(adaptor: Any, node: Any, runs: int) -> None:
             f"ratio {edge_ms / direct_ms:5.2f}x{goal}"
         )
     spread = f"{len({lane.robot for lane in lanes})} robots x {len({lane.component for lane in lanes})} components"
-    label = f"  {CONCURRENT} in flight ({spread}), calls/s"
-    print(
-        f"{label:<44} {med(edge_8):8.0f} /s   {'8 threads, call_X':<20} {med(direct_8):7.0f} /s   "
-        f"ratio {med(edge_8) / med(direct_8):5.2f}x   target >= 0.8x   ({ROUNDS} rounds of {PER_ROUND})"
-    )
+    for where, rates in (("app in its own process", apart_8), ("app in this process", edge_8)):
+        label = f"  {CONCURRENT} in flight ({spread}), {where}"
+        print(
+            f"{label:<60} {med(rates):6.0f} /s   {'8 threads, call_X':<18} {med(direct_8):6.0f} /s   "
+            f"ratio {med(rates) / med(direct_8):5.2f}x   target >= 0.8x"
+        )
+    print(f"  ({ROUNDS} interleaved rounds of {PER_ROUND} calls, medians; the edge node's engines are in this process)")
 
 
 def percentile(values: list[float], q: int) -> float:
@@ -243,6 +255,58 @@ def concurrent_direct(lanes: list[Lane], total: int) -> float:
     for thread in threads:
         thread.join()
     return per * len(lanes) / (time.perf_counter() - t0)
+
+
+class AppProcess:
+    """The pipelining application in a process of its own (the edge node's process then does only its own
+    work, as `td2adaptor run` would): `round(total)` as Pipeline's, over stdin/stdout."""
+
+    def __init__(self, url: str, lanes: list[Lane]) -> None:
+        spec = [[lane.robot, lane.component, lane.query, lane.mission] for lane in lanes]
+        environ = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
+        self.proc = subprocess.Popen(
+            [sys.executable, __file__, "--app", url],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+            env=environ,
+        )
+        self._say(json.dumps(spec))
+        assert self._hear() == "ready"
+
+    def _say(self, line: str) -> None:
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(line + "\n")
+        self.proc.stdin.flush()
+
+    def _hear(self) -> str:
+        assert self.proc.stdout is not None
+        return self.proc.stdout.readline().strip()
+
+    def round(self, total: int) -> float:
+        self._say(str(total))
+        return float(self._hear())
+
+    def close(self) -> None:
+        self._say("")
+        self.proc.wait(30)
+
+
+def app_process(url: str) -> None:
+    """The application process of AppProcess: lanes on the first stdin line, then one round per line."""
+    lanes = [Lane(robot, component, query, None, mission) for robot, component, query, mission in json.loads(input())]
+    app = MqttBus(parse_broker_url(url), client_id="edge-bench-app-process", clean_start=True)
+    pipeline = Pipeline(app, lanes)
+    runs = {query: run_action for query, run_action, _payload in PROCEDURES.values()}
+    for lane in lanes:
+        app.subscribe(f"td2adaptor/{lane.robot}/{lane.component}/{runs[lane.query]}/+", pipeline)
+    app.connect()
+    print("ready", flush=True)
+    for line in sys.stdin:
+        if not line.strip():
+            break
+        print(pipeline.round(int(line)), flush=True)
+    app.close()
 
 
 class Pipeline:
