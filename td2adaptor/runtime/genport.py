@@ -49,8 +49,13 @@ PUMP_WAIT = 1.0
 FEEDBACK_GRACE = {"ros2": 0.01, "ros1": 0.1}
 #: ... but for no longer than this in all
 TRAIL_LIMIT = 1.0
+#: how long reading a goal's buffered feedback waits for a message not there yet: it does not (the least
+#: timeout the generated iterators accept); later messages come through the feedback callback
+JOIN_WAIT = 1e-6
 #: feedback messages a goal keeps for a caller that has not read them yet (older ones are dropped)
 FEEDBACK_KEEP = 1000
+#: goal states a goal with feedback is past
+_BEFORE_EXECUTING = frozenset({"unknown", "pending", "accepted"})
 
 
 #: per message type: its field names (rosidl's get_fields_and_field_types builds a new dict at every call)
@@ -139,8 +144,9 @@ class GoalTrack:
     """One goal followed through a generated `GoalHandle`: its feedback as dicts, its status and its end.
 
     Feedback comes from the handle's `on_feedback` callback, registered at once; what arrived before (the
-    handle buffers it) is read with its `feedback()` iterator up to the first message the callback also saw
-    (the same object), so no message is lost or doubled. A thread waits for the result; when it came, feedback
+    handle buffers it) is read at once, in the constructor, with its `feedback()` iterator (without waiting
+    for more), and every message is taken once: one the callback also sees (the same object) is not added
+    again, whichever of the two saw it first. A thread waits for the result; when it came, feedback
     may still trail it (a different channel, and rclpy hands a result over before feedback taken in the same
     wake-up): the goal counts as done once no message came for `grace` (at most `TRAIL_LIMIT`); a message
     later than that is not reported (never after the terminal event).
@@ -154,6 +160,7 @@ class GoalTrack:
         self._items: list[Any] = []
         self._dropped = 0
         self._late: list[Any] = []  # messages the callback took before the buffered ones were read
+        self._buffered: list[Any] = []  # buffered messages added whose callback may still come
         self._joined = False
         self._done = False
         self._status = "accepted"
@@ -161,6 +168,7 @@ class GoalTrack:
         self._message = ""
         self._closed = False
         self._remove = handle.on_feedback(self._on_feedback)
+        self._join()  # here, not in the thread: feedback arriving from now on is relayed without a hand-off
         self._thread = threading.Thread(target=self._follow, name=f"goal-{self.goal_id[:8]}", daemon=True)
         self._thread.start()
 
@@ -174,16 +182,23 @@ class GoalTrack:
 
     def _on_feedback(self, message: Any) -> None:
         with self._cond:
-            if self._joined:
-                self._add(message)
-            else:
+            if not self._joined:
                 self._late.append(message)
+                return
+            for i, buffered in enumerate(self._buffered):
+                if buffered is message:  # read from the buffer before its callback came: already added
+                    del self._buffered[: i + 1]
+                    return
+            self._buffered = []  # callbacks come in order: the buffered messages are all behind us
+            self._add(message)
 
     def _join(self) -> None:
-        """The buffered messages the callback did not see, then the ones it did, in order."""
+        """The buffered messages the callback did not see, then the ones it did, in order. The buffer is read
+        without waiting for more: a message it holds whose callback has not run yet (the handle buffers it
+        first) is added now and skipped when its callback comes."""
         earlier: list[Any] = []
         try:
-            for message in self.handle.feedback(timeout=0.001):
+            for message in self.handle.feedback(timeout=JOIN_WAIT):
                 with self._cond:
                     seen = any(message is m for m in self._late)
                 if seen:
@@ -192,13 +207,17 @@ class GoalTrack:
         except Exception:  # noqa: BLE001 - CallTimeout: the buffer is read; ServiceUnavailable: the end tells
             pass
         with self._cond:
-            for message in [*earlier, *self._late]:
+            for message in earlier:
                 self._add(message)
+            for message in self._late:
+                if any(message is m for m in earlier):
+                    continue  # the buffer had it too
+                self._add(message)
+            self._buffered = [m for m in earlier if not any(m is late for late in self._late)]
             self._late = []
             self._joined = True
 
     def _follow(self) -> None:
-        self._join()
         lost = ""
         result: Any = None
         while not self._closed:
@@ -238,6 +257,10 @@ class GoalTrack:
             if since is not None:
                 new = tuple(self._items[max(0, since - self._dropped) :])
             status = self._status if self._done else str(self.handle.status)
+            if received and status in _BEFORE_EXECUTING:
+                # a server sends feedback only while it executes the goal; the status message saying so comes
+                # on another topic and can be taken after that feedback
+                status = "executing"
             return GoalProgress(new, received, status, self._done, self._result, self._message)
 
     def close(self) -> None:
