@@ -5,9 +5,9 @@ The generated packages (issue 3) offer, per component, `construct_<action>_Msg(*
 cancels accept `mission_id=`), `get_<property>_value(timeout=)`, `construct_<property>_Msg` /
 `publish_<property>_Msg`, and raise `ServiceUnavailable` / `CallTimeout` / `CallFailed` / `NoMessage`.
 This adapter turns dicts into those calls and messages back into dicts, and maps the errors onto
-`PortError`s. The engine calls it from several threads at once: on ROS 2 the calls overlap (an rclpy client
-takes concurrent requests, each with its own future; the engine keeps one mission per component); on ROS 1
-the calls of one component are made one at a time (one lock per component).
+`PortError`s. The engine calls it from several threads at once: on ROS 2 up to `CALLS_PER_COMPONENT` calls
+of one component overlap (an rclpy client takes concurrent requests, each with its own future; the engine
+keeps one mission per component); on ROS 1 the calls of one component are made one at a time.
 
 Values use the field names of the robot's own ROS version, as the event schemas and the robot's published
 TD declare them: a ROS 1 time or duration is `{"secs": ..., "nsecs": ...}`, a ROS 2 one `{"sec": ...,
@@ -52,6 +52,9 @@ TRAIL_LIMIT = 1.0
 #: how long reading a goal's buffered feedback waits for a message not there yet: it does not (the least
 #: timeout the generated iterators accept); later messages come through the feedback callback
 JOIN_WAIT = 1e-6
+#: ROS 2 calls of one component in flight at once (more wait): a service's request and response readers keep the
+#: last 10 messages by default (rmw's services QoS), so a flood of concurrent calls to one service loses some
+CALLS_PER_COMPONENT = 4
 #: feedback messages a goal keeps for a caller that has not read them yet (older ones are dropped)
 FEEDBACK_KEEP = 1000
 #: goal states a goal with feedback is past
@@ -301,7 +304,7 @@ class GeneratedPort:
         self.feedback_grace = FEEDBACK_GRACE[distro] if feedback_grace is None else feedback_grace
         module = importlib.import_module(package) if isinstance(package, str) else package
         self.components: dict[str, Any] = {}
-        self._locks: dict[str, threading.Lock] = {}
+        self._locks: dict[str, threading.BoundedSemaphore] = {}
         self._goals: dict[tuple[str, str, str], GoalTrack] = {}
         self._goals_lock = threading.Lock()
         self._takes: dict[tuple[str, str], bool] = {}  # whether call_<action> takes mission_id= (inspect is slow)
@@ -316,8 +319,7 @@ class GeneratedPort:
             instance = cls(*args, timeout=timeout, wait_timeout=wait_timeout)
             instance.register()
             self.components[name] = instance
-            if distro == "ros1":
-                self._locks[name] = threading.Lock()
+            self._locks[name] = threading.BoundedSemaphore(CALLS_PER_COMPONENT if distro == "ros2" else 1)
 
     def _method(self, component: str, name: str) -> Callable[..., Any]:
         try:
@@ -326,11 +328,8 @@ class GeneratedPort:
             raise PortCallFailed(f"the adaptor has no {component}.{name}") from None
 
     def _guarded(self, component: str, fn: Callable[[], Any]) -> Any:
-        lock = self._locks.get(component)
         try:
-            if lock is None:
-                return fn()
-            with lock:
+            with self._locks[component]:
                 return fn()
         except PortError:
             raise
