@@ -3,8 +3,9 @@
 Threads: the bus's own thread only queues messages; one dispatcher thread validates and routes them in
 arrival order; each procedure mission runs in its own thread (start, then poll the linked query every
 `poll_period`, a feedback event on every state change, exactly one terminal event, an overall
-`mission_timeout`); queries, cancels of missions we do not follow, writes and plain calls run on a small
-pool; a property thread publishes subscribed values, at most one per property and `property_period`.
+`mission_timeout`); queries, cancels of missions we do not follow, writes and plain calls run on a pool
+of `CALL_WORKERS` threads (calls in flight at once); a property thread publishes subscribed values, at most
+one per property and `property_period`.
 
 Policies (documented in README of the generated events):
 * one mission per component at a time: a second invoke is refused with an error event (`busy`) and a
@@ -45,6 +46,10 @@ from td2adaptor.runtime.thingbus import WOT_SOURCE
 from td2adaptor.runtime.words import INTERNAL, describe
 
 log = logging.getLogger("td2adaptor.runtime")
+
+#: threads of the pool that runs queries, cancels, writes and plain calls: each waits for its robot call, so
+#: as many calls can be in flight at once (to different components and robots; the robot answers in parallel)
+CALL_WORKERS = 16
 
 _DEFAULT_MISSION_PATH = ("state", "header", "id")
 
@@ -127,7 +132,7 @@ class Engine:
         self._stopping = threading.Event()
         self._threads: list[threading.Thread] = []
         self._missions: set[threading.Thread] = set()
-        self._pool = ThreadPoolExecutor(max_workers=4, thread_name_prefix=f"td2adaptor-{config.robot}-call")
+        self._pool = ThreadPoolExecutor(max_workers=CALL_WORKERS, thread_name_prefix=f"td2adaptor-{config.robot}-call")
         self._goals = GoalRunner(self)
         self._streams: PropertyStreams | None = None
 

@@ -5,7 +5,9 @@ The generated packages (issue 3) offer, per component, `construct_<action>_Msg(*
 cancels accept `mission_id=`), `get_<property>_value(timeout=)`, `construct_<property>_Msg` /
 `publish_<property>_Msg`, and raise `ServiceUnavailable` / `CallTimeout` / `CallFailed` / `NoMessage`.
 This adapter turns dicts into those calls and messages back into dicts, and maps the errors onto
-`PortError`s. One lock per component: the generated clients are used from the engine's mission threads.
+`PortError`s. The engine calls it from several threads at once: on ROS 2 up to `CALLS_PER_COMPONENT` calls
+of one component overlap (an rclpy client takes concurrent requests, each with its own future; the engine
+keeps one mission per component); on ROS 1 the calls of one component are made one at a time.
 
 Values use the field names of the robot's own ROS version, as the event schemas and the robot's published
 TD declare them: a ROS 1 time or duration is `{"secs": ..., "nsecs": ...}`, a ROS 2 one `{"sec": ...,
@@ -47,8 +49,20 @@ PUMP_WAIT = 1.0
 FEEDBACK_GRACE = {"ros2": 0.01, "ros1": 0.1}
 #: ... but for no longer than this in all
 TRAIL_LIMIT = 1.0
+#: how long reading a goal's buffered feedback waits for a message not there yet: it does not (the least
+#: timeout the generated iterators accept); later messages come through the feedback callback
+JOIN_WAIT = 1e-6
+#: ROS 2 calls of one component in flight at once (more wait): a service's request and response readers keep the
+#: last 10 messages by default (rmw's services QoS), so a flood of concurrent calls to one service loses some
+CALLS_PER_COMPONENT = 4
 #: feedback messages a goal keeps for a caller that has not read them yet (older ones are dropped)
 FEEDBACK_KEEP = 1000
+#: goal states a goal with feedback is past
+_BEFORE_EXECUTING = frozenset({"unknown", "pending", "accepted"})
+
+
+#: per message type: its field names (rosidl's get_fields_and_field_types builds a new dict at every call)
+_FIELDS: dict[type, tuple[str, ...]] = {}
 
 
 def to_plain(value: Any) -> Any:
@@ -65,9 +79,13 @@ def to_plain(value: Any) -> Any:
         return list(value)
     if isinstance(value, Mapping):
         return {str(k): to_plain(v) for k, v in value.items()}
+    names = _FIELDS.get(type(value))
+    if names is not None:
+        return {name: to_plain(getattr(value, name)) for name in names}
     fields = getattr(value, "get_fields_and_field_types", None)
     if callable(fields):  # rosidl message
-        return {name: to_plain(getattr(value, name)) for name in fields()}
+        names = _FIELDS[type(value)] = tuple(fields())
+        return {name: to_plain(getattr(value, name)) for name in names}
     slots = getattr(type(value), "__slots__", None)
     if isinstance(slots, (list, tuple)) and list(slots) == ["secs", "nsecs"]:  # genpy Time / Duration
         return {"secs": int(value.secs), "nsecs": int(value.nsecs)}
@@ -129,8 +147,9 @@ class GoalTrack:
     """One goal followed through a generated `GoalHandle`: its feedback as dicts, its status and its end.
 
     Feedback comes from the handle's `on_feedback` callback, registered at once; what arrived before (the
-    handle buffers it) is read with its `feedback()` iterator up to the first message the callback also saw
-    (the same object), so no message is lost or doubled. A thread waits for the result; when it came, feedback
+    handle buffers it) is read at once, in the constructor, with its `feedback()` iterator (without waiting
+    for more), and every message is taken once: one the callback also sees (the same object) is not added
+    again, whichever of the two saw it first. A thread waits for the result; when it came, feedback
     may still trail it (a different channel, and rclpy hands a result over before feedback taken in the same
     wake-up): the goal counts as done once no message came for `grace` (at most `TRAIL_LIMIT`); a message
     later than that is not reported (never after the terminal event).
@@ -144,6 +163,7 @@ class GoalTrack:
         self._items: list[Any] = []
         self._dropped = 0
         self._late: list[Any] = []  # messages the callback took before the buffered ones were read
+        self._buffered: list[Any] = []  # buffered messages added whose callback may still come
         self._joined = False
         self._done = False
         self._status = "accepted"
@@ -151,6 +171,7 @@ class GoalTrack:
         self._message = ""
         self._closed = False
         self._remove = handle.on_feedback(self._on_feedback)
+        self._join()  # here, not in the thread: feedback arriving from now on is relayed without a hand-off
         self._thread = threading.Thread(target=self._follow, name=f"goal-{self.goal_id[:8]}", daemon=True)
         self._thread.start()
 
@@ -164,16 +185,23 @@ class GoalTrack:
 
     def _on_feedback(self, message: Any) -> None:
         with self._cond:
-            if self._joined:
-                self._add(message)
-            else:
+            if not self._joined:
                 self._late.append(message)
+                return
+            for i, buffered in enumerate(self._buffered):
+                if buffered is message:  # read from the buffer before its callback came: already added
+                    del self._buffered[: i + 1]
+                    return
+            self._buffered = []  # callbacks come in order: the buffered messages are all behind us
+            self._add(message)
 
     def _join(self) -> None:
-        """The buffered messages the callback did not see, then the ones it did, in order."""
+        """The buffered messages the callback did not see, then the ones it did, in order. The buffer is read
+        without waiting for more: a message it holds whose callback has not run yet (the handle buffers it
+        first) is added now and skipped when its callback comes."""
         earlier: list[Any] = []
         try:
-            for message in self.handle.feedback(timeout=0.001):
+            for message in self.handle.feedback(timeout=JOIN_WAIT):
                 with self._cond:
                     seen = any(message is m for m in self._late)
                 if seen:
@@ -182,13 +210,17 @@ class GoalTrack:
         except Exception:  # noqa: BLE001 - CallTimeout: the buffer is read; ServiceUnavailable: the end tells
             pass
         with self._cond:
-            for message in [*earlier, *self._late]:
+            for message in earlier:
                 self._add(message)
+            for message in self._late:
+                if any(message is m for m in earlier):
+                    continue  # the buffer had it too
+                self._add(message)
+            self._buffered = [m for m in earlier if not any(m is late for late in self._late)]
             self._late = []
             self._joined = True
 
     def _follow(self) -> None:
-        self._join()
         lost = ""
         result: Any = None
         while not self._closed:
@@ -228,6 +260,10 @@ class GoalTrack:
             if since is not None:
                 new = tuple(self._items[max(0, since - self._dropped) :])
             status = self._status if self._done else str(self.handle.status)
+            if received and status in _BEFORE_EXECUTING:
+                # a server sends feedback only while it executes the goal; the status message saying so comes
+                # on another topic and can be taken after that feedback
+                status = "executing"
             return GoalProgress(new, received, status, self._done, self._result, self._message)
 
     def close(self) -> None:
@@ -268,9 +304,10 @@ class GeneratedPort:
         self.feedback_grace = FEEDBACK_GRACE[distro] if feedback_grace is None else feedback_grace
         module = importlib.import_module(package) if isinstance(package, str) else package
         self.components: dict[str, Any] = {}
-        self._locks: dict[str, threading.Lock] = {}
+        self._locks: dict[str, threading.BoundedSemaphore] = {}
         self._goals: dict[tuple[str, str, str], GoalTrack] = {}
         self._goals_lock = threading.Lock()
+        self._takes: dict[tuple[str, str], bool] = {}  # whether call_<action> takes mission_id= (inspect is slow)
         for name in self.layout.components:
             cls = getattr(module, name, None)
             if cls is None:
@@ -282,7 +319,7 @@ class GeneratedPort:
             instance = cls(*args, timeout=timeout, wait_timeout=wait_timeout)
             instance.register()
             self.components[name] = instance
-            self._locks[name] = threading.Lock()
+            self._locks[name] = threading.BoundedSemaphore(CALLS_PER_COMPONENT if distro == "ros2" else 1)
 
     def _method(self, component: str, name: str) -> Callable[..., Any]:
         try:
@@ -318,7 +355,10 @@ class GeneratedPort:
         """Call a query or cancel; the mission id goes where the generated method takes one (`mission_id=`),
         else the robot is asked about its current procedure (a request that cannot name it: ROS447)."""
         call = self._method(component, f"call_{action}")
-        if _takes_mission_id(call):
+        takes = self._takes.get((component, action))
+        if takes is None:
+            takes = self._takes[(component, action)] = _takes_mission_id(call)
+        if takes:
             return self._guarded(component, lambda: to_plain(call(mission_id=mission_id, timeout=timeout)))  # type: ignore[no-any-return]
         return self._guarded(component, lambda: to_plain(call(timeout=timeout)))  # type: ignore[no-any-return]
 

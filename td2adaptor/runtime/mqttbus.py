@@ -32,6 +32,8 @@ log = logging.getLogger("td2adaptor.runtime.bus")
 
 _AUTH_REFUSALS = {134, 135}  # Bad user name or password, Not authorized (paho maps 3.1.1's 4 and 5 onto them)
 MQTT_VERSIONS = ("5", "3.1.1")
+#: topics whose matching handlers a client remembers (then it forgets them all and starts again)
+ROUTES_KEPT = 4096
 
 
 def _no_delay(_client: mqtt.Client, _userdata: Any, sock: Any) -> None:
@@ -117,6 +119,7 @@ class MqttBus:
         self.connects = 0  # successful CONNACKs, for tests and logs
         self.probe = False  # a connection made only to learn what the broker allows: its refusal is no error
         self._handlers: list[tuple[str, Handler]] = []
+        self._routes: dict[str, list[Handler]] = {}  # topic -> its handlers, of the topics seen (see _on_message)
         self._qos: dict[str, int] = {}  # each filter's QoS: the highest any of its subscriptions asked for
         self._lock = threading.Condition()
         self._pending: set[int] = set()
@@ -259,8 +262,13 @@ class MqttBus:
 
     def _on_message(self, _client: mqtt.Client, _userdata: Any, msg: mqtt.MQTTMessage) -> None:
         message = Message(msg.topic, bytes(msg.payload), bool(msg.retain))
-        with self._lock:
-            handlers = [h for p, h in self._handlers if topic_matches(p, msg.topic)]
+        with self._lock:  # an edge node subscribes to dozens of filters: match each topic once, not every time
+            handlers = self._routes.get(msg.topic)
+            if handlers is None:
+                handlers = [h for p, h in self._handlers if topic_matches(p, msg.topic)]
+                if len(self._routes) >= ROUTES_KEPT:
+                    self._routes.clear()
+                self._routes[msg.topic] = handlers
         for handler in handlers:
             try:
                 handler(message)
@@ -296,6 +304,7 @@ class MqttBus:
             known = pattern in self._qos and self._qos[pattern] >= qos
             self._qos[pattern] = max(qos, self._qos.get(pattern, 0))
             self._handlers.append((pattern, handler))
+            self._routes.clear()
         client = self._client
         if client is None or known or not self._connected:
             return  # subscribed on (re)connect

@@ -5,6 +5,7 @@ goal progress crossing the ROS 1 bridge as JSON, and the `goal_feedback_grace` s
 from __future__ import annotations
 
 import json
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
@@ -16,7 +17,7 @@ from td2adaptor.model import Procedure
 from td2adaptor.model.events import GOAL_WORDS, STATES
 from td2adaptor.runtime.bridge import Ros1Bridge
 from td2adaptor.runtime.config import ConfigError, RuntimeConfig, load_config
-from td2adaptor.runtime.genport import FEEDBACK_GRACE, Layout
+from td2adaptor.runtime.genport import FEEDBACK_GRACE, GoalTrack, Layout
 from td2adaptor.runtime.goals import goal_status
 from td2adaptor.runtime.port import GOAL_STATES, GoalProgress
 from td2adaptor.runtime.procedures import read
@@ -109,6 +110,39 @@ class _Handle:
 
     def result(self, timeout: float) -> dict[str, Any]:
         return {"sequence": [0, 1]}
+
+
+class CallTimeout(Exception):
+    """The generated packages' error for a wait that ran out (GoalTrack knows it by its name)."""
+
+
+class _Executing(_Handle):
+    """A goal whose first feedback came before the status message saying it executes (another topic)."""
+
+    done = False
+    status = "accepted"
+
+    def __init__(self) -> None:
+        self.over = threading.Event()
+
+    def feedback(self, timeout: float) -> Iterator[Any]:
+        return iter([{"sequence": [0]}])
+
+    def result(self, timeout: float) -> dict[str, Any]:
+        self.over.wait(timeout)
+        raise CallTimeout("still running")
+
+
+def test_a_goal_with_feedback_is_executing_whatever_its_status_says() -> None:
+    handle = _Executing()
+    track = GoalTrack(handle, 0.0)
+    try:
+        progress = track.progress(0, 0.0)
+        assert progress.feedback == ({"sequence": [0]},) and not progress.done
+        assert progress.status == "executing"  # a query answered now says running, as the feedback events do
+    finally:
+        track.close()
+        handle.over.set()
 
 
 class _Component:
