@@ -40,14 +40,6 @@ def directory(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TddServer]:
     server.stop()
 
 
-@pytest.fixture
-def broker(tmp_path: Path) -> Iterator[Mosquitto]:
-    b = Mosquitto(tmp_path / "broker")
-    b.start()
-    yield b
-    b.stop()
-
-
 @pytest.fixture(scope="module")
 def model(tmp_path_factory: pytest.TempPathFactory) -> Model:
     return compile_td(small_robot_td(tmp_path_factory.mktemp("td")))

@@ -35,14 +35,6 @@ def directory(tmp_path: Path) -> Iterator[TddServer]:
 
 
 @pytest.fixture
-def broker(tmp_path: Path) -> Iterator[Mosquitto]:
-    b = Mosquitto(tmp_path / "broker")
-    b.start()
-    yield b
-    b.stop()
-
-
-@pytest.fixture
 def robot_sim(rb1_prefix: Path) -> Iterator[Process]:
     args = [sys.executable, "-m", "examples.robotnik_rb1.sim.ros2", "--duration", "1", "--namespace", NAMESPACE]
     process = Process(args, env.child_env([rb1_prefix]))

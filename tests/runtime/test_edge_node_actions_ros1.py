@@ -109,14 +109,6 @@ def fibo_robot(master: Master, build: tuple[Model, Path, Path]) -> Iterator[Proc
     process.stop()
 
 
-@pytest.fixture
-def broker(tmp_path: Path) -> Iterator[Mosquitto]:
-    b = Mosquitto(tmp_path / "broker")
-    b.start()
-    yield b
-    b.stop()
-
-
 class Edge:
     """The edge node of `robot`: bridge (ROS 1) + engine + mosquitto, and an application recording events."""
 

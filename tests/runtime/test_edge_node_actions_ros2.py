@@ -69,14 +69,6 @@ def fibo_robot(ros2_domain: int) -> Iterator[Process]:
     process.stop()
 
 
-@pytest.fixture
-def broker(tmp_path: Path) -> Iterator[Mosquitto]:
-    b = Mosquitto(tmp_path / "broker")
-    b.start()
-    yield b
-    b.stop()
-
-
 class Edge:
     """An edge node for `robot` on ROS 2 and mosquitto, and an application recording its events."""
 

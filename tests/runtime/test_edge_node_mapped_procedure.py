@@ -98,14 +98,6 @@ def task_build(ros2_domain: int, tmp_path_factory: pytest.TempPathFactory) -> tu
     return model, src
 
 
-@pytest.fixture
-def broker(tmp_path: Path) -> Iterator[Mosquitto]:
-    b = Mosquitto(tmp_path / "broker")
-    b.start()
-    yield b
-    b.stop()
-
-
 @pytest.fixture(scope="module")
 def task_robot(ros2_domain: int) -> Iterator[TaskRobot]:
     robot = TaskRobot(ROBOT)

@@ -74,14 +74,6 @@ def edge_sim(rb1_prefix: Path) -> Iterator[Process]:
     process.stop()
 
 
-@pytest.fixture
-def broker(tmp_path: Path) -> Iterator[Mosquitto]:
-    b = Mosquitto(tmp_path / "broker")
-    b.start()
-    yield b
-    b.stop()
-
-
 def port_for(adaptor: ModuleType, node: Any, namespace: str, timeout: float = 5.0, wait: float = 10.0) -> GeneratedPort:
     return GeneratedPort(rb1_model(), adaptor, namespace, distro="ros2", node=node, timeout=timeout, wait_timeout=wait)
 

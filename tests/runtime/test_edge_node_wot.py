@@ -17,7 +17,6 @@ import json
 import os
 import shutil
 import subprocess
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -51,14 +50,6 @@ def node_modules() -> Path:
     installed = json.loads(wanted[1].read_text(encoding="utf-8"))["version"]
     assert installed == NODE_WOT, f"node-wot {installed} in {CACHE}, the tests pin {NODE_WOT}: run .ci/setup-nodewot.sh"
     return modules
-
-
-@pytest.fixture
-def broker(tmp_path: Path) -> Iterator[Mosquitto]:
-    b = Mosquitto(tmp_path / "broker")
-    b.start()
-    yield b
-    b.stop()
 
 
 def wot_schemas(model: Model) -> dict[str, dict[str, Any]]:

@@ -16,7 +16,6 @@ from __future__ import annotations
 import json
 import subprocess
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -35,14 +34,6 @@ WOTPY = REPO / ".cache" / "wotpy" / "bin" / "python"
 CLIENT = Path(__file__).parent / "wotpy_client.py"
 ROBOT = "wotpy_rb1"
 WOT = f"td2adaptor/{ROBOT}/wot-thing"
-
-
-@pytest.fixture
-def broker(tmp_path: Path) -> Iterator[Mosquitto]:
-    b = Mosquitto(tmp_path / "broker")
-    b.start()
-    yield b
-    b.stop()
 
 
 def _line(proc: subprocess.Popen[str], deadline: float) -> dict[str, Any]:

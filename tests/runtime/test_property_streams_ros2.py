@@ -80,14 +80,6 @@ def sensors(robot: str, count: int, pause: float, repeats: int) -> Process:
     return Process(args, env.child_env([]))
 
 
-@pytest.fixture
-def broker(tmp_path: Path) -> Iterator[Mosquitto]:
-    b = Mosquitto(tmp_path / "broker")
-    b.start()
-    yield b
-    b.stop()
-
-
 def odometry(x: float) -> Any:
     from nav_msgs.msg import Odometry
 
