@@ -470,6 +470,10 @@ def run_warehouse(options: WarehouseOptions, out: Callable[[str], None] = print)
             results = behaviour.run(remaining)
             finished = time.monotonic()
             summary(out, results, behaviour, table, robots, started, ready, finished)
+            failed = {r.robot for r in results if not r.moved}
+            for child in edge_children:  # what the robot's edge node said last, for whoever reads the failure
+                if any(child.name.endswith(f" {robot}") for robot in failed):
+                    print(f"{child.name} logged last: {tail_of(child.log, 12)}", file=sys.stderr)
             return sum(r.moved for r in results) == len(CARTS)
     finally:
         shutil.rmtree(work, ignore_errors=True)
