@@ -411,9 +411,12 @@ def _apply(td: dict[str, Any], kind: str, index: int, path: tuple[str, ...], val
         return
     node: Any = td[kind][name]
     for step in path[:-1]:
-        if not isinstance(node, (dict, list)):
+        if isinstance(node, list) and step.isdigit() and int(step) < len(node):
+            node = node[int(step)]
+        elif isinstance(node, dict):
+            node = node.setdefault(step, {})
+        else:  # an earlier edit made the affordance (or a part on the path) something else
             return
-        node = node[int(step)] if isinstance(node, list) else node.setdefault(step, {})
     if isinstance(node, dict):
         node[path[-1]] = value
 
