@@ -10,6 +10,10 @@
 * `hasty`: an actionlib ActionServer that publishes `order` feedback messages and the result right after the
   last one, with no pause: feedback and result travel on two connections, so the result often arrives first.
 Prints `ready` once all four serve.
+
+`fibonacci_server.py NAMESPACE STEP SLOW`: the same, but `fibonacci`'s feedback and result publishers take a
+new subscriber up only SLOW seconds after answering its handshake (rospy does it right after; on a loaded
+machine that is late too): a fault injected into this real server, which load cannot produce on cue.
 """
 
 from __future__ import annotations
@@ -19,12 +23,15 @@ import time
 
 import actionlib
 import rospy
+import rospy.topics
 from test_msgs.msg import FibonacciAction, FibonacciFeedback, FibonacciResult
 
 
 def main() -> None:
     namespace, step = sys.argv[1], float(sys.argv[2])
-    rospy.init_node("fibonacci_server", disable_signals=True)
+    if len(sys.argv) > 3:
+        slow_to_take_up(float(sys.argv[3]), {f"/{namespace}/fibonacci/feedback", f"/{namespace}/fibonacci/result"})
+    rospy.init_node(f"fibonacci_server_{namespace}", disable_signals=True)  # one per namespace
 
     def execute(goal: object) -> None:
         sequence = [0, 1]
@@ -68,6 +75,18 @@ def main() -> None:
     hasty.start()
     print("ready", flush=True)
     rospy.spin()
+
+
+def slow_to_take_up(delay: float, topics: set[str]) -> None:
+    """Make the publishers of `topics` add a new subscriber `delay` seconds after its handshake."""
+    add_connection = rospy.topics._PublisherImpl.add_connection
+
+    def late(self: rospy.topics._PublisherImpl, connection: object) -> bool:
+        if self.resolved_name in topics:
+            time.sleep(delay)
+        return add_connection(self, connection)
+
+    rospy.topics._PublisherImpl.add_connection = late
 
 
 if __name__ == "__main__":

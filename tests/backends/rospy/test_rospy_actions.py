@@ -237,6 +237,23 @@ def test_cancel_mid_goal(master: Master, path: list[Path], server: None) -> None
     assert out["is_call_failed"]
 
 
+def test_first_goal_waits_until_the_server_publishes_to_us(master: Master, interfaces: Path, path: list[Path]) -> None:
+    """A ROS 1 publisher answers a new subscriber's handshake before it adds it to the subscribers it sends to;
+    a goal sent in between lost its first feedback messages (a clean-clone CI run under load got [0, 1] as the
+    first feedback) or even its result. The server here takes our subscriptions up 1.5 s late: the first goal
+    still gets every feedback message and its result."""
+    with harness.run_server(master, interfaces, "fibonacci_server.py", "fibo_slow", str(STEP), "1.5"):
+        out = harness.run_client(
+            master,
+            path,
+            f"from {PKG} import *\nc = MathComponent('fibo_slow')\n"
+            "goal = c.send_fibonacci(c.construct_fibonacci_Goal(order=4))\n"
+            "iterated = [list(fb.sequence) for fb in goal.feedback(timeout=10)]\n"
+            "emit({'iterated': iterated, 'result': list(goal.result(timeout=10).sequence)})\n",
+        )
+    assert out == {"iterated": [[0], [0, 1], [0, 1, 1], [0, 1, 1, 2]], "result": [0, 1, 1, 2]}
+
+
 def test_aborted_goal(master: Master, path: list[Path], server: None) -> None:
     out = client(
         master,

@@ -10,9 +10,11 @@ acceptance reply. rospy runs callbacks in its own threads, so any thread may blo
 
 from __future__ import annotations
 
+import http.client
 import threading
 import time
 import weakref
+import xmlrpc.client
 from collections import deque
 from collections.abc import Callable, Iterator
 from typing import Any, Generic, TypeVar, cast
@@ -38,6 +40,8 @@ FeedbackT = TypeVar("FeedbackT")
 
 #: how often a wait for an action server re-checks its connections
 POLL_PERIOD = 0.02
+#: how long a wait for an action server gives the server's XML-RPC API to answer getBusInfo
+BUS_INFO_TIMEOUT = 2.0
 #: how often a wait on a goal checks that the action server is still connected
 LIVENESS_PERIOD = 0.1
 
@@ -239,6 +243,41 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
             return self._code is not None
 
 
+def _publishers(subscription: rospy.Subscriber) -> set[str]:
+    """The XML-RPC URIs of the nodes `subscription` is connected to (rospy keeps them as endpoint ids)."""
+    return {str(connection.endpoint_id) for connection in list(subscription.impl.connections)}
+
+
+def _topics_sent_to(uri: str, caller_id: str) -> set[str] | None:
+    """The topics the node at `uri` publishes to `caller_id` by its getBusInfo (empty when it cannot be
+    reached yet), or None when it has no getBusInfo (then nothing more than the connection counts is known)."""
+    try:
+        proxy = xmlrpc.client.ServerProxy(uri, transport=_TimedTransport(BUS_INFO_TIMEOUT))
+        reply: Any = proxy.getBusInfo(caller_id)
+    except xmlrpc.client.Fault:
+        return None
+    except (OSError, xmlrpc.client.Error, ValueError):
+        return set()  # not reachable (yet): the caller polls again
+    try:
+        code, _, rows = cast(tuple[int, str, list[list[Any]]], tuple(reply))
+        return {str(row[4]) for row in rows if code == 1 and row[1] == caller_id and row[2] == "o"}
+    except (TypeError, ValueError, IndexError):  # not getBusInfo's reply shape
+        return set()
+
+
+class _TimedTransport(xmlrpc.client.Transport):
+    """An XML-RPC transport whose connections time out (xmlrpc.client's default waits forever)."""
+
+    def __init__(self, timeout: float) -> None:
+        super().__init__()
+        self._timeout = timeout
+
+    def make_connection(self, host: Any) -> http.client.HTTPConnection:
+        connection = super().make_connection(host)
+        connection.timeout = self._timeout
+        return connection
+
+
 class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
     """One ROS 1 action client (`actionlib.ActionClient`) that never waits forever.
 
@@ -268,6 +307,7 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
         self._feedback_sub: rospy.Subscriber | None = None
         self._goals: weakref.WeakValueDictionary[str, GoalHandle[ResultT, FeedbackT]] = weakref.WeakValueDictionary()
         self._goals_lock = threading.Lock()  # held while a goal is sent and filed, so its feedback finds it
+        self._servers_seen: set[str] = set()  # XML-RPC URIs of servers known to publish to this node
 
     def register(self) -> None:
         """Create the action client (its goal/cancel publishers and status/feedback/result subscribers)."""
@@ -303,7 +343,24 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
         if client is None or client.last_status_msg is None:
             return False
         parts = (client.pub_goal, client.pub_cancel, client.status_sub, client.result_sub, client.feedback_sub)
-        return all(part.get_num_connections() > 0 for part in parts)
+        return all(part.get_num_connections() > 0 for part in parts) and self._server_sends_to_us(client)
+
+    def _server_sends_to_us(self, client: actionlib.ActionClient) -> bool:
+        """Whether the servers' feedback and result publishers have taken this node's subscriptions up.
+
+        rospy (and roscpp) count a subscription as connected once the publisher has answered its handshake,
+        but the publisher adds it to its own list only after that: a message published in between (a goal's
+        first feedback, a quick result) never reaches us. The server's getBusInfo tells; asked once per
+        server process (its XML-RPC URI, new on every start)."""
+        servers = _publishers(client.feedback_sub) & _publishers(client.result_sub)
+        me = rospy.get_caller_id()
+        topics = {client.feedback_sub.resolved_name, client.result_sub.resolved_name}
+        for uri in servers - self._servers_seen:
+            sending = _topics_sent_to(uri, me)
+            if sending is not None and not topics <= sending:
+                return False
+            self._servers_seen.add(uri)
+        return bool(servers)
 
     def server_connected(self) -> bool:
         """Whether an action server is still connected (its status and result publishers)."""
