@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import importlib
 import inspect
+import itertools
 import math
 import threading
 import time
@@ -39,6 +40,7 @@ from td2adaptor.runtime.port import (
     PortUnavailable,
     StartResult,
 )
+from td2adaptor.runtime.workers import Workers
 
 #: how long a goal's feedback pump waits in one go (it re-checks whether it was told to stop in between)
 PUMP_WAIT = 1.0
@@ -55,6 +57,8 @@ JOIN_WAIT = 1e-6
 #: ROS 2 calls of one component in flight at once (more wait): a service's request and response readers keep the
 #: last 10 messages by default (rmw's services QoS), so a flood of concurrent calls to one service loses some
 CALLS_PER_COMPONENT = 4
+#: the threads that follow goals to their end (one per goal in flight; kept for the next goal)
+FOLLOWERS = Workers("goal-follower")
 #: feedback messages a goal keeps for a caller that has not read them yet (older ones are dropped)
 FEEDBACK_KEEP = 1000
 #: goal states a goal with feedback is past
@@ -172,8 +176,7 @@ class GoalTrack:
         self._closed = False
         self._remove = handle.on_feedback(self._on_feedback)
         self._join()  # here, not in the thread: feedback arriving from now on is relayed without a hand-off
-        self._thread = threading.Thread(target=self._follow, name=f"goal-{self.goal_id[:8]}", daemon=True)
-        self._thread.start()
+        FOLLOWERS.submit(self._follow)
 
     def _add(self, message: Any) -> None:
         """Append one message (lock held)."""
@@ -200,8 +203,10 @@ class GoalTrack:
         without waiting for more: a message it holds whose callback has not run yet (the handle buffers it
         first) is added now and skipped when its callback comes."""
         earlier: list[Any] = []
+        buffered = getattr(self.handle, "feedback_received", None)  # read no further: no wait at the end
+        messages = self.handle.feedback(timeout=JOIN_WAIT)
         try:
-            for message in self.handle.feedback(timeout=JOIN_WAIT):
+            for message in messages if buffered is None else itertools.islice(messages, buffered):
                 with self._cond:
                     seen = any(message is m for m in self._late)
                 if seen:

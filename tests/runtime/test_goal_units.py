@@ -145,6 +145,31 @@ def test_a_goal_with_feedback_is_executing_whatever_its_status_says() -> None:
         handle.over.set()
 
 
+class _Buffered(_Executing):
+    """A goal with two feedback messages buffered, whose iterator must not be asked for a third: the
+    generated one would wait for it (a hand-over of the interpreter lock on the goal's hot path)."""
+
+    feedback_received = 2
+    read_past = False
+
+    def feedback(self, timeout: float) -> Iterator[Any]:
+        yield {"sequence": [0]}
+        yield {"sequence": [0, 1]}
+        self.read_past = True
+        raise CallTimeout("no third message within the timeout")
+
+
+def test_the_goal_track_reads_the_buffered_feedback_without_waiting_for_more() -> None:
+    handle = _Buffered()
+    track = GoalTrack(handle, 0.0)
+    try:
+        assert track.progress(0, 0.0).feedback == ({"sequence": [0]}, {"sequence": [0, 1]})
+        assert not handle.read_past
+    finally:
+        track.close()
+        handle.over.set()
+
+
 class _Component:
     """The generated component class's surface GeneratedPort uses for a ROS action."""
 

@@ -508,7 +508,8 @@ _SENDING_LOCK = threading.Lock()
 
 
 class _RequestingActionClient(ActionClient):
-    """rclpy's ActionClient, which takes no response while one of its requests is being sent.
+    """rclpy's ActionClient, which takes no response while one of its requests is being sent, and which runs
+    the callbacks of a completed request's future in the same turn of the executor.
 
     rclpy (7.1, Jazzy; ros2/rclpy#1123) sends a goal, cancel or result request first and records its sequence
     number after. A response the executor's thread takes in between answers no request it knows: rclpy logs
@@ -516,9 +517,14 @@ class _RequestingActionClient(ActionClient):
     completes. A preempted caller (a loaded machine) and a quick server are enough. Requests sent through
     `request(...)` close that window: until they are recorded, the client tells the executor it has nothing
     ready, so the response waits in the middleware and is taken, in order, right after.
+
+    rclpy runs a future's done callbacks as new executor tasks, one whole turn (a wait-set rebuild) after the
+    response completed it; a callback registered with `when_done(...)` runs right after the response is
+    handled, in the executor's thread (once: rclpy's own scheduling of it finds it already run).
     """
 
     _sending = 0  # this client's requests between being sent and being recorded (under _SENDING_LOCK)
+    _waiting: tuple[tuple[_Future, _Once], ...] = ()  # when_done callbacks not run yet (under _SENDING_LOCK)
 
     def request(self, send: Callable[[], ReturnT]) -> ReturnT:
         """Call `send` (which sends a request through rclpy and returns its future) with no response taken
@@ -538,19 +544,46 @@ class _RequestingActionClient(ActionClient):
         with _SENDING_LOCK:
             return ready and self._sending == 0
 
+    def when_done(self, future: _Future, callback: Callable[[_Future], None]) -> None:
+        """Call `callback(future)` once, as soon as `future` (a request of this client) is done."""
+        once = _Once(callback)
+        with _SENDING_LOCK:
+            self._waiting = (*self._waiting, (future, once))
+        future.add_done_callback(once)  # also rclpy's way: for a future done already, or done elsewhere
 
-#: how a GoalHandle sends its result and cancel requests: `_RequestingActionClient.request` of its client
-_Request = Callable[[Callable[[], Any]], Any]
+    async def execute(self, taken_data: Any) -> None:
+        """The executor's call (rclpy's Waitable API) with the responses and feedback taken: rclpy's own
+        handling, then the when_done callbacks of the futures it completed."""
+        base: Any = super()
+        await base.execute(taken_data)
+        with _SENDING_LOCK:
+            if not self._waiting:
+                return
+            done = [(future, once) for future, once in self._waiting if future.done()]
+            self._waiting = tuple((future, once) for future, once in self._waiting if not future.done())
+        for future, once in done:
+            once(future)
 
 
-def _send_now(send: Callable[[], Any]) -> Any:
-    return send()
+class _Once:
+    """A future's done callback that runs at most once, whoever calls it first."""
+
+    def __init__(self, callback: Callable[[_Future], None]) -> None:
+        self._callback: Callable[[_Future], None] | None = callback
+        self._lock = threading.Lock()
+
+    def __call__(self, future: Any) -> None:
+        with self._lock:
+            callback, self._callback = self._callback, None
+        if callback is not None:
+            callback(cast(_Future, future))
 
 
-def _wait(future: _Future, timeout: float) -> bool:
-    """Wait at most `timeout` seconds for `future` (completed by the executor's thread); whether it is done."""
+def _wait(future: _Future, timeout: float, client: _RequestingActionClient) -> bool:
+    """Wait at most `timeout` seconds for `future`, a request of `client` (completed by the executor's
+    thread); whether it is done."""
     done = threading.Event()
-    future.add_done_callback(lambda _future: done.set())
+    client.when_done(future, lambda _future: done.set())
     return future.done() or done.wait(timeout)
 
 
@@ -565,13 +598,13 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
     """
 
     def __init__(
-        self, action: str, handle: _ClientGoalHandle, node: Node, timeout: float, request: _Request = _send_now
+        self, action: str, handle: _ClientGoalHandle, node: Node, timeout: float, client: _RequestingActionClient
     ) -> None:
         self.action = action
         self.node = node
         self.timeout = timeout
         self._handle = handle
-        self._request = request
+        self._client = client
         self.goal_id: str = bytes(handle.goal_id.uuid).hex()
         self._cond = threading.Condition()
         self._feedback: deque[FeedbackT] = deque(maxlen=FEEDBACK_BUFFER)
@@ -580,8 +613,8 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
         self._final: int | None = None  # the GoalStatus code the goal ended with
         self._result: Any = None
         self._error: BaseException | None = None
-        self._result_future = cast(_Future, request(handle.get_result_async))
-        self._result_future.add_done_callback(self._finished)
+        self._result_future = cast(_Future, client.request(handle.get_result_async))
+        client.when_done(self._result_future, self._finished)
 
     # called in the executor's thread
 
@@ -626,6 +659,13 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
         """Whether the goal has ended (succeeded, canceled or aborted)."""
         with self._cond:
             return self._final is not None
+
+    @property
+    def feedback_received(self) -> int:
+        """How many feedback messages the goal has received so far (also those no longer buffered): as many
+        as `feedback()` yields at once, without waiting, when nothing was dropped."""
+        with self._cond:
+            return self._received
 
     def on_feedback(self, callback: Callable[[FeedbackT], None]) -> Callable[[], None]:
         """Call `callback` with every feedback message from now on, in the executor's thread; returns a
@@ -692,8 +732,8 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
         if self.done:
             return False
         ensure_can_block(self.node, self.action)
-        future = cast(_Future, self._request(self._handle.cancel_goal_async))
-        if not _wait(future, wait):
+        future = cast(_Future, self._client.request(self._handle.cancel_goal_async))
+        if not _wait(future, wait, self._client):
             raise CallTimeout(self.action + " (cancel)", wait)
         error = future.exception()
         if error is not None:
@@ -764,7 +804,7 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
             handle.deliver(feedback)
 
         future = cast(_Future, client.request(lambda: api.send_goal_async(goal, feedback_callback=on_feedback)))
-        if not _wait(future, timeout):
+        if not _wait(future, timeout, client):
             future.add_done_callback(self._cancel_late)
             if not server_is_ready():
                 raise ServiceUnavailable(self.name, f"the server went away within {timeout:g} s")
@@ -775,7 +815,7 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
         raw = cast(_ClientGoalHandle, future.result())
         if not raw.accepted:
             raise GoalRejected(self.name)
-        handle: GoalHandle[ResultT, FeedbackT] = GoalHandle(self.name, raw, self.node, timeout, client.request)
+        handle: GoalHandle[ResultT, FeedbackT] = GoalHandle(self.name, raw, self.node, timeout, client)
         with lock:
             for feedback in early:
                 handle.deliver(feedback)

@@ -142,6 +142,13 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
         with self._cond:
             return self._done
 
+    @property
+    def feedback_received(self) -> int:
+        """How many feedback messages the goal has received so far (also those no longer buffered): as many
+        as `feedback()` yields at once, without waiting, when nothing was dropped."""
+        with self._cond:
+            return self._received
+
     def on_feedback(self, callback: Callable[[FeedbackT], None]) -> Callable[[], None]:
         """Call `callback` with every feedback message from now on, in rospy's receive thread; returns a
         function that removes it again."""
