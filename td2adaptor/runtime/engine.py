@@ -44,6 +44,7 @@ from td2adaptor.runtime.replay import ReplayGuard, Verdict, digest
 from td2adaptor.runtime.streams import PropertyStreams, streams
 from td2adaptor.runtime.thingbus import WOT_SOURCE
 from td2adaptor.runtime.words import INTERNAL, describe
+from td2adaptor.runtime.workers import Workers
 
 log = logging.getLogger("td2adaptor.runtime")
 
@@ -131,7 +132,8 @@ class Engine:
         self.guard = _guard(config)
         self._stopping = threading.Event()
         self._threads: list[threading.Thread] = []
-        self._missions: set[threading.Thread] = set()
+        self._missions: set[threading.Event] = set()  # set when its mission's thread is done with it
+        self._runners = Workers(f"td2adaptor-{config.robot}-mission")  # no thread start per invoke
         self._pool = ThreadPoolExecutor(max_workers=CALL_WORKERS, thread_name_prefix=f"td2adaptor-{config.robot}-call")
         self._goals = GoalRunner(self)
         self._streams: PropertyStreams | None = None
@@ -184,8 +186,8 @@ class Engine:
         self._pool.shutdown(wait=True, cancel_futures=True)
         with self._lock:
             runners = list(self._missions)
-        for thread in runners:
-            thread.join(timeout)
+        for ended in runners:
+            ended.wait(timeout)
         try:
             if self.td is not None:  # an empty retained message removes the TD from the broker
                 self.bus.publish(self.td.topic, b"", retain=True)
@@ -397,14 +399,12 @@ class Engine:
         component = spec.component or ""
         correlation = event.get("correlation") or event.get("id")
         mission = Mission(component, procedure.run, procedure, correlation, event.get("payload") or {}, self.clock())
-        thread = threading.Thread(
-            target=self._run_mission, args=(mission, goal), name=f"mission-{procedure.run}", daemon=True
-        )
+        ended = threading.Event()
         with self._lock:
             busy = self._active.get(component)
             if busy is None:
                 self._active[component] = mission
-                self._missions.add(thread)
+                self._missions.add(ended)
         if busy is not None and correlation is not None and busy.correlation == correlation:
             self._count("duplicates")  # a redelivery of the invoke we are following (sent without an id)
             log.info("invoke %s for mission %s already in progress: ignored", correlation, busy.mission_id)
@@ -418,7 +418,7 @@ class Engine:
             self._feedback(mission, status, terminal=True)
             return
         self._count("missions")
-        thread.start()
+        self._runners.submit(lambda: self._run_mission(mission, ended, goal))
 
     def _finish(self, m: Mission, status: ProcedureStatus, output: Any = None) -> None:
         """The one terminal feedback; the component is free again before it is published."""
@@ -439,7 +439,7 @@ class Engine:
     def _path(self, procedure: Procedure) -> tuple[str, ...]:
         return procedure.mission_id or _DEFAULT_MISSION_PATH
 
-    def _run_mission(self, m: Mission, goal: bool = False) -> None:
+    def _run_mission(self, m: Mission, ended: threading.Event, goal: bool = False) -> None:
         try:
             if goal:
                 self._goals.follow(m)
@@ -450,7 +450,8 @@ class Engine:
             self._finish(m, ProcedureStatus("failed", message=INTERNAL, reason="call-failed"))
         finally:
             with self._lock:
-                self._missions.discard(threading.current_thread())
+                self._missions.discard(ended)
+            ended.set()
 
     def _follow(self, m: Mission) -> None:
         cfg, port, proc = self.config, self.port, m.procedure
