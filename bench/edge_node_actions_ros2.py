@@ -10,19 +10,25 @@
   (both graces: how many of the messages each relays).
 
 The robot is tests/runtime/fibo_ros2.py (an rclpy ActionServer of test_msgs/action/Fibonacci) in its own
-process; the edge node (engine, MQTT client, rclpy node) and the application (a second MQTT client) are here.
-Needs the ROS 2 extra and mosquitto. Run: `.venv/bin/python bench/edge_node_actions_ros2.py [--runs N]`.
+process; the edge node is `td2adaptor run` in a process of its own, as deployed (both robots in one process, a
+fleet file), and the application (an MQTT client) and the baseline client are here. `--edge inline` runs the
+edge node in this process instead (engine, MQTT client and rclpy node next to the application and the baseline:
+all of them then share one interpreter lock). Needs the ROS 2 extra and mosquitto.
+Run: `.venv/bin/python bench/edge_node_actions_ros2.py [--runs N] [--edge process|inline]`.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import statistics
+import subprocess
 import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +42,7 @@ from td2adaptor.diagnostics import Diagnostics  # noqa: E402
 from td2adaptor.generation.backend import GenOptions  # noqa: E402
 from td2adaptor.generation.registry import load as load_backend  # noqa: E402
 from td2adaptor.runtime import RuntimeConfig, serve  # noqa: E402
+from td2adaptor.runtime.genport import FEEDBACK_GRACE  # noqa: E402
 from td2adaptor.runtime.mqttbus import MqttBus  # noqa: E402
 from td2adaptor.runtime.ros import connect  # noqa: E402
 from td2adaptor.runtime.security import parse_broker_url  # noqa: E402
@@ -100,6 +107,13 @@ class RawClient:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--runs", type=int, default=40)
+    parser.add_argument(
+        "--edge",
+        choices=("process", "inline"),
+        default="process",
+        help="process: the edge node is `td2adaptor run` in a process of its own, as deployed (default); inline: "
+        "it runs in this process, next to the application and the baseline client",
+    )
     args = parser.parse_args()
     if not env.ros2_available():
         print("ROS 2 Jazzy wheels not installed (bash .ci/setup-ros2.sh): skipped")
@@ -131,16 +145,77 @@ def main() -> None:
                 for robot, grace in GRACES.items()
             ]
             src = work / "src" / model.package_name
-            link = connect(model, model.package_name, configs, ros=2, package_paths=[src])
-            try:
-                run(link, model, configs, url, args.runs)
-            finally:
-                link.close()
+            if args.edge == "process":
+                graces = {
+                    c.robot: FEEDBACK_GRACE["ros2"] if c.goal_feedback_grace is None else c.goal_feedback_grace
+                    for c in configs
+                }
+                with edge_process(td, src, url, graces, work):
+                    run(list, graces, url, args.runs)
+            else:
+                link = connect(model, model.package_name, configs, ros=2, package_paths=[src])
+                try:
+                    run(
+                        lambda: [serve(model, link.ports[c.robot], c) for c in configs],
+                        {c.robot: link.ports[c.robot].feedback_grace for c in configs},
+                        url,
+                        args.runs,
+                    )
+                finally:
+                    link.close()
     finally:
         robot.stop()
 
 
-def run(link: Any, model: Any, configs: list[RuntimeConfig], url: str, runs: int) -> None:
+@contextlib.contextmanager
+def edge_process(td: Path, src: Path, url: str, graces: dict[str, float], work: Path) -> Iterator[None]:
+    """`td2adaptor run` serving the robots of `graces` (one process for both, as a fleet file says), until
+    both are online on the bus."""
+    config = work / "edge.yaml"
+    robots = "".join(
+        f"  - robot: {robot}\n    namespace: {NS}\n    goal_feedback_grace: {grace}\n"
+        for robot, grace in graces.items()
+    )
+    config.write_text(f"bus: {url}\npoll_period: 0.5\nproperty_period: 0\nstate_dir: ''\nrobots:\n{robots}")
+    online = Replies()
+    watch = MqttBus(parse_broker_url(url), client_id="actions-bench-watch", clean_start=True)
+    watch.subscribe("td2adaptor/+/status", online)
+    watch.connect()
+    cmd = [
+        sys.executable,
+        "-m",
+        "td2adaptor",
+        "run",
+        str(td),
+        "-I",
+        str(INTERFACES),
+        "--config",
+        str(config),
+        "--package-path",
+        str(src),
+    ]
+    proc = subprocess.Popen(cmd, env=env.child_env([]), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+
+        def up() -> bool:
+            states = {e.get("robot"): e["payload"].get("state") for events in online.by_corr.values() for e in events}
+            return all(states.get(robot) == "online" for robot in graces) or proc.poll() is not None
+
+        online.wait(up, timeout=120)
+        if proc.poll() is not None:
+            raise SystemExit(f"td2adaptor run exited: {proc.stderr.read().decode() if proc.stderr else ''}")
+        yield
+    finally:
+        watch.close()
+        proc.terminate()
+        try:
+            proc.wait(20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+
+
+def run(start: Callable[[], list[Any]], graces: dict[str, float], url: str, runs: int) -> None:
+    """Measure; `start()` starts the edge nodes that run in this process (stopped at the end), if any."""
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import MultiThreadedExecutor
@@ -152,13 +227,12 @@ def run(link: Any, model: Any, configs: list[RuntimeConfig], url: str, runs: int
     executor.add_node(node)
     spin = threading.Thread(target=executor.spin, daemon=True)
     spin.start()
-    engines = [serve(model, link.ports[c.robot], c) for c in configs]
+    engines = start()
     replies = Replies()
     app = MqttBus(parse_broker_url(url), client_id="actions-bench-app", clean_start=True)
     app.subscribe("td2adaptor/+/MathComponent/fibonacci/+", replies)
     app.connect()
     print(f"python {sys.version.split()[0]}, {time.strftime('%Y-%m-%d')}, {runs} runs, flood of {FLOOD}")
-    graces = {c.robot: link.ports[c.robot].feedback_grace for c in configs}
     robots = list(graces)
     try:
         raw = RawClient(node)
