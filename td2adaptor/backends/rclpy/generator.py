@@ -175,6 +175,7 @@ class ActionView:
     ros_name: str  # Python expression
     construct: ConstructView
     doc: str
+    async_doc: str
 
 
 @dataclass
@@ -345,7 +346,7 @@ class Builder:
         for s in services:
             wanted += [(m, s.name) for m in (f"construct_{s.name}_Msg", f"call_{s.name}", f"call_{s.name}_async")]
         for a in actions:
-            wanted += [(m, a.name) for m in (f"construct_{a.name}_Goal", f"send_{a.name}")]
+            wanted += [(m, a.name) for m in (f"construct_{a.name}_Goal", f"send_{a.name}", f"send_{a.name}_async")]
         subscribers = 0
         for t in topics:
             if t.role is Role.SUBSCRIBER:
@@ -548,8 +549,9 @@ class Builder:
             f"ROS 2 action {self.ros_name_doc(action.ros_name)} ({action.type_name}).",
             f"Sends goal (None sends construct_{action.name}_Goal(), all ROS defaults) and returns the accepted "
             "goal's GoalHandle: goal_id, status, on_feedback(callback), feedback(timeout=...) to iterate over the "
-            "feedback until the goal ends, result(timeout=...) and cancel(timeout=...). Its waits default to timeout "
-            "(default: the component's).",
+            "feedback until the goal ends, result(timeout=...) and cancel(timeout=...), and for coroutines "
+            "feedback_async (async for), result_async and cancel_async. Its waits default to timeout (default: "
+            "the component's).",
             "Raises ServiceUnavailable when no action server appears within wait_timeout, CallTimeout when the "
             "server does not answer within timeout, GoalRejected when it refuses the goal; result() raises "
             "GoalAborted or GoalCanceled when the goal does not succeed.",
@@ -567,6 +569,13 @@ class Builder:
             ros_name=self.ros_name_expr(action.ros_name),
             construct=construct,
             doc=docstring(body, "        "),
+            async_doc=docstring(
+                [
+                    f"send_{action.name}, awaitable: await it in a coroutine callback of the node's executor (or in "
+                    "any coroutine while an executor spins the node). No thread blocks; the errors are the same."
+                ],
+                "        ",
+            ),
         )
 
     def topic_view(self, topic: TopicEndpoint, namer: Namer) -> TopicView:

@@ -22,6 +22,7 @@ from typing import Any
 
 import pytest
 
+from tests.backends.rclpy.test_rclpy_ros2 import run_in_executor
 from tests.lowering.test_actions import INTERFACES, action_td
 from tests.ros2.common import require_ros2
 
@@ -231,6 +232,60 @@ def test_blocking_from_a_callback_is_refused(fibo_adaptor: ModuleType, fibo: Any
     handle.on_feedback(blocking)
     handle.result(timeout=5.0)
     assert errors
+
+
+def test_awaitable_goal_feedback_and_result_in_a_coroutine_callback(fibo_adaptor: ModuleType, fibo: Any) -> None:
+    """send_X_async, feedback_async and result_async in a task of the node's single-threaded executor: had any
+    of them blocked its thread, no feedback nor result could arrive (the same executor takes them)."""
+
+    async def mission() -> tuple[str, list[list[int]], list[int], str]:
+        goal = await fibo.send_fibonacci_async(fibo.construct_fibonacci_Goal(order=5))
+        items = [list(fb.sequence) async for fb in goal.feedback_async(timeout=5.0)]
+        result = await goal.result_async(timeout=5.0)
+        return goal.goal_id, items, list(result.sequence), goal.status
+
+    goal_id, items, result, status = run_in_executor(fibo.node, mission())
+    assert len(goal_id) == 32
+    assert items == [_sequence(i) for i in range(1, 6)]
+    assert result == _sequence(5) and status == "succeeded"
+
+
+def test_awaitable_cancel_rejection_timeout_and_absent_server(fibo_adaptor: ModuleType, fibo: Any) -> None:
+    async def cancel_mid_goal() -> tuple[list[int], bool, int, bool]:
+        goal = await fibo.send_fibonacci_async(fibo.construct_fibonacci_Goal(order=200))
+        first = await anext(goal.feedback_async(timeout=5.0))
+        canceling = await goal.cancel_async(timeout=5.0)
+        try:
+            await goal.result_async(timeout=5.0)
+        except fibo_adaptor.GoalCanceled as exc:
+            return list(first.sequence), canceling, len(exc.response.sequence), await goal.cancel_async(timeout=5.0)
+        raise AssertionError("the goal was not canceled")
+
+    first, canceling, partial, again = run_in_executor(fibo.node, cancel_mid_goal())
+    assert first == _sequence(1) and canceling is True and partial < 201 and again is False
+
+    with pytest.raises(fibo_adaptor.GoalRejected):
+        run_in_executor(fibo.node, fibo.send_fibonacci_async(fibo.construct_fibonacci_Goal(order=-1)))
+
+    async def result_too_late() -> tuple[float, bool]:
+        goal = await fibo.send_fibonacci_async(fibo.construct_fibonacci_Goal(order=100))
+        start = time.monotonic()
+        try:
+            await goal.result_async(timeout=0.3)
+        except fibo_adaptor.CallTimeout:
+            waited, done = time.monotonic() - start, goal.done
+            await goal.cancel_async(timeout=5.0)
+            return waited, done
+        raise AssertionError("a goal of 100 steps ended within 0.3 s")
+
+    waited, done = run_in_executor(fibo.node, result_too_late())
+    assert 0.25 < waited < 2.0 and not done  # the goal went on until it was canceled
+
+    lonely = fibo_adaptor.MathComponent(fibo.node, "no_such_robot_async", timeout=1.0, wait_timeout=0.5)
+    start = time.monotonic()
+    with pytest.raises(fibo_adaptor.ServiceUnavailable, match="no_such_robot_async/fibonacci"):
+        run_in_executor(fibo.node, lonely.send_fibonacci_async())
+    assert time.monotonic() - start < 3.0
 
 
 def test_generated_action_api_passes_ruff_and_mypy_strict(fibo_adaptor: ModuleType, tmp_path: Path) -> None:

@@ -95,8 +95,8 @@ class MathComponent:
 
         Sends goal (None sends construct_fibonacci_Goal(), all ROS defaults) and returns the accepted goal's
         GoalHandle: goal_id, status, on_feedback(callback), feedback(timeout=...) to iterate over the feedback
-        until the goal ends, result(timeout=...) and cancel(timeout=...). Its waits default to timeout (default:
-        the component's).
+        until the goal ends, result(timeout=...) and cancel(timeout=...), and for coroutines feedback_async
+        (async for), result_async and cancel_async. Its waits default to timeout (default: the component's).
 
         Raises ServiceUnavailable when no action server appears within wait_timeout, CallTimeout when the server
         does not answer within timeout, GoalRejected when it refuses the goal; result() raises GoalAborted or
@@ -105,6 +105,23 @@ class MathComponent:
         if not self._registered:
             self.register()
         return self._fibonacci.send(
+            self.construct_fibonacci_Goal() if goal is None else goal,
+            self.timeout if timeout is None else timeout,
+            self.wait_timeout,
+        )
+
+    async def send_fibonacci_async(
+        self,
+        goal: Fibonacci.Goal | None = None,
+        *,
+        timeout: float | None = None,
+    ) -> GoalHandle[Fibonacci.Result, Fibonacci.Feedback]:
+        """send_fibonacci, awaitable: await it in a coroutine callback of the node's executor (or in any coroutine
+        while an executor spins the node). No thread blocks; the errors are the same.
+        """
+        if not self._registered:
+            self.register()
+        return await self._fibonacci.send_async(
             self.construct_fibonacci_Goal() if goal is None else goal,
             self.timeout if timeout is None else timeout,
             self.wait_timeout,

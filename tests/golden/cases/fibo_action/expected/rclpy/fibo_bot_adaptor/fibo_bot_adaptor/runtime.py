@@ -16,7 +16,7 @@ from __future__ import annotations
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Generator, Iterator
+from collections.abc import AsyncIterator, Callable, Generator, Iterator
 from types import TracebackType
 from typing import Any, Generic, Protocol, TypeVar, cast
 
@@ -579,12 +579,30 @@ class _Once:
             callback(cast(_Future, future))
 
 
+async def _within(node: Node, future: _Future, timeout: float, group: CallbackGroup | None) -> bool:
+    """Await `future` for at most `timeout` seconds in a coroutine of the node's executor; whether it is done
+    (a timer of the executor ends the wait: no thread blocks)."""
+    expired = _new_future()
+    timer = _api(node).create_timer(timeout, lambda: None if expired.done() else expired.set_result(None), group)
+    future.add_done_callback(lambda _future: None if expired.done() else expired.set_result(None))
+    try:
+        await expired
+    finally:
+        timer.cancel()
+        _api(node).destroy_timer(timer)
+    return future.done()
+
+
 def _wait(future: _Future, timeout: float, client: _RequestingActionClient) -> bool:
     """Wait at most `timeout` seconds for `future`, a request of `client` (completed by the executor's
     thread); whether it is done."""
     done = threading.Event()
     client.when_done(future, lambda _future: done.set())
     return future.done() or done.wait(timeout)
+
+
+#: what GoalHandle._next returns at the end of a goal's feedback
+_END = object()
 
 
 class GoalHandle(Generic[ResultT, FeedbackT]):
@@ -613,6 +631,8 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
         self._final: int | None = None  # the GoalStatus code the goal ended with
         self._result: Any = None
         self._error: BaseException | None = None
+        self._wakers: list[Callable[[], None]] = []  # coroutines waiting for feedback or the end (feedback_async)
+        self._group = cast(CallbackGroup, client.callback_group)  # for the timers of the *_async waits
         self._result_future = cast(_Future, client.request(handle.get_result_async))
         client.when_done(self._result_future, self._finished)
 
@@ -624,6 +644,9 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
             self._feedback.append(feedback)
             self._received += 1
             self._cond.notify_all()
+            wakers = list(self._wakers)
+        for wake in wakers:
+            wake()
         outer = _this_thread.executor
         _this_thread.executor = self.node.executor
         try:
@@ -644,6 +667,9 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
                 self._final = int(response.status)
                 self._result = response.result
             self._cond.notify_all()
+            wakers = list(self._wakers)
+        for wake in wakers:
+            wake()
 
     # the caller's side
 
@@ -683,23 +709,64 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
         position = 0
         while True:
             with self._cond:
-                if position >= self._received and self._final is None:
+                if not self._beyond(position):
                     ensure_can_block(self.node, self.action)
-                    self._wait_beyond(position, wait)
-                if position < self._received:
-                    oldest = self._received - len(self._feedback)
-                    position = max(position, oldest)
-                    item = self._feedback[position - oldest]
-                    position += 1
-                elif self._final is not None:
-                    return
-                else:
-                    raise CallTimeout(self.action, wait)
-            yield item
+                    self._cond.wait_for(self._past(position), wait)
+                position, item = self._next(position, wait)
+            if item is _END:
+                return
+            yield cast(FeedbackT, item)
 
-    def _wait_beyond(self, position: int, wait: float) -> None:
-        """Wait at most `wait` seconds for a feedback message after `position`, or for the end (lock held)."""
-        self._cond.wait_for(lambda: position < self._received or self._final is not None, wait)
+    async def feedback_async(self, timeout: float | None = None) -> AsyncIterator[FeedbackT]:
+        """`feedback`, for `async for` in a coroutine callback of the node's executor: no thread blocks."""
+        wait = check_timeout(self.timeout if timeout is None else timeout, "timeout")
+        position = 0
+        while True:
+            await self._until(self._past(position), wait)
+            with self._cond:
+                position, item = self._next(position, wait)
+            if item is _END:
+                return
+            yield cast(FeedbackT, item)
+
+    def _past(self, position: int) -> Callable[[], bool]:
+        """`_beyond(position)` as a condition to wait for."""
+        return lambda: self._beyond(position)
+
+    def _beyond(self, position: int) -> bool:
+        """Whether a feedback message after `position` or the end is there (lock held)."""
+        return position < self._received or self._final is not None
+
+    def _next(self, position: int, wait: float) -> tuple[int, object]:
+        """The position after the next message and the message (`_END` at the end), or CallTimeout when
+        neither is there (lock held)."""
+        if position < self._received:
+            oldest = self._received - len(self._feedback)
+            position = max(position, oldest)
+            return position + 1, self._feedback[position - oldest]
+        if self._final is not None:
+            return position, _END
+        raise CallTimeout(self.action, wait)
+
+    async def _until(self, predicate: Callable[[], bool], wait: float) -> None:
+        """Await, at most `wait` seconds, `predicate()` (read with the lock held) becoming true; woken by the
+        executor's thread as feedback or the result arrives."""
+        woken = _new_future()
+
+        def wake() -> None:
+            with self._cond:
+                ready = predicate()
+            if ready and not woken.done():
+                woken.set_result(None)
+
+        with self._cond:
+            self._wakers.append(wake)
+        try:
+            wake()
+            await _within(self.node, woken, wait, self._group)
+        finally:
+            with self._cond:
+                self._wakers.remove(wake)
 
     def result(self, timeout: float | None = None) -> ResultT:
         """Wait at most `timeout` seconds (default: the component's timeout) for the goal to end; its result.
@@ -712,17 +779,28 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
             if self._final is None:
                 ensure_can_block(self.node, self.action)
                 self._cond.wait_for(lambda: self._final is not None, wait)
-            if self._final is None:
-                raise CallTimeout(self.action, wait)
-            if self._error is not None:
-                raise CallFailed(self.action, f"{type(self._error).__name__}: {self._error}") from self._error
-            if self._final == 6:
-                raise GoalAborted(self.action, self._result)
-            if self._final == 5:
-                raise GoalCanceled(self.action, self._result)
-            if self._final != 4:
-                raise CallFailed(self.action, f"the goal ended with status {self._final}", self._result)
-            return cast(ResultT, self._result)
+            return self._outcome(wait)
+
+    async def result_async(self, timeout: float | None = None) -> ResultT:
+        """`result`, awaitable in a coroutine callback of the node's executor: no thread blocks."""
+        wait = check_timeout(self.timeout if timeout is None else timeout, "timeout")
+        await self._until(lambda: self._final is not None, wait)
+        with self._cond:
+            return self._outcome(wait)
+
+    def _outcome(self, wait: float) -> ResultT:
+        """The result of the ended goal, or the error that says how it ended (lock held)."""
+        if self._final is None:
+            raise CallTimeout(self.action, wait)
+        if self._error is not None:
+            raise CallFailed(self.action, f"{type(self._error).__name__}: {self._error}") from self._error
+        if self._final == 6:
+            raise GoalAborted(self.action, self._result)
+        if self._final == 5:
+            raise GoalCanceled(self.action, self._result)
+        if self._final != 4:
+            raise CallFailed(self.action, f"the goal ended with status {self._final}", self._result)
+        return cast(ResultT, self._result)
 
     def cancel(self, timeout: float | None = None) -> bool:
         """Ask the server to cancel the goal and wait at most `timeout` seconds (default: the component's) for
@@ -733,7 +811,19 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
             return False
         ensure_can_block(self.node, self.action)
         future = cast(_Future, self._client.request(self._handle.cancel_goal_async))
-        if not _wait(future, wait, self._client):
+        return self._canceling(future, wait, _wait(future, wait, self._client))
+
+    async def cancel_async(self, timeout: float | None = None) -> bool:
+        """`cancel`, awaitable in a coroutine callback of the node's executor: no thread blocks."""
+        wait = check_timeout(self.timeout if timeout is None else timeout, "timeout")
+        if self.done:
+            return False
+        future = cast(_Future, self._client.request(self._handle.cancel_goal_async))
+        return self._canceling(future, wait, await _within(self.node, future, wait, self._group))
+
+    def _canceling(self, future: _Future, wait: float, answered: bool) -> bool:
+        """Whether the server's answer to a cancel request says it cancels the goal."""
+        if not answered:
             raise CallTimeout(self.action + " (cancel)", wait)
         error = future.exception()
         if error is not None:
@@ -744,6 +834,60 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
 #: feedback of a goal: rclpy's default keeps only the last 10 received messages, so a burst the callbacks have
 #: not taken yet overwrites itself; every feedback message counts here (the edge node relays each one)
 FEEDBACK_QOS = _new_qos(depth=1000, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
+
+
+class _SentGoal(Generic[ResultT, FeedbackT]):
+    """A goal request on its way: its future, and the feedback that arrives before the goal's handle exists."""
+
+    def __init__(self, sender: ActionGoalClient[Any, ResultT, FeedbackT], client: _RequestingActionClient, goal: Any):
+        self.sender = sender
+        self.client = client
+        self._early: list[FeedbackT] = []
+        self._handle: GoalHandle[ResultT, FeedbackT] | None = None
+        self._lock = threading.Lock()
+        api = cast(_ActionClientApi, client)
+        self.future = cast(
+            _Future, client.request(lambda: api.send_goal_async(goal, feedback_callback=self._on_feedback))
+        )
+
+    def _on_feedback(self, message: Any) -> None:
+        feedback = cast(FeedbackT, message.feedback)
+        with self._lock:
+            handle = self._handle
+            if handle is None:
+                self._early.append(feedback)
+                return
+        handle.deliver(feedback)
+
+    def handle(self, timeout: float, answered: bool) -> GoalHandle[ResultT, FeedbackT]:
+        """The accepted goal's handle once the server `answered` within `timeout`, or the error that says why
+        there is none."""
+        name = self.sender.name
+        if not answered:
+            self.future.add_done_callback(self._cancel_late)
+            if not cast(_ActionClientApi, self.client).server_is_ready():
+                raise ServiceUnavailable(name, f"the server went away within {timeout:g} s")
+            raise CallTimeout(name, timeout)
+        error = self.future.exception()
+        if error is not None:
+            raise CallFailed(name, f"{type(error).__name__}: {error}") from error
+        raw = cast(_ClientGoalHandle, self.future.result())
+        if not raw.accepted:
+            raise GoalRejected(name)
+        handle: GoalHandle[ResultT, FeedbackT] = GoalHandle(name, raw, self.sender.node, timeout, self.client)
+        with self._lock:
+            for feedback in self._early:
+                handle.deliver(feedback)
+            self._handle = handle
+        return handle
+
+    def _cancel_late(self, future: Any) -> None:
+        """A goal accepted after send() gave up waiting: nobody follows it, so cancel it."""
+        done = cast(_Future, future)
+        if done.exception() is None:
+            raw = cast(_ClientGoalHandle, done.result())
+            if raw.accepted:
+                self.client.request(raw.cancel_goal_async)
 
 
 class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
@@ -782,50 +926,36 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
         timeout, wait_timeout = check_timeout(timeout, "timeout"), check_timeout(wait_timeout, "wait_timeout")
         client = self._client()
         ensure_can_block(self.node, self.name)
-        api = cast(_ActionClientApi, client)
-        server_is_ready = api.server_is_ready
+        server_is_ready = cast(_ActionClientApi, client).server_is_ready
         deadline = time.monotonic() + wait_timeout
         while not server_is_ready():
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 raise ServiceUnavailable(self.name, f"no action server within {wait_timeout:g} s")
             time.sleep(min(POLL_PERIOD, remaining))
-        early: list[FeedbackT] = []
-        holder: list[GoalHandle[ResultT, FeedbackT]] = []
-        lock = threading.Lock()
+        sent = _SentGoal[ResultT, FeedbackT](self, client, goal)
+        return sent.handle(timeout, _wait(sent.future, timeout, client))
 
-        def on_feedback(message: Any) -> None:
-            feedback = cast(FeedbackT, message.feedback)
-            with lock:
-                if not holder:
-                    early.append(feedback)
-                    return
-                handle = holder[0]
-            handle.deliver(feedback)
+    async def send_async(self, goal: GoalT, timeout: float, wait_timeout: float) -> GoalHandle[ResultT, FeedbackT]:
+        """`send`, awaitable in a coroutine callback of the node's executor: no thread blocks."""
+        timeout, wait_timeout = check_timeout(timeout, "timeout"), check_timeout(wait_timeout, "wait_timeout")
+        client = self._client()
+        server_is_ready = cast(_ActionClientApi, client).server_is_ready
+        if not server_is_ready():
+            found = _new_future()
+            deadline = time.monotonic() + wait_timeout
 
-        future = cast(_Future, client.request(lambda: api.send_goal_async(goal, feedback_callback=on_feedback)))
-        if not _wait(future, timeout, client):
-            future.add_done_callback(self._cancel_late)
+            def poll() -> None:
+                if not found.done() and (server_is_ready() or time.monotonic() >= deadline):
+                    found.set_result(None)
+
+            timer = _api(self.node).create_timer(POLL_PERIOD, poll, callback_group=self._group)
+            try:
+                await found
+            finally:
+                timer.cancel()
+                _api(self.node).destroy_timer(timer)
             if not server_is_ready():
-                raise ServiceUnavailable(self.name, f"the server went away within {timeout:g} s")
-            raise CallTimeout(self.name, timeout)
-        error = future.exception()
-        if error is not None:
-            raise CallFailed(self.name, f"{type(error).__name__}: {error}") from error
-        raw = cast(_ClientGoalHandle, future.result())
-        if not raw.accepted:
-            raise GoalRejected(self.name)
-        handle: GoalHandle[ResultT, FeedbackT] = GoalHandle(self.name, raw, self.node, timeout, client)
-        with lock:
-            for feedback in early:
-                handle.deliver(feedback)
-            holder.append(handle)
-        return handle
-
-    def _cancel_late(self, future: Any) -> None:
-        """A goal accepted after send() gave up waiting: nobody follows it, so cancel it."""
-        done = cast(_Future, future)
-        if done.exception() is None:
-            raw = cast(_ClientGoalHandle, done.result())
-            if raw.accepted:
-                self._client().request(raw.cancel_goal_async)
+                raise ServiceUnavailable(self.name, f"no action server within {wait_timeout:g} s")
+        sent = _SentGoal[ResultT, FeedbackT](self, client, goal)
+        return sent.handle(timeout, await _within(self.node, sent.future, timeout, self._group))

@@ -108,8 +108,9 @@ class NavigationComponent:
 
         Sends goal (None sends construct_navigateToPose_Goal(), all ROS defaults) and returns the accepted
         goal's GoalHandle: goal_id, status, on_feedback(callback), feedback(timeout=...) to iterate over the
-        feedback until the goal ends, result(timeout=...) and cancel(timeout=...). Its waits default to timeout
-        (default: the component's).
+        feedback until the goal ends, result(timeout=...) and cancel(timeout=...), and for coroutines
+        feedback_async (async for), result_async and cancel_async. Its waits default to timeout (default: the
+        component's).
 
         Raises ServiceUnavailable when no action server appears within wait_timeout, CallTimeout when the server
         does not answer within timeout, GoalRejected when it refuses the goal; result() raises GoalAborted or
@@ -118,6 +119,23 @@ class NavigationComponent:
         if not self._registered:
             self.register()
         return self._navigateToPose.send(
+            self.construct_navigateToPose_Goal() if goal is None else goal,
+            self.timeout if timeout is None else timeout,
+            self.wait_timeout,
+        )
+
+    async def send_navigateToPose_async(
+        self,
+        goal: NavigateToPose.Goal | None = None,
+        *,
+        timeout: float | None = None,
+    ) -> GoalHandle[NavigateToPose.Result, NavigateToPose.Feedback]:
+        """send_navigateToPose, awaitable: await it in a coroutine callback of the node's executor (or in any
+        coroutine while an executor spins the node). No thread blocks; the errors are the same.
+        """
+        if not self._registered:
+            self.register()
+        return await self._navigateToPose.send_async(
             self.construct_navigateToPose_Goal() if goal is None else goal,
             self.timeout if timeout is None else timeout,
             self.wait_timeout,
@@ -221,8 +239,8 @@ class DockingComponent:
 
         Sends goal (None sends construct_dockRobot_Goal(), all ROS defaults) and returns the accepted goal's
         GoalHandle: goal_id, status, on_feedback(callback), feedback(timeout=...) to iterate over the feedback
-        until the goal ends, result(timeout=...) and cancel(timeout=...). Its waits default to timeout (default:
-        the component's).
+        until the goal ends, result(timeout=...) and cancel(timeout=...), and for coroutines feedback_async
+        (async for), result_async and cancel_async. Its waits default to timeout (default: the component's).
 
         Raises ServiceUnavailable when no action server appears within wait_timeout, CallTimeout when the server
         does not answer within timeout, GoalRejected when it refuses the goal; result() raises GoalAborted or
@@ -231,6 +249,23 @@ class DockingComponent:
         if not self._registered:
             self.register()
         return self._dockRobot.send(
+            self.construct_dockRobot_Goal() if goal is None else goal,
+            self.timeout if timeout is None else timeout,
+            self.wait_timeout,
+        )
+
+    async def send_dockRobot_async(
+        self,
+        goal: DockRobot.Goal | None = None,
+        *,
+        timeout: float | None = None,
+    ) -> GoalHandle[DockRobot.Result, DockRobot.Feedback]:
+        """send_dockRobot, awaitable: await it in a coroutine callback of the node's executor (or in any coroutine
+        while an executor spins the node). No thread blocks; the errors are the same.
+        """
+        if not self._registered:
+            self.register()
+        return await self._dockRobot.send_async(
             self.construct_dockRobot_Goal() if goal is None else goal,
             self.timeout if timeout is None else timeout,
             self.wait_timeout,
@@ -266,8 +301,8 @@ class DockingComponent:
 
         Sends goal (None sends construct_undockRobot_Goal(), all ROS defaults) and returns the accepted goal's
         GoalHandle: goal_id, status, on_feedback(callback), feedback(timeout=...) to iterate over the feedback
-        until the goal ends, result(timeout=...) and cancel(timeout=...). Its waits default to timeout (default:
-        the component's).
+        until the goal ends, result(timeout=...) and cancel(timeout=...), and for coroutines feedback_async
+        (async for), result_async and cancel_async. Its waits default to timeout (default: the component's).
 
         Raises ServiceUnavailable when no action server appears within wait_timeout, CallTimeout when the server
         does not answer within timeout, GoalRejected when it refuses the goal; result() raises GoalAborted or
@@ -276,6 +311,23 @@ class DockingComponent:
         if not self._registered:
             self.register()
         return self._undockRobot.send(
+            self.construct_undockRobot_Goal() if goal is None else goal,
+            self.timeout if timeout is None else timeout,
+            self.wait_timeout,
+        )
+
+    async def send_undockRobot_async(
+        self,
+        goal: UndockRobot.Goal | None = None,
+        *,
+        timeout: float | None = None,
+    ) -> GoalHandle[UndockRobot.Result, UndockRobot.Feedback]:
+        """send_undockRobot, awaitable: await it in a coroutine callback of the node's executor (or in any
+        coroutine while an executor spins the node). No thread blocks; the errors are the same.
+        """
+        if not self._registered:
+            self.register()
+        return await self._undockRobot.send_async(
             self.construct_undockRobot_Goal() if goal is None else goal,
             self.timeout if timeout is None else timeout,
             self.wait_timeout,
