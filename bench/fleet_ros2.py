@@ -391,8 +391,12 @@ def main() -> None:
     child_env = env.child_env([prefix])
     # Fast DDS's shared-memory transport hangs some of 100 participants starting at once on a busy machine (a
     # port's interprocess mutex times out after 2 s and is broken, eProsima/Fast-DDS#6117: 15 of 100 edge
-    # nodes never finished starting); UDP on the loopback has no such lock
+    # nodes never finished starting); UDP has no such lock. rmw_fastrtps (Jazzy) picks the transports itself
+    # (loopback UDP and shared memory) under ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, whatever
+    # FASTDDS_BUILTIN_TRANSPORTS or an XML profile say: the fleet's processes discover over the subnet range
+    # instead, on the private domain id env.isolate() claimed
     child_env["FASTDDS_BUILTIN_TRANSPORTS"] = "UDPv4"
+    child_env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"
     sim_argv = [sys.executable, "-m", "examples.robotnik_rb1.sim.ros2", "--namespace", PREFIX]
     sim_argv += ["--count", str(args.robots), "--duration", str(DURATION), "--rate", "1", "--quiet"]
     sim_argv += ["--executor", "events"]
