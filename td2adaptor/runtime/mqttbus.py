@@ -125,6 +125,7 @@ class MqttBus:
         self._pending: set[int] = set()
         self._acked_early: set[int] = set()
         self._subacked: set[int] = set()
+        self._first_subscribe: int | None = None  # the message id of the subscriptions sent on the first CONNACK
         self._connack = threading.Event()
         self._refusal: ReasonCode | None = None
         self._dropped: str | None = None
@@ -222,6 +223,20 @@ class MqttBus:
                     f"username and password in the configuration or in {ENV_USERNAME} / {ENV_PASSWORD})"
                 )
             raise BusError(f"the MQTT broker at {self.address} refused the connection: {refusal.getName()}")
+        self._await_first_subscribe()
+
+    def _await_first_subscribe(self) -> None:
+        """Return from connect() only once the broker has taken the subscriptions made before it: an event
+        published right after (an application that sees this robot online) must find them in place; without a
+        session of ours the broker keeps nothing for filters it does not know yet."""
+        with self._lock:
+            mid = self._first_subscribe
+            if mid is None:
+                return
+            if not self._lock.wait_for(lambda: mid in self._subacked, self.connect_timeout):
+                log.warning("no SUBACK for the subscriptions within %g s", self.connect_timeout)
+            self._subacked.discard(mid)
+            self._first_subscribe = None
 
     def _abort(self) -> None:
         client, self._client = self._client, None
@@ -243,7 +258,9 @@ class MqttBus:
         with self._lock:
             patterns = [(p, self._qos[p]) for p in dict.fromkeys(p for p, _ in self._handlers)]
         if patterns:
-            client.subscribe(patterns)
+            rc, mid = client.subscribe(patterns)
+            if self.connects == 1 and rc is MQTTErrorCode.MQTT_ERR_SUCCESS and mid is not None:
+                self._first_subscribe = mid  # connect() waits for its SUBACK
         for message in (*self.announce, *([self.birth] if self.birth is not None else [])):
             self._send(client, message.topic, message.payload, message.retain)
         if self.connects > 1:
