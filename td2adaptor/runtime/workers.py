@@ -3,8 +3,10 @@
 Starting a thread blocks the starter until the new thread has run (CPython's `Thread.start` waits for it):
 two hand-overs of the interpreter lock, each as long as a busy thread keeps it (up to the switch interval,
 5 ms). A task given to an idle worker only wakes that worker; a new thread is started only when none is idle.
-Workers wait for a task for `idle_timeout` seconds and then end. Standard library only (the ROS 1 bridge
-runs the port under a ROS 1 interpreter).
+Workers wait for a task for `idle_timeout` seconds and then end. Not concurrent.futures' ThreadPoolExecutor:
+its threads live until shutdown, a bound on them makes a long task wait for another one to end, and the
+interpreter joins them at exit (a follower of a goal nobody closed would hold the exit); these are daemon
+threads. Standard library only (the ROS 1 bridge runs the port under a ROS 1 interpreter).
 """
 
 from __future__ import annotations

@@ -337,50 +337,18 @@ class ServiceClient(Generic[RequestT, ResponseT]):
         timeout, wait_timeout = check_timeout(timeout, "timeout"), check_timeout(wait_timeout, "wait_timeout")
         client = self._client()
         if not self._seen_server and not client.service_is_ready():
-            if not await self._server_within(client, wait_timeout):
+            if not await _ready_within(self.node, client.service_is_ready, wait_timeout, self._group):
                 raise ServiceUnavailable(self.name, f"waited {wait_timeout:g} s")
         self._seen_server = True
         future = cast(_Future, client.call_async(request))
-        expired = False
-
-        def expire() -> None:
-            nonlocal expired
-            if not future.done():
-                expired = True
-                client.remove_pending_request(cast(Future, future))
-                future.cancel()
-
-        timer = _api(self.node).create_timer(timeout, expire, callback_group=self._group)
-        try:
-            response = await future
-        finally:
-            timer.cancel()
-            _api(self.node).destroy_timer(timer)
-        if expired:
+        if not await _within(self.node, future, timeout, self._group) and not future.done():
+            client.remove_pending_request(cast(Future, future))
+            future.cancel()
             if not client.service_is_ready():
                 self._seen_server = False
                 raise ServiceUnavailable(self.name, f"waited {timeout:g} s")
             raise CallTimeout(self.name, timeout)
-        return self._check(response, future)
-
-    async def _server_within(self, client: Client, wait_timeout: float) -> bool:
-        found = _new_future()
-        deadline = time.monotonic() + wait_timeout
-
-        def poll() -> None:
-            if found.done():
-                return
-            if client.service_is_ready():
-                found.set_result(True)
-            elif time.monotonic() >= deadline:
-                found.set_result(False)
-
-        timer = _api(self.node).create_timer(POLL_PERIOD, poll, callback_group=self._group)
-        try:
-            return bool(await found)
-        finally:
-            timer.cancel()
-            _api(self.node).destroy_timer(timer)
+        return self._check(future.result(), future)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -577,6 +545,28 @@ class _Once:
             callback, self._callback = self._callback, None
         if callback is not None:
             callback(cast(_Future, future))
+
+
+async def _ready_within(node: Node, ready: Callable[[], bool], timeout: float, group: CallbackGroup | None) -> bool:
+    """Await `ready()` becoming true for at most `timeout` seconds in a coroutine of the node's executor (a
+    timer of the executor polls it every POLL_PERIOD: no thread blocks); whether it did."""
+    found = _new_future()
+    deadline = time.monotonic() + timeout
+
+    def poll() -> None:
+        if found.done():
+            return
+        if ready():
+            found.set_result(True)
+        elif time.monotonic() >= deadline:
+            found.set_result(False)
+
+    timer = _api(node).create_timer(POLL_PERIOD, poll, callback_group=group)
+    try:
+        return bool(await found)
+    finally:
+        timer.cancel()
+        _api(node).destroy_timer(timer)
 
 
 async def _within(node: Node, future: _Future, timeout: float, group: CallbackGroup | None) -> bool:
@@ -941,21 +931,7 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
         timeout, wait_timeout = check_timeout(timeout, "timeout"), check_timeout(wait_timeout, "wait_timeout")
         client = self._client()
         server_is_ready = cast(_ActionClientApi, client).server_is_ready
-        if not server_is_ready():
-            found = _new_future()
-            deadline = time.monotonic() + wait_timeout
-
-            def poll() -> None:
-                if not found.done() and (server_is_ready() or time.monotonic() >= deadline):
-                    found.set_result(None)
-
-            timer = _api(self.node).create_timer(POLL_PERIOD, poll, callback_group=self._group)
-            try:
-                await found
-            finally:
-                timer.cancel()
-                _api(self.node).destroy_timer(timer)
-            if not server_is_ready():
-                raise ServiceUnavailable(self.name, f"no action server within {wait_timeout:g} s")
+        if not server_is_ready() and not await _ready_within(self.node, server_is_ready, wait_timeout, self._group):
+            raise ServiceUnavailable(self.name, f"no action server within {wait_timeout:g} s")
         sent = _SentGoal[ResultT, FeedbackT](self, client, goal)
         return sent.handle(timeout, await _within(self.node, sent.future, timeout, self._group))
