@@ -53,7 +53,13 @@ def hook_repo(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
     return src, _git(src, "rev-parse", "HEAD").stdout.strip()
 
 
-def test_hook_regenerates_and_fails_then_passes(hook_repo: tuple[Path, str], tmp_path: Path) -> None:
+@pytest.fixture(scope="module")
+def pc_home(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """pre-commit's home, shared by the tests: the hook environment is installed once."""
+    return tmp_path_factory.mktemp("pc-home")
+
+
+def test_hook_regenerates_and_fails_then_passes(hook_repo: tuple[Path, str], pc_home: Path, tmp_path: Path) -> None:
     repo, rev = hook_repo
     work = tmp_path / "robots"
     (work / "rb1").mkdir(parents=True)
@@ -66,7 +72,7 @@ def test_hook_regenerates_and_fails_then_passes(hook_repo: tuple[Path, str], tmp
     (work / ".pre-commit-config.yaml").write_text(
         f"repos:\n  - repo: {repo}\n    rev: {rev}\n    hooks:\n      - id: td2adaptor-gen\n"
     )
-    env = {**os.environ, "PRE_COMMIT_HOME": str(tmp_path / "pc-home"), "TD2ADAPTOR_NO_CACHE": "1"}
+    env = {**os.environ, "PRE_COMMIT_HOME": str(pc_home), "TD2ADAPTOR_NO_CACHE": "1"}
     pre_commit = [sys.executable, "-m", "pre_commit"]
     _git(work, "init", "-q")
     subprocess.run([*pre_commit, "install"], cwd=work, check=True, env=env, capture_output=True, timeout=120)
@@ -103,3 +109,47 @@ def test_hook_regenerates_and_fails_then_passes(hook_repo: tuple[Path, str], tmp
     fourth = commit("reword with adaptors")
     assert fourth.returncode == 0, fourth.stdout + fourth.stderr
     assert _git(work, "status", "--porcelain").stdout == ""
+
+
+def test_check_hook_fails_on_stale_adaptors_and_never_writes(
+    hook_repo: tuple[Path, str], pc_home: Path, tmp_path: Path
+) -> None:
+    """`td2adaptor-check`: the commit fails while the committed adaptors are stale; nothing is written."""
+    repo, rev = hook_repo
+    work = tmp_path / "robots"
+    (work / "rb1").mkdir(parents=True)
+    shutil.copy(EXAMPLE / "td.json", work / "rb1" / "td.json")
+    shutil.copytree(EXAMPLE / "interfaces", work / "rb1" / "interfaces")
+    (work / "pyproject.toml").write_text(
+        '[tool.td2adaptor]\noutput = "adaptors"\n\n[[tool.td2adaptor.target]]\ntds = ["rb1/td.json"]\n'
+        'backends = ["events"]\ninterfaces = ["rb1/interfaces"]\n'
+    )
+    (work / ".pre-commit-config.yaml").write_text(
+        f"repos:\n  - repo: {repo}\n    rev: {rev}\n    hooks:\n      - id: td2adaptor-check\n"
+    )
+    env = {
+        **os.environ,
+        "PRE_COMMIT_HOME": str(pc_home),
+        "GIT_AUTHOR_NAME": "t",
+        "GIT_AUTHOR_EMAIL": "t@example.org",
+        "GIT_COMMITTER_NAME": "t",
+        "GIT_COMMITTER_EMAIL": "t@example.org",
+    }
+    _git(work, "init", "-q")
+    subprocess.run([sys.executable, "-m", "pre_commit", "install"], cwd=work, check=True, env=env, timeout=120)
+
+    def commit(message: str) -> subprocess.CompletedProcess[str]:
+        _git(work, "add", "-A")
+        return subprocess.run(
+            ["git", "commit", "-m", message], cwd=work, env=env, capture_output=True, text=True, timeout=900
+        )
+
+    first = commit("add robot, no adaptors")
+    assert first.returncode != 0 and "generated code is stale" in first.stdout + first.stderr
+    assert not (work / "adaptors").exists()  # check never writes
+    gen = subprocess.run(
+        [sys.executable, "-m", "td2adaptor", "gen"], cwd=work, env=env, capture_output=True, text=True, timeout=300
+    )
+    assert gen.returncode == 0, gen.stderr
+    second = commit("add robot with adaptors")
+    assert second.returncode == 0, second.stdout + second.stderr
