@@ -78,6 +78,7 @@ class FiboServer:
         self.node: Any = rclpy.create_node("fibo_server", context=context)
         self.goals = 0
         self.canceled = threading.Event()
+        self.stopping = threading.Event()  # goals still executing end at once: the executor can shut down
 
         def on_goal(goal: Any) -> Any:
             return GoalResponse.REJECT if goal.order < 0 else GoalResponse.ACCEPT
@@ -87,6 +88,9 @@ class FiboServer:
             order = handle.request.order
             result = Fibonacci.Result()
             for i in range(1, order + 1):
+                if self.stopping.is_set():
+                    handle.abort()
+                    return result
                 if handle.is_cancel_requested:
                     handle.canceled()
                     self.canceled.set()
@@ -119,6 +123,8 @@ class FiboServer:
         self.thread.start()
 
     def stop(self) -> None:
+        self.stopping.set()  # else a goal left running (order 200) could outlast the shutdown's wait, and
+        # destroying the node under the spinning executor raises InvalidHandle in its thread
         self.executor.shutdown(timeout_sec=5)
         self.thread.join(5)
         self.server.destroy()
@@ -167,7 +173,7 @@ def test_cancel_mid_goal(fibo_adaptor: ModuleType, fibo: Any, fibo_server: FiboS
     handle = fibo.send_fibonacci(fibo.construct_fibonacci_Goal(order=200))
     first = next(iter(handle.feedback(timeout=5.0)))
     assert list(first.sequence) == _sequence(1)
-    assert handle.status in ("accepted", "executing")
+    assert handle.status == "executing"  # feedback came: executing, whether or not its status message did
     assert handle.cancel(timeout=5.0) is True
     with pytest.raises(fibo_adaptor.GoalCanceled) as caught:
         handle.result(timeout=5.0)
@@ -433,3 +439,29 @@ def test_a_response_that_beats_rclpys_bookkeeping_is_not_lost(
         with pytest.raises(fibo_adaptor.GoalCanceled):
             handle.result(timeout=10.0)
     assert race.was_held
+
+
+def test_a_blocking_calls_waiter_is_woken_in_the_turn_that_completed_its_future(
+    fibo_adaptor: ModuleType, ros_node: Any
+) -> None:
+    """rclpy attaches a client's future to the executor just before completing it, so its done callbacks
+    run as executor tasks a whole turn later; the runtime has a blocking call's callback (it only sets the
+    caller's event) run in place, right when the response completes the future (bench: about 0.7 ms of a
+    3 ms service call). Checked against rclpy's own Future and executor."""
+    import rclpy.task
+    from rclpy.executors import SingleThreadedExecutor
+
+    runtime = importlib.import_module(f"{fibo_adaptor.__name__}.runtime")
+    executor = SingleThreadedExecutor(context=ros_node.context)  # never spun: a task scheduled on it stays there
+    try:
+        for in_turn in (False, True):
+            future: Any = rclpy.task.Future()
+            if in_turn:
+                runtime._callbacks_in_turn(future)
+            ran: list[str] = []
+            future.add_done_callback(lambda _f, ran=ran: ran.append(threading.current_thread().name))
+            future._set_executor(executor)  # what rclpy's executor does before it completes a client's future
+            future.set_result("the response")
+            assert ran == ([threading.current_thread().name] if in_turn else []), in_turn
+    finally:
+        executor.shutdown()

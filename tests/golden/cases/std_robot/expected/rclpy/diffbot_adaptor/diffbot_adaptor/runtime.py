@@ -313,8 +313,9 @@ class ServiceClient(Generic[RequestT, ResponseT]):
         if not self._seen_server:
             self._wait_for_server(client, wait_timeout)
         future = cast(_Future, client.call_async(request))
+        _callbacks_in_turn(future)
         done = threading.Event()
-        future.add_done_callback(lambda _future: done.set())
+        future.add_done_callback(lambda _future: _wake(done))
         if not future.done() and not done.wait(timeout):
             client.remove_pending_request(cast(Future, future))
             if not client.service_is_ready():
@@ -349,6 +350,26 @@ class ServiceClient(Generic[RequestT, ResponseT]):
                 raise ServiceUnavailable(self.name, f"waited {timeout:g} s")
             raise CallTimeout(self.name, timeout)
         return self._check(future.result(), future)
+
+
+def _wake(waiter: threading.Event) -> None:
+    """Set `waiter` and let its thread run now: a thread woken by the executor's thread would otherwise wait
+    for the interpreter lock until that thread blocks in its next wait (after rebuilding its wait set)."""
+    waiter.set()
+    time.sleep(0)
+
+
+def _callbacks_in_turn(future: _Future) -> None:
+    """Have the executor call `future`'s done callbacks right when the response completes it.
+
+    rclpy (7.1, Jazzy) attaches a response's future to the executor just before completing it, so that its
+    done callbacks run as new executor tasks: one whole turn later (a wait-set rebuild). A blocking call's
+    only callback sets an event, so it can run at once (with `_wake`, a blocking call of the RB-1 example
+    took 2.7 ms instead of 3.5, median, same run). Not for futures a coroutine awaits: a task is resumed
+    only when the executor wakes, and a callback run in place wakes nothing.
+    """
+    if callable(getattr(future, "_set_executor", None)):
+        future._set_executor = lambda _executor: None  # type: ignore[attr-defined]
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -587,7 +608,7 @@ def _wait(future: _Future, timeout: float, client: _RequestingActionClient) -> b
     """Wait at most `timeout` seconds for `future`, a request of `client` (completed by the executor's
     thread); whether it is done."""
     done = threading.Event()
-    client.when_done(future, lambda _future: done.set())
+    client.when_done(future, lambda _future: _wake(done))
     return future.done() or done.wait(timeout)
 
 
@@ -599,7 +620,8 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
     """One goal sent to a ROS 2 action server and accepted by it.
 
     `goal_id` is the goal's UUID (hex), `status` its latest status ("accepted", "executing", "canceling",
-    "succeeded", "canceled", "aborted"; "unknown" before the first report). Feedback arrives in the
+    "succeeded", "canceled", "aborted"; "executing" once feedback came, even before the server's status
+    message says so). Feedback arrives in the
     executor's thread: `on_feedback(callback)` calls a callback with each message, `feedback(timeout=...)`
     iterates over them in the caller's thread until the goal ends. `result(timeout=...)` waits for the end;
     `cancel(timeout=...)` asks the server to cancel the goal. No method waits longer than its timeout.
@@ -668,6 +690,10 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
         """The goal's latest status (see the class docstring)."""
         with self._cond:
             code = self._final if self._final is not None else int(self._handle.status)
+            if self._final is None and code in (0, 1):  # no status message yet, or an older one than we know
+                # the server accepted the goal (this handle exists), and sends feedback only while executing
+                # it; its status messages come on another topic and may be taken later
+                code = 2 if self._received else 1
         return GOAL_STATUS.get(code, "unknown")
 
     @property
