@@ -59,19 +59,25 @@ def pc_home(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return tmp_path_factory.mktemp("pc-home")
 
 
-def test_hook_regenerates_and_fails_then_passes(hook_repo: tuple[Path, str], pc_home: Path, tmp_path: Path) -> None:
+def _project(work: Path, hook_repo: tuple[Path, str], hook: str, target: str) -> Path:
+    """A project with the RB-1's TD and interfaces, a [tool.td2adaptor] target (`target`: its other lines) and
+    a pre-commit configuration using `hook` of the snapshot repository."""
     repo, rev = hook_repo
-    work = tmp_path / "robots"
     (work / "rb1").mkdir(parents=True)
     shutil.copy(EXAMPLE / "td.json", work / "rb1" / "td.json")
     shutil.copytree(EXAMPLE / "interfaces", work / "rb1" / "interfaces")
     (work / "pyproject.toml").write_text(
         '[tool.td2adaptor]\noutput = "adaptors"\n\n[[tool.td2adaptor.target]]\ntds = ["rb1/td.json"]\n'
-        'backends = ["all"]\ninterfaces = ["rb1/interfaces"]\npartial = true\n'
+        f'interfaces = ["rb1/interfaces"]\n{target}\n'
     )
     (work / ".pre-commit-config.yaml").write_text(
-        f"repos:\n  - repo: {repo}\n    rev: {rev}\n    hooks:\n      - id: td2adaptor-gen\n"
+        f"repos:\n  - repo: {repo}\n    rev: {rev}\n    hooks:\n      - id: {hook}\n"
     )
+    return work
+
+
+def test_hook_regenerates_and_fails_then_passes(hook_repo: tuple[Path, str], pc_home: Path, tmp_path: Path) -> None:
+    work = _project(tmp_path / "robots", hook_repo, "td2adaptor-gen", 'backends = ["all"]\npartial = true')
     env = {**os.environ, "PRE_COMMIT_HOME": str(pc_home), "TD2ADAPTOR_NO_CACHE": "1"}
     pre_commit = [sys.executable, "-m", "pre_commit"]
     _git(work, "init", "-q")
@@ -115,18 +121,7 @@ def test_check_hook_fails_on_stale_adaptors_and_never_writes(
     hook_repo: tuple[Path, str], pc_home: Path, tmp_path: Path
 ) -> None:
     """`td2adaptor-check`: the commit fails while the committed adaptors are stale; nothing is written."""
-    repo, rev = hook_repo
-    work = tmp_path / "robots"
-    (work / "rb1").mkdir(parents=True)
-    shutil.copy(EXAMPLE / "td.json", work / "rb1" / "td.json")
-    shutil.copytree(EXAMPLE / "interfaces", work / "rb1" / "interfaces")
-    (work / "pyproject.toml").write_text(
-        '[tool.td2adaptor]\noutput = "adaptors"\n\n[[tool.td2adaptor.target]]\ntds = ["rb1/td.json"]\n'
-        'backends = ["events"]\ninterfaces = ["rb1/interfaces"]\n'
-    )
-    (work / ".pre-commit-config.yaml").write_text(
-        f"repos:\n  - repo: {repo}\n    rev: {rev}\n    hooks:\n      - id: td2adaptor-check\n"
-    )
+    work = _project(tmp_path / "robots", hook_repo, "td2adaptor-check", 'backends = ["events"]')
     env = {
         **os.environ,
         "PRE_COMMIT_HOME": str(pc_home),
