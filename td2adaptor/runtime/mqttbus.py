@@ -233,10 +233,14 @@ class MqttBus:
             mid = self._first_subscribe
             if mid is None:
                 return
-            if not self._lock.wait_for(lambda: mid in self._subacked, self.connect_timeout):
-                log.warning("no SUBACK for the subscriptions within %g s", self.connect_timeout)
-            self._subacked.discard(mid)
+            self._await_suback(mid, "the subscriptions")
             self._first_subscribe = None
+
+    def _await_suback(self, mid: int, what: str) -> None:
+        """Wait (lock held) at most `connect_timeout` for the SUBACK of subscribe message `mid`."""
+        if not self._lock.wait_for(lambda: mid in self._subacked, self.connect_timeout):
+            log.warning("no SUBACK for %s within %g s", what, self.connect_timeout)
+        self._subacked.discard(mid)
 
     def _abort(self) -> None:
         client, self._client = self._client, None
@@ -329,9 +333,7 @@ class MqttBus:
         if rc is not MQTTErrorCode.MQTT_ERR_SUCCESS or mid is None:
             return  # not connected after all: subscribed on reconnect
         with self._lock:
-            if not self._lock.wait_for(lambda: mid in self._subacked, self.connect_timeout):
-                log.warning("no SUBACK for %s within %g s", pattern, self.connect_timeout)
-            self._subacked.discard(mid)
+            self._await_suback(mid, pattern)
 
     def publish(self, topic: str, payload: bytes, *, retain: bool = False) -> None:
         if not valid_topic(topic):

@@ -364,8 +364,9 @@ def _callbacks_in_turn(future: _Future) -> None:
 
     rclpy (7.1, Jazzy) attaches a response's future to the executor just before completing it, so that its
     done callbacks run as new executor tasks: one whole turn later (a wait-set rebuild). A blocking call's
-    only callback sets an event, so it can run at once (with `_wake`, a blocking call of the RB-1 example
-    took 2.7 ms instead of 3.5, median, same run). Not for futures a coroutine awaits: a task is resumed
+    callbacks — its event's `_wake`, and rclpy's own removal of the pending request (it takes the client's
+    lock, which nobody holds then) — can run at once (with `_wake`, a blocking call of the RB-1 example took
+    2.7 ms instead of 3.5, median, same run). Not for futures a coroutine awaits: a task is resumed
     only when the executor wakes, and a callback run in place wakes nothing.
     """
     if callable(getattr(future, "_set_executor", None)):
