@@ -391,6 +391,16 @@ class GeneratedPort:
         side's thread: it must not block); returns what removes it (property_mode message, streams.py)."""
         return self._method(component, f"on_{name}")(callback)  # type: ignore[no-any-return]
 
+    def watch_property_serialized(
+        self, component: str, name: str, callback: Callable[[bytes], None]
+    ) -> Callable[[], None] | None:
+        """`watch_property` with each message's serialized bytes as received (a ROS 2 adaptor's
+        `on_<name>_serialized`); None when the adaptor has no such method (generated before it existed)."""
+        method = getattr(self.components.get(component), f"on_{name}_serialized", None)
+        if not callable(method):
+            return None
+        return method(callback)  # type: ignore[no-any-return]
+
     def write_property(self, component: str, name: str, value: Any) -> None:
         construct = self._method(component, f"construct_{name}_Msg")
         publish = self._method(component, f"publish_{name}_Msg")

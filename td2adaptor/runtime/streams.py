@@ -5,10 +5,13 @@ changed. In message mode each message a subscribed property receives becomes one
 through the generated component's per-message callback (`on_<property>`, the port's `watch_property`):
 
 * the callback runs on the ROS executor's thread and only queues the message (no conversion there);
+* on ROS 2 the callback gets the message serialized, as the subscription took it (`on_<property>_serialized`,
+  the port's `watch_property_serialized`): no message object is made at all;
 * one publishing thread per process (`Pump`, shared by every robot the process serves) converts each message
-  once (`plain`, the values `genport.to_plain` gives), encodes it once and splices that text into the event
-  envelope and the WoT form, and publishes both: the same event, byte for byte, as the engine's own
-  `encode(envelope(...))` and `ThingBus` would give;
+  once (`plain`, or for serialized messages the type's compiled CDR decoder, cdr.py: the values
+  `genport.to_plain` gives), encodes it once and splices that text into the event envelope and the WoT form,
+  and publishes both: the same event, byte for byte, as the engine's own `encode(envelope(...))` and
+  `ThingBus` would give;
 * the rules of property events hold: retained, and only when the value changed (a message equal to the last
   one published for its property is no event);
 * `property_interval` > 0: at most one event per property and interval, the latest message wins, and the
@@ -35,6 +38,7 @@ from typing import TYPE_CHECKING, Any
 from td2adaptor.model.events import EventSpec, Kind
 from td2adaptor.model.wot import wot_topic
 from td2adaptor.runtime.bus import BusError
+from td2adaptor.runtime.cdr import message_class, plain_reader
 from td2adaptor.runtime.events import new_id, now_rfc3339
 from td2adaptor.runtime.genport import to_plain
 from td2adaptor.runtime.thingbus import ThingBus
@@ -101,6 +105,7 @@ class _Slot:
         "seen",
         "remove",
         "closed",
+        "convert",
     )
 
     def __init__(self, engine: Engine, spec: EventSpec) -> None:
@@ -123,6 +128,7 @@ class _Slot:
         self.seen = False
         self.remove: Callable[[], None] | None = None
         self.closed = False
+        self.convert: Callable[[Any], Any] = plain  # a message (or its serialized bytes) → its plain value
 
     def emit(self, value: Any) -> None:
         """Publish `value` (already plain) unless it equals the last value published (publishing thread)."""
@@ -258,7 +264,7 @@ class Pump:
                 if slot.closed:
                     continue
                 try:
-                    slot.emit(message.value if isinstance(message, _Value) else plain(message))
+                    slot.emit(message.value if isinstance(message, _Value) else slot.convert(message))
                 except Exception as exc:  # a message that cannot become JSON costs its event, not the stream
                     if time.monotonic() - complained.get(slot.name, -math.inf) > 60:
                         complained[slot.name] = time.monotonic()
@@ -295,7 +301,9 @@ class PropertyStreams:
         self.pump = pump = Pump.acquire()
         for spec in self.specs:
             slot = _Slot(self.engine, spec)
-            slot.remove = port.watch_property(spec.component or "", slot.name, lambda m, s=slot: pump.put(s, m))
+            slot.remove = self._watch_serialized(slot, pump)
+            if slot.remove is None:
+                slot.remove = port.watch_property(spec.component or "", slot.name, lambda m, s=slot: pump.put(s, m))
             self.slots.append(slot)
         for slot in self.slots:  # a message that came before: its value, unless a newer one already did
             try:
@@ -303,6 +311,22 @@ class PropertyStreams:
             except Exception:  # noqa: BLE001 - NoValue, mostly: the first message will be the first event
                 continue
             pump.initial(slot, value)
+
+    def _watch_serialized(self, slot: _Slot, pump: Pump) -> Callable[[], None] | None:
+        """Watch `slot`'s messages serialized, read by the type's CDR decoder (None: the port cannot)."""
+        watch = getattr(self.engine.port, "watch_property_serialized", None)
+        if not callable(watch):
+            return None
+        component = self.engine.model.component(slot.spec.component or "")
+        type_name = next((t.type_name for t in component.topics if t.name == slot.name), "")
+        cls = message_class(type_name)
+        if cls is None:
+            return None
+        slot.convert = plain_reader(cls)
+        remove: Callable[[], None] | None = watch(slot.spec.component or "", slot.name, lambda d: pump.put(slot, d))
+        if remove is None:
+            slot.convert = plain
+        return remove
 
     def stop(self) -> None:
         for slot in self.slots:

@@ -117,7 +117,15 @@ def test_every_message_becomes_one_event_in_order(nav: tuple[Any, ModuleType], n
     app = AppClient(broker.url, [topic, wot], client_id=f"streams-{robot}")
     engine = serve_streams(nav, node, robot, broker.url, 0.0)
     delivered: list[float] = []  # what the ROS subscription handed over (DDS may drop some on a loaded machine)
-    engine.port.watch_property("BaseComponent", "odom", lambda m: delivered.append(m.pose.pose.position.x))
+    payloads: list[Any] = []  # the same messages as the engine converts them when it reads no bytes
+    streams = engine._streams
+    assert streams is not None and all(s.convert is not plain for s in streams.slots), "read serialized"
+
+    def received(m: Any) -> None:
+        delivered.append(m.pose.pose.position.x)
+        payloads.append(to_plain(m))
+
+    engine.port.watch_property("BaseComponent", "odom", received)
     count = 200  # then the last one 3 times more (equal: no event, property events report changes), then 200
     publisher = sensors(robot, count, 0.005, 3)
     try:
@@ -125,6 +133,9 @@ def test_every_message_becomes_one_event_in_order(nav: tuple[Any, ModuleType], n
         app.wait(lambda _events: count in xs(app, topic), timeout=30)
         changes = [x for i, x in enumerate(delivered) if i == 0 or x != delivered[i - 1]]
         assert xs(app, topic) == changes
+        with app.cond:  # the payloads the CDR decoder made are the ones to_plain gives, JSON text and all
+            got = [json.dumps(e["payload"]) for t, e in app.events if t == topic]
+        assert got == [json.dumps(p) for i, p in enumerate(payloads) if i == 0 or p != payloads[i - 1]]
         assert until(lambda: wot_xs(app, wot) == changes, 10.0)  # the WoT form too
         assert engine.stats.get("dropped.property", 0) == 0
         assert engine.stats["out.property"] == len(changes)

@@ -189,6 +189,7 @@ class TopicView:
     doc: str
     on_doc: str = ""
     construct: ConstructView | None = None
+    serialized_doc: str = ""
 
 
 @dataclass
@@ -352,6 +353,7 @@ class Builder:
             if t.role is Role.SUBSCRIBER:
                 subscribers += 1
                 wanted += [(f"get_{t.name}_value", t.name), (f"on_{t.name}", t.name)]
+                wanted.append((f"on_{t.name}_serialized", t.name))
             else:
                 wanted += [(f"construct_{t.name}_Msg", t.name), (f"publish_{t.name}_Msg", t.name)]
         if subscribers == 1:
@@ -601,13 +603,32 @@ class Builder:
             )
             on_doc = docstring(
                 [
-                    f"Call callback with every {topic.name} message, in the executor's thread.",
+                    f"Call callback with every {topic.name} message, in the thread that takes the node's messages "
+                    "(the executor's; spin_in_background's subscription thread); it must not block.",
                     "Returns a function that removes the callback again.",
                 ],
                 "        ",
             )
+            serialized_doc = docstring(
+                [
+                    f"Call callback with every {topic.name} message as it arrived: its serialized (CDR) bytes, in the "
+                    "thread that takes the node's messages.",
+                    "For relaying every message without converting it "
+                    f"(rclpy.serialization.deserialize_message(data, {msg}) gives the message). Returns a function "
+                    "that removes the callback again.",
+                ],
+                "        ",
+            )
             return TopicView(
-                topic.name, f"self._{topic.name}", msg, ros_name, qos, True, docstring(body, "        "), on_doc
+                topic.name,
+                f"self._{topic.name}",
+                msg,
+                ros_name,
+                qos,
+                True,
+                docstring(body, "        "),
+                on_doc,
+                serialized_doc=serialized_doc,
             )
         self.runtime_used.add("TopicPublisher")
         body.append(f"Publishes msg (build it with construct_{topic.name}_Msg).")

@@ -136,7 +136,12 @@ def test_components_follow_td_order_and_paper_names(tmp_path: Path) -> None:
         "call_gotoQuery",
         "call_gotoQuery_async",
     ]
-    assert methods["AvailabilityComponent"][3:] == ["get_availability_value", "on_availability", "get_value"]
+    assert methods["AvailabilityComponent"][3:] == [
+        "get_availability_value",
+        "on_availability",
+        "on_availability_serialized",
+        "get_value",
+    ]
     assert methods["DoorComponent"][3:] == ["construct_door_Msg", "publish_door_Msg"]
     init = next(f for f in classes[0].body if isinstance(f, ast.FunctionDef) and f.name == "__init__")
     assert [a.arg for a in init.args.args] == ["self", "node", "robot_name"]
@@ -180,6 +185,11 @@ def test_hostile_titles_and_descriptions_stay_text(tmp_path: Path) -> None:
         "rclpy.executors",
         "rclpy.publisher",
         "rclpy.qos",
+        "rclpy.serialization",
+        "rclpy.guard_condition",
+        "rclpy.impl.implementation_singleton",
+        "contextlib",
+        "weakref",
         "rclpy.subscription",
         "rclpy.task",
         "rclpy.timer",
@@ -267,6 +277,22 @@ def test_clashing_member_names_are_reported(tmp_path: Path) -> None:
     tree = load_backend("rclpy").generate(result.model, GenOptions(), diags)
     assert [d.code for d in diags if d.severity is Severity.ERROR] == ["GEN822"]
     assert "call_gotoRun_async" in next(iter(diags)).message and not dict(tree)
+
+
+def test_a_property_named_like_another_ones_serialized_callback_is_reported(tmp_path: Path) -> None:
+    td = json.loads((EXAMPLE / "td.json").read_text(encoding="utf-8"))
+    extra = copy.deepcopy(td["properties"]["availability"])
+    extra["forms"][0]["rosv:name"] = "/{{robotName}}/other/state"
+    extra["forms"][0]["href"] = "ros:other/state"
+    td["properties"]["availability_serialized"] = extra  # on_availability_serialized would exist twice
+    path = tmp_path / "td.json"
+    path.write_text(json.dumps(td), encoding="utf-8")
+    result = td2adaptor.compile(path, interfaces=[EXAMPLE / "interfaces"])
+    assert result.model is not None, [d.message for d in result.diagnostics]
+    diags = Diagnostics()
+    tree = load_backend("rclpy").generate(result.model, GenOptions(), diags)
+    assert [d.code for d in diags if d.severity is Severity.ERROR] == ["GEN822"]
+    assert "on_availability_serialized" in next(iter(diags)).message and not dict(tree)
 
 
 def test_interface_translation_for_rosidl() -> None:

@@ -147,13 +147,28 @@ class MathComponent:
         self,
         callback: Callable[[String], None],
     ) -> Callable[[], None]:
-        """Call callback with every chatter message, in the executor's thread.
+        """Call callback with every chatter message, in the thread that takes the node's messages (the executor's;
+        spin_in_background's subscription thread); it must not block.
 
         Returns a function that removes the callback again.
         """
         if not self._registered:
             self.register()
         return self._chatter.add_callback(callback)
+
+    def on_chatter_serialized(
+        self,
+        callback: Callable[[bytes], None],
+    ) -> Callable[[], None]:
+        """Call callback with every chatter message as it arrived: its serialized (CDR) bytes, in the thread that
+        takes the node's messages.
+
+        For relaying every message without converting it (rclpy.serialization.deserialize_message(data, String)
+        gives the message). Returns a function that removes the callback again.
+        """
+        if not self._registered:
+            self.register()
+        return self._chatter.add_serialized_callback(callback)
 
     def get_value(
         self,

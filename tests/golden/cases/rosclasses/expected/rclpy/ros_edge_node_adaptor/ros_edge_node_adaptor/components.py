@@ -656,13 +656,28 @@ class AvailibilityComponent:
         self,
         callback: Callable[[Status], None],
     ) -> Callable[[], None]:
-        """Call callback with every availiblity message, in the executor's thread.
+        """Call callback with every availiblity message, in the thread that takes the node's messages (the
+        executor's; spin_in_background's subscription thread); it must not block.
 
         Returns a function that removes the callback again.
         """
         if not self._registered:
             self.register()
         return self._availiblity.add_callback(callback)
+
+    def on_availiblity_serialized(
+        self,
+        callback: Callable[[bytes], None],
+    ) -> Callable[[], None]:
+        """Call callback with every availiblity message as it arrived: its serialized (CDR) bytes, in the thread
+        that takes the node's messages.
+
+        For relaying every message without converting it (rclpy.serialization.deserialize_message(data, Status)
+        gives the message). Returns a function that removes the callback again.
+        """
+        if not self._registered:
+            self.register()
+        return self._availiblity.add_serialized_callback(callback)
 
     def get_value(
         self,
@@ -737,13 +752,28 @@ class Ar_pose_markerComponent:
         self,
         callback: Callable[[AlvarMarkers], None],
     ) -> Callable[[], None]:
-        """Call callback with every poseMarker message, in the executor's thread.
+        """Call callback with every poseMarker message, in the thread that takes the node's messages (the
+        executor's; spin_in_background's subscription thread); it must not block.
 
         Returns a function that removes the callback again.
         """
         if not self._registered:
             self.register()
         return self._poseMarker.add_callback(callback)
+
+    def on_poseMarker_serialized(
+        self,
+        callback: Callable[[bytes], None],
+    ) -> Callable[[], None]:
+        """Call callback with every poseMarker message as it arrived: its serialized (CDR) bytes, in the thread
+        that takes the node's messages.
+
+        For relaying every message without converting it (rclpy.serialization.deserialize_message(data,
+        AlvarMarkers) gives the message). Returns a function that removes the callback again.
+        """
+        if not self._registered:
+            self.register()
+        return self._poseMarker.add_serialized_callback(callback)
 
     def get_value(
         self,

@@ -80,13 +80,28 @@ class ImuComponent:
         self,
         callback: Callable[[Imu], None],
     ) -> Callable[[], None]:
-        """Call callback with every imu message, in the executor's thread.
+        """Call callback with every imu message, in the thread that takes the node's messages (the executor's;
+        spin_in_background's subscription thread); it must not block.
 
         Returns a function that removes the callback again.
         """
         if not self._registered:
             self.register()
         return self._imu.add_callback(callback)
+
+    def on_imu_serialized(
+        self,
+        callback: Callable[[bytes], None],
+    ) -> Callable[[], None]:
+        """Call callback with every imu message as it arrived: its serialized (CDR) bytes, in the thread that takes
+        the node's messages.
+
+        For relaying every message without converting it (rclpy.serialization.deserialize_message(data, Imu)
+        gives the message). Returns a function that removes the callback again.
+        """
+        if not self._registered:
+            self.register()
+        return self._imu.add_serialized_callback(callback)
 
     def get_value(
         self,
@@ -163,13 +178,28 @@ class ThermalComponent:
         self,
         callback: Callable[[Temperature], None],
     ) -> Callable[[], None]:
-        """Call callback with every temperature message, in the executor's thread.
+        """Call callback with every temperature message, in the thread that takes the node's messages (the
+        executor's; spin_in_background's subscription thread); it must not block.
 
         Returns a function that removes the callback again.
         """
         if not self._registered:
             self.register()
         return self._temperature.add_callback(callback)
+
+    def on_temperature_serialized(
+        self,
+        callback: Callable[[bytes], None],
+    ) -> Callable[[], None]:
+        """Call callback with every temperature message as it arrived: its serialized (CDR) bytes, in the thread
+        that takes the node's messages.
+
+        For relaying every message without converting it (rclpy.serialization.deserialize_message(data,
+        Temperature) gives the message). Returns a function that removes the callback again.
+        """
+        if not self._registered:
+            self.register()
+        return self._temperature.add_serialized_callback(callback)
 
     def get_value(
         self,

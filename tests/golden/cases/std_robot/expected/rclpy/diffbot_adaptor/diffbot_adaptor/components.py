@@ -194,13 +194,28 @@ class DriveComponent:
         self,
         callback: Callable[[Odometry], None],
     ) -> Callable[[], None]:
-        """Call callback with every odom message, in the executor's thread.
+        """Call callback with every odom message, in the thread that takes the node's messages (the executor's;
+        spin_in_background's subscription thread); it must not block.
 
         Returns a function that removes the callback again.
         """
         if not self._registered:
             self.register()
         return self._odom.add_callback(callback)
+
+    def on_odom_serialized(
+        self,
+        callback: Callable[[bytes], None],
+    ) -> Callable[[], None]:
+        """Call callback with every odom message as it arrived: its serialized (CDR) bytes, in the thread that
+        takes the node's messages.
+
+        For relaying every message without converting it (rclpy.serialization.deserialize_message(data,
+        Odometry) gives the message). Returns a function that removes the callback again.
+        """
+        if not self._registered:
+            self.register()
+        return self._odom.add_serialized_callback(callback)
 
     def get_value(
         self,
@@ -277,13 +292,28 @@ class LaserComponent:
         self,
         callback: Callable[[LaserScan], None],
     ) -> Callable[[], None]:
-        """Call callback with every scan message, in the executor's thread.
+        """Call callback with every scan message, in the thread that takes the node's messages (the executor's;
+        spin_in_background's subscription thread); it must not block.
 
         Returns a function that removes the callback again.
         """
         if not self._registered:
             self.register()
         return self._scan.add_callback(callback)
+
+    def on_scan_serialized(
+        self,
+        callback: Callable[[bytes], None],
+    ) -> Callable[[], None]:
+        """Call callback with every scan message as it arrived: its serialized (CDR) bytes, in the thread that
+        takes the node's messages.
+
+        For relaying every message without converting it (rclpy.serialization.deserialize_message(data,
+        LaserScan) gives the message). Returns a function that removes the callback again.
+        """
+        if not self._registered:
+            self.register()
+        return self._scan.add_serialized_callback(callback)
 
     def get_value(
         self,
@@ -482,13 +512,28 @@ class PowerComponent:
         self,
         callback: Callable[[BatteryState], None],
     ) -> Callable[[], None]:
-        """Call callback with every battery message, in the executor's thread.
+        """Call callback with every battery message, in the thread that takes the node's messages (the executor's;
+        spin_in_background's subscription thread); it must not block.
 
         Returns a function that removes the callback again.
         """
         if not self._registered:
             self.register()
         return self._battery.add_callback(callback)
+
+    def on_battery_serialized(
+        self,
+        callback: Callable[[bytes], None],
+    ) -> Callable[[], None]:
+        """Call callback with every battery message as it arrived: its serialized (CDR) bytes, in the thread that
+        takes the node's messages.
+
+        For relaying every message without converting it (rclpy.serialization.deserialize_message(data,
+        BatteryState) gives the message). Returns a function that removes the callback again.
+        """
+        if not self._registered:
+            self.register()
+        return self._battery.add_serialized_callback(callback)
 
     def get_value(
         self,
