@@ -18,21 +18,11 @@ pytest.importorskip("rclpy", reason="needs the ROS 2 wheels (bash .ci/setup-ros2
 
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 
+from td2adaptor.rostypes.primitives import INT_RANGES  # noqa: E402
 from td2adaptor.runtime.cdr import CdrError, decoder  # noqa: E402
 from td2adaptor.runtime.genport import to_plain  # noqa: E402
 from td2adaptor.runtime.streams import plain  # noqa: E402
 
-_INTS = {
-    "int8": (-(2**7), 2**7 - 1),
-    "uint8": (0, 2**8 - 1),
-    "char": (0, 2**8 - 1),
-    "int16": (-(2**15), 2**15 - 1),
-    "uint16": (0, 2**16 - 1),
-    "int32": (-(2**31), 2**31 - 1),
-    "uint32": (0, 2**32 - 1),
-    "int64": (-(2**63), 2**63 - 1),
-    "uint64": (0, 2**64 - 1),
-}
 _FLOATS = [0.0, -0.0, 0.1, -2.5e10, 1e-300, 3.4e38, math.nan, math.inf, -math.inf, 12345.678]
 _TEXT = ["", "a", "odom", "grüße €", "😀 robot", "x" * 40]
 
@@ -49,7 +39,7 @@ def _basic(rng: random.Random, typename: str) -> Any:
         return bytes([rng.randrange(256)])
     if typename in ("float", "double"):
         return rng.choice(_FLOATS) if rng.random() < 0.5 else rng.uniform(-1e6, 1e6)
-    low, high = _INTS[typename]
+    low, high = INT_RANGES[typename]
     return rng.choice([low, high, 0, rng.randint(low, high)])
 
 

@@ -263,20 +263,26 @@ def test_reference_dialect_gives_an_equivalent_package(tmp_path: Path) -> None:
             assert _strip_docstrings(ast.parse(binding[rel])) == _strip_docstrings(ast.parse(reference[rel])), rel
 
 
-def test_clashing_member_names_are_reported(tmp_path: Path) -> None:
-    td = json.loads((EXAMPLE / "td.json").read_text(encoding="utf-8"))
-    extra = copy.deepcopy(td["actions"]["gotoQuery"])
-    extra["forms"][0]["rosv:name"] = "/{{robotName}}/other/query_state"
-    extra["forms"][0]["href"] = "ros:other/query_state"
-    td["actions"]["gotoRun_async"] = extra  # call_gotoRun_async would exist twice
+def _clash_codes(tmp_path: Path, td: dict[str, Any]) -> tuple[list[str], str, dict[str, Any]]:
+    """Compile `td` (an edited RB-1 TD) and generate the rclpy package: its error codes, first message, tree."""
     path = tmp_path / "td.json"
     path.write_text(json.dumps(td), encoding="utf-8")
     result = td2adaptor.compile(path, interfaces=[EXAMPLE / "interfaces"])
     assert result.model is not None, [d.message for d in result.diagnostics]
     diags = Diagnostics()
     tree = load_backend("rclpy").generate(result.model, GenOptions(), diags)
-    assert [d.code for d in diags if d.severity is Severity.ERROR] == ["GEN822"]
-    assert "call_gotoRun_async" in next(iter(diags)).message and not dict(tree)
+    return [d.code for d in diags if d.severity is Severity.ERROR], next(iter(diags)).message, dict(tree)
+
+
+def test_clashing_member_names_are_reported(tmp_path: Path) -> None:
+    td = json.loads((EXAMPLE / "td.json").read_text(encoding="utf-8"))
+    extra = copy.deepcopy(td["actions"]["gotoQuery"])
+    extra["forms"][0]["rosv:name"] = "/{{robotName}}/other/query_state"
+    extra["forms"][0]["href"] = "ros:other/query_state"
+    td["actions"]["gotoRun_async"] = extra  # call_gotoRun_async would exist twice
+    codes, message, tree = _clash_codes(tmp_path, td)
+    assert codes == ["GEN822"]
+    assert "call_gotoRun_async" in message and not tree
 
 
 def test_a_property_named_like_another_ones_serialized_callback_is_reported(tmp_path: Path) -> None:
@@ -285,14 +291,9 @@ def test_a_property_named_like_another_ones_serialized_callback_is_reported(tmp_
     extra["forms"][0]["rosv:name"] = "/{{robotName}}/other/state"
     extra["forms"][0]["href"] = "ros:other/state"
     td["properties"]["availability_serialized"] = extra  # on_availability_serialized would exist twice
-    path = tmp_path / "td.json"
-    path.write_text(json.dumps(td), encoding="utf-8")
-    result = td2adaptor.compile(path, interfaces=[EXAMPLE / "interfaces"])
-    assert result.model is not None, [d.message for d in result.diagnostics]
-    diags = Diagnostics()
-    tree = load_backend("rclpy").generate(result.model, GenOptions(), diags)
-    assert [d.code for d in diags if d.severity is Severity.ERROR] == ["GEN822"]
-    assert "on_availability_serialized" in next(iter(diags)).message and not dict(tree)
+    codes, message, tree = _clash_codes(tmp_path, td)
+    assert codes == ["GEN822"]
+    assert "on_availability_serialized" in message and not tree
 
 
 def test_interface_translation_for_rosidl() -> None:
