@@ -111,6 +111,7 @@ class SubscriberView:
     queue_size: int
     get_doc: str
     on_doc: str
+    serialized_doc: str = ""
 
 
 @dataclass(frozen=True)
@@ -379,6 +380,14 @@ def _subscriber_view(topic: TopicEndpoint, imports: _Imports) -> SubscriberView:
         ["Callbacks run in rospy's receive thread; returns a function that removes the callback."],
         " " * 8,
     )
+    serialized_doc = docstring(
+        [f"Call callback with every {ros_type} message on {display}, serialized (the ROS 1 wire format)."],
+        [
+            "The twin of the rclpy package's method: rospy hands over messages, so each is serialized again "
+            f"({msg_class}().deserialize(data) gives it back). Returns a function that removes the callback."
+        ],
+        " " * 8,
+    )
     return SubscriberView(
         name=topic.name,
         attr=f"_sub_{topic.name}",
@@ -387,6 +396,7 @@ def _subscriber_view(topic: TopicEndpoint, imports: _Imports) -> SubscriberView:
         queue_size=max(1, topic.qos.queue_size),
         get_doc=get_doc,
         on_doc=on_doc,
+        serialized_doc=serialized_doc,
     )
 
 
@@ -463,7 +473,7 @@ def _method_names(view: ComponentView) -> list[str]:
     for s in view.services:
         names += [f"construct_{s.name}_Msg", f"call_{s.name}"]
     for sub in view.subscribers:
-        names += [f"get_{sub.name}_value", f"on_{sub.name}"]
+        names += [f"get_{sub.name}_value", f"on_{sub.name}", f"on_{sub.name}_serialized"]
     for p in view.publishers:
         names += [f"construct_{p.name}_Msg", f"publish_{p.name}_Msg"]
     for a in view.actions:

@@ -22,6 +22,7 @@ from collections.abc import AsyncIterator, Callable, Generator, Iterator
 from types import TracebackType
 from typing import Any, Generic, Protocol, TypeVar, cast
 
+import rclpy.serialization
 from rclpy.action.client import ActionClient
 from rclpy.callback_groups import CallbackGroup, MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.client import Client
@@ -29,7 +30,6 @@ from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedE
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 from rclpy.task import Future
 
@@ -124,6 +124,7 @@ def _api(node: Node) -> _Node:
 
 # rclpy leaves these constructors unannotated; typed aliases keep `mypy --strict` meaningful here
 _new_future = cast("Callable[[], _Future]", Future)
+_deserialize: Callable[[bytes, Any], Any] = vars(rclpy.serialization)["deserialize_message"]
 _new_qos = cast("Callable[..., QoSProfile]", QoSProfile)
 
 
@@ -218,7 +219,8 @@ class _Reader:
                         held.enter_context(self._guard.handle)
                         handles = []
                         for subscriber in self._subscribers():
-                            handle: Any = cast(Subscription, subscriber.subscription).handle
+                            subscription: Any = subscriber.subscription  # rclpy leaves `handle` unannotated
+                            handle: Any = subscription.handle
                             held.enter_context(handle)  # not destroyed while the wait set holds it
                             handles.append((handle, handle.pointer, subscriber))
                             subscriber.group.served = True
@@ -561,8 +563,9 @@ class TopicSubscriber(Generic[MessageT]):
     def _receive(self, data: bytes) -> None:
         """The executor took a message (no reader serves the node)."""
         self._deliver(data)
-        if self.subscription is not None:
-            self.drain(self.subscription.handle, self.DRAIN - 1)
+        subscription: Any = self.subscription  # rclpy leaves `handle` unannotated
+        if subscription is not None:
+            self.drain(subscription.handle, self.DRAIN - 1)
 
     def drain(self, handle: Any, most: int = DRAIN) -> None:
         """Deliver the messages waiting in the subscription's queue (at most `most`), in order."""
@@ -599,7 +602,7 @@ class TopicSubscriber(Generic[MessageT]):
         with self._cond:
             if self._latest is not None and self._latest_data is data:
                 return self._latest
-        msg = cast(MessageT, deserialize_message(data, self.msg_type))
+        msg = cast(MessageT, _deserialize(data, self.msg_type))
         with self._cond:
             if self._latest_data is data:
                 self._latest = msg

@@ -672,6 +672,15 @@ class AvailabilityComponent:
         """
         return self._sub_availability.add_callback(callback)
 
+    def on_availability_serialized(self, callback: Callable[[bytes], None]) -> Callable[[], None]:
+        """Call callback with every robot_local_control_msgs/Status message on
+        /{{robotName}}/robot_local_control/state, serialized (the ROS 1 wire format).
+
+        The twin of the rclpy package's method: rospy hands over messages, so each is serialized again
+        (Status().deserialize(data) gives it back). Returns a function that removes the callback.
+        """
+        return self._sub_availability.add_serialized_callback(callback)
+
     def get_value(self, *, timeout: float | None = None) -> Status:
         """The latest message of this component's only subscribed property (see get_availability_value)."""
         return self.get_availability_value(timeout=timeout)
@@ -732,6 +741,15 @@ class PoseMarkerComponent:
         Callbacks run in rospy's receive thread; returns a function that removes the callback.
         """
         return self._sub_poseMarker.add_callback(callback)
+
+    def on_poseMarker_serialized(self, callback: Callable[[bytes], None]) -> Callable[[], None]:
+        """Call callback with every ar_track_alvar_msgs/AlvarMarkers message on /{{robotName}}/ar_pose_marker,
+        serialized (the ROS 1 wire format).
+
+        The twin of the rclpy package's method: rospy hands over messages, so each is serialized again
+        (AlvarMarkers().deserialize(data) gives it back). Returns a function that removes the callback.
+        """
+        return self._sub_poseMarker.add_serialized_callback(callback)
 
     def get_value(self, *, timeout: float | None = None) -> AlvarMarkers:
         """The latest message of this component's only subscribed property (see get_poseMarker_value)."""

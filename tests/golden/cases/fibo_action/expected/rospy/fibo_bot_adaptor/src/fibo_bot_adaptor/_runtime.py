@@ -11,6 +11,7 @@ or timed out is dropped and made anew on the next call.
 from __future__ import annotations
 
 import importlib
+import io
 import select
 import socket
 import struct
@@ -423,6 +424,16 @@ class TopicSubscriber(Generic[M]):
         """Call `callback` with every message from now on; returns a function that removes it."""
         self.register()
         return self._callbacks.add(callback)
+
+    def add_serialized_callback(self, callback: Callable[[bytes], None]) -> Callable[[], None]:
+        """Call `callback` with every message serialized (ROS 1 wire format); returns what removes it."""
+
+        def serialized(msg: M) -> None:
+            buffer = io.BytesIO()
+            cast(Any, msg).serialize(buffer)  # genpy messages: unannotated
+            callback(buffer.getvalue())
+
+        return self.add_callback(serialized)
 
 
 class TopicPublisher(Generic[M]):

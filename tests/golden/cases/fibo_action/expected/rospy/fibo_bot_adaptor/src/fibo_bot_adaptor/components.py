@@ -117,6 +117,15 @@ class MathComponent:
         """
         return self._sub_chatter.add_callback(callback)
 
+    def on_chatter_serialized(self, callback: Callable[[bytes], None]) -> Callable[[], None]:
+        """Call callback with every std_msgs/String message on /{{robotName}}/chatter, serialized (the ROS 1 wire
+        format).
+
+        The twin of the rclpy package's method: rospy hands over messages, so each is serialized again
+        (String().deserialize(data) gives it back). Returns a function that removes the callback.
+        """
+        return self._sub_chatter.add_serialized_callback(callback)
+
     def get_value(self, *, timeout: float | None = None) -> String:
         """The latest message of this component's only subscribed property (see get_chatter_value)."""
         return self.get_chatter_value(timeout=timeout)

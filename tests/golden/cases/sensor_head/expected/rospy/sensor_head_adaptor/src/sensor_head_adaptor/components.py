@@ -73,6 +73,15 @@ class ImuComponent:
         """
         return self._sub_imu.add_callback(callback)
 
+    def on_imu_serialized(self, callback: Callable[[bytes], None]) -> Callable[[], None]:
+        """Call callback with every sensor_msgs/Imu message on /{{robotName}}/imu/data, serialized (the ROS 1 wire
+        format).
+
+        The twin of the rclpy package's method: rospy hands over messages, so each is serialized again
+        (Imu().deserialize(data) gives it back). Returns a function that removes the callback.
+        """
+        return self._sub_imu.add_serialized_callback(callback)
+
     def get_value(self, *, timeout: float | None = None) -> Imu:
         """The latest message of this component's only subscribed property (see get_imu_value)."""
         return self.get_imu_value(timeout=timeout)
@@ -133,6 +142,15 @@ class ThermalComponent:
         Callbacks run in rospy's receive thread; returns a function that removes the callback.
         """
         return self._sub_temperature.add_callback(callback)
+
+    def on_temperature_serialized(self, callback: Callable[[bytes], None]) -> Callable[[], None]:
+        """Call callback with every sensor_msgs/Temperature message on /{{robotName}}/temperature, serialized (the ROS
+        1 wire format).
+
+        The twin of the rclpy package's method: rospy hands over messages, so each is serialized again
+        (Temperature().deserialize(data) gives it back). Returns a function that removes the callback.
+        """
+        return self._sub_temperature.add_serialized_callback(callback)
 
     def get_value(self, *, timeout: float | None = None) -> Temperature:
         """The latest message of this component's only subscribed property (see get_temperature_value)."""

@@ -138,6 +138,15 @@ class DriveComponent:
         """
         return self._sub_odom.add_callback(callback)
 
+    def on_odom_serialized(self, callback: Callable[[bytes], None]) -> Callable[[], None]:
+        """Call callback with every nav_msgs/Odometry message on /{{robotName}}/odom, serialized (the ROS 1 wire
+        format).
+
+        The twin of the rclpy package's method: rospy hands over messages, so each is serialized again
+        (Odometry().deserialize(data) gives it back). Returns a function that removes the callback.
+        """
+        return self._sub_odom.add_serialized_callback(callback)
+
     def get_value(self, *, timeout: float | None = None) -> Odometry:
         """The latest message of this component's only subscribed property (see get_odom_value)."""
         return self.get_odom_value(timeout=timeout)
@@ -221,6 +230,15 @@ class LaserComponent:
         Callbacks run in rospy's receive thread; returns a function that removes the callback.
         """
         return self._sub_scan.add_callback(callback)
+
+    def on_scan_serialized(self, callback: Callable[[bytes], None]) -> Callable[[], None]:
+        """Call callback with every sensor_msgs/LaserScan message on /{{robotName}}/scan, serialized (the ROS 1 wire
+        format).
+
+        The twin of the rclpy package's method: rospy hands over messages, so each is serialized again
+        (LaserScan().deserialize(data) gives it back). Returns a function that removes the callback.
+        """
+        return self._sub_scan.add_serialized_callback(callback)
 
     def get_value(self, *, timeout: float | None = None) -> LaserScan:
         """The latest message of this component's only subscribed property (see get_scan_value)."""
@@ -358,6 +376,15 @@ class PowerComponent:
         Callbacks run in rospy's receive thread; returns a function that removes the callback.
         """
         return self._sub_battery.add_callback(callback)
+
+    def on_battery_serialized(self, callback: Callable[[bytes], None]) -> Callable[[], None]:
+        """Call callback with every sensor_msgs/BatteryState message on /{{robotName}}/battery_state, serialized (the
+        ROS 1 wire format).
+
+        The twin of the rclpy package's method: rospy hands over messages, so each is serialized again
+        (BatteryState().deserialize(data) gives it back). Returns a function that removes the callback.
+        """
+        return self._sub_battery.add_serialized_callback(callback)
 
     def get_value(self, *, timeout: float | None = None) -> BatteryState:
         """The latest message of this component's only subscribed property (see get_battery_value)."""
