@@ -124,6 +124,8 @@ for c in (goto, pick, place, avail, marker, door):
 out = {}
 seen = []
 remove = avail.on_availability(lambda m: seen.append(m.operation_state))
+raw = []  # the same messages serialized (the rclpy twin's on_<prop>_serialized)
+remove_raw = avail.on_availability_serialized(raw.append)
 
 def until_finished(query, mission_id):
     states = []
@@ -179,7 +181,11 @@ out["cancel"] = [started.mission_id, cancelled.state.header.id, cancelled.state.
                  cancelled.state.last_event, after.state.last_event]
 
 remove()
+remove_raw()
+from robot_local_control_msgs.msg import Status
 out["callback_seen"] = len(seen) > 0 and "moving" in seen
+states = [Status().deserialize(d).operation_state for d in raw]
+out["serialized_seen"] = len(raw) > 0 and states[: len(seen)] == seen[: len(raw)]
 emit(out)
 """
 
@@ -208,6 +214,7 @@ def test_scenario_against_the_simulated_robot(master: Master, path: list[Path], 
     cancel_id = out["cancel"][0]
     assert out["cancel"] == [cancel_id, cancel_id, "finished", "cancel", "cancel"]
     assert out["callback_seen"] is True
+    assert out["serialized_seen"] is True
 
 
 NO_ROBOT = """
