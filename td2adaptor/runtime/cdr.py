@@ -58,6 +58,15 @@ def _finite(x: float) -> float | None:
     return x if x - x == 0.0 else None  # NaN and infinities are no JSON (to_plain gives None)
 
 
+_U32 = struct.Struct("<I").unpack_from
+
+
+def _string(b: memoryview, o: int) -> tuple[str, int]:
+    """The string at `o` (4-aligned: uint32 length with its NUL, then UTF-8) and the offset after it."""
+    n: int = _U32(b, o)[0]
+    return (str(b[o + 4 : o + 3 + n], "utf-8") if n > 1 else ""), o + 4 + n
+
+
 def _floats(values: tuple[float, ...]) -> list[float | None]:
     total = sum(values)
     if total - total == 0.0:  # all finite (an overflow to infinity only costs the slow path)
@@ -69,10 +78,13 @@ class _Unsupported(Exception):
     """A type the decoder does not read (wide strings): the caller deserializes the usual way."""
 
 
-def _message_class(named: Any) -> type:
-    module = importlib.import_module(".".join(named.namespaces))
-    cls: type = getattr(module, named.name)
+def _import_class(module: str, name: str) -> type:
+    cls: type = getattr(importlib.import_module(module), name)
     return cls
+
+
+def _message_class(named: Any) -> type:
+    return _import_class(".".join(named.namespaces), named.name)
 
 
 def _fields(cls: type) -> list[tuple[str, Any]]:
@@ -179,10 +191,8 @@ class _Function:
     def string(self) -> str:
         self.flush()
         self.pad(4)
-        n, v = self.unit.new_name("n"), self.unit.new_name("v")
-        self.lines.append(f"{n} = U32(b, o)[0]")
-        self.lines.append(f"{v} = str(b[o + 4:o + 3 + {n}], 'utf-8') if {n} > 1 else ''")
-        self.lines.append(f"o += 4 + {n}")
+        v = self.unit.new_name("v")
+        self.lines.append(f"{v}, o = string(b, o)")
         self.align = None
         return v
 
@@ -193,10 +203,8 @@ class _Function:
         if kind in ("UnboundedString", "BoundedString"):
             self.lines.append(f"{v} = []")
             self.lines.append(f"for _ in range({count}):")
-            self.lines.append("    o += -o & 3")
-            self.lines.append("    k = U32(b, o)[0]")
-            self.lines.append("    " + f"{v}.append(str(b[o + 4:o + 3 + k], 'utf-8') if k > 1 else '')")
-            self.lines.append("    o += 4 + k")
+            self.lines.append("    x, o = string(b, o + (-o & 3))")
+            self.lines.append(f"    {v}.append(x)")
         elif kind == "NamespacedType":
             fn = self.unit.function(_message_class(value_type))
             self.lines.append(f"{v} = []")
@@ -314,7 +322,8 @@ def _compile(cls: type) -> Callable[[bytes], Any]:
     source = "\n".join(unit.sources)
     namespace: dict[str, Any] = {
         **unit.constants,
-        "U32": struct.Struct("<I").unpack_from,
+        "U32": _U32,
+        "string": _string,
         "unpack_from": struct.unpack_from,
         "finite": _finite,
         "floats": _floats,
@@ -356,7 +365,7 @@ def message_class(type_name: str) -> type | None:
     if not package or not name:
         return None
     try:
-        cls = getattr(importlib.import_module(f"{package}.msg"), name)
+        cls = _import_class(f"{package}.msg", name)
     except (ImportError, AttributeError):
         return None
     return cls if isinstance(cls, type) else None
