@@ -14,6 +14,9 @@ Modes (docs/fleet.md):
   property, the latest message);
 * `sampled`: the sampling mode, `property_period` 0.005 s (twice as fast as odom comes) and the default 1 s.
 
+Full rate is measured at each `property_qos` of `--qos` (default 1 and 0: property events acknowledged or at
+most once).
+
 The robots are increased until the edge-node process saturates (its events per second stop growing); the
 maximum is compared with the target (>= 2,000 property events per second per process).
 
@@ -221,14 +224,16 @@ class Counter:
 @dataclass
 class Mode:
     """How the edge node relays the properties: `msg` (per message, `interval` the property_interval) or `sample`
-    (`interval` the property_period), on the `single` or `events` executor."""
+    (`interval` the property_period), on the `single` or `events` executor, published at MQTT QoS `qos`
+    (property_qos)."""
 
     kind: str
     interval: float
     executor: str = "single"
+    qos: int = 1
 
     def __str__(self) -> str:
-        return f"{self.kind} {self.interval:g}s {self.executor}"
+        return f"{self.kind} {self.interval:g}s {self.executor} qos{self.qos}"
 
 
 @dataclass
@@ -256,11 +261,12 @@ def stream_td(work: Path) -> Path:
 
 
 def run_edge(work: Path, td: Path, src: Path, url: str, robots: int, period: Mode, environ: dict[str, str]) -> Any:
-    config = work / f"edge-{robots}-{period.kind}-{period.interval:g}-{period.executor}.yaml"
+    config = work / f"edge-{robots}-{period.kind}-{period.interval:g}-{period.executor}-{period.qos}.yaml"
     if period.kind == "msg":
         lines = ["property_mode: message", f"property_interval: {period.interval}"]
     else:
         lines = [f"property_period: {period.interval}"]
+    lines.append(f"property_qos: {period.qos}")
     lines += [f"bus: {url}", "state_dir: ''", "robots:"]
     lines += [f"  - robot: {PREFIX}_{i}" for i in range(robots)]
     config.write_text("\n".join(lines) + "\n", encoding="utf-8")
@@ -350,6 +356,9 @@ def report(steps: Sequence[Step]) -> None:
             f"{s.cpu:8.1f}% {per_event:8.1f}us   {floor}"
         )
     full = [s for s in steps if s.period.kind == "msg" and s.period.interval == 0]
+    for qos in sorted({s.period.qos for s in full}):
+        top = max((s for s in full if s.period.qos == qos), key=lambda s: s.events)
+        print(f"full rate at property_qos {qos}: at most {top.events:.0f} events/s ({top.robots} robots)")
     best = max(full or steps, key=lambda s: s.events)
     met = "met" if best.events >= TARGET else "NOT met"
     print(
@@ -362,6 +371,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--robots", default="1,5,10,20,40", help="robot counts to step through (comma-separated)")
     parser.add_argument("--window", type=float, default=5.0, help="seconds of each measurement")
+    parser.add_argument("--qos", default="1,0", help="property_qos values to step through (comma-separated)")
     parser.add_argument("--executors", default="single", help=argparse.SUPPRESS)
     parser.add_argument("--publisher", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--floor", type=int, help=argparse.SUPPRESS)
@@ -399,14 +409,20 @@ def main() -> None:
         counter = Counter(url)
         ctx = {"work": work, "td": td, "src": src, "url": url, "env": env.child_env([])}
         try:
-            for executor in args.executors.split(","):
-                mode = Mode("msg", 0.0, executor)
-                for n in counts:
-                    steps.append(measure(ctx, counter, n, mode, args.window, with_floor=executor == "single"))
-                    if steps[-1].events < 0.95 * steps[-1].sent:
-                        break  # saturated: it no longer relays every message
+            for qos in (int(q) for q in args.qos.split(",")):
+                for executor in args.executors.split(","):
+                    mode = Mode("msg", 0.0, executor, qos)
+                    for n in counts:
+                        first = executor == "single" and qos == int(args.qos.split(",")[0])
+                        steps.append(measure(ctx, counter, n, mode, args.window, with_floor=first))
+                        if steps[-1].events < 0.95 * steps[-1].sent:
+                            break  # saturated: it no longer relays every message
             top = max(steps, key=lambda s: s.events)
-            for mode in (Mode("msg", 0.1, top.period.executor), Mode("sample", 0.005), Mode("sample", 1.0)):
+            for mode in (
+                Mode("msg", 0.1, top.period.executor, top.period.qos),
+                Mode("sample", 0.005),
+                Mode("sample", 1.0),
+            ):
                 steps.append(measure(ctx, counter, top.robots, mode, args.window, with_floor=False))
         finally:
             counter.close()

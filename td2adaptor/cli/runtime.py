@@ -235,6 +235,13 @@ def run(
     help="First level of every topic (as the run configuration's topic_root).",
 )
 @click.option(
+    "--property-qos",
+    type=click.Choice(["0", "1"]),
+    default="1",
+    show_default=True,
+    help="MQTT QoS of property events (as the run configuration's property_qos), which the observe forms say.",
+)
+@click.option(
     "--output",
     "-o",
     default="-",
@@ -254,6 +261,7 @@ def expose(
     broker: str,
     ros: str,
     topic_root: str,
+    property_qos: str,
     output: str,
 ) -> None:
     """Write the Thing Description of one robot as its edge node exposes it on the broker.
@@ -280,7 +288,8 @@ def expose(
         report(result.diagnostics, "human", label=_label([source]))
         sys.exit(EXIT_INVALID)
     catalog = build_catalog(result.model, f"ros{ros}")
-    text = dump(exposed_td(result.model, catalog, robot=robot, broker=url, root=topic_root))
+    td = exposed_td(result.model, catalog, robot=robot, broker=url, root=topic_root, property_qos=int(property_qos))
+    text = dump(td)
     if output == "-":
         click.echo(text, nl=False)
     else:

@@ -103,14 +103,15 @@ def _form(
     *,
     model: bool,
     retain: bool = False,
+    qos: str = MQTT_QOS,
 ) -> dict[str, Any]:
     """A form of the W3C MQTT binding: the topic in the href path and in `mqv:topic` (publish) or `mqv:filter`
-    (subscribe, unsubscribe); QoS 1 as the runtime uses; `mqv:retain` where the runtime retains."""
+    (subscribe, unsubscribe); the QoS the runtime uses; `mqv:retain` where the runtime retains."""
     form: dict[str, Any] = {"href": topic_href(broker, topic, model=model), "op": op, "contentType": "application/json"}
     form["mqv:controlPacket"] = packet
     form["mqv:topic" if packet == "publish" else "mqv:filter"] = topic
     if packet != "unsubscribe":
-        form["mqv:qos"] = MQTT_QOS
+        form["mqv:qos"] = qos
     if retain:
         form["mqv:retain"] = True
     return form
@@ -130,10 +131,12 @@ def exposed_td(
     robot: str | None = None,
     broker: str | None = None,
     root: str = TOPIC_ROOT,
+    property_qos: int = 1,
 ) -> dict[str, Any]:
     """The Thing Description of robot `robot` on `broker` (`mqtt://host:port`): the robot's affordances with
     MQTT forms on the adaptor's topics. Without them, the Thing Model of the fleet: `{{robotName}}` and
-    `{{mqttBroker}}` stand for the robot id and the broker URL."""
+    `{{mqttBroker}}` stand for the robot id and the broker URL. `property_qos`: the QoS property events are
+    published with (the run configuration's), which the observe forms say: a consumer receives them at it."""
     catalog = catalog or build_catalog(model)
     is_model = robot is None or broker is None
     robot = ROBOT_PLACEHOLDER if robot is None else robot
@@ -158,8 +161,8 @@ def exposed_td(
     actions: dict[str, Any] = {}
     events: dict[str, Any] = {}
 
-    def form(topic: str, op: str | list[str], packet: str, retain: bool = False) -> dict[str, Any]:
-        return _form(broker, topic, op, packet, model=is_model, retain=retain)
+    def form(topic: str, op: str | list[str], packet: str, retain: bool = False, qos: str = MQTT_QOS) -> dict[str, Any]:
+        return _form(broker, topic, op, packet, model=is_model, retain=retain, qos=qos)
 
     runs = {s.run: s for s in catalog.specs if s.kind is Kind.QUERY and s.run}
     stops = {s.run: s for s in catalog.specs if s.kind is Kind.CANCEL and s.run}
@@ -180,7 +183,7 @@ def exposed_td(
             prop = {**texts({"title": spec.title, "description": spec.description}), **data}
             prop.update(readOnly=True, writeOnly=False, observable=True)
             prop["forms"] = [
-                form(topic, ["readproperty", "observeproperty"], "subscribe", retain=True),
+                form(topic, ["readproperty", "observeproperty"], "subscribe", retain=True, qos=str(property_qos)),
                 form(topic, "unobserveproperty", "unsubscribe"),
             ]
             properties[spec.affordance] = prop

@@ -69,7 +69,10 @@ def td_message(config: RuntimeConfig, model: Model, catalog: EventCatalog | None
     from td2adaptor.model.exposed import exposed_td
     from td2adaptor.support.jsondump import dump
 
-    text = dump(exposed_td(model, catalog, robot=config.robot, broker=broker, root=config.topic_root))
+    td = exposed_td(
+        model, catalog, robot=config.robot, broker=broker, root=config.topic_root, property_qos=config.property_qos
+    )
+    text = dump(td)
     return Message(td_topic(config.robot, config.topic_root), text.encode("utf-8"), retain=True)
 
 

@@ -38,8 +38,10 @@ class Bus(Protocol):
         what was published while this client was away (the broker does not queue it for the session)."""
         ...
 
-    def publish(self, topic: str, payload: bytes, *, retain: bool = False) -> None:
-        """Send with QoS 1; queued while disconnected and sent after reconnecting."""
+    def publish(self, topic: str, payload: bytes, *, retain: bool = False, qos: int = 1) -> None:
+        """Send with QoS 1: queued while disconnected and sent after reconnecting. `qos` 0 (property events
+        when `property_qos` says so): at most once, not acknowledged (`flush` does not wait for it) and dropped
+        while disconnected; a subscriber receives it at QoS 0 whatever QoS it subscribed with."""
         ...
 
     def flush(self, timeout: float) -> bool:

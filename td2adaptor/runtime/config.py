@@ -42,6 +42,7 @@ class RuntimeConfig:
     property_period: float = 1.0  # property events: at most one per property and period (0: off)
     property_mode: str = "sample"  # "sample": every property_period; "message": one event per ROS message
     property_interval: float = 0.0  # message mode: at least this long between two events of a property (0: none)
+    property_qos: int = 1  # the MQTT QoS of property events: 1, or 0 (at most once) for high-rate sensor streams
     max_event_bytes: int = 65536
     username: str | None = None
     password: str | None = field(default=None, repr=False)
@@ -84,6 +85,8 @@ class RuntimeConfig:
             raise ConfigError(f"property_mode {self.property_mode!r} must be sample or message")
         if not 0 <= self.property_interval < float("inf"):
             raise ConfigError("property_interval must be >= 0 (0: every message)")
+        if self.property_qos not in (0, 1):
+            raise ConfigError(f"property_qos {self.property_qos!r} must be 0 or 1")
         if self.mqtt_version not in ("5", "3.1.1"):
             raise ConfigError(f"mqtt_version {self.mqtt_version!r} must be 5 or 3.1.1")
         if self.directory is not None:

@@ -210,9 +210,10 @@ class Engine:
 
     # -- publishing ----------------------------------------------------------------------------------------
 
-    def _publish(self, spec: EventSpec, event: Mapping[str, Any], *, retain: bool = False) -> None:
+    def _publish(self, spec: EventSpec, event: Mapping[str, Any], *, retain: bool = False, qos: int = 1) -> None:
         try:
-            self.bus.publish(spec.topic(self.config.robot, self.config.topic_root), encode(event), retain=retain)
+            topic = spec.topic(self.config.robot, self.config.topic_root)
+            self.bus.publish(topic, encode(event), retain=retain, qos=qos)
             self._count(f"out.{spec.kind.value}")
         except (BusError, TypeError, ValueError) as exc:
             log.error("could not publish a %s event: %s", spec.kind.value, exc)
@@ -684,7 +685,8 @@ class Engine:
                 if last.get(name) == text:
                     continue
                 last[name] = text
-                self._publish(spec, self._event(Kind.PROPERTY, value, affordance=name), retain=True)
+                event = self._event(Kind.PROPERTY, value, affordance=name)
+                self._publish(spec, event, retain=True, qos=self.config.property_qos)
 
 
 def _answer(

@@ -159,7 +159,9 @@ class LocalBus:
         if self._session is not None:
             self.broker.subscribe(self._session, pattern, qos)
 
-    def publish(self, topic: str, payload: bytes, *, retain: bool = False) -> None:
+    def publish(self, topic: str, payload: bytes, *, retain: bool = False, qos: int = 1) -> None:
+        if qos not in (0, 1):
+            raise BusError(f"QoS {qos} is not used here (0 or 1)")
         if not valid_topic(topic):
             raise BusError(f"invalid topic {topic!r}")
         self.broker.publish(Message(topic, bytes(payload), retain))

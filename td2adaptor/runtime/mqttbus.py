@@ -124,6 +124,7 @@ class MqttBus:
         self._lock = threading.Condition()
         self._pending: set[int] = set()
         self._acked_early: set[int] = set()
+        self._unacked: set[int] = set()  # QoS 0 message ids whose on_publish (at the write) has not come yet
         self._subacked: set[int] = set()
         self._first_subscribe: int | None = None  # the message id of the subscriptions sent on the first CONNACK
         self._connack = threading.Event()
@@ -197,9 +198,9 @@ class MqttBus:
             raise BusError(f"TLS handshake with the MQTT broker at {self.address} failed: {exc}{hint}") from None
         except OSError as exc:
             raise BusError(f"cannot reach the MQTT broker at {self.address}: {exc.strerror or exc}") from None
-        client.loop_start()
+        self._start(client)
         self._client = client
-        if not self._connack.wait(self.connect_timeout):
+        if not self._await_connack(client):
             self._abort()
             hint = (
                 " (a broker that speaks only MQTT 3.1.1 does not answer an MQTT 5 client: set mqtt_version to 3.1.1)"
@@ -224,6 +225,13 @@ class MqttBus:
                 )
             raise BusError(f"the MQTT broker at {self.address} refused the connection: {refusal.getName()}")
         self._await_first_subscribe()
+
+    def _start(self, client: mqtt.Client) -> None:
+        """Start serving the connection: paho's network thread (`DrivenBus` serves it from its owner's)."""
+        client.loop_start()
+
+    def _await_connack(self, _client: mqtt.Client) -> bool:
+        return self._connack.wait(self.connect_timeout)
 
     def _await_first_subscribe(self) -> None:
         """Return from connect() only once the broker has taken the subscriptions made before it: an event
@@ -275,6 +283,8 @@ class MqttBus:
         self, _client: mqtt.Client, _userdata: Any, _flags: Any, reason: ReasonCode, _props: Properties | None
     ) -> None:
         self._connected = False
+        with self._lock:
+            self._unacked.clear()  # paho drops the QoS 0 messages it had not written yet
         if self.connects == 0 and not self._connack.is_set():  # dropped before any CONNACK: fail fast
             self._dropped = reason.getName()
             self._connack.set()
@@ -301,7 +311,9 @@ class MqttBus:
         self, _client: mqtt.Client, _userdata: Any, mid: int, _reason: ReasonCode, _props: Properties
     ) -> None:
         with self._lock:
-            if mid in self._pending:
+            if mid in self._unacked:  # a QoS 0 message written: nothing to wait for (and no QoS 1 one's ack)
+                self._unacked.discard(mid)
+            elif mid in self._pending:
                 self._pending.discard(mid)
             else:
                 self._acked_early.add(mid)
@@ -335,20 +347,31 @@ class MqttBus:
         with self._lock:
             self._await_suback(mid, pattern)
 
-    def publish(self, topic: str, payload: bytes, *, retain: bool = False) -> None:
+    def publish(self, topic: str, payload: bytes, *, retain: bool = False, qos: int = 1) -> None:
         if not valid_topic(topic):
             raise BusError(f"invalid topic {topic!r}")
+        if qos not in (0, 1):
+            raise BusError(f"QoS {qos} is not used here (0 or 1)")
         client = self._client
         if client is None:
             raise BusError("publish before connect")
-        self._send(client, topic, payload, retain)
+        self._send(client, topic, payload, retain, qos)
 
-    def _send(self, client: mqtt.Client, topic: str, payload: bytes, retain: bool) -> None:
-        """Publish with QoS 1 and track the message id until its PUBACK (for `flush`)."""
-        info = client.publish(topic, payload, qos=1, retain=retain)  # not under self._lock (see subscribe)
+    def _send(self, client: mqtt.Client, topic: str, payload: bytes, retain: bool, qos: int = 1) -> None:
+        """Publish; at QoS 1 track the message id until its PUBACK (for `flush`)."""
+        info = client.publish(topic, payload, qos=qos, retain=retain)  # not under self._lock (see subscribe)
         if info.rc not in (MQTTErrorCode.MQTT_ERR_SUCCESS, MQTTErrorCode.MQTT_ERR_NO_CONN):
             raise BusError(f"publishing on {topic} failed: {mqtt.error_string(info.rc)}")
         with self._lock:
+            if qos == 0:
+                # nothing to wait for. paho calls on_publish when it has written the message (dropped while
+                # disconnected: at most once, no call); that call must not pass for the early PUBACK of a
+                # later QoS 1 message with the same id
+                if info.mid in self._acked_early:
+                    self._acked_early.discard(info.mid)
+                elif info.rc is MQTTErrorCode.MQTT_ERR_SUCCESS:
+                    self._unacked.add(info.mid)
+                return
             if info.mid in self._acked_early:
                 self._acked_early.discard(info.mid)
             else:

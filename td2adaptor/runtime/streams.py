@@ -11,7 +11,11 @@ through the generated component's per-message callback (`on_<property>`, the por
   once (`plain`, or for serialized messages the type's compiled CDR decoder, cdr.py: the values
   `genport.to_plain` gives), encodes it once and splices that text into the event envelope and the WoT form,
   and publishes both: the same event, byte for byte, as the engine's own `encode(envelope(...))` and
-  `ThingBus` would give;
+  `ThingBus` would give, at `property_qos`;
+* on MQTT each robot's streams publish on a connection of their own that the publishing thread serves itself
+  (drivenbus.py): a publish writes to the socket at once instead of waking the network thread of the robot's
+  connection, which cost the publishing thread most of its time; when the broker will not take that
+  connection, the robot's own is used;
 * the rules of property events hold: retained, and only when the value changed (a message equal to the last
   one published for its property is no event);
 * `property_interval` > 0: at most one event per property and interval, the latest message wins, and the
@@ -45,12 +49,15 @@ from td2adaptor.runtime.thingbus import ThingBus
 from td2adaptor.runtime.words import describe
 
 if TYPE_CHECKING:
+    from td2adaptor.runtime.drivenbus import DrivenBus
     from td2adaptor.runtime.engine import Engine
 
 log = logging.getLogger("td2adaptor.runtime")
 
 #: queued messages (all properties of the process) beyond which the oldest are dropped in per-message mode
 BACKLOG = 20_000
+#: seconds between two services of the stream connections (acknowledgements, keep-alive) by the publishing thread
+SERVE = 0.01
 
 _ENCODER = json.JSONEncoder(separators=(",", ":"), ensure_ascii=False, allow_nan=False)
 _LATEST = object()  # a queue entry meaning "the property's latest message" (throttled properties)
@@ -106,6 +113,8 @@ class _Slot:
         "remove",
         "closed",
         "convert",
+        "qos",
+        "out",
     )
 
     def __init__(self, engine: Engine, spec: EventSpec) -> None:
@@ -121,6 +130,8 @@ class _Slot:
         self.head = f'{{"type":{kind},"affordance":{text(self.name)},"robot":{robot},"id":"'
         self.middle = f'","source":{text(config.event_source)},"payload":'
         self.interval = config.property_interval
+        self.qos = config.property_qos
+        self.out: DrivenBus | None = None  # the robot's stream connection, when it has one (publishing thread)
         self.last_text: str | None = None
         self.last_time = -math.inf
         self.latest: Any = None
@@ -139,12 +150,16 @@ class _Slot:
         event = f'{self.head}{new_id()}","time":"{now_rfc3339()}{self.middle}{text}}}'
         bus = self.engine.bus
         try:
-            if isinstance(bus, ThingBus):  # the envelope and the WoT form, without parsing the event again
-                bus.bus.publish(self.topic, event.encode("utf-8"), retain=True)
+            if self.out is not None:  # the envelope and the WoT form, without parsing the event again
+                self.out.publish(self.topic, event.encode("utf-8"), retain=True, qos=self.qos)
                 if self.wot is not None:
-                    bus.bus.publish(self.wot, text.encode("utf-8"), retain=True)
+                    self.out.publish(self.wot, text.encode("utf-8"), retain=True, qos=self.qos)
+            elif isinstance(bus, ThingBus):
+                bus.bus.publish(self.topic, event.encode("utf-8"), retain=True, qos=self.qos)
+                if self.wot is not None:
+                    bus.bus.publish(self.wot, text.encode("utf-8"), retain=True, qos=self.qos)
             else:
-                bus.publish(self.topic, event.encode("utf-8"), retain=True)
+                bus.publish(self.topic, event.encode("utf-8"), retain=True, qos=self.qos)
         except (BusError, ValueError) as exc:
             log.error("could not publish a property event: %s", exc)
             return
@@ -167,6 +182,9 @@ class Pump:
         self._thread: threading.Thread | None = None
         self._dropped = 0
         self._warned = -math.inf
+        self._buses: list[DrivenBus] = []  # the robots' stream connections, served by the publishing thread
+        self._closing: list[tuple[DrivenBus, threading.Event]] = []
+        self._served = -math.inf
 
     # -- the process's pump ---------------------------------------------------------------------------------
 
@@ -195,6 +213,28 @@ class Pump:
                 Pump._shared = None
         if thread is not None and thread is not threading.current_thread():
             thread.join(5.0)
+
+    def attach(self, bus: DrivenBus) -> None:
+        """Serve `bus` (connected) from the publishing thread, which from now on is the only one to touch it."""
+        with self.cond:
+            self._buses.append(bus)
+
+    def detach(self, bus: DrivenBus) -> None:
+        """Stop serving `bus`: the publishing thread sends what is unacknowledged and closes it (waited for)."""
+        done = threading.Event()
+        with self.cond:
+            if bus in self._buses:
+                self._buses.remove(bus)
+            running = self._thread is not None and self._thread is not threading.current_thread()
+            if running:
+                self._closing.append((bus, done))
+                if self._idle:
+                    self._idle = False
+                    self.cond.notify()
+        if not running:
+            _close(bus)
+        elif not done.wait(5.0):
+            log.warning("property streams: the publishing thread did not close a stream connection within 5 s")
 
     # -- from the ROS side ----------------------------------------------------------------------------------
 
@@ -236,7 +276,9 @@ class Pump:
     # -- the publishing thread ------------------------------------------------------------------------------
 
     def _take(self) -> list[tuple[_Slot, Any]] | None:
+        """The messages to publish ([] when only the stream connections are due a service); None: stop."""
         with self.cond:
+            waited = False
             while self._thread is threading.current_thread():
                 now = time.monotonic()
                 while self._timers and self._timers[0][0] <= now:
@@ -249,16 +291,45 @@ class Pump:
                             batch[i] = (slot, slot.latest)
                             slot.latest, slot.scheduled, slot.last_time = None, False, now
                     return batch
+                if self._closing or (waited and self._buses):
+                    return []
                 self._idle = True
-                self.cond.wait(self._timers[0][0] - now if self._timers else None)
+                wait = self._timers[0][0] - now if self._timers else None
+                if self._buses:  # keep-alive and acknowledgements while idle too
+                    wait = 1.0 if wait is None else min(wait, 1.0)
+                self.cond.wait(wait)
                 self._idle = False
+                waited = True
             return None
+
+    def _serve(self, final: bool = False) -> None:
+        """Close the detached stream connections and serve the others (at most every SERVE s; `final`: close
+        all, the thread ends)."""
+        now = time.monotonic()
+        with self.cond:
+            closing, self._closing = self._closing, []
+            if final:
+                closing += [(bus, threading.Event()) for bus in self._buses]
+                self._buses.clear()
+            due = now - self._served >= SERVE
+            buses = list(self._buses) if due else []
+        for bus, done in closing:
+            _close(bus)
+            done.set()
+        if due:
+            self._served = now
+        for bus in buses:
+            try:
+                bus.step()
+            except Exception as exc:  # noqa: BLE001 - a broken connection costs its events, not the thread
+                log.warning("property streams: serving a stream connection failed: %s", describe(exc))
 
     def _run(self) -> None:
         complained: dict[str, float] = {}
         while True:
             batch = self._take()
             if batch is None:
+                self._serve(final=True)
                 return
             for slot, message in batch:
                 if slot.closed:
@@ -276,6 +347,16 @@ class Pump:
                     "come (set property_interval to throttle them)",
                     self._dropped,
                 )
+            self._serve()
+
+
+def _close(bus: DrivenBus) -> None:
+    """Send what is unacknowledged (at most 1 s) and disconnect."""
+    try:
+        bus.flush(1.0)
+        bus.close()
+    except Exception as exc:  # noqa: BLE001 - closing: the broker drops the connection anyway
+        log.debug("closing a stream connection: %s", describe(exc))
 
 
 class _Value:
@@ -295,12 +376,17 @@ class PropertyStreams:
         self.specs = specs
         self.slots: list[_Slot] = []
         self.pump: Pump | None = None
+        self.out: DrivenBus | None = None
 
     def start(self) -> None:
         port: Any = self.engine.port
+        self.out = self._connection()
         self.pump = pump = Pump.acquire()
+        if self.out is not None:
+            pump.attach(self.out)
         for spec in self.specs:
             slot = _Slot(self.engine, spec)
+            slot.out = self.out
             slot.remove = self._watch_serialized(slot, pump)
             if slot.remove is None:
                 slot.remove = port.watch_property(spec.component or "", slot.name, lambda m, s=slot: pump.put(s, m))
@@ -311,6 +397,28 @@ class PropertyStreams:
             except Exception:  # noqa: BLE001 - NoValue, mostly: the first message will be the first event
                 continue
             pump.initial(slot, value)
+
+    def _connection(self) -> DrivenBus | None:
+        """The robot's own connection for its streams (drivenbus.py), beside its bus; None: not on MQTT, or
+        the broker would not take a second connection (the streams then go through the robot's bus)."""
+        from td2adaptor.runtime.drivenbus import DrivenBus, twin
+        from td2adaptor.runtime.mqttbus import MqttBus
+
+        bus = self.engine.bus
+        inner = bus.bus if isinstance(bus, ThingBus) else bus
+        if not isinstance(inner, MqttBus) or isinstance(inner, DrivenBus):
+            return None
+        out = twin(inner)
+        try:
+            out.connect()
+        except BusError as exc:
+            log.warning(
+                "robot %s: no connection of its own for the property streams, they share the robot's: %s",
+                self.engine.config.robot,
+                exc,
+            )
+            return None
+        return out
 
     def _watch_serialized(self, slot: _Slot, pump: Pump) -> Callable[[], None] | None:
         """Watch `slot`'s messages serialized, read by the type's CDR decoder (None: the port cannot)."""
@@ -337,8 +445,11 @@ class PropertyStreams:
                 except Exception:  # noqa: BLE001 - stopping: the callback goes with the node anyway
                     pass
         if self.pump is not None:
+            if self.out is not None:
+                self.pump.detach(self.out)
             self.pump.release()
             self.pump = None
+        self.out = None
 
 
 def streams(engine: Engine, specs: list[EventSpec]) -> PropertyStreams | None:

@@ -69,8 +69,8 @@ class ThingBus:
 
         self.bus.subscribe(topic, inbound, qos=0)  # not queued while the node is away (see above)
 
-    def publish(self, topic: str, payload: bytes, *, retain: bool = False) -> None:
-        self.bus.publish(topic, payload, retain=retain)
+    def publish(self, topic: str, payload: bytes, *, retain: bool = False, qos: int = 1) -> None:
+        self.bus.publish(topic, payload, retain=retain, qos=qos)
         spec = self._outbound.get(topic)
         if spec is None or spec.kind is Kind.STATUS or not payload:
             return
@@ -81,7 +81,7 @@ class ThingBus:
         out = self.unwrap(spec, event)
         if out is not None:
             text = json.dumps(out[1], separators=(",", ":"), ensure_ascii=False, allow_nan=False)
-            self.bus.publish(out[0], text.encode("utf-8"), retain=retain)
+            self.bus.publish(out[0], text.encode("utf-8"), retain=retain, qos=qos)
 
     def flush(self, timeout: float) -> bool:
         return self.bus.flush(timeout)

@@ -268,8 +268,15 @@ def test_expose_writes_the_td_of_one_robot(runner: CliRunner, tmp_path: Path) ->
              for f in a["forms"]]  # fmt: skip
     assert all(f["href"].startswith("mqtt://10.0.0.5:1884/site1/robots/rb1_a/") for f in forms)
     assert all((f.get("mqv:topic") or f["mqv:filter"]).startswith("site1/robots/rb1_a/") for f in forms)
+    # property events at QoS 0 (run's property_qos): the observe forms say so
+    qos0 = runner.invoke(cli, ["expose", TD, *IFACE, *args, "--property-qos", "0"])
+    assert qos0.exit_code == 0, qos0.output
+    observe = [f for p in json.loads(qos0.output)["properties"].values() for f in p["forms"] if "mqv:filter" in f]
+    assert observe and {f["mqv:qos"] for f in observe if f["mqv:controlPacket"] == "subscribe"} == {"0"}
     bad_roots = (["--topic-root", "a/#"], ["--topic-root", "/abs"], ["--topic-root", ""])
     for bad in (["--robot", "all"], ["--robot", "{{robotName}}"], ["--broker", "mqtt://u:p@h:1"], ["--broker", "x"],
                 *bad_roots):  # fmt: skip
         refused = runner.invoke(cli, ["expose", TD, *IFACE, *args, *bad])
         assert refused.exit_code == 1 and "td2adaptor expose:" in refused.output, (bad, refused.output)
+    refused = runner.invoke(cli, ["expose", TD, *IFACE, *args, "--property-qos", "2"])
+    assert refused.exit_code == 2 and "'2' is not one of '0', '1'" in refused.output, refused.output

@@ -43,6 +43,7 @@ class Mosquitto:
         acl: Path | None = None,
         require_certificate: bool = True,
         identity_as_username: bool = False,
+        extra: tuple[str, ...] = (),
     ) -> None:
         self.dir = workdir
         self.dir.mkdir(parents=True, exist_ok=True)
@@ -52,6 +53,7 @@ class Mosquitto:
         self.conf = self.dir / "mosquitto.conf"
         lines = [
             f"listener {self.port} 127.0.0.1",
+            *extra,  # more of the listener's settings (e.g. max_connections), right after it
             f"user {getpass.getuser()}",
             "persistence true",
             f"persistence_location {self.dir}/",

@@ -33,6 +33,7 @@ class AppClient:
             url, mqtt_version = url.url, url.mqtt_version
         host, port = url.removeprefix("mqtt://").rsplit(":", 1)
         self.events: list[Event] = []
+        self.qos: dict[str, set[int]] = {}  # each topic's QoS as delivered (the lower of publish and subscribe)
         self.cond = threading.Condition()
         self.connected = threading.Event()
         self.patterns = patterns
@@ -73,6 +74,7 @@ class AppClient:
             data = {"raw": msg.payload.decode(errors="replace")}
         with self.cond:
             self.events.append((msg.topic, data))
+            self.qos.setdefault(msg.topic, set()).add(msg.qos)
             self.cond.notify_all()
 
     def send(self, topic: str, event: Any, *, while_offline: bool = False) -> None:

@@ -578,6 +578,33 @@ def test_the_robot_td_is_retained_while_online_and_cleared_on_stop(broker: Broke
     assert status is not None and json.loads(status)["payload"]["state"] == "offline"
 
 
+def test_property_qos_0_publishes_property_events_at_most_once_and_the_td_says_so(broker: Broker) -> None:
+    """`property_qos: 0`: property events (envelope and WoT form) travel at QoS 0 to a subscriber that asked
+    for QoS 1, retained as before; every other event stays QoS 1; the robot's published TD says QoS 0 on the
+    property forms. Both brokers."""
+    model = rb1_model()
+    robot = "rb1_qos0"
+    engine = serve(model, SimPort(model, sim(0.2)), config(broker, robot=robot, property_period=0.05,
+                                                            property_qos=0, td_broker=broker.url))  # fmt: skip
+    prop = f"td2adaptor/{robot}/AvailabilityComponent/availability"
+    wot = f"td2adaptor/{robot}/wot-thing/AvailabilityComponent/availability"
+    try:
+        app = AppClient(broker, [prop, wot, f"td2adaptor/{robot}/status", f"td2adaptor/{robot}/td"])
+        app.wait(lambda ev: {prop, wot, f"td2adaptor/{robot}/status", f"td2adaptor/{robot}/td"} <= {t for t, _ in ev})
+        with app.cond:  # (amqtt delivers a retained message at the subscriber's QoS: only mosquitto shows it)
+            if isinstance(broker, Mosquitto):
+                assert app.qos[prop] == app.qos[wot] == {0}, app.qos
+            assert app.qos[f"td2adaptor/{robot}/status"] == {1}
+            td = next(e for t, e in app.events if t.endswith("/td"))
+        app.close()
+        forms = td["properties"]["availability"]["forms"]
+        assert forms[0]["op"] == ["readproperty", "observeproperty"] and forms[0]["mqv:qos"] == "0"
+        assert {f["mqv:qos"] for a in td["actions"].values() for f in a["forms"]} == {"1"}
+        assert _retained(broker, prop) is not None  # retained, as at QoS 1
+    finally:
+        engine.stop()
+
+
 def test_serve_follows_the_ros_version_the_port_declares() -> None:
     """`serve` without `distro`: the port's own ROS version (a ROS 1 bridge's port says "ros1"), "ros2" for a
     port that declares none; an explicit `distro` still wins."""

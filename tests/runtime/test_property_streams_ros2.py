@@ -100,10 +100,16 @@ def wot_xs(app: AppClient, topic: str) -> list[float]:
         return [e["pose"]["pose"]["position"]["x"] for t, e in app.events if t == topic]
 
 
-def serve_streams(nav: tuple[Any, ModuleType], node: Any, robot: str, url: str, interval: float) -> Any:
+def serve_streams(nav: tuple[Any, ModuleType], node: Any, robot: str, url: str, interval: float, qos: int = 1) -> Any:
     model, module = nav
     config = RuntimeConfig(
-        robot=robot, bus=url, property_mode="message", property_interval=interval, state_dir="", td_broker=url
+        robot=robot,
+        bus=url,
+        property_mode="message",
+        property_interval=interval,
+        property_qos=qos,
+        state_dir="",
+        td_broker=url,
     )
     port = GeneratedPort(model, module, robot, distro="ros2", node=node)
     node.spin()  # after the port made its subscriptions (as ros.connect_ros2 does)
@@ -120,6 +126,7 @@ def test_every_message_becomes_one_event_in_order(nav: tuple[Any, ModuleType], n
     payloads: list[Any] = []  # the same messages as the engine converts them when it reads no bytes
     streams = engine._streams
     assert streams is not None and all(s.convert is not plain for s in streams.slots), "read serialized"
+    assert streams.out is not None and all(s.out is streams.out for s in streams.slots), "their own connection"
 
     def received(m: Any) -> None:
         delivered.append(m.pose.pose.position.x)
@@ -181,6 +188,27 @@ def test_a_throttled_property_publishes_the_latest_and_never_withholds_the_last(
     assert got == sorted(set(got)), "in order, each once"
     # at most one event per interval (plus the first, at once)
     assert len(got) <= 2 + math.ceil(sent["took"] / interval), (got, sent)
+
+
+def test_property_qos_0_streams_at_qos_0(nav: tuple[Any, ModuleType], node: Any, broker: Mosquitto) -> None:
+    """`property_qos: 0`: the stream's events (envelope and WoT form) travel at QoS 0, in order."""
+    robot = f"stream_q0_{node.get_name().split('_')[-1]}"
+    topic = f"td2adaptor/{robot}/BaseComponent/odom"
+    wot = f"td2adaptor/{robot}/{WOT_LEVEL}/BaseComponent/odom"
+    app = AppClient(broker.url, [topic, wot], client_id=f"streams-{robot}")
+    engine = serve_streams(nav, node, robot, broker.url, 0.0, qos=0)
+    count = 50
+    publisher = sensors(robot, count, 0.01, 0)
+    try:
+        app.wait(lambda _events: float(count - 1) in xs(app, topic), timeout=60)
+        assert until(lambda: float(count - 1) in wot_xs(app, wot), 10.0)
+    finally:
+        publisher.stop()
+        engine.stop()
+        app.close()
+    got = xs(app, topic)
+    assert got == sorted(set(got)) and engine.stats["out.property"] >= len(got)
+    assert app.qos[topic] == app.qos[wot] == {0}, app.qos
 
 
 def test_plain_gives_what_to_plain_gives(ros2_domain: int) -> None:

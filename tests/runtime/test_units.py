@@ -34,6 +34,8 @@ def test_config_precedence_and_fleets(tmp_path: Path) -> None:
     single.write_text("robot: r1\nallow_insecure: yes\nproperty_period: 0\n", encoding="utf-8")
     cfg = load_config(single, env={"TD2ADAPTOR_ROBOT": "r2"})
     assert (cfg.robot, cfg.allow_insecure, cfg.property_period, cfg.bus) == ("r2", True, 0.0, "local")
+    assert cfg.property_qos == 1
+    assert load_config(single, env={"TD2ADAPTOR_PROPERTY_QOS": "0"}).property_qos == 0
 
 
 @pytest.mark.parametrize(
@@ -47,6 +49,8 @@ def test_config_precedence_and_fleets(tmp_path: Path) -> None:
         ("robots: [{robot: a}, {robot: a}]\n", {}, "unique"),
         ("bus: local\n", {}, "no robot id"),
         ("robot: a\n", {"TD2ADAPTOR_ALLOW_INSECURE": "perhaps"}, "allow_insecure"),
+        ("robot: a\nproperty_qos: 2\n", {}, "property_qos 2 must be 0 or 1"),
+        ("robot: a\nproperty_qos: once\n", {}, "property_qos: 'once' is not a valid int"),
         ("[1, 2", {}, "fleet.yaml"),
     ],
 )

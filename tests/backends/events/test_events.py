@@ -394,6 +394,20 @@ def test_exposed_td_forms(files: dict[str, bytes]) -> None:
     assert instantiated["id"] == td["id"]
 
 
+def test_property_qos_0_is_what_the_observe_forms_say() -> None:
+    """`property_qos: 0` (high-rate sensor streams): the property forms say QoS 0, as the events travel; every
+    other form keeps QoS 1, and the default TD is unchanged."""
+    td = backend.exposed_td(rb1_model(), robot=ROBOT, broker=BROKER, property_qos=0)
+    default = robot_td()
+    for name, prop in td["properties"].items():
+        for form, before in zip(prop["forms"], default["properties"][name]["forms"], strict=True):
+            observe = form["mqv:controlPacket"] == "subscribe"
+            assert form.get("mqv:qos") == ("0" if observe else before.get("mqv:qos")), (name, form)
+    assert any(f.get("mqv:qos") == "0" for p in td["properties"].values() for f in p["forms"])
+    others = [f for s in ("actions", "events") for a in td[s].values() for f in a["forms"]]
+    assert others == [f for s in ("actions", "events") for a in default[s].values() for f in a["forms"]]
+
+
 def test_hrefs_percent_encode_the_topic() -> None:
     assert backend.topic_href("mqtt://h:1", "a b/c%d/é") == "mqtt://h:1/a%20b/c%25d/%C3%A9"
     assert backend.topic_href("mqtt://h:1", "t/{{robotName}}/x", model=True) == "mqtt://h:1/t/{{robotName}}/x"

@@ -1,0 +1,116 @@
+"""An MQTT connection served by the thread that publishes on it, for the property streams (streams.py).
+
+A `MqttBus` is served by paho's network thread: every publish wakes that thread to write the message, and the
+publisher waits for the interpreter lock again behind it. With one client per robot, a process that streams
+a thousand property events a second wakes a dozen network threads two thousand times a second, and its
+publishing thread spends most of its time waiting (bench/sensor_stream_ros2.py). `DrivenBus` has no network
+thread: a publish writes to the socket at once, in the publisher's thread, and that thread calls `step()`
+between batches to read what the broker sent (PUBACKs, PINGRESPs), keep the connection alive and reconnect.
+
+Only its owner's thread may publish on it or step it. It publishes only (no subscriptions), on a clean session
+with no will: it is a second connection of a robot's node, with the robot's credentials (`twin`).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import select
+import ssl
+import time
+
+import paho.mqtt.client as mqtt
+from paho.mqtt.enums import MQTTErrorCode
+
+from td2adaptor.runtime.mqttbus import MqttBus
+
+log = logging.getLogger("td2adaptor.runtime.bus")
+
+
+class DrivenBus(MqttBus):
+    """A publishing MQTT connection without a network thread: its owner's thread publishes and `step`s it."""
+
+    _retry_at = -math.inf  # when `step` may try to reconnect next
+    _complained = -math.inf
+
+    def _start(self, client: mqtt.Client) -> None:
+        """No network thread: publishes write at once (paho does when it has no thread), `step` reads."""
+
+    def _await_connack(self, client: mqtt.Client) -> bool:
+        deadline = time.monotonic() + self.connect_timeout
+        while not self._connack.is_set():
+            left = deadline - time.monotonic()
+            if left <= 0 or not self._serve(client, min(left, 0.1)):
+                return self._connack.is_set()
+        return True
+
+    def _serve(self, client: mqtt.Client, timeout: float) -> bool:
+        """Read and write what is due, waiting at most `timeout`; False when the connection is gone."""
+        sock = client.socket()
+        if sock is None:
+            return False
+        pending = isinstance(sock, ssl.SSLSocket) and sock.pending() > 0
+        want = [sock] if client.want_write() else []
+        readable, writable, _ = select.select([sock], want, [], 0 if pending else timeout)
+        rc = MQTTErrorCode.MQTT_ERR_SUCCESS
+        if readable or pending:
+            rc = client.loop_read()
+        if rc is MQTTErrorCode.MQTT_ERR_SUCCESS and writable:
+            rc = client.loop_write()
+        if rc is MQTTErrorCode.MQTT_ERR_SUCCESS:
+            rc = client.loop_misc()  # keep-alive: a PINGREQ when due, the connection dropped when unanswered
+        return rc is MQTTErrorCode.MQTT_ERR_SUCCESS and client.socket() is not None
+
+    def step(self) -> None:
+        """Serve the connection once without waiting; reconnect (every `reconnect_delay[1]` s) when it is gone."""
+        client = self._client
+        if client is None:
+            return
+        if client.socket() is not None and self._serve(client, 0.0):
+            return
+        now = time.monotonic()
+        if now < self._retry_at:
+            return
+        self._retry_at = now + self.reconnect_delay[1]
+        try:
+            client.reconnect()
+        except (OSError, ssl.SSLError, ValueError) as exc:
+            if now - self._complained > 60:
+                self._complained = now
+                log.warning("property stream connection to %s: reconnecting failed: %s", self.address, exc)
+
+    def flush(self, timeout: float) -> bool:
+        """Serve the connection until every QoS 1 message is acknowledged, at most `timeout` seconds."""
+        deadline = time.monotonic() + timeout
+        client = self._client
+        while client is not None:
+            with self._lock:
+                if not self._pending:
+                    return True
+            left = deadline - time.monotonic()
+            if left <= 0 or not self._serve(client, min(left, 0.05)):
+                break
+        with self._lock:
+            return not self._pending
+
+    def close(self) -> None:
+        client, self._client = self._client, None
+        if client is not None:
+            client.disconnect()  # written at once (no network thread); paho closes the socket after it
+        self._connected = False
+
+
+def twin(bus: MqttBus) -> DrivenBus:
+    """A publishing connection beside `bus`: its broker, credentials, TLS and MQTT version, the client id
+    `<client id>-streams`, a clean session and no will (not connected yet)."""
+    return DrivenBus(
+        bus.address,
+        bus.security,
+        client_id=f"{bus.client_id}-streams",
+        clean_start=True,
+        session_expiry=0,
+        mqtt_version=bus.mqtt_version,
+        keepalive=bus.keepalive,
+        connect_timeout=bus.connect_timeout,
+        reconnect_delay=bus.reconnect_delay,
+    )
