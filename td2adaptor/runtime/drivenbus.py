@@ -66,7 +66,7 @@ class DrivenBus(MqttBus):
         client = self._client
         if client is None:
             return
-        if client.socket() is not None and self._serve(client, 0.0):
+        if self._serve(client, 0.0):
             return
         now = time.monotonic()
         if now < self._retry_at:
@@ -92,12 +92,6 @@ class DrivenBus(MqttBus):
                 break
         with self._lock:
             return not self._pending
-
-    def close(self) -> None:
-        client, self._client = self._client, None
-        if client is not None:
-            client.disconnect()  # written at once (no network thread); paho closes the socket after it
-        self._connected = False
 
 
 def twin(bus: MqttBus) -> DrivenBus:

@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING, Any
 
 from td2adaptor.model.events import EventSpec, Kind
 from td2adaptor.model.wot import wot_topic
-from td2adaptor.runtime.bus import BusError
+from td2adaptor.runtime.bus import Bus, BusError
 from td2adaptor.runtime.cdr import message_class, plain_reader
 from td2adaptor.runtime.events import new_id, now_rfc3339
 from td2adaptor.runtime.genport import to_plain
@@ -115,6 +115,7 @@ class _Slot:
         "convert",
         "qos",
         "out",
+        "bus",
     )
 
     def __init__(self, engine: Engine, spec: EventSpec) -> None:
@@ -123,8 +124,8 @@ class _Slot:
         self.spec = spec
         self.name = spec.affordance or ""
         self.topic = spec.topic(config.robot, config.topic_root)
-        bus = engine.bus
-        self.wot = wot_topic(spec, config.robot, config.topic_root) if isinstance(bus, ThingBus) else None
+        self.wot = wot_topic(spec, config.robot, config.topic_root) if isinstance(engine.bus, ThingBus) else None
+        self.bus = _plain_bus(engine)  # the WoT form is published beside the envelope here, not by ThingBus
         text = _ENCODER.encode
         kind, robot = text(Kind.PROPERTY.value), text(config.robot)
         self.head = f'{{"type":{kind},"affordance":{text(self.name)},"robot":{robot},"id":"'
@@ -148,18 +149,11 @@ class _Slot:
             return
         self.last_text = text
         event = f'{self.head}{new_id()}","time":"{now_rfc3339()}{self.middle}{text}}}'
-        bus = self.engine.bus
-        try:
-            if self.out is not None:  # the envelope and the WoT form, without parsing the event again
-                self.out.publish(self.topic, event.encode("utf-8"), retain=True, qos=self.qos)
-                if self.wot is not None:
-                    self.out.publish(self.wot, text.encode("utf-8"), retain=True, qos=self.qos)
-            elif isinstance(bus, ThingBus):
-                bus.bus.publish(self.topic, event.encode("utf-8"), retain=True, qos=self.qos)
-                if self.wot is not None:
-                    bus.bus.publish(self.wot, text.encode("utf-8"), retain=True, qos=self.qos)
-            else:
-                bus.publish(self.topic, event.encode("utf-8"), retain=True, qos=self.qos)
+        bus = self.out or self.bus
+        try:  # the envelope and the WoT form, without parsing the event again
+            bus.publish(self.topic, event.encode("utf-8"), retain=True, qos=self.qos)
+            if self.wot is not None:
+                bus.publish(self.wot, text.encode("utf-8"), retain=True, qos=self.qos)
         except (BusError, ValueError) as exc:
             log.error("could not publish a property event: %s", exc)
             return
@@ -350,6 +344,12 @@ class Pump:
             self._serve()
 
 
+def _plain_bus(engine: Engine) -> Bus:
+    """The engine's bus without its WoT adapter (ThingBus), which the streams do the work of themselves."""
+    bus = engine.bus
+    return bus.bus if isinstance(bus, ThingBus) else bus
+
+
 def _close(bus: DrivenBus) -> None:
     """Send what is unacknowledged (at most 1 s) and disconnect."""
     try:
@@ -404,8 +404,7 @@ class PropertyStreams:
         from td2adaptor.runtime.drivenbus import DrivenBus, twin
         from td2adaptor.runtime.mqttbus import MqttBus
 
-        bus = self.engine.bus
-        inner = bus.bus if isinstance(bus, ThingBus) else bus
+        inner = _plain_bus(self.engine)
         if not isinstance(inner, MqttBus) or isinstance(inner, DrivenBus):
             return None
         out = twin(inner)
