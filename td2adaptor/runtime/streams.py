@@ -310,13 +310,15 @@ class Pump:
         for bus, done in closing:
             _close(bus)
             done.set()
-        if due:
-            self._served = now
-        for bus in buses:
-            try:
-                bus.step()
-            except Exception as exc:  # noqa: BLE001 - a broken connection costs its events, not the thread
-                log.warning("property streams: serving a stream connection failed: %s", describe(exc))
+        if not due or not buses:
+            return
+        self._served = now
+        from td2adaptor.runtime.drivenbus import serve  # only with stream connections, which imported it
+
+        try:
+            serve(buses)
+        except Exception as exc:  # noqa: BLE001 - a broken connection costs its events, not the thread
+            log.warning("property streams: serving the stream connections failed: %s", describe(exc))
 
     def _run(self) -> None:
         complained: dict[str, float] = {}

@@ -1,6 +1,7 @@
 """The property streams' own MQTT connection (runtime/drivenbus.py), on a real mosquitto: served by the
 thread that publishes on it (no network thread), it delivers in order at QoS 1 and 0, reads its
-acknowledgements when stepped, keeps itself alive, reconnects after a broker restart, , and when the second
+acknowledgements when stepped, keeps itself alive, reconnects after a broker restart (also when many are
+served together, as a fleet's publishing thread does), and when the second
 connection cannot be made the streams use the robot's own. No mocks."""
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import pytest
 from td2adaptor.model.events import Kind
 from td2adaptor.model.wot import WOT_LEVEL
 from td2adaptor.runtime import RuntimeConfig, serve
-from td2adaptor.runtime.drivenbus import DrivenBus, twin
+from td2adaptor.runtime.drivenbus import DrivenBus, serve as serve_all, twin
 from td2adaptor.runtime.mqttbus import MqttBus
 from td2adaptor.runtime.security import parse_broker_url
 from td2adaptor.runtime.simport import SimPort
@@ -78,6 +79,46 @@ def test_stepping_keeps_it_alive_and_it_reconnects_after_a_broker_restart(broker
         app.wait(lambda _e: 2 in numbers(app, "d/alive"), timeout=15)
     finally:
         bus.close()
+        app.close()
+
+
+def test_many_served_together_read_their_acknowledgements_stay_alive_and_reconnect(broker: Mosquitto) -> None:
+    """`serve` (one poll for all, as the process's publishing thread serves a fleet's stream connections) does
+    for each what `step` does for one: every PUBACK read, keep-alive past 1.5 periods, reconnect after a restart."""
+    app = AppClient(broker, ["m/#"])
+    buses = [
+        twin(MqttBus(parse_broker_url(broker.url), client_id=f"robot-{i}", keepalive=1, reconnect_delay=(1, 1)))
+        for i in range(5)
+    ]
+    for bus in buses:
+        bus.connect()
+
+    def pending() -> int:
+        return sum(len(bus._pending) for bus in buses)
+
+    try:
+        for n in range(200):
+            for i, bus in enumerate(buses):
+                bus.publish(f"m/{i}", b'{"n": %d}' % n, qos=1)
+            if n % 20 == 0:
+                serve_all(buses)
+        assert until(lambda: (serve_all(buses), pending())[1] == 0, 10.0), "every PUBACK read by serving"
+        app.wait(lambda _e: all(numbers(app, f"m/{i}") == list(range(200)) for i in range(5)))
+        end = time.monotonic() + 3.5  # the broker drops a client silent for 1.5 keep-alive periods
+        while time.monotonic() < end:
+            serve_all(buses)
+            time.sleep(0.05)
+        assert [bus.connects for bus in buses] == [1] * 5, "one connection each all along"
+        broker.restart()
+        assert until(lambda: (serve_all(buses), [b.connects for b in buses])[1] == [2] * 5, 15.0), "all reconnected"
+        app.connected.wait(10)
+        for i, bus in enumerate(buses):
+            bus.publish(f"m/{i}", b'{"n": 1000}')
+        assert until(lambda: (serve_all(buses), pending())[1] == 0, 10.0)
+        app.wait(lambda _e: all(1000 in numbers(app, f"m/{i}") for i in range(5)), timeout=15)
+    finally:
+        for bus in buses:
+            bus.close()
         app.close()
 
 
