@@ -14,7 +14,9 @@ Figures per deployment:
   before that), and until every robot finished a first goto mission (ROS discovery included);
 * memory per robot: RSS of the edge-node process(es) / N, and PSS (shared libraries split between the
   processes that map them: the fair figure for N processes);
-* CPU of the edge node(s) at idle (no events; each robot's properties sampled every second, the default) and
+* CPU of the edge node(s) at idle (no events; each robot's properties at most once a second: `property_mode:
+  message` with `property_interval: 1`, as docs/fleet.md recommends for a fleet; `--property-mode sample` for
+  the default sampling every second) and
   under 1 goto mission per second per robot (invoke → queued → running → finished feedback, polled every
   0.2 s), in % of one core;
 * invoke event → first feedback event (`queued`, after the robot's `add` service answered), p50 and p99 over
@@ -256,10 +258,13 @@ class Context:
     child_env: dict[str, str]
     watcher: Watcher
     sim: Process
+    property_mode: str = "message"
 
     def write_config(self, tag: str, robots: list[str] | None) -> Path:
         state = self.work / f"state-{tag}"
         lines = [f"bus: {self.url}", f"poll_period: {POLL}", f"state_dir: {state}"]
+        if self.property_mode == "message":  # each property at most once a second, as sampling would
+            lines += ["property_mode: message", "property_interval: 1"]
         if robots is not None:
             lines.append("robots:")
             lines += [f"  - robot: {r}" for r in robots]
@@ -371,6 +376,12 @@ def main() -> None:
     parser.add_argument(
         "--deployment", choices=("both", "process", "fleet"), default="both", help="which deployments to measure"
     )
+    parser.add_argument(
+        "--property-mode",
+        choices=("message", "sample"),
+        default="message",
+        help="message (with property_interval 1, docs/fleet.md's advice) or sample (property_period 1)",
+    )
     args = parser.parse_args()
     if not env.ros2_available():
         print("ROS 2 Jazzy wheels not installed (bash .ci/setup-ros2.sh): skipped")
@@ -385,7 +396,8 @@ def main() -> None:
     robots = [f"{PREFIX}_{i}" for i in range(args.robots)]
     print(
         f"python {sys.version.split()[0]}, {time.strftime('%Y-%m-%d')}, {os.cpu_count()} cores, "
-        f"{args.robots} robots, load {args.load:g} s at 1 mission/s per robot, idle {args.idle:g} s"
+        f"{args.robots} robots, load {args.load:g} s at 1 mission/s per robot, idle {args.idle:g} s, "
+        f"property_mode {args.property_mode}"
     )
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # a stopped bench stops its children too
     child_env = env.child_env([prefix])
@@ -405,7 +417,7 @@ def main() -> None:
         watcher = Watcher(url)
         try:
             sim.wait_for(lambda e: e.get("event") == "ready", 120)
-            ctx = Context(work, prefix, src, url, child_env, watcher, sim)
+            ctx = Context(work, prefix, src, url, child_env, watcher, sim, args.property_mode)
             base = measure(ctx, robots[:1], True, "base", args.idle, args.load)
             runs = []
             if args.deployment in ("both", "process"):

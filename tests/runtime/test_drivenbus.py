@@ -15,7 +15,8 @@ import pytest
 from td2adaptor.model.events import Kind
 from td2adaptor.model.wot import WOT_LEVEL
 from td2adaptor.runtime import RuntimeConfig, serve
-from td2adaptor.runtime.drivenbus import DrivenBus, serve as serve_all, twin
+from td2adaptor.runtime.drivenbus import DrivenBus, twin
+from td2adaptor.runtime.drivenbus import serve as serve_all
 from td2adaptor.runtime.mqttbus import MqttBus
 from td2adaptor.runtime.security import parse_broker_url
 from td2adaptor.runtime.simport import SimPort
