@@ -3,10 +3,12 @@ same run: the same edge node serving one robot of the same simulated fleet.
 
 One simulation process serves all the robots (examples/robotnik_rb1/sim/ros2.py --count N, on rclpy's
 EventsExecutor), one mosquitto carries every robot's events, and the edge nodes run as `td2adaptor run`
-processes in the two deployments docs/fleet.md describes:
+processes in the deployments docs/fleet.md describes:
 
 * `one process per robot`: N processes, each `td2adaptor run TD --robot fleet_i` (the fleet file's shared keys);
-* `one process for the fleet`: one `td2adaptor run TD --config fleet.yaml` whose `robots:` lists all N.
+* `one process for the fleet`: one `td2adaptor run TD --config fleet.yaml` whose `robots:` lists all N;
+* `--group-size K` (deployment `groups`): N/K processes, each a `robots:` list of K (docs/fleet.md's advice for
+  a fleet one process cannot serve).
 
 Figures per deployment:
 
@@ -193,8 +195,8 @@ class Figures:
 
 
 class Deployment:
-    def __init__(self, ctx: Context, robots: list[str], per_process: bool, tag: str) -> None:
-        self.ctx, self.robots, self.per_process, self.tag = ctx, robots, per_process, tag
+    def __init__(self, ctx: Context, robots: list[str], size: int, tag: str) -> None:
+        self.ctx, self.robots, self.size, self.tag = ctx, robots, size, tag  # size: robots per process
         self.procs: list[subprocess.Popen[bytes]] = []
         self.logs = ctx.work / f"logs-{tag}"
         self.logs.mkdir(exist_ok=True)
@@ -216,10 +218,14 @@ class Deployment:
             "--log-level",
             "warning",
         ]
-        if self.per_process:
+        if self.size == 1:
             runs = [(r, [*base, "--config", str(c.write_config(self.tag, None)), "--robot", r]) for r in self.robots]
         else:
-            runs = [(self.tag, [*base, "--config", str(c.write_config(self.tag, self.robots))])]
+            groups = [self.robots[i : i + self.size] for i in range(0, len(self.robots), self.size)]
+            runs = [
+                (f"{self.tag}-{i}", [*base, "--config", str(c.write_config(f"{self.tag}-{i}", group))])
+                for i, group in enumerate(groups)
+            ]
         for name, argv in runs:
             log = (self.logs / f"{name}.log").open("wb")
             self.procs.append(subprocess.Popen(argv, env=c.child_env, stdout=log, stderr=subprocess.STDOUT, cwd=REPO))
@@ -273,10 +279,10 @@ class Context:
         return path
 
 
-def measure(ctx: Context, robots: list[str], per_process: bool, tag: str, idle_s: float, load_s: float) -> Figures:
+def measure(ctx: Context, robots: list[str], size: int, tag: str, idle_s: float, load_s: float) -> Figures:
     w = ctx.watcher
-    dep = Deployment(ctx, robots, per_process, tag)
-    fig = Figures(len(robots), len(robots) if per_process else 1)
+    dep = Deployment(ctx, robots, size, tag)
+    fig = Figures(len(robots), -(-len(robots) // size))
     sim_pid = [ctx.sim.proc.pid]
     w.forget_online()
     t0 = time.perf_counter()
@@ -374,8 +380,12 @@ def main() -> None:
     parser.add_argument("--idle", type=float, default=5.0, help="seconds of the idle CPU measurement")
     parser.add_argument("--load", type=float, default=15.0, help="seconds of 1 mission/s per robot")
     parser.add_argument(
-        "--deployment", choices=("both", "process", "fleet"), default="both", help="which deployments to measure"
+        "--deployment",
+        choices=("both", "process", "fleet", "groups"),
+        default="both",
+        help="which deployments to measure (both: process and fleet)",
     )
+    parser.add_argument("--group-size", type=int, default=25, help="robots per process of the groups deployment")
     parser.add_argument(
         "--property-mode",
         choices=("message", "sample"),
@@ -418,12 +428,16 @@ def main() -> None:
         try:
             sim.wait_for(lambda e: e.get("event") == "ready", 120)
             ctx = Context(work, prefix, src, url, child_env, watcher, sim, args.property_mode)
-            base = measure(ctx, robots[:1], True, "base", args.idle, args.load)
+            base = measure(ctx, robots[:1], 1, "base", args.idle, args.load)
             runs = []
             if args.deployment in ("both", "process"):
-                runs.append(("one process per robot", measure(ctx, robots, True, "procs", args.idle, args.load)))
+                runs.append(("one process per robot", measure(ctx, robots, 1, "procs", args.idle, args.load)))
             if args.deployment in ("both", "fleet"):
-                runs.append(("one process, fleet", measure(ctx, robots, False, "fleet", args.idle, args.load)))
+                runs.append(("one process, fleet", measure(ctx, robots, len(robots), "fleet", args.idle, args.load)))
+            if args.deployment == "groups":
+                k = max(1, args.group_size)
+                label = f"{k} robots per process"
+                runs.append((label, measure(ctx, robots, k, f"groups{k}", args.idle, args.load)))
         finally:
             watcher.close()
             sim.stop()
