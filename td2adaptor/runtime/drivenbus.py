@@ -9,7 +9,7 @@ between batches to read what the broker sent (PUBACKs, PINGRESPs), keep the conn
 
 Only its owner's thread may publish on it or step it. It publishes only (no subscriptions), on a clean session
 with no will: it is a second connection of a robot's node, with the robot's credentials (`twin`). A thread that
-owns many (the streams of a fleet's hundred robots) serves them together with `serve`: one `select` over their
+owns many (the streams of a fleet's hundred robots) serves them together with `serve`: one `poll` over their
 sockets, keep-alive at most every `MISC` seconds, instead of a `select` per connection at every batch.
 """
 
@@ -111,6 +111,10 @@ def serve(buses: list[DrivenBus]) -> None:
     """Serve `buses` once without waiting, as `step` serves one: a single poll over their sockets reads the
     acknowledgements and finishes partial writes; keep-alive every `MISC` s; the ones found gone reconnect.
     (poll, not select: a fleet's process may hold more than select's 1,024 descriptors.)"""
+    if not hasattr(select, "poll"):  # Windows: one select each, as `step`
+        for bus in buses:
+            bus.step()
+        return
     served: dict[int, tuple[DrivenBus, mqtt.Client, bool]] = {}
     poller = select.poll()
     for bus in buses:
@@ -132,8 +136,11 @@ def serve(buses: list[DrivenBus]) -> None:
         if misc:
             bus._misc_at = now + MISC
         readable = pending or bool(mask & (select.POLLIN | select.POLLERR | select.POLLHUP))
-        if not bus._ready(client, readable, bool(mask & select.POLLOUT), misc=misc):
-            bus._revive(client)
+        try:
+            if not bus._ready(client, readable, bool(mask & select.POLLOUT), misc=misc):
+                bus._revive(client)
+        except Exception as exc:  # noqa: BLE001 - one broken connection must not keep the others unserved
+            log.warning("property stream connection to %s: serving it failed: %s", bus.address, exc)
 
 
 def twin(bus: MqttBus) -> DrivenBus:

@@ -317,7 +317,7 @@ class Pump:
 
         try:
             serve(buses)
-        except Exception as exc:  # noqa: BLE001 - a broken connection costs its events, not the thread
+        except Exception as exc:  # noqa: BLE001 - a bug here costs acknowledgements, not the publishing thread
             log.warning("property streams: serving the stream connections failed: %s", describe(exc))
 
     def _run(self) -> None:
