@@ -85,3 +85,9 @@ def valid_filter(pattern: str) -> bool:
 def valid_topic(topic: str) -> bool:
     """Whether `topic` can be published to (no wildcards)."""
     return bool(topic) and "\x00" not in topic and "+" not in topic and "#" not in topic
+
+
+def check_qos(qos: int) -> None:
+    """Refuse a QoS the node does not use: 1, and 0 for property events (`property_qos`)."""
+    if qos not in (0, 1):
+        raise BusError(f"QoS {qos} is not used here (0 or 1)")

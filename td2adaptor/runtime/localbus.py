@@ -18,7 +18,7 @@ from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from td2adaptor.runtime.bus import BusError, Handler, Message, topic_matches, valid_filter, valid_topic
+from td2adaptor.runtime.bus import BusError, Handler, Message, check_qos, topic_matches, valid_filter, valid_topic
 
 log = logging.getLogger("td2adaptor.runtime.bus")
 
@@ -160,8 +160,7 @@ class LocalBus:
             self.broker.subscribe(self._session, pattern, qos)
 
     def publish(self, topic: str, payload: bytes, *, retain: bool = False, qos: int = 1) -> None:
-        if qos not in (0, 1):
-            raise BusError(f"QoS {qos} is not used here (0 or 1)")
+        check_qos(qos)
         if not valid_topic(topic):
             raise BusError(f"invalid topic {topic!r}")
         self.broker.publish(Message(topic, bytes(payload), retain))

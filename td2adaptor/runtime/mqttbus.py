@@ -25,7 +25,7 @@ from paho.mqtt.packettypes import PacketTypes
 from paho.mqtt.properties import Properties
 from paho.mqtt.reasoncodes import ReasonCode
 
-from td2adaptor.runtime.bus import BusError, Handler, Message, topic_matches, valid_filter, valid_topic
+from td2adaptor.runtime.bus import BusError, Handler, Message, check_qos, topic_matches, valid_filter, valid_topic
 from td2adaptor.runtime.security import ENV_PASSWORD, ENV_USERNAME, BrokerAddress, ConnectionSecurity, TlsOptions
 
 log = logging.getLogger("td2adaptor.runtime.bus")
@@ -331,8 +331,7 @@ class MqttBus:
     def subscribe(self, pattern: str, handler: Handler, *, qos: int = 1) -> None:
         if not valid_filter(pattern):
             raise BusError(f"invalid topic filter {pattern!r}")
-        if qos not in (0, 1):
-            raise BusError(f"QoS {qos} is not used here (0 or 1)")
+        check_qos(qos)
         with self._lock:
             known = pattern in self._qos and self._qos[pattern] >= qos
             self._qos[pattern] = max(qos, self._qos.get(pattern, 0))
@@ -350,8 +349,7 @@ class MqttBus:
     def publish(self, topic: str, payload: bytes, *, retain: bool = False, qos: int = 1) -> None:
         if not valid_topic(topic):
             raise BusError(f"invalid topic {topic!r}")
-        if qos not in (0, 1):
-            raise BusError(f"QoS {qos} is not used here (0 or 1)")
+        check_qos(qos)
         client = self._client
         if client is None:
             raise BusError("publish before connect")
