@@ -465,3 +465,45 @@ def test_a_blocking_calls_waiter_is_woken_in_the_turn_that_completed_its_future(
             assert ran == ([threading.current_thread().name] if in_turn else []), in_turn
     finally:
         executor.shutdown()
+
+
+class _DropFirstGoalResponse:
+    """An rclpy ActionServer's C handle that drops the first goal response it is asked to send: the fault of a
+    Fast DDS server answering a client whose reply reader it has not matched yet (right after discovery),
+    which cannot be produced on demand."""
+
+    def __init__(self, handle: Any) -> None:
+        self._inner = handle
+        self.dropped = 0
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._inner, name)
+
+    def __enter__(self) -> Any:
+        return self._inner.__enter__()
+
+    def __exit__(self, *exc: object) -> Any:
+        return self._inner.__exit__(*exc)
+
+    def send_goal_response(self, header: Any, response: Any) -> None:
+        if self.dropped == 0:
+            self.dropped = 1
+            return
+        self._inner.send_goal_response(header, response)
+
+
+def test_a_lost_goal_response_is_recovered_from_the_servers_status(
+    fibo: Any, fibo_server: FiboServer, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The server accepts the goal but its response never arrives: the goal is in the server's status list, so
+    the request completes as accepted from there (a resent request would be refused as a duplicate goal id)
+    and the goal is followed to its result, well before the call's timeout (10 s)."""
+    fibo.send_fibonacci(fibo.construct_fibonacci_Goal(order=1)).result(timeout=10.0)  # the server is known
+    drop = _DropFirstGoalResponse(fibo_server.server._handle)
+    monkeypatch.setattr(fibo_server.server, "_handle", drop)
+    started = time.monotonic()
+    handle = fibo.send_fibonacci(fibo.construct_fibonacci_Goal(order=4))
+    assert drop.dropped == 1, "the goal response was dropped"
+    assert list(handle.result(timeout=10.0).sequence) == _sequence(4)
+    assert handle.status == "succeeded"
+    assert time.monotonic() - started < 5.0

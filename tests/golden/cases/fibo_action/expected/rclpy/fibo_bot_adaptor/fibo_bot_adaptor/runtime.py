@@ -778,6 +778,12 @@ class _RequestingActionClient(ActionClient):
     rclpy runs a future's done callbacks as new executor tasks, one whole turn (a wait-set rebuild) after the
     response completed it; a callback registered with `when_done(...)` runs right after the response is
     handled, in the executor's thread (once: rclpy's own scheduling of it finds it already run).
+
+    A goal request whose goal shows up in the server's status list was accepted, even when its response never
+    comes: right after discovery a Fast DDS server may answer before it has matched the client's reply reader,
+    and the response is lost (a resent request would be refused as a duplicate goal id). Such a request is
+    completed from the status (accepted, the status's time stamp), as its response would have; a response
+    that still arrives later is ignored (rclpy logs "Ignoring unexpected goal response").
     """
 
     _sending = 0  # this client's requests between being sent and being recorded (under _SENDING_LOCK)
@@ -813,6 +819,8 @@ class _RequestingActionClient(ActionClient):
         handling, then the when_done callbacks of the futures it completed."""
         base: Any = super()
         await base.execute(taken_data)
+        if "status" in taken_data:
+            self._accepted_by_status(taken_data["status"])
         with _SENDING_LOCK:
             if not self._waiting:
                 return
@@ -820,6 +828,32 @@ class _RequestingActionClient(ActionClient):
             self._waiting = tuple((future, once) for future, once in self._waiting if not future.done())
         for future, once in done:
             once(future)
+
+    def _accepted_by_status(self, statuses: Any) -> None:
+        """Complete the goal requests still waiting for a response whose goal `statuses` (a GoalStatusArray)
+        lists: the server accepted them (see the class docstring). rclpy's own bookkeeping (7.1, Jazzy); with
+        another rclpy that lacks it, nothing happens."""
+        ids: dict[int, Any] = getattr(self, "_goal_sequence_number_to_goal_id", {})
+        pending: dict[int, Any] = getattr(self, "_pending_goal_requests", {})
+        handles: dict[bytes, Any] | None = getattr(self, "_goal_handles", None)
+        waiting = {bytes(goal_id.uuid): seq for seq, goal_id in list(ids.items())}
+        if not waiting or handles is None:
+            return
+        from rclpy.action.client import ClientGoalHandle
+
+        action_type: Any = getattr(self, "_action_type", None)
+        for status in statuses.status_list:
+            seq = waiting.get(bytes(status.goal_info.goal_id.uuid))
+            if seq is None or action_type is None:
+                continue
+            future = pending.get(seq)
+            if future is None or future.done():
+                continue
+            response = action_type.Impl.SendGoalService.Response(accepted=True, stamp=status.goal_info.stamp)
+            raw: Any = cast(Any, ClientGoalHandle)(self, ids[seq], response)
+            raw._status = status.status
+            handles[bytes(status.goal_info.goal_id.uuid)] = weakref.ref(raw)
+            future.set_result(raw)
 
 
 class _Once:
