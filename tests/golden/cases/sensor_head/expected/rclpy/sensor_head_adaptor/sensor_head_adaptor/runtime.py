@@ -23,7 +23,7 @@ from types import TracebackType
 from typing import Any, Generic, Protocol, TypeVar, cast
 
 import rclpy.serialization
-from rclpy.action.client import ActionClient
+from rclpy.action.client import ActionClient, ClientGoalHandle
 from rclpy.callback_groups import CallbackGroup, MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.client import Client
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
@@ -836,23 +836,20 @@ class _RequestingActionClient(ActionClient):
         ids: dict[int, Any] = getattr(self, "_goal_sequence_number_to_goal_id", {})
         pending: dict[int, Any] = getattr(self, "_pending_goal_requests", {})
         handles: dict[bytes, Any] | None = getattr(self, "_goal_handles", None)
-        waiting = {bytes(goal_id.uuid): seq for seq, goal_id in list(ids.items())}
-        if not waiting or handles is None:
-            return
-        from rclpy.action.client import ClientGoalHandle
-
         action_type: Any = getattr(self, "_action_type", None)
+        waiting = {bytes(goal_id.uuid): seq for seq, goal_id in list(ids.items())}
+        if not waiting or handles is None or action_type is None:
+            return
         for status in statuses.status_list:
-            seq = waiting.get(bytes(status.goal_info.goal_id.uuid))
-            if seq is None or action_type is None:
-                continue
-            future = pending.get(seq)
-            if future is None or future.done():
+            uuid = bytes(status.goal_info.goal_id.uuid)
+            seq = waiting.get(uuid)
+            future = pending.get(seq) if seq is not None else None
+            if seq is None or future is None or future.done():
                 continue
             response = action_type.Impl.SendGoalService.Response(accepted=True, stamp=status.goal_info.stamp)
             raw: Any = cast(Any, ClientGoalHandle)(self, ids[seq], response)
             raw._status = status.status
-            handles[bytes(status.goal_info.goal_id.uuid)] = weakref.ref(raw)
+            handles[uuid] = weakref.ref(raw)
             future.set_result(raw)
 
 
