@@ -310,6 +310,16 @@ class _Reader:
 
 #: the readers serving a node (by its id and the reader's kind), while its Spinner runs
 _READERS: dict[tuple[int, str], _Reader] = {}
+
+
+def _registered(node: Node, kind: str) -> None:
+    """A subscriber (kind "subscriptions") or a service client ("responses") of `node` was registered: the
+    node's reader of that kind, if one serves it, waits on it too."""
+    reader = _READERS.get((id(node), kind))
+    if reader is not None:
+        reader.changed()
+
+
 #: every registered subscriber (a reader serves those of its nodes)
 _SUBSCRIBERS: weakref.WeakSet[TopicSubscriber[Any]] = weakref.WeakSet()
 #: every registered service client (a reader takes the responses of those of its nodes)
@@ -492,9 +502,7 @@ class ServiceClient(Generic[RequestT, ResponseT]):
                 return
             self.client = _api(self.node).create_client(self.srv_type, self.name, callback_group=self.group)
             _CLIENTS.add(self)
-        reader = _READERS.get((id(self.node), "responses"))
-        if reader is not None:
-            reader.changed()
+        _registered(self.node, "responses")
 
     def _client(self) -> Client:
         if self.client is None:
@@ -621,9 +629,7 @@ class TopicSubscriber(Generic[MessageT]):
                 _SUBSCRIBERS.add(self)
             else:
                 return
-        reader = _READERS.get((id(self.node), "subscriptions"))
-        if reader is not None:
-            reader.changed()
+        _registered(self.node, "subscriptions")
 
     def _receive(self, data: bytes) -> None:
         """The executor took a message (no reader serves the node)."""
