@@ -41,6 +41,9 @@ def stream_td(path: Path) -> Path:
     td = json.loads((NAV_BASE / "td.json").read_text(encoding="utf-8"))
     td["actions"] = {}
     td["properties"] = {k: v for k, v in td["properties"].items() if k in ("odom", "scan")}
+    # a package name of its own: tests/examples imports the whole example's `nav_base_adaptor` into the same
+    # worker, and whichever of the two came first would otherwise be the other's too
+    td["title"] = "Nav Base Streams"
     path.write_text(json.dumps(td), encoding="utf-8")
     return path
 
