@@ -3,12 +3,15 @@
     python -m tests.ros2.blocking_server silent NAMESPACE
         procedures_msgs/ProcedureQuery at /NAMESPACE/robot_local_control/NavigationComponent/GoToComponent/
         query_state; each callback waits until SIGTERM (at most 60 s): a live server that stays silent.
+    python -m tests.ros2.blocking_server late NAMESPACE
+        the same service answering with the request's id in `state.header.id`: the first request after
+        LATE seconds, the others at once; prints `{"event": "answered", "id": ...}` once each response is sent.
     python -m tests.ros2.blocking_server std NAMESPACE
         std_srvs/Trigger at /NAMESPACE/trigger answering success=False, message "motor fault", and
         std_srvs/SetBool at /NAMESPACE/enable answering success=True, message "enabled: <data>".
 
 Prints `{"event": "ready"}` when the services exist and `{"event": "request"}` per request. The silent mode
-needs the RB-1 interfaces importable (tests.ros2.env.child_env).
+and late modes need the RB-1 interfaces importable (tests.ros2.env.child_env).
 """
 
 from __future__ import annotations
@@ -20,6 +23,9 @@ import sys
 import threading
 from types import FrameType
 from typing import Any
+
+#: seconds the late server takes to answer its first request
+LATE = 1.0
 
 
 def main(mode: str, namespace: str) -> int:
@@ -43,6 +49,18 @@ def main(mode: str, namespace: str) -> int:
         stop.wait(60.0)
         return response
 
+    requests = [0]
+
+    def answer_late_once(request: Any, response: Any) -> Any:
+        print(json.dumps({"event": "request"}), flush=True)
+        requests[0] += 1
+        if requests[0] == 1:
+            stop.wait(LATE)
+        response.state.header.id = request.header.id
+        answered = json.dumps({"event": "answered", "id": request.header.id})
+        threading.Timer(0.05, lambda: print(answered, flush=True)).start()  # just after the response went
+        return response
+
     def trigger(_request: Any, response: Any) -> Any:
         print(json.dumps({"event": "request"}), flush=True)
         response.success, response.message = False, "motor fault"
@@ -53,11 +71,11 @@ def main(mode: str, namespace: str) -> int:
         response.success, response.message = True, f"enabled: {request.data}"
         return response
 
-    if mode == "silent":
+    if mode in ("silent", "late"):
         from procedures_msgs.srv import ProcedureQuery
 
         name = f"/{namespace}/robot_local_control/NavigationComponent/GoToComponent/query_state"
-        node.create_service(ProcedureQuery, name, never_answer)
+        node.create_service(ProcedureQuery, name, never_answer if mode == "silent" else answer_late_once)
     else:
         std_srvs: Any = importlib.import_module("std_srvs.srv")  # untyped, and not in the RB-1 stubs
         node.create_service(std_srvs.Trigger, f"/{namespace}/trigger", trigger)

@@ -97,6 +97,18 @@ def silent_robot(rb1_prefix: Path) -> Iterator[Process]:
 
 
 @pytest.fixture
+def late_robot(rb1_prefix: Path) -> Iterator[Process]:
+    """A gotoQuery server of robot `late_robot` that answers its first request late, the others at once."""
+    args = [sys.executable, "-m", "tests.ros2.blocking_server", "late", "late_robot"]
+    process = Process(args, env.child_env([rb1_prefix]))
+    try:
+        process.wait_for(lambda e: e.get("event") == "ready", timeout=30)
+        yield process
+    finally:
+        process.stop()
+
+
+@pytest.fixture
 def std_server(ros2_domain: int) -> Iterator[Process]:
     """std_srvs Trigger (answers failure) and SetBool (answers success) servers of robot `std_robot`."""
     process = Process([sys.executable, "-m", "tests.ros2.blocking_server", "std", "std_robot"], env.child_env([]))

@@ -244,6 +244,76 @@ def test_concurrent_calls_through_two_clients_of_one_service_are_all_answered(
     assert answered == [200] * 8
 
 
+def test_the_responses_reader_waits_only_on_clients_with_a_call_in_flight(
+    adaptor: ModuleType, ros_node: Any, sim: Process
+) -> None:
+    """The responses reader fills its wait set, at every wait, with the clients that have a call in flight, not
+    with every registered client (a fleet's node has a thousand): calls through one client put that client
+    alone in it, however many others are registered; once its calls are over it is left out again."""
+    runtime = importlib.import_module(f"{adaptor.__name__}.runtime")
+    idle = [adaptor.GoToComponent(ros_node, "rb1_base_e"), adaptor.PlaceComponent(ros_node, "rb1_base_e")]
+    for component in idle:
+        component.register()  # clients that make no call here
+    pick = adaptor.PickComponent(ros_node, "rb1_base_e", wait_timeout=10.0)
+    mission = pick.call_pickRun(pick.construct_pickRun_Msg()).mission_id
+    pick.call_pickQuery(mission_id=mission)
+    reader = runtime._READERS[(id(ros_node), "responses")]
+    assert until(lambda: pick._pickQuery.group.served and idle[0]._gotoQuery.group.served, 5.0)
+    api = reader._api
+    created: list[int] = []
+    added: list[int] = []
+
+    class RecordingWaitSet:
+        def __init__(self, inner: Any, clients: int) -> None:
+            self.inner = inner
+            created.append(clients)
+
+        def add_client(self, handle: Any) -> None:
+            added.append(handle.pointer)
+            self.inner.add_client(handle)
+
+        def __getattr__(self, name: str) -> Any:
+            return getattr(self.inner, name)
+
+    class RecordingApi:
+        def WaitSet(self, *args: Any) -> RecordingWaitSet:  # noqa: N802 - rclpy's name
+            return RecordingWaitSet(api.WaitSet(*args), args[3])
+
+        def __getattr__(self, name: str) -> Any:
+            return getattr(api, name)
+
+    reader._api = RecordingApi()
+    try:
+        reader.changed()  # the reader makes its wait set anew, through the recording one
+        assert until(lambda: bool(created), 5.0)
+        added.clear()
+        for _ in range(3):
+            assert pick.call_pickQuery(mission_id=mission).state.header.id == mission
+        assert set(added) == {pick._pickQuery.client.handle.pointer}, "only the client with a call in flight"
+        assert created[-1] >= 8, created  # room for every registered client: the others are there, and idle
+        assert pick._pickQuery not in reader._active and idle[0]._gotoQuery not in reader._active
+    finally:
+        reader._api = api
+        reader.changed()
+        pick.call_pickCancel(mission_id=mission)
+
+
+def test_a_response_that_comes_after_its_call_gave_up_does_not_answer_the_next_call(
+    adaptor: ModuleType, ros_node: Any, late_robot: Process
+) -> None:
+    """A response that comes after its call timed out reaches a client with no call in flight (the reader does
+    not wait on it then); the next calls through that client are answered with their own responses."""
+    runtime = importlib.import_module(f"{adaptor.__name__}.runtime")
+    goto = adaptor.GoToComponent(ros_node, "late_robot", wait_timeout=10.0)
+    with pytest.raises(adaptor.CallTimeout):
+        goto.call_gotoQuery(mission_id=41, timeout=0.3)
+    late_robot.wait_for(lambda e: e.get("event") == "answered" and e.get("id") == 41, timeout=5.0)
+    time.sleep(0.2)  # delivered by now, to a client the reader does not wait on
+    assert goto._gotoQuery not in runtime._READERS[(id(ros_node), "responses")]._active
+    for mission in (42, 43, 44):
+        assert goto.call_gotoQuery(mission_id=mission, timeout=5.0).state.header.id == mission
+
+
 def test_no_robot_running_raises_service_unavailable_within_the_timeout(adaptor: ModuleType, ros_node: Any) -> None:
     goto = adaptor.GoToComponent(ros_node, "no_robot_here", wait_timeout=0.5)
     started = time.monotonic()

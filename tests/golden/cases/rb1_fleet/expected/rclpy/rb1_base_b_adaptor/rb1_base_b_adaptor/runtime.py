@@ -150,11 +150,15 @@ class _Reader:
     node) for each message or response, about 0.3 ms for one robot and milliseconds for a fleet's node; a wait
     set of only the subscriptions, or only the clients, kept from one turn to the next, costs a fraction of
     that, and several waiting messages are taken in one turn. Two readers, not one: a fleet's node has a
-    thousand clients, which each message would otherwise put in the wait set again. A response completes its
-    request's future here, as the executor would (a blocking call's waiter wakes at once; a coroutine's task
-    is resumed by the executor). The callbacks behave as on the executor's thread (a blocking call from one
-    raises ExecutorError). Without rclpy's wait-set API (another rclpy version) there is no reader and the
-    executor takes them as usual.
+    thousand clients, which each message would otherwise put in the wait set again. The responses reader waits
+    only on the clients with a call in flight (`begin`/`end`): a wait set is filled anew for every wait (rcl
+    empties what was not ready), about half a microsecond per entity, so a fleet's thousand idle clients would
+    cost half a millisecond for each response; a client with no call in flight has nothing of its own to
+    take (a response that comes after its call gave up is taken, and dropped, once it calls again). A response
+    completes its request's future here, as the executor would (a blocking call's waiter wakes at once; a
+    coroutine's task is resumed by the executor). The callbacks behave as on the executor's thread (a blocking
+    call from one raises ExecutorError). Without rclpy's wait-set API (another rclpy version) there is no
+    reader and the executor takes them as usual.
     """
 
     def __init__(self, nodes: tuple[Node, ...], executor: Executor, kind: str) -> None:
@@ -170,6 +174,8 @@ class _Reader:
         self._lock = threading.Lock()
         self._changed = True
         self._stopping = False
+        self._active: dict[ServiceClient[Any, Any], None] = {}  # responses: the clients with calls in flight
+        self._active_changed = False
         self._thread = threading.Thread(target=self._run, name=f"adaptor-{kind}", daemon=True)
 
     def start(self) -> None:
@@ -182,6 +188,19 @@ class _Reader:
         with self._lock:
             self._changed = True
         self._guard.trigger()
+
+    def begin(self, service: ServiceClient[Any, Any]) -> None:
+        """`service` has a call in flight now (it had none): wait on its client from the next wait on."""
+        with self._lock:
+            self._active[service] = None
+            self._active_changed = True
+        self._guard.trigger()
+
+    def end(self, service: ServiceClient[Any, Any]) -> None:
+        """`service` has no call in flight any more: left out from the next wait on (no wake-up for that)."""
+        with self._lock:
+            if self._active.pop(service, 0) is None:
+                self._active_changed = True
 
     def stop(self, timeout: float) -> None:
         for node in self.nodes:
@@ -248,30 +267,41 @@ class _Reader:
             with contextlib.ExitStack() as held:
                 wait_set: Any = None
                 handles: list[tuple[Any, int, TopicSubscriber[Any]]] = []
+                registered: dict[ServiceClient[Any, Any], tuple[Any, int, ServiceClient[Any, Any]]] = {}
                 clients: list[tuple[Any, int, ServiceClient[Any, Any]]] = []
                 while True:
                     with self._lock:
                         if self._stopping:
                             return
                         changed, self._changed = self._changed, False
+                        if changed:
+                            # calls that began before this reader knew their client (lock held: a `begin`
+                            # from now on adds to what this finds)
+                            services = self._clients()
+                            self._active.update((s, None) for s in services if s.in_flight > 0)
+                            self._active_changed = True
+                        active = list(self._active) if self._active_changed else None
+                        self._active_changed = False
                     if changed:
                         held.close()
                         held.enter_context(self._guard.handle)
-                        handles, clients = [], []
+                        handles, registered = [], {}
                         for subscriber in self._subscribers():
                             subscription: Any = subscriber.subscription  # rclpy leaves `handle` unannotated
                             handle: Any = subscription.handle
                             held.enter_context(handle)  # not destroyed while the wait set holds it
                             handles.append((handle, handle.pointer, subscriber))
                             self._serve(subscriber.group, served)
-                        for service in self._clients():
+                        for service in services:
                             client: Any = service.client
                             handle = client.handle
                             held.enter_context(handle)
-                            clients.append((handle, handle.pointer, service))
+                            registered[service] = (handle, handle.pointer, service)
                             self._serve(service.group, served)
                         self.executor.wake()  # it leaves them to this thread from its next turn on
-                        wait_set = self._api.WaitSet(len(handles), 1, 0, len(clients), 0, 0, self.context.handle)
+                        wait_set = self._api.WaitSet(len(handles), 1, 0, len(registered), 0, 0, self.context.handle)
+                    if active is not None:
+                        clients = [registered[s] for s in active if s in registered]
                     wait_set.clear_entities()
                     for handle, _, _ in handles:
                         wait_set.add_subscription(handle)
@@ -495,6 +525,8 @@ class ServiceClient(Generic[RequestT, ResponseT]):
         self.group = _ServedGroup()  # the client's: a `_Reader` takes its responses while it serves the node
         self._group = ReentrantCallbackGroup()  # the timers of `call_async`'s waits
         self._seen_server = False
+        self.in_flight = 0  # calls sent and not over yet (a responses reader waits on the client while any is)
+        self._flight_lock = threading.Lock()
 
     def register(self) -> None:
         with _REGISTER_LOCK:
@@ -508,6 +540,25 @@ class ServiceClient(Generic[RequestT, ResponseT]):
         if self.client is None:
             self.register()
         return cast(Client, self.client)
+
+    def _begin(self) -> None:
+        """A call is about to be sent: the node's responses reader, if any, waits on this client while calls
+        are in flight."""
+        with self._flight_lock:
+            self.in_flight += 1
+            if self.in_flight == 1:
+                reader = _READERS.get((id(self.node), "responses"))
+                if reader is not None:
+                    reader.begin(self)
+
+    def _end(self) -> None:
+        """A call is over (answered, given up or failed to send)."""
+        with self._flight_lock:
+            self.in_flight -= 1
+            if self.in_flight == 0:
+                reader = _READERS.get((id(self.node), "responses"))
+                if reader is not None:
+                    reader.end(self)
 
     def _check(self, response: Any, future: _Future) -> ResponseT:
         error = future.exception()
@@ -529,16 +580,20 @@ class ServiceClient(Generic[RequestT, ResponseT]):
         ensure_can_block(self.node, self.name)
         if not self._seen_server:
             self._wait_for_server(client, wait_timeout)
-        future = cast(_Future, client.call_async(request))
-        _callbacks_in_turn(future)
-        done = threading.Event()
-        future.add_done_callback(lambda _future: _wake(done))
-        if not future.done() and not done.wait(timeout):
-            client.remove_pending_request(cast(Future, future))
-            if not client.service_is_ready():
-                self._seen_server = False
-                raise ServiceUnavailable(self.name, f"waited {timeout:g} s")
-            raise CallTimeout(self.name, timeout)
+        self._begin()
+        try:
+            future = cast(_Future, client.call_async(request))
+            _callbacks_in_turn(future)
+            done = threading.Event()
+            future.add_done_callback(lambda _future: _wake(done))
+            if not future.done() and not done.wait(timeout):
+                client.remove_pending_request(cast(Future, future))
+                if not client.service_is_ready():
+                    self._seen_server = False
+                    raise ServiceUnavailable(self.name, f"waited {timeout:g} s")
+                raise CallTimeout(self.name, timeout)
+        finally:
+            self._end()
         return self._check(future.result(), future)
 
     def _wait_for_server(self, client: Client, wait_timeout: float) -> None:
@@ -558,14 +613,18 @@ class ServiceClient(Generic[RequestT, ResponseT]):
             if not await _ready_within(self.node, client.service_is_ready, wait_timeout, self._group):
                 raise ServiceUnavailable(self.name, f"waited {wait_timeout:g} s")
         self._seen_server = True
-        future = cast(_Future, client.call_async(request))
-        if not await _within(self.node, future, timeout, self._group) and not future.done():
-            client.remove_pending_request(cast(Future, future))
-            future.cancel()
-            if not client.service_is_ready():
-                self._seen_server = False
-                raise ServiceUnavailable(self.name, f"waited {timeout:g} s")
-            raise CallTimeout(self.name, timeout)
+        self._begin()
+        try:
+            future = cast(_Future, client.call_async(request))
+            if not await _within(self.node, future, timeout, self._group) and not future.done():
+                client.remove_pending_request(cast(Future, future))
+                future.cancel()
+                if not client.service_is_ready():
+                    self._seen_server = False
+                    raise ServiceUnavailable(self.name, f"waited {timeout:g} s")
+                raise CallTimeout(self.name, timeout)
+        finally:
+            self._end()
         return self._check(future.result(), future)
 
 
