@@ -84,39 +84,32 @@ def sim(rb1_prefix: Path) -> Iterator[Process]:
         process.stop()
 
 
-@pytest.fixture
-def silent_robot(rb1_prefix: Path) -> Iterator[Process]:
-    """A server that takes the gotoQuery request of robot `silent_robot` and never answers."""
-    args = [sys.executable, "-m", "tests.ros2.blocking_server", "silent", "silent_robot"]
-    process = Process(args, env.child_env([rb1_prefix]))
+def server_process(mode: str, namespace: str, prefixes: list[Path]) -> Iterator[Process]:
+    """A tests.ros2.blocking_server process (`mode`, robot `namespace`), once its services exist."""
+    process = Process([sys.executable, "-m", "tests.ros2.blocking_server", mode, namespace], env.child_env(prefixes))
     try:
         process.wait_for(lambda e: e.get("event") == "ready", timeout=30)
         yield process
     finally:
         process.stop()
+
+
+@pytest.fixture
+def silent_robot(rb1_prefix: Path) -> Iterator[Process]:
+    """A server that takes the gotoQuery request of robot `silent_robot` and never answers."""
+    yield from server_process("silent", "silent_robot", [rb1_prefix])
 
 
 @pytest.fixture
 def late_robot(rb1_prefix: Path) -> Iterator[Process]:
     """A gotoQuery server of robot `late_robot` that answers its first request late, the others at once."""
-    args = [sys.executable, "-m", "tests.ros2.blocking_server", "late", "late_robot"]
-    process = Process(args, env.child_env([rb1_prefix]))
-    try:
-        process.wait_for(lambda e: e.get("event") == "ready", timeout=30)
-        yield process
-    finally:
-        process.stop()
+    yield from server_process("late", "late_robot", [rb1_prefix])
 
 
 @pytest.fixture
 def std_server(ros2_domain: int) -> Iterator[Process]:
     """std_srvs Trigger (answers failure) and SetBool (answers success) servers of robot `std_robot`."""
-    process = Process([sys.executable, "-m", "tests.ros2.blocking_server", "std", "std_robot"], env.child_env([]))
-    try:
-        process.wait_for(lambda e: e.get("event") == "ready", timeout=30)
-        yield process
-    finally:
-        process.stop()
+    yield from server_process("std", "std_robot", [])
 
 
 @pytest.fixture(scope="session")
