@@ -199,7 +199,8 @@ class _Reader:
     def end(self, service: ServiceClient[Any, Any]) -> None:
         """`service` has no call in flight any more: left out from the next wait on (no wake-up for that)."""
         with self._lock:
-            if self._active.pop(service, 0) is None:
+            if service in self._active:
+                del self._active[service]
                 self._active_changed = True
 
     def stop(self, timeout: float) -> None:
