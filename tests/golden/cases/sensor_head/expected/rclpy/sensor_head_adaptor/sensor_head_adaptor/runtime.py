@@ -270,6 +270,7 @@ class _Reader:
                 handles: list[tuple[Any, int, TopicSubscriber[Any]]] = []
                 registered: dict[ServiceClient[Any, Any], tuple[Any, int, ServiceClient[Any, Any]]] = {}
                 clients: list[tuple[Any, int, ServiceClient[Any, Any]]] = []
+                services: list[ServiceClient[Any, Any]] = []
                 while True:
                     with self._lock:
                         if self._stopping:
