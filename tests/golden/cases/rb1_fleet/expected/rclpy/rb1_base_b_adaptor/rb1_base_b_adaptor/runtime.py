@@ -543,24 +543,16 @@ class ServiceClient(Generic[RequestT, ResponseT]):
             self.register()
         return cast(Client, self.client)
 
-    def _begin(self) -> None:
-        """A call is about to be sent: the node's responses reader, if any, waits on this client while calls
-        are in flight."""
+    def _track_call(self, step: int) -> None:
+        """A call is about to be sent (`step` 1) or is over (-1: answered, given up or failed to send): the
+        node's responses reader, if any, waits on this client while calls are in flight."""
         with self._flight_lock:
-            self.in_flight += 1
-            if self.in_flight == 1:
-                reader = _READERS.get((id(self.node), "responses"))
-                if reader is not None:
-                    reader.begin(self)
-
-    def _end(self) -> None:
-        """A call is over (answered, given up or failed to send)."""
-        with self._flight_lock:
-            self.in_flight -= 1
-            if self.in_flight == 0:
-                reader = _READERS.get((id(self.node), "responses"))
-                if reader is not None:
-                    reader.end(self)
+            was = self.in_flight > 0
+            self.in_flight += step
+            now = self.in_flight > 0
+            reader = _READERS.get((id(self.node), "responses")) if now != was else None
+            if reader is not None:
+                (reader.begin if now else reader.end)(self)
 
     def _check(self, response: Any, future: _Future) -> ResponseT:
         error = future.exception()
@@ -582,7 +574,7 @@ class ServiceClient(Generic[RequestT, ResponseT]):
         ensure_can_block(self.node, self.name)
         if not self._seen_server:
             self._wait_for_server(client, wait_timeout)
-        self._begin()
+        self._track_call(1)
         try:
             future = cast(_Future, client.call_async(request))
             _callbacks_in_turn(future)
@@ -595,7 +587,7 @@ class ServiceClient(Generic[RequestT, ResponseT]):
                     raise ServiceUnavailable(self.name, f"waited {timeout:g} s")
                 raise CallTimeout(self.name, timeout)
         finally:
-            self._end()
+            self._track_call(-1)
         return self._check(future.result(), future)
 
     def _wait_for_server(self, client: Client, wait_timeout: float) -> None:
@@ -615,7 +607,7 @@ class ServiceClient(Generic[RequestT, ResponseT]):
             if not await _ready_within(self.node, client.service_is_ready, wait_timeout, self._group):
                 raise ServiceUnavailable(self.name, f"waited {wait_timeout:g} s")
         self._seen_server = True
-        self._begin()
+        self._track_call(1)
         try:
             future = cast(_Future, client.call_async(request))
             if not await _within(self.node, future, timeout, self._group) and not future.done():
@@ -626,7 +618,7 @@ class ServiceClient(Generic[RequestT, ResponseT]):
                     raise ServiceUnavailable(self.name, f"waited {timeout:g} s")
                 raise CallTimeout(self.name, timeout)
         finally:
-            self._end()
+            self._track_call(-1)
         return self._check(future.result(), future)
 
 
