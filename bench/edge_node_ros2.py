@@ -7,7 +7,10 @@
 * issue 17: query latency median and p99, edge node vs direct (target: median <= 1.3x), and throughput with 8
   requests in flight spread over the three procedure components of two robots (two namespaces the sim
   serves, one edge node serving both), vs 8 threads calling the generated components directly (target:
-  >= 0.8x), rounds interleaved;
+  >= 0.8x), rounds interleaved; beside both, the same requests answered by an echo (an MQTT client that
+  publishes each request back, unread, on the answer topic: no engine, no ROS), interleaved too, and the
+  ratios they bound: the edge node's answer needs the direct call plus at least the echo's round trip, and, on
+  a machine whose cores the requests keep busy, the work of both;
 * bus messages per goto action (1 invoke + one feedback per state change), vs the reference's 2.
 
 The robot is the simulated RB-1 (examples/robotnik_rb1/sim/ros2.py) in its own process; the edge node (engine,
@@ -47,6 +50,7 @@ from tests.ros2.common import EXAMPLE, Process, generate_rclpy  # noqa: E402
 NS = "rb1_edge_bench"
 NS2 = "rb1_edge_bench_b"  # the second robot of the concurrency figures
 ROOT = f"td2adaptor/{NS}/GoToComponent"
+ECHO = "echo"  # the first topic level of the echo's requests and answers
 GOAL = {"procedure": {"goals": [{"pose": {"x": 1.0, "y": 0.0, "theta": 0.0}}]}}
 FLOOD = 1000
 CONCURRENT = 8  # requests in flight
@@ -64,9 +68,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--runs", type=int, default=300)
     parser.add_argument("--app", metavar="URL", help=argparse.SUPPRESS)  # the application process (see AppProcess)
+    parser.add_argument("--root", default="td2adaptor", help=argparse.SUPPRESS)  # its requests' first topic level
     args = parser.parse_args()
     if args.app:
-        app_process(args.app)
+        app_process(args.app, args.root)
         return
     if not env.ros2_available():
         print("ROS 2 Jazzy wheels not installed (bash .ci/setup-ros2.sh): skipped")
@@ -119,16 +124,18 @@ def run(adaptor: Any, node: Any, runs: int) -> None:
         replies = Replies()
         app = MqttBus(parse_broker_url(url), client_id="edge-bench-app", clean_start=True)
         app.subscribe(f"{ROOT}/gotoRun/+", replies)
+        app.subscribe(f"{ECHO}/{ROOT}/gotoRun/+", replies)
         pipeline = Pipeline(app, lanes)
         for robot in (NS, NS2):
             for component, (_query, run_action, _payload) in PROCEDURES.items():
                 app.subscribe(f"td2adaptor/{robot}/{component}/{run_action}/+", pipeline)
         app.connect()
+        echo = Echo(url)
 
         def send(topic: str, event: dict[str, Any]) -> None:
             app.publish(topic, json.dumps(event).encode())
 
-        direct_q, port_q, event_q = [], [], []
+        direct_q, port_q, event_q, echo_q = [], [], [], []
         try:
             for i in range(runs):  # interleaved: the three see the same machine state
                 t0 = time.perf_counter()
@@ -142,6 +149,11 @@ def run(adaptor: Any, node: Any, runs: int) -> None:
                 send(f"{ROOT}/gotoQuery", {"correlation": corr, "mission": mid})
                 replies.wait(lambda c=corr: c in replies.by_corr)  # type: ignore[misc]
                 event_q.append(time.perf_counter() - t0)
+                corr = f"e{i}"
+                t0 = time.perf_counter()
+                send(f"{ECHO}/{ROOT}/gotoQuery", {"correlation": corr, "mission": mid})
+                replies.wait(lambda c=corr: c in replies.by_corr)  # type: ignore[misc]
+                echo_q.append(time.perf_counter() - t0)
             direct_s, event_s, per_action = [], [], []
             for i in range(max(5, runs // 30)):
                 t0 = time.perf_counter()
@@ -165,19 +177,24 @@ def run(adaptor: Any, node: Any, runs: int) -> None:
                 send(f"{ROOT}/gotoQuery", {"correlation": f"f{i}", "mission": mid})
             replies.wait(lambda: replies.count - start >= FLOOD, timeout=120)
             rate = FLOOD / (time.perf_counter() - t0)
-            direct_8, edge_8, apart_8 = [], [], []
+            direct_8, edge_8, apart_8, echo_8 = [], [], [], []
             pipeline.round(CONCURRENT * 10)  # warm-up
             outside = AppProcess(url, lanes)
             outside.round(CONCURRENT * 10)
+            echo_outside = AppProcess(url, lanes, f"{ECHO}/td2adaptor")
+            echo_outside.round(CONCURRENT * 10)
             for _ in range(ROUNDS):  # interleaved rounds: all see the same machine state
                 direct_8.append(concurrent_direct(lanes, PER_ROUND))
                 edge_8.append(pipeline.round(PER_ROUND))
                 apart_8.append(outside.round(PER_ROUND))
+                echo_8.append(echo_outside.round(PER_ROUND))
             outside.close()
+            echo_outside.close()
         finally:
             engine.stop()
             engine2.stop()
             app.close()
+            echo.close()
     med = statistics.median
     target = "<= 2 ms"
     latency("query event -> ROS 2 -> state event, MQTT", med(event_q), "call_gotoQuery", med(direct_q), target)
@@ -197,6 +214,11 @@ def run(adaptor: Any, node: Any, runs: int) -> None:
             f"  {'query latency ' + name:<42} {edge_ms:8.3f} ms   {'call_gotoQuery':<20} {direct_ms:7.3f} ms   "
             f"ratio {edge_ms / direct_ms:5.2f}x{goal}"
         )
+    echo_ms, direct_ms = med(echo_q) * 1000, med(direct_q) * 1000
+    print(
+        f"  {'query median, MQTT echo alone':<42} {echo_ms:8.3f} ms   the least ratio any broker-borne answer "
+        f"can have: (direct + echo) / direct = {(direct_ms + echo_ms) / direct_ms:4.2f}x"
+    )
     spread = f"{len({lane.robot for lane in lanes})} robots x {len({lane.component for lane in lanes})} components"
     for where, rates in (("app in its own process", apart_8), ("app in this process", edge_8)):
         label = f"  {CONCURRENT} in flight ({spread}), {where}"
@@ -204,6 +226,12 @@ def run(adaptor: Any, node: Any, runs: int) -> None:
             f"{label:<60} {med(rates):6.0f} /s   {'8 threads, call_X':<18} {med(direct_8):6.0f} /s   "
             f"ratio {med(rates) / med(direct_8):5.2f}x   target >= 0.8x"
         )
+    e8, d8 = med(echo_8), med(direct_8)
+    label = f"  {CONCURRENT} in flight, MQTT echo alone, app in its own process"
+    print(
+        f"{label:<60} {e8:6.0f} /s   when both keep the same cores busy, the edge node's at most "
+        f"1 / (1/echo + 1/direct) = {1 / (1 / e8 + 1 / d8):4.0f} /s, {e8 / (e8 + d8):4.2f}x"
+    )
     print(f"  ({ROUNDS} interleaved rounds of {PER_ROUND} calls, medians; the edge node's engines are in this process)")
 
 
@@ -261,11 +289,11 @@ class AppProcess:
     """The pipelining application in a process of its own (the edge node's process then does only its own
     work, as `td2adaptor run` would): `round(total)` as Pipeline's, over stdin/stdout."""
 
-    def __init__(self, url: str, lanes: list[Lane]) -> None:
+    def __init__(self, url: str, lanes: list[Lane], root: str = "td2adaptor") -> None:
         spec = [[lane.robot, lane.component, lane.query, lane.mission] for lane in lanes]
         environ = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
         self.proc = subprocess.Popen(
-            [sys.executable, __file__, "--app", url],
+            [sys.executable, __file__, "--app", url, "--root", root],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             text=True,
@@ -292,14 +320,14 @@ class AppProcess:
         self.proc.wait(30)
 
 
-def app_process(url: str) -> None:
+def app_process(url: str, root: str) -> None:
     """The application process of AppProcess: lanes on the first stdin line, then one round per line."""
     lanes = [Lane(robot, component, query, None, mission) for robot, component, query, mission in json.loads(input())]
-    app = MqttBus(parse_broker_url(url), client_id="edge-bench-app-process", clean_start=True)
-    pipeline = Pipeline(app, lanes)
+    app = MqttBus(parse_broker_url(url), client_id=f"edge-bench-app-process-{root}", clean_start=True)
+    pipeline = Pipeline(app, lanes, root)
     runs = {query: run_action for query, run_action, _payload in PROCEDURES.values()}
     for lane in lanes:
-        app.subscribe(f"td2adaptor/{lane.robot}/{lane.component}/{runs[lane.query]}/+", pipeline)
+        app.subscribe(f"{root}/{lane.robot}/{lane.component}/{runs[lane.query]}/+", pipeline)
     app.connect()
     print("ready", flush=True)
     for line in sys.stdin:
@@ -309,12 +337,35 @@ def app_process(url: str) -> None:
     app.close()
 
 
-class Pipeline:
-    """Keeps one query event in flight per lane: each answer (in the app's MQTT thread) sends the lane's next."""
+class Echo:
+    """The floor of an answer over the broker: an MQTT client (the edge node's kind, in this process as its
+    engines are) that publishes every request on `echo/td2adaptor/<robot>/<component>/<query>` back, as it
+    came, on the run action's answer topic (`.../<run>/state`), without reading it."""
 
-    def __init__(self, app: MqttBus, lanes: list[Lane]) -> None:
+    def __init__(self, url: str) -> None:
+        self.answers = {query: run_action for query, run_action, _payload in PROCEDURES.values()}
+        self.bus = MqttBus(parse_broker_url(url), client_id="edge-bench-echo", clean_start=True)
+        self.bus.subscribe(f"{ECHO}/td2adaptor/+/+/+", self)
+        self.bus.connect()
+
+    def __call__(self, msg: Message) -> None:
+        head, query = msg.topic.rsplit("/", 1)
+        run_action = self.answers.get(query)
+        if run_action is not None:
+            self.bus.publish(f"{head}/{run_action}/state", msg.payload)
+
+    def close(self) -> None:
+        self.bus.close()
+
+
+class Pipeline:
+    """Keeps one query event in flight per lane: each answer (in the app's MQTT thread) sends the lane's next.
+    `root`: the requests' first topic level (the echo's, or the edge node's)."""
+
+    def __init__(self, app: MqttBus, lanes: list[Lane], root: str = "td2adaptor") -> None:
         self.app = app
         self.lanes = lanes
+        self.root = root
         self.done = threading.Event()
         self.left = 0
         self.sent = 0
@@ -324,7 +375,7 @@ class Pipeline:
     def _send(self, lane: int) -> None:
         spec = self.lanes[lane]
         event = {"correlation": f"p{self.generation}-{lane}-{self.sent}", "mission": spec.mission}
-        self.app.publish(f"td2adaptor/{spec.robot}/{spec.component}/{spec.query}", json.dumps(event).encode())
+        self.app.publish(f"{self.root}/{spec.robot}/{spec.component}/{spec.query}", json.dumps(event).encode())
 
     def __call__(self, msg: Message) -> None:
         corr = json.loads(msg.payload).get("correlation", "")
