@@ -20,7 +20,9 @@ Figures per deployment:
   message` with `property_interval: 1`, as docs/fleet.md recommends for a fleet; `--property-mode sample` for
   the default sampling every second) and
   under 1 goto mission per second per robot (invoke → queued → running → finished feedback, polled every
-  0.2 s), in % of one core;
+  0.2 s), in % of one core; beside it the simulation's, and how busy the whole machine was (every process:
+  broker, simulation and this bench's own MQTT client too, in % of all cores): latency tails grow long once
+  the cores are nearly all busy, whichever process keeps them so;
 * invoke event → first feedback event (`queued`, after the robot's `add` service answered), p50 and p99 over
   every mission of the load phase (target p99 <= 50 ms);
 * lost feedback: each mission's terminal feedback carries its `seq`, so the feedback events it should have
@@ -80,6 +82,20 @@ def cpu_seconds(pids: Sequence[int]) -> float:
             continue
         total += (int(fields[11]) + int(fields[12])) / TICK
     return total
+
+
+def machine_busy() -> tuple[float, float]:
+    """(busy, total) CPU seconds of the whole machine so far, all cores (/proc/stat: idle and iowait are not
+    busy)."""
+    fields = [int(v) for v in Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:]]
+    total = sum(fields[:8]) / TICK  # user nice system idle iowait irq softirq steal (guest is in user)
+    return total - (fields[3] + fields[4]) / TICK, total
+
+
+def machine_cpu(before: tuple[float, float]) -> float:
+    """% of the machine's cores busy since `before` (machine_busy())."""
+    busy, total = machine_busy()
+    return 100 * (busy - before[0]) / max(total - before[1], 1e-9)
 
 
 def memory_kib(pids: Sequence[int]) -> tuple[int, int]:
@@ -187,6 +203,8 @@ class Figures:
     load_cpu: float = 0.0
     sim_idle_cpu: float = 0.0
     sim_load_cpu: float = 0.0
+    machine_idle_cpu: float = 0.0  # % of all cores, every process (broker, simulation, this bench included)
+    machine_load_cpu: float = 0.0
     first_feedback: list[float] = field(default_factory=list)
     missions: int = 0
     busy: int = 0
@@ -301,15 +319,16 @@ def measure(ctx: Context, robots: list[str], size: int, tag: str, idle_s: float,
         fig.first_missions = time.perf_counter() - t0
         time.sleep(1.0)
         fig.rss_kib, fig.pss_kib = memory_kib(dep.pids)
-        c0, s0, t1 = cpu_seconds(dep.pids), cpu_seconds(sim_pid), time.perf_counter()
+        c0, s0, m0, t1 = cpu_seconds(dep.pids), cpu_seconds(sim_pid), machine_busy(), time.perf_counter()
         time.sleep(idle_s)
         dt = time.perf_counter() - t1
         fig.idle_cpu = 100 * (cpu_seconds(dep.pids) - c0) / dt
         fig.sim_idle_cpu = 100 * (cpu_seconds(sim_pid) - s0) / dt
+        fig.machine_idle_cpu = machine_cpu(m0)
         # the load: one mission per robot per second, the robots' invokes spread evenly over each second
         sent: list[str] = []
         n = len(robots)
-        c0, s0, t1 = cpu_seconds(dep.pids), cpu_seconds(sim_pid), time.perf_counter()
+        c0, s0, m0, t1 = cpu_seconds(dep.pids), cpu_seconds(sim_pid), machine_busy(), time.perf_counter()
         for k in range(int(load_s * n)):
             due = t1 + k / n
             delay = due - time.perf_counter()
@@ -322,6 +341,7 @@ def measure(ctx: Context, robots: list[str], size: int, tag: str, idle_s: float,
         dt = time.perf_counter() - t1
         fig.load_cpu = 100 * (cpu_seconds(dep.pids) - c0) / dt
         fig.sim_load_cpu = 100 * (cpu_seconds(sim_pid) - s0) / dt
+        fig.machine_load_cpu = machine_cpu(m0)
         w.wait(lambda: w.done(sent), 15)
         with w.lock:
             missions = [w.missions[c] for c in sent]
@@ -368,6 +388,12 @@ def report(base: Figures, runs: list[tuple[str, Figures]]) -> None:
     row("CPU at 1 mission/s per robot, edge node(s)", "{:.1f} %", lambda f: f.load_cpu)
     row("CPU at 1 mission/s, per robot", "{:.2f} %", lambda f: f.load_cpu / f.robots)
     row("CPU of the simulation, idle / load", "{}", lambda f: f"{f.sim_idle_cpu:.0f} / {f.sim_load_cpu:.0f} %")
+    row(
+        "machine busy (every process), idle / load",
+        "{}",
+        lambda f: f"{f.machine_idle_cpu:.0f} / {f.machine_load_cpu:.0f} %",
+        f"% of all {os.cpu_count()} cores (broker, simulation, this bench too)",
+    )
     row("missions (busy refusals)", "{}", lambda f: f"{f.missions} ({f.busy})")
     row("invoke -> 1st feedback p50", "{:.1f} ms", lambda f: pct(f.first_feedback, 0.5) * ms)
     row("invoke -> 1st feedback p99", "{:.1f} ms", lambda f: pct(f.first_feedback, 0.99) * ms, "target <= 50 ms")
