@@ -64,6 +64,8 @@ PROCEDURES = {
     "PickComponent": ("pickQuery", "pickRun", {"procedure": {"pick_frame_id": "shelf"}}),
     "PlaceComponent": ("placeQuery", "placeRun", {"procedure": {"pick_frame_id": "shelf"}}),
 }
+#: a procedure's query -> its run action, whose topics carry the query's answer
+RUN_OF_QUERY = {query: run_action for query, run_action, _payload in PROCEDURES.values()}
 
 
 def main() -> None:
@@ -137,6 +139,13 @@ def run(adaptor: Any, node: Any, runs: int) -> None:
         def send(topic: str, event: dict[str, Any]) -> None:
             app.publish(topic, json.dumps(event).encode())
 
+        def answered_in(root: str, corr: str) -> float:
+            """Seconds from a gotoQuery event under `root` to its answer."""
+            t0 = time.perf_counter()
+            send(f"{root}/gotoQuery", {"correlation": corr, "mission": mid})
+            replies.wait(lambda: corr in replies.by_corr)
+            return time.perf_counter() - t0
+
         direct_q, port_q, event_q, echo_q = [], [], [], []
         try:
             for i in range(runs):  # interleaved: the three see the same machine state
@@ -146,16 +155,8 @@ def run(adaptor: Any, node: Any, runs: int) -> None:
                 t0 = time.perf_counter()
                 port.query("GoToComponent", "gotoQuery", mid, 5.0)
                 port_q.append(time.perf_counter() - t0)
-                corr = f"q{i}"
-                t0 = time.perf_counter()
-                send(f"{ROOT}/gotoQuery", {"correlation": corr, "mission": mid})
-                replies.wait(lambda c=corr: c in replies.by_corr)  # type: ignore[misc]
-                event_q.append(time.perf_counter() - t0)
-                corr = f"e{i}"
-                t0 = time.perf_counter()
-                send(f"{ECHO}/{ROOT}/gotoQuery", {"correlation": corr, "mission": mid})
-                replies.wait(lambda c=corr: c in replies.by_corr)  # type: ignore[misc]
-                echo_q.append(time.perf_counter() - t0)
+                event_q.append(answered_in(ROOT, f"q{i}"))
+                echo_q.append(answered_in(f"{ECHO}/{ROOT}", f"e{i}"))
             direct_s, event_s, per_action = [], [], []
             for i in range(max(5, runs // 30)):
                 t0 = time.perf_counter()
@@ -327,9 +328,8 @@ def app_process(url: str, root: str) -> None:
     lanes = [Lane(robot, component, query, None, mission) for robot, component, query, mission in json.loads(input())]
     app = MqttBus(parse_broker_url(url), client_id=f"edge-bench-app-process-{root}", clean_start=True)
     pipeline = Pipeline(app, lanes, root)
-    runs = {query: run_action for query, run_action, _payload in PROCEDURES.values()}
     for lane in lanes:
-        app.subscribe(f"{root}/{lane.robot}/{lane.component}/{runs[lane.query]}/+", pipeline)
+        app.subscribe(f"{root}/{lane.robot}/{lane.component}/{RUN_OF_QUERY[lane.query]}/+", pipeline)
     app.connect()
     print("ready", flush=True)
     for line in sys.stdin:
@@ -345,14 +345,13 @@ class Echo:
     came, on the run action's answer topic (`.../<run>/state`), without reading it."""
 
     def __init__(self, url: str) -> None:
-        self.answers = {query: run_action for query, run_action, _payload in PROCEDURES.values()}
         self.bus = MqttBus(parse_broker_url(url), client_id="edge-bench-echo", clean_start=True)
         self.bus.subscribe(f"{ECHO}/td2adaptor/+/+/+", self)
         self.bus.connect()
 
     def __call__(self, msg: Message) -> None:
         head, query = msg.topic.rsplit("/", 1)
-        run_action = self.answers.get(query)
+        run_action = RUN_OF_QUERY.get(query)
         if run_action is not None:
             self.bus.publish(f"{head}/{run_action}/state", msg.payload)
 
