@@ -20,7 +20,7 @@ from td2adaptor.runtime.security import TlsOptions
 from td2adaptor.runtime.simport import SimPort
 from tests.conftest import REPO
 from tests.runtime.broker import Amqtt, Broker, Mosquitto
-from tests.runtime.certs import make_certs
+from tests.runtime.certs import make_certs, server_cert
 from tests.runtime.client import AppClient
 from tests.runtime.edge import bus_of, until
 from tests.runtime.rb1 import GOAL, check_outbound, rb1_model, sim, td_with_security, terminal
@@ -190,8 +190,35 @@ def test_a_certificate_for_another_host_is_named_as_such() -> None:
     """The test certificates name both 127.0.0.1 and localhost, so the host name case is checked here."""
     exc = ssl.SSLCertVerificationError(1, "certificate verify failed: Hostname mismatch")
     exc.verify_code = 62
-    assert "certificate is not for 'edge.example'" in _tls_hint(exc, TlsOptions("ca.pem"), "edge.example")
+    assert "certificate is not for the host name 'edge.example'" in _tls_hint(exc, TlsOptions("ca.pem"), "edge.example")
     assert _tls_hint(ssl.SSLError(1, "wrong version number"), None, "h") == ""
+
+
+def test_a_refused_broker_certificate_is_named_by_its_real_fault(tmp_path: Path) -> None:
+    """Issue 30, item 13: the hint blamed the CA for every refused certificate. Real certificates of the CA the
+    node trusts, on a real mosquitto, each with one fault: the message names that fault, not the CA."""
+    certs = make_certs(tmp_path / "certs")
+    model = rb1_model()
+    always = ("20200101000000Z", "20900101000000Z")
+    cases = {  # name: (subjectAltName, validity, host the node connects to, what the message must say)
+        "expired": ("IP:127.0.0.1", ("20200101000000Z", "20200102000000Z"), "127.0.0.1", "signed it, has expired"),
+        "future": ("IP:127.0.0.1", ("20890101000000Z", "20900101000000Z"), "127.0.0.1", "signed it, is not valid yet"),
+        "by-name": ("DNS:localhost", always, "127.0.0.1", "is not for the IP address '127.0.0.1'"),
+        "by-ip": ("IP:127.0.0.1", always, "localhost", "is not for the host name 'localhost'"),
+    }
+    for name, (san, (start, end), host, cause) in cases.items():
+        cert, key = server_cert(certs, name, san=san, start=start, end=end)
+        broker = Mosquitto(tmp_path / f"broker-{name}", tls=(certs.ca, cert, key), require_certificate=False)
+        broker.start()
+        try:
+            url = f"mqtts://{host}:{broker.port}"
+            with pytest.raises(BusError, match="TLS handshake .* failed") as refused:
+                serve(model, SimPort(model, sim()), config(url, tls_ca_file=str(certs.ca)), env={})
+        finally:
+            broker.stop()
+        said = str(refused.value)
+        assert cause in said, (name, said)
+        assert "did not sign" not in said and "set tls_ca_file" not in said, (name, said)  # the CA is the right one
 
 
 def test_a_broker_that_identifies_clients_by_certificate_is_not_taken_for_an_anonymous_one(tmp_path: Path) -> None:
