@@ -178,6 +178,12 @@ def schemes_of(security_definitions: Any) -> tuple[str, ...]:
     return tuple(out)
 
 
+def login_name(username: str | None, env: Mapping[str, str] | None = None) -> str | None:
+    """The MQTT user name the node logs in with: the configuration's, else `TD2ADAPTOR_MQTT_USERNAME` (`env`,
+    by default the process environment); None for none."""
+    return username or (os.environ if env is None else env).get(ENV_USERNAME) or None
+
+
 def _utf8_size(text: str) -> int | None:
     """The length of `text` in UTF-8, None when it has no UTF-8 form (a lone surrogate: what Python makes of
     bytes that are not UTF-8 in the environment or on the command line)."""
@@ -228,7 +234,7 @@ def plan_security(
             f"security scheme {unsupported[0]!r} of the Thing Description cannot be used on an MQTT bus "
             "(supported: basic, nosec, auto)"
         )
-    username = username or env.get(ENV_USERNAME) or None
+    username = login_name(username, env)
     password = password if password is not None else env.get(ENV_PASSWORD)
     check_credentials(username, password)
     use_tls = tls if tls is not None else (TlsOptions() if address.tls else None)
