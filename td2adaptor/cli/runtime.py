@@ -242,6 +242,12 @@ def run(
     help="MQTT QoS of property events (as the run configuration's property_qos), which the observe forms say.",
 )
 @click.option(
+    "--basic",
+    is_flag=True,
+    help="The broker wants a user name and password (the node runs with TD2ADAPTOR_MQTT_USERNAME set): a TD that "
+    "declares nosec is written with basic security, as `run` publishes it then.",
+)
+@click.option(
     "--output",
     "-o",
     default="-",
@@ -262,6 +268,7 @@ def expose(
     ros: str,
     topic_root: str,
     property_qos: str,
+    basic: bool,
     output: str,
 ) -> None:
     """Write the Thing Description of one robot as its edge node exposes it on the broker.
@@ -288,7 +295,15 @@ def expose(
         report(result.diagnostics, "human", label=_label([source]))
         sys.exit(EXIT_INVALID)
     catalog = build_catalog(result.model, f"ros{ros}")
-    td = exposed_td(result.model, catalog, robot=robot, broker=url, root=topic_root, property_qos=int(property_qos))
+    td = exposed_td(
+        result.model,
+        catalog,
+        robot=robot,
+        broker=url,
+        root=topic_root,
+        property_qos=int(property_qos),
+        authenticated=basic,
+    )
     text = dump(td)
     if output == "-":
         click.echo(text, nl=False)

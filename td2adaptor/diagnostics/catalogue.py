@@ -64,7 +64,7 @@ STAGES: tuple[Stage, ...] = (
     Stage("XC6", "Data schemas against ROS messages", "lowering/crosscheck"),
     Stage("MIG7", "Legacy input and migration", "frontend/legacy, frontend/migrate"),
     Stage("SCF1", "Scaffolding a TD from a robot", "scaffold, cli/scaffold"),
-    Stage("GEN8", "Generation", "generation, backends/rclpy, backends/rospy"),
+    Stage("GEN8", "Generation", "generation, backends/rclpy, backends/rospy, backends/events"),
     Stage("CFG9", "Project configuration", "generation/targets, api"),
     Stage("MROS9", "mROS backend", "backends/mros"),
 )
@@ -334,6 +334,12 @@ _ENTRIES: tuple[Entry, ...] = (
     Entry("GEN840", (_E,), "rospy backend cannot express a message field"),
     Entry("GEN841", (_E,), "rospy backend: a component would define a name twice"),
     Entry("GEN842", (_E,), "rospy backend: ROS 1 types not found", "add their definitions with --interfaces"),
+    Entry(
+        "GEN860",
+        (_E,),
+        "events backend option is not valid (events.robots: the robot ids the broker ACL is written for)",
+        "robot ids are 1-128 letters, digits, '_', '.', '-'",
+    ),
     # -- SCF1: scaffolding a TD from a robot ------------------------------------------------------------
     Entry("SCF100", (_E,), "scaffold source cannot be read (bag or listing missing, unreadable or malformed)"),
     Entry("SCF101", (_E,), "the ROS graph cannot be read (no rclpy, no ROS 1 master at the URI)"),

@@ -117,6 +117,18 @@ def _form(
     return form
 
 
+#: the security an exposed TD declares when the edge node logs in to the broker and its TD declares none
+BROKER_LOGIN = {
+    "scheme": "basic",
+    "description": "The MQTT broker's user name and password: the broker refuses clients without them.",
+}
+
+
+def _only_nosec(security: Mapping[str, Any]) -> bool:
+    """Whether every security definition of a TD is `nosec`: it asks nothing of a consumer."""
+    return all(isinstance(d, Mapping) and d.get("scheme") == "nosec" for d in security.values())
+
+
 def thing_id(model: Model, robot: str) -> str:
     """The exposed Thing's id: the TD's own with the robot id appended, else a URN of package and robot."""
     if model.thing.id:
@@ -132,11 +144,15 @@ def exposed_td(
     broker: str | None = None,
     root: str = TOPIC_ROOT,
     property_qos: int = 1,
+    authenticated: bool = False,
 ) -> dict[str, Any]:
     """The Thing Description of robot `robot` on `broker` (`mqtt://host:port`): the robot's affordances with
     MQTT forms on the adaptor's topics. Without them, the Thing Model of the fleet: `{{robotName}}` and
     `{{mqttBroker}}` stand for the robot id and the broker URL. `property_qos`: the QoS property events are
-    published with (the run configuration's), which the observe forms say: a consumer receives them at it."""
+    published with (the run configuration's), which the observe forms say: a consumer receives them at it.
+    `authenticated`: the edge node logs in to the broker with a user name and password, so the broker wants
+    them: a TD that declares no security (nosec) is exposed with `basic` security, which is what makes a WoT
+    consumer present its credentials (node-wot sends none for nosec, and a password-only broker refuses it)."""
     catalog = catalog or build_catalog(model)
     is_model = robot is None or broker is None
     robot = ROBOT_PLACEHOLDER if robot is None else robot
@@ -155,6 +171,8 @@ def exposed_td(
     security = thaw(thing.security) if isinstance(thing.security, Mapping) and thing.security else None
     if not security:
         security = {"nosec_sc": {"scheme": "nosec"}}
+    if authenticated and _only_nosec(security):
+        security = {"basic_sc": dict(BROKER_LOGIN)}
     td["securityDefinitions"] = security
     td["security"] = list(security)
     properties: dict[str, Any] = {}

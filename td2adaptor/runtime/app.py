@@ -18,6 +18,7 @@ from td2adaptor.runtime.security import (
     ConnectionSecurity,
     SecurityError,
     TlsOptions,
+    login_name,
     parse_broker_url,
     plan_security,
 )
@@ -59,10 +60,17 @@ def td_broker(config: RuntimeConfig) -> str | None:
     return None if url is None else parse_broker_url(url).url
 
 
-def td_message(config: RuntimeConfig, model: Model, catalog: EventCatalog | None = None) -> Message | None:
+def td_message(
+    config: RuntimeConfig,
+    model: Model,
+    catalog: EventCatalog | None = None,
+    *,
+    env: Mapping[str, str] | None = None,
+) -> Message | None:
     """The robot's Thing Description as the retained message the edge node publishes when it is online (the
-    text `td2adaptor expose` writes for the same robot, broker and ROS version); None when there is no broker
-    to name."""
+    text `td2adaptor expose` writes for the same robot, broker and ROS version, with `--basic` when the node
+    logs in with a user name: then the TD says `basic` even when its source says nosec, see `exposed_td`);
+    None when there is no broker to name. `env`: where the user name may come from, as in `serve`."""
     broker = td_broker(config)
     if broker is None:
         return None
@@ -70,7 +78,13 @@ def td_message(config: RuntimeConfig, model: Model, catalog: EventCatalog | None
     from td2adaptor.support.jsondump import dump
 
     td = exposed_td(
-        model, catalog, robot=config.robot, broker=broker, root=config.topic_root, property_qos=config.property_qos
+        model,
+        catalog,
+        robot=config.robot,
+        broker=broker,
+        root=config.topic_root,
+        property_qos=config.property_qos,
+        authenticated=config.bus != "local" and bool(login_name(config.username, env)),
     )
     text = dump(td)
     return Message(td_topic(config.robot, config.topic_root), text.encode("utf-8"), retain=True)
@@ -136,7 +150,7 @@ def serve(
     The engine's bus is wrapped in a `ThingBus`: WoT consumers of the published TD use the robot on its WoT
     topics, native clients on the envelope topics."""
     catalog = build_catalog(model, port_distro(port) if distro is None else distro)
-    td = td_message(config, model, catalog)
+    td = td_message(config, model, catalog, env=env)
     announce = () if td is None else (td,)
     bus = thing_bus(
         open_bus(config, model, broker=broker, env=env, announce=announce),

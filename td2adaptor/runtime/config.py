@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,6 +18,9 @@ import yaml
 
 from td2adaptor.model.events import ALL_ROBOTS, ROBOT_ID, TOPIC_ROOT
 from td2adaptor.runtime.genport import TRAIL_LIMIT
+
+#: what an HTTP `Authorization: Bearer` token may hold (RFC 6750 is narrower; this keeps the header well formed)
+_TOKEN = re.compile(r"[\x21-\x7e]{1,8192}")
 
 
 class ConfigError(Exception):
@@ -96,6 +100,11 @@ class RuntimeConfig:
                 object.__setattr__(self, "directory", check_directory_url(self.directory))
             except ValueError as exc:
                 raise ConfigError(str(exc)) from None
+        if self.directory_token is not None and not _TOKEN.fullmatch(self.directory_token):
+            raise ConfigError(
+                "directory_token (TD2ADAPTOR_DIRECTORY_TOKEN) must be 1-8192 printable ASCII characters without "
+                "blanks, as a Bearer token is (not shown)"
+            )
         if self.directory_ttl < 0:
             raise ConfigError("directory_ttl must be >= 0 (0: the directory keeps the TD until it is deleted)")
         if not self.topic_root or any(c in self.topic_root for c in "+#\x00") or self.topic_root.startswith("/"):
@@ -156,12 +165,31 @@ def _coerce(name: str, value: Any) -> Any:
     return str(value)
 
 
+_KEY_SHOWN = re.compile(r"[A-Za-z0-9_.-]{1,64}")
+
+
+def _unknown_key(key: Any, where: str) -> ConfigError:
+    """The error for a key that is no setting, which never quotes more of the key than a setting name can be:
+    `{password:S3cr3t}` (no blank after the ':') is one key, `password:S3cr3t`, with the value in it."""
+    known = f"(known: {', '.join(_FIELDS)})"
+    text = key if isinstance(key, str) else ""
+    name, colon, _ = text.partition(":")
+    if colon and name.strip() in _FIELDS:
+        return ConfigError(
+            f"{where}: key {name.strip()!r} has no blank after its ':', so the key and its value were read as one "
+            f"key (not shown): write '{name.strip()}: VALUE'"
+        )
+    if _KEY_SHOWN.fullmatch(text):
+        return ConfigError(f"{where}: unknown key {text!r} {known}")
+    return ConfigError(f"{where}: a key that is no setting name (not shown: it may hold a value) {known}")
+
+
 def _section(data: Any, where: str) -> dict[str, Any]:
     if not isinstance(data, Mapping):
         raise ConfigError(f"{where}: expected a mapping")
-    unknown = sorted(k for k in data if k not in _FIELDS and k != "robots")
+    unknown = sorted((k for k in data if k not in _FIELDS and k != "robots"), key=str)
     if unknown:
-        raise ConfigError(f"{where}: unknown key {unknown[0]!r} (known: {', '.join(_FIELDS)})")
+        raise _unknown_key(unknown[0], where)
     return {k: _coerce(k, v) for k, v in data.items() if k != "robots"}
 
 
@@ -202,6 +230,8 @@ def load_fleet(
             data = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
         except OSError as exc:
             raise ConfigError(f"{path}: {exc}") from None
+        except UnicodeDecodeError as exc:  # its words quote the bytes, which may be a password's
+            raise ConfigError(f"{path}: not UTF-8 text (at byte {exc.start})") from None
         except yaml.YAMLError as exc:
             raise ConfigError(f"{path}: {_yaml_problem(exc)}") from None
         base = _section(data, str(path))

@@ -49,9 +49,12 @@ def check_directory_url(url: str) -> str:
     shown = redact_url(url)
     try:
         parts = urlsplit(url)
+    except ValueError:  # its words may quote the URL
+        raise ValueError(f"directory URL {shown!r} is not a well-formed URL") from None
+    try:
         parts.port  # noqa: B018 - raises ValueError for a bad port
-    except ValueError as exc:
-        raise ValueError(f"directory URL {shown!r}: {exc}") from None
+    except ValueError:  # "Port could not be cast to integer value as '<what was typed>'"
+        raise ValueError(f"directory URL {shown!r}: the port must be a number from 0 to 65535") from None
     if parts.scheme not in ("http", "https") or not parts.hostname:
         raise ValueError(f"directory URL {shown!r}: use http(s)://host[:port][/path] of a Thing Description Directory")
     if parts.username or parts.password:

@@ -67,20 +67,46 @@ def tls_context(options: TlsOptions) -> ssl.SSLContext:
     return context
 
 
-_HOSTNAME_MISMATCH = 62  # X509_V_ERR_HOSTNAME_MISMATCH
+# OpenSSL's X509_V_ERR_* codes of the faults a broker's certificate can have, and what each means to the user
+_NOT_YET_VALID, _EXPIRED = 9, 10
+_HOSTNAME_MISMATCH, _IP_ADDRESS_MISMATCH = 62, 64
+_UNKNOWN_ISSUER = {2, 18, 19, 20, 21}  # no issuer certificate, self-signed (in the chain), no local issuer
 
 
 def _tls_hint(exc: ssl.SSLError, tls: TlsOptions | None, host: str) -> str:
-    """What to change when the broker's certificate is not accepted: the CA the node trusts, or the host name."""
+    """What is wrong with the broker's certificate, in words, and what to change: its dates, the name or address
+    it is for, or the CA the node trusts (only when the CA is the fault: an expired certificate of the right CA
+    is not fixed by another tls_ca_file)."""
     if not isinstance(exc, ssl.SSLCertVerificationError):
         return ""
-    if exc.verify_code == _HOSTNAME_MISMATCH:
-        return f" (the broker's certificate is not for {host!r}: connect by a name or address it names)"
-    trusted = f"the CA in tls_ca_file {tls.ca_file}" if tls is not None and tls.ca_file else "the system's CAs"
-    return (
-        f" (this node trusts {trusted}, which did not sign the broker's certificate: set tls_ca_file "
-        "(TD2ADAPTOR_TLS_CA_FILE) to the CA certificate that did)"
-    )
+    code = exc.verify_code
+    if code == _EXPIRED:
+        return (
+            " (the broker's certificate, or a certificate that signed it, has expired: renew it on the broker, "
+            "or check this machine's clock)"
+        )
+    if code == _NOT_YET_VALID:
+        return (
+            " (the broker's certificate, or a certificate that signed it, is not valid yet: check this machine's "
+            "clock and the certificate's start date)"
+        )
+    if code == _IP_ADDRESS_MISMATCH:
+        return (
+            f" (the broker's certificate is not for the IP address {host!r}: connect by a name or address it "
+            "names in its subjectAltName, or give the broker a certificate that names this address)"
+        )
+    if code == _HOSTNAME_MISMATCH:
+        return (
+            f" (the broker's certificate is not for the host name {host!r}: connect by a name or address it "
+            "names in its subjectAltName, or give the broker a certificate that names this host)"
+        )
+    if code in _UNKNOWN_ISSUER:
+        trusted = f"the CA in tls_ca_file {tls.ca_file}" if tls is not None and tls.ca_file else "the system's CAs"
+        return (
+            f" (this node trusts {trusted}, which did not sign the broker's certificate: set tls_ca_file "
+            "(TD2ADAPTOR_TLS_CA_FILE) to the CA certificate that did)"
+        )
+    return f" (the broker's certificate was refused: {exc.verify_message})"
 
 
 class MqttBus:

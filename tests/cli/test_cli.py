@@ -13,6 +13,7 @@ import pytest
 from click.testing import CliRunner
 
 from td2adaptor.cli.main import cli, main
+from td2adaptor.model.exposed import BROKER_LOGIN
 from tests.conftest import EXAMPLE, REPO
 
 IFACE = ["-I", str(EXAMPLE / "interfaces")]
@@ -273,6 +274,12 @@ def test_expose_writes_the_td_of_one_robot(runner: CliRunner, tmp_path: Path) ->
     assert qos0.exit_code == 0, qos0.output
     observe = [f for p in json.loads(qos0.output)["properties"].values() for f in p["forms"] if "mqv:filter" in f]
     assert observe and {f["mqv:qos"] for f in observe if f["mqv:controlPacket"] == "subscribe"} == {"0"}
+    # a broker that wants a password (run with TD2ADAPTOR_MQTT_USERNAME): the nosec TD says basic (issue 30)
+    assert td["security"] == ["nosec_sc"]
+    basic = runner.invoke(cli, ["expose", TD, *IFACE, *args, "--basic"])
+    assert basic.exit_code == 0, basic.output
+    assert json.loads(basic.output)["securityDefinitions"] == {"basic_sc": BROKER_LOGIN}
+    assert json.loads(basic.output)["security"] == ["basic_sc"]
     bad_roots = (["--topic-root", "a/#"], ["--topic-root", "/abs"], ["--topic-root", ""])
     for bad in (["--robot", "all"], ["--robot", "{{robotName}}"], ["--broker", "mqtt://u:p@h:1"], ["--broker", "x"],
                 *bad_roots):  # fmt: skip

@@ -6,6 +6,8 @@
 // sends a goal the robot's message cannot hold and receives the error event. One JSON line per observation
 // on stdout; exits 0 when all is seen, 1 on an error or after 25 s.
 //   NODE_PATH=<node_modules> node nodewot_client.js BROKER_URL ROBOT
+// With WOT_USERNAME and WOT_PASSWORD set, it logs in to the broker with them: to fetch the TD, and as the
+// credentials it gives node-wot for the Thing (which uses them only where the TD's security asks for them).
 "use strict";
 const mqtt = require("mqtt"); // the MQTT client node-wot's binding uses, only to fetch the retained TD
 const { Servient } = require("@node-wot/core");
@@ -17,8 +19,12 @@ function emit(kind, value) {
   process.stdout.write(JSON.stringify({ kind, value, ms }) + "\n");
 }
 
+const login = process.env.WOT_USERNAME
+  ? { username: process.env.WOT_USERNAME, password: process.env.WOT_PASSWORD }
+  : undefined;
+
 async function fetchTD(broker, robot) {
-  const client = await mqtt.connectAsync(broker);
+  const client = await mqtt.connectAsync(broker, login || {});
   const text = await new Promise((resolve) => {
     client.on("message", (_topic, payload) => {
       if (payload.length > 0) resolve(payload.toString("utf8"));
@@ -56,8 +62,10 @@ async function main() {
   emit("td", text);
   const servient = new Servient();
   servient.addClientFactory(new MqttClientFactory());
+  const td = JSON.parse(text);
+  if (login) servient.addCredentials({ [td.id]: login });
   const WoT = await servient.start();
-  const thing = await WoT.consume(JSON.parse(text));
+  const thing = await WoT.consume(td);
 
   // properties: the value itself, read (retained), observed, written
   const read = await thing.readProperty("poseMarker");

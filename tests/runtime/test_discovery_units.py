@@ -35,7 +35,7 @@ def test_directory_settings_come_from_yaml_env_and_overrides(tmp_path: Path) -> 
     [
         ("ftp://tdd.local", "use http(s)://host[:port][/path]"),
         ("http://", "use http(s)://host[:port][/path]"),
-        ("http://tdd.local:99999", "out of range"),
+        ("http://tdd.local:99999", "the port must be a number from 0 to 65535"),
         ("http://tdd.local/?x=1", "no query or fragment"),
         ("http://admin:hunter2@tdd.local", "carries credentials"),
     ],

@@ -116,3 +116,46 @@ def test_node_wot_uses_the_robot_as_a_thing_through_the_scripting_api(broker: Mo
     assert "'nope' was unexpected" in refused["message"] and "Port" not in refused["message"]
     assert refused["topic"] == f"td2adaptor/{ROBOT}/wot-thing/PickComponent/pickRun"
     assert robot.next_id == 2  # the two gotoRun missions; the refused pickRun never reached the robot
+
+
+def test_a_nosec_td_is_exposed_as_basic_when_the_node_logs_in_and_node_wot_then_works(tmp_path: Path) -> None:
+    """Issue 30, item 11: a TD that declares nosec, credentials configured, a broker that wants a password: the
+    node logged in and published `nosec`, so node-wot presented no credentials and every operation failed
+    "Not authorized". The published TD now says `basic` (as `expose --basic` writes it); node-wot, given the
+    consumer's credentials for the Thing, does it all: reads, observes, writes, invokes, queries, cancels."""
+    modules = node_modules()
+    users = {ROBOT: "node-pass", "consumer": "consumer-pass"}
+    broker = Mosquitto(tmp_path / "broker", users=users)
+    broker.start()
+    model = rb1_model()  # nosec
+    robot = sim(1.0)
+    config = RuntimeConfig(robot=ROBOT, bus=broker.url, poll_period=0.05, property_period=0.1, state_dir="")
+    env = {"TD2ADAPTOR_MQTT_USERNAME": ROBOT, "TD2ADAPTOR_MQTT_PASSWORD": "node-pass"}
+    try:
+        engine = serve(model, SimPort(model, robot), config, env=env)
+        try:
+            out = subprocess.run(
+                ["node", str(CLIENT), broker.url, ROBOT],
+                env={
+                    **os.environ,
+                    "NODE_PATH": str(modules),
+                    "WOT_USERNAME": "consumer",
+                    "WOT_PASSWORD": "consumer-pass",
+                },
+                capture_output=True,
+                text=True,
+                timeout=40,
+            )
+            assert until(lambda: robot.door_command == 0.75, 5), out.stdout + out.stderr  # written with credentials
+        finally:
+            engine.stop()
+    finally:
+        broker.stop()
+    assert out.returncode == 0, out.stdout + out.stderr
+    lines = [json.loads(line) for line in out.stdout.splitlines() if line.startswith("{")]
+    (td,) = [line["value"] for line in lines if line["kind"] == "td"]
+    published = json.loads(td)
+    assert published["security"] == ["basic_sc"] and published["securityDefinitions"]["basic_sc"]["scheme"] == "basic"
+    assert td == dump(exposed_td(model, robot=ROBOT, broker=broker.url, authenticated=True))  # = expose --basic
+    assert [line["value"] for line in lines if line["kind"] == "outcome"] == ["wot-1"]
+    assert robot.next_id == 2  # both gotoRun missions reached the robot

@@ -20,7 +20,7 @@ from td2adaptor.runtime.security import TlsOptions
 from td2adaptor.runtime.simport import SimPort
 from tests.conftest import REPO
 from tests.runtime.broker import Amqtt, Broker, Mosquitto
-from tests.runtime.certs import make_certs
+from tests.runtime.certs import make_certs, server_cert
 from tests.runtime.client import AppClient
 from tests.runtime.edge import bus_of, until
 from tests.runtime.rb1 import GOAL, check_outbound, rb1_model, sim, td_with_security, terminal
@@ -190,8 +190,35 @@ def test_a_certificate_for_another_host_is_named_as_such() -> None:
     """The test certificates name both 127.0.0.1 and localhost, so the host name case is checked here."""
     exc = ssl.SSLCertVerificationError(1, "certificate verify failed: Hostname mismatch")
     exc.verify_code = 62
-    assert "certificate is not for 'edge.example'" in _tls_hint(exc, TlsOptions("ca.pem"), "edge.example")
+    assert "certificate is not for the host name 'edge.example'" in _tls_hint(exc, TlsOptions("ca.pem"), "edge.example")
     assert _tls_hint(ssl.SSLError(1, "wrong version number"), None, "h") == ""
+
+
+def test_a_refused_broker_certificate_is_named_by_its_real_fault(tmp_path: Path) -> None:
+    """Issue 30, item 13: the hint blamed the CA for every refused certificate. Real certificates of the CA the
+    node trusts, on a real mosquitto, each with one fault: the message names that fault, not the CA."""
+    certs = make_certs(tmp_path / "certs")
+    model = rb1_model()
+    always = ("20200101000000Z", "20900101000000Z")
+    cases = {  # name: (subjectAltName, validity, host the node connects to, what the message must say)
+        "expired": ("IP:127.0.0.1", ("20200101000000Z", "20200102000000Z"), "127.0.0.1", "signed it, has expired"),
+        "future": ("IP:127.0.0.1", ("20890101000000Z", "20900101000000Z"), "127.0.0.1", "signed it, is not valid yet"),
+        "by-name": ("DNS:localhost", always, "127.0.0.1", "is not for the IP address '127.0.0.1'"),
+        "by-ip": ("IP:127.0.0.1", always, "localhost", "is not for the host name 'localhost'"),
+    }
+    for name, (san, (start, end), host, cause) in cases.items():
+        cert, key = server_cert(certs, name, san=san, start=start, end=end)
+        broker = Mosquitto(tmp_path / f"broker-{name}", tls=(certs.ca, cert, key), require_certificate=False)
+        broker.start()
+        try:
+            url = f"mqtts://{host}:{broker.port}"
+            with pytest.raises(BusError, match="TLS handshake .* failed") as refused:
+                serve(model, SimPort(model, sim()), config(url, tls_ca_file=str(certs.ca)), env={})
+        finally:
+            broker.stop()
+        said = str(refused.value)
+        assert cause in said, (name, said)
+        assert "did not sign" not in said and "set tls_ca_file" not in said, (name, said)  # the CA is the right one
 
 
 def test_a_broker_that_identifies_clients_by_certificate_is_not_taken_for_an_anonymous_one(tmp_path: Path) -> None:
@@ -332,18 +359,26 @@ def test_a_broker_that_lets_anyone_in_is_refused_when_the_td_requires_authentica
     # a broker that refuses anonymous clients passes the check (test_credentials_from_the_td_security)
 
 
-def test_the_generated_acl_lets_only_the_node_and_the_application_publish(tmp_path: Path) -> None:
-    """Issue 16: the broker ACL `gen -b events` writes, on a real mosquitto: the edge node (user = robot id)
-    and the application work; forged feedback and commands from a user outside the ACL are dropped by the
-    broker, and the application cannot forge feedback either."""
+def generated_acl(model: Any, where: Path, robots: list[str]) -> Path:
+    """The broker ACL `gen -b events --option events.robots=ROBOTS` writes for `model`, as a file in `where`."""
     from td2adaptor.backends.events.generator import generate as events
     from td2adaptor.diagnostics import Diagnostics
     from td2adaptor.generation.backend import GenOptions
 
-    model = td_with_security(tmp_path, {"basic_sc": {"scheme": "basic"}})
-    tree = events(model, GenOptions(), Diagnostics())
-    acl = tmp_path / "mosquitto.acl"
+    diags = Diagnostics()
+    tree = events(model, GenOptions(extra=(("events.robots", robots),)), diags)
+    assert not list(diags), [d.message for d in diags]
+    acl = where / "mosquitto.acl"
     acl.write_bytes(tree.files[f"{model.package_name}/mosquitto.acl"])
+    return acl
+
+
+def test_the_generated_acl_lets_only_the_node_and_the_application_publish(tmp_path: Path) -> None:
+    """Issue 16: the broker ACL `gen -b events` writes, on a real mosquitto: the edge node (user = robot id)
+    and the application work; forged feedback and commands from a user outside the ACL are dropped by the
+    broker, and the application cannot forge feedback either."""
+    model = td_with_security(tmp_path, {"basic_sc": {"scheme": "basic"}})
+    acl = generated_acl(model, tmp_path, [ROBOT, "rb1_base_b"])
     users = {ROBOT: "node-pass", "application": "app-pass", "intruder": "intruder-pass"}
     broker = Mosquitto(tmp_path / "broker", users=users, acl=acl)
     broker.start()
@@ -377,6 +412,61 @@ def test_the_generated_acl_lets_only_the_node_and_the_application_publish(tmp_pa
         engine.stop()
         app.close()
         intruder.close()
+        broker.stop()
+
+
+def test_a_user_named_like_a_robots_topics_gets_none_of_them(tmp_path: Path) -> None:
+    """Issue 30, item 10: with the `pattern ... %u` lines the ACL had, mosquitto 2.0 put a user name into %u as
+    it is, so a user `<robot>/wot-thing` was granted the robot's WoT topics by the node's envelope patterns: it
+    forged the robot's WoT feedback, errors and retained property values and read its WoT commands. The ACL
+    now names each robot's topics in a block of its own: such a user, and users with `+` or `#`, get none of
+    them, and the robot's own node still serves WoT and envelope commands."""
+    model = td_with_security(tmp_path, {"basic_sc": {"scheme": "basic"}})
+    acl = generated_acl(model, tmp_path, [ROBOT, "rb1_base_b"])
+    rules = [line for line in acl.read_text().splitlines() if line and not line.startswith("#")]
+    assert not [line for line in rules if "%" in line or line.startswith("pattern")], rules
+    impostors = [f"{ROBOT}/wot-thing", f"{ROBOT}/GoToComponent", "+", f"{ROBOT}#"]  # "#..." is a comment there
+    users = {ROBOT: "node-pass", "application": "app-pass", **{name: "impostor-pass" for name in impostors}}
+    broker = Mosquitto(tmp_path / "broker", users=users, acl=acl)
+    broker.start()
+    env = {"TD2ADAPTOR_MQTT_USERNAME": ROBOT, "TD2ADAPTOR_MQTT_PASSWORD": "node-pass"}
+    try:
+        engine = serve(model, SimPort(model, sim(0.05)), config(broker), env=env)
+    except BaseException:
+        broker.stop()
+        raise
+    clients: list[AppClient] = []
+    try:
+        app = AppClient(broker, ["td2adaptor/#"], username="application", password="app-pass")
+        clients.append(app)
+        spies = [
+            AppClient(broker, [f"td2adaptor/{ROBOT}/#", "td2adaptor/#"], username=name, password="impostor-pass")
+            for name in impostors
+        ]
+        clients += spies
+        wot = f"td2adaptor/{ROBOT}/wot-thing"
+        for n, spy in enumerate(spies):  # each publish acknowledged before the next: the broker has routed it
+            forged = {"correlationId": f"forged-{n}", "state": "finished", "terminal": True, "seq": 1}
+            spy.send(f"{wot}/GoToComponent/gotoRun/feedback", forged)
+            spy.send(f"{wot}/error", {"code": "internal", "message": "forged", "correlationId": f"forged-{n}"})
+            spy.send(f"td2adaptor/{ROBOT}/GoToComponent/gotoRun/feedback", {"correlation": f"forged-{n}"})
+            retained = json.dumps({"header": {"frame_id": f"forged-{n}"}, "markers": []}).encode()
+            spy.client.publish(f"{wot}/PoseMarkerComponent/poseMarker", retained, qos=1, retain=True).wait_for_publish(
+                10
+            )
+        app.send(WOT_GOTO, {**GOAL, "correlationId": "wot-legit"})  # the node still reads its WoT commands
+        app.wait(lambda events: any(t == f"{WOT_GOTO}/feedback" and e.get("terminal") for t, e in events))
+        app.send(GOTO, {"correlation": "legit", "payload": GOAL})  # and its envelope ones
+        app.wait(terminal("feedback", "legit"))
+        seen = json.dumps(app.events)
+        assert "forged" not in seen, [e for e in app.events if "forged" in json.dumps(e)]
+        assert engine.stats.get("missions") == 2
+        for name, spy in zip(impostors, spies, strict=True):
+            assert spy.events == [], (name, spy.events[:3])  # not one message of the robot's, commands included
+    finally:
+        engine.stop()
+        for client in clients:
+            client.close()
         broker.stop()
 
 

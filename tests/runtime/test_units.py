@@ -43,6 +43,8 @@ def test_config_precedence_and_fleets(tmp_path: Path) -> None:
     [
         ("robot: all\n", {}, "not 'all'"),
         ("robot: a/b\n", {}, "must be 1-128"),
+        ("robot: a+b\n", {}, "must be 1-128"),
+        ("robot: 'a#b'\n", {}, "must be 1-128"),
         ("robt: a\n", {}, "unknown key 'robt'"),
         ("robot: a\npoll_period: soon\n", {}, "poll_period: 'soon' is not a valid float"),
         ("robot: a\npoll_period: 0\n", {}, "poll_period must be positive"),

@@ -14,7 +14,8 @@ into one output side by side):
   observe the properties and subscribe to the feedback; `{{robotName}}` stands for the robot id and
   `{{mqttBroker}}` for the broker URL. `td2adaptor expose` writes the TD of one robot and `td2adaptor run`
   publishes it, retained, on `td2adaptor/<robot>/td`;
-* `README.md`: the topic table.
+* `README.md`: the topic table;
+* `mosquitto.acl`: the broker's access control, one `user` block per robot (`events.robots`, see `_acl`).
 
 and, once all TDs are generated (`finish`), OUT/events/README.md: the packages, with links to their contracts,
 and what the adaptors of one system share (the broker, the topic tree, the robot ids).
@@ -37,6 +38,7 @@ from td2adaptor.generation.templating import environment
 from td2adaptor.model import Model
 from td2adaptor.model.events import (
     ALL_ROBOTS,
+    ROBOT_ID,
     SCHEMA_BASE,
     TOPIC_ROOT,
     EventCatalog,
@@ -208,9 +210,46 @@ def _readme(model: Model, catalog: EventCatalog) -> str:
     )
 
 
+#: the option that names the robots the broker ACL is written for
+ROBOTS_OPTION = "events.robots"
+#: who the ACL's node block is for when no robot ids are given: no robot id can be it, no robot gets its rights
+ROBOT_STANDIN = "<robot>"
+
+
+def _robots(options: GenOptions, diags: Diagnostics) -> list[str]:
+    """The robot ids of `events.robots` (a list, or one string of ids separated by commas), each checked: an id
+    with '/', '+' or '#' would name other robots' topics in the ACL (`_acl`), so none is accepted that a robot's
+    configuration would refuse."""
+    robots: list[str] = []
+    for key, raw in options.extra:
+        if not key.startswith("events."):
+            continue
+        if key != ROBOTS_OPTION:
+            diags.error("GEN860", f"events backend: unknown option {key!r}", hint=f"known: {ROBOTS_OPTION}")
+            continue
+        items = raw.split(",") if isinstance(raw, str) else raw if isinstance(raw, list) else None
+        if items is None or not items:
+            diags.error("GEN860", f"events backend: {ROBOTS_OPTION} must be a list of robot ids")
+            continue
+        for item in items:
+            robot = item.strip() if isinstance(item, str) else item
+            if not isinstance(robot, str) or not ROBOT_ID.match(robot) or robot == ALL_ROBOTS:
+                diags.error(
+                    "GEN860",
+                    f"events backend: {ROBOTS_OPTION}: {robot!r} is not a robot id (1-128 letters, digits, '_', "
+                    f"'.', '-', not {ALL_ROBOTS!r}); in the broker ACL a '/', '+' or '#' in it would open other "
+                    "robots' topics",
+                )
+            elif robot in robots:
+                diags.error("GEN860", f"events backend: {ROBOTS_OPTION} names {robot!r} twice")
+            else:
+                robots.append(robot)
+    return robots
+
+
 def generate(model: Model, options: GenOptions, diags: Diagnostics) -> GeneratedTree:
     """Schemas, AsyncAPI document, exposed TD, README and broker ACL of `model`'s events, under `<package>/`."""
-    del options, diags  # nothing to choose, nothing that can fail: every model has an event contract
+    robots = _robots(options, diags)
     catalog = build_catalog(model)
     folder = f"{catalog.package}/"
     tree = GeneratedTree()
@@ -219,27 +258,40 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     tree.add(folder + "td.mqtt.json", dump(exposed_td(model, catalog)))
     for path, document in catalog.files:
         tree.add(folder + path, dump(document))
-    tree.add(folder + "mosquitto.acl", _acl(model, catalog))
+    tree.add(folder + "mosquitto.acl", _acl(model, catalog, robots))
     return tree
 
 
-def _acl(model: Model, catalog: EventCatalog) -> str:
+def _acl(model: Model, catalog: EventCatalog, robots: list[str]) -> str:
     """mosquitto's ACL for these events: each edge node (user = robot id) publishes only its robot's outbound
-    topics and reads its inbound ones; an `application` user publishes the inbound ones; nobody else."""
+    topics and reads its inbound ones; an `application` user publishes the inbound ones; nobody else.
+
+    Each robot gets a `user` block with its topics written out, not `pattern` lines with `%u`: mosquitto 2.0
+    puts the user name into `%u` as it is, '/' included, so a user `<robot>/wot-thing` would be granted, by the
+    node's envelope patterns, that robot's WoT topics (forge its feedback, errors and property values, read its
+    commands), and no pattern can tell the two apart. Without robot ids (`events.robots`), one block for the
+    stand-in `<robot>` shows what each robot needs."""
     inbound = [s for s in catalog.specs if s.kind.inbound]
     outbound = [s for s in catalog.specs if not s.kind.inbound]
+
+    def node(robot: str) -> dict[str, Any]:
+        reads = [t for s in inbound for t in (s.topic(robot), s.topic(ALL_ROBOTS), wot_topic(s, robot)) if t]
+        writes = [
+            *(s.topic(robot) for s in outbound),
+            *(t for s in outbound if (t := wot_topic(s, robot))),
+            td_topic(robot),
+        ]
+        return {"id": robot, "reads": reads, "writes": writes}
+
     env = environment(TEMPLATES, trim=True)
     return env.get_template("mosquitto.acl.j2").render(
         title=ts.py_comment(model.thing.title),
         package=catalog.package,
         root=TOPIC_ROOT,
         all_robots=ALL_ROBOTS,
-        node_reads=[t for s in inbound for t in (s.topic("%u"), s.topic(ALL_ROBOTS), wot_topic(s, "%u")) if t],
-        node_writes=[
-            *(s.topic("%u") for s in outbound),
-            *(t for s in outbound if (t := wot_topic(s, "%u"))),
-            td_topic("%u"),
-        ],
+        option=ROBOTS_OPTION,
+        nodes=[node(robot) for robot in robots or [ROBOT_STANDIN]],
+        given=bool(robots),
         app_writes=[t for s in inbound for t in (s.topic("+"), wot_topic(s, "+")) if t],
     )
 

@@ -573,3 +573,38 @@ def test_dump_is_the_standard_library_layout(value: Any) -> None:
     if not _floats(value):
         assert text == json.dumps(value, indent=2, ensure_ascii=False) + "\n"
     assert backend.dump(value) == text
+
+
+def test_the_broker_acl_names_each_robots_topics_and_refuses_ids_that_would_open_others() -> None:
+    """Issue 30, item 10: one `user` block per robot of `events.robots`, its topics written out (no `pattern`
+    with %u, which mosquitto fills with a user name as it is, '/' included); an id with '/', '+' or '#', or any
+    other that is no robot id, is refused (GEN860) rather than written into the ACL."""
+    model = rb1_model()
+
+    def acl(robots: Any) -> tuple[str, list[str]]:
+        diags = Diagnostics()
+        tree = backend.generate(model, GenOptions(extra=(("events.robots", robots),)), diags)
+        return tree.files[f"{model.package_name}/mosquitto.acl"].decode(), [f"{d.code}: {d.message}" for d in diags]
+
+    for robots in (["rb1_a", "rb1_b"], "rb1_a, rb1_b"):  # a list (TOML, JSON) or one string with commas
+        text, said = acl(robots)
+        rules = [line for line in text.splitlines() if line and not line.startswith("#")]
+        assert said == [] and not [r for r in rules if "%" in r or r.startswith("pattern")]
+        assert [r for r in rules if r.startswith("user ")] == ["user rb1_a", "user rb1_b", "user application"]
+        block = rules[rules.index("user rb1_a") + 1 : rules.index("user rb1_b")]
+        assert "topic write td2adaptor/rb1_a/wot-thing/GoToComponent/gotoRun/feedback" in block
+        assert "topic read td2adaptor/rb1_a/wot-thing/GoToComponent/gotoRun" in block
+        assert all("/rb1_a/" in r or "/all/" in r for r in block), block
+    for bad in ("sa_a/wot-thing", "+", "#", "a+b", ALL_ROBOTS, "", 7):
+        _, said = acl(["rb1_a", bad])
+        assert len(said) == 1 and said[0].startswith("GEN860") and "is not a robot id" in said[0], (bad, said)
+    assert acl(["rb1_a", "rb1_a"])[1] == ["GEN860: events backend: events.robots names 'rb1_a' twice"]
+    assert acl({"rb1_a": 1})[1] == ["GEN860: events backend: events.robots must be a list of robot ids"]
+    diags = Diagnostics()
+    backend.generate(model, GenOptions(extra=(("events.robot", ["rb1_a"]),)), diags)
+    assert [d.code for d in diags] == ["GEN860"]
+    # without robot ids, one block for the stand-in <robot>, which no robot id can be: it grants a robot nothing
+    text, said = acl([])
+    assert said == ["GEN860: events backend: events.robots must be a list of robot ids"]
+    text = tree_of(model)["mosquitto.acl"].decode()
+    assert "\nuser <robot>\n" in text and "topic write td2adaptor/<robot>/status" in text
