@@ -40,7 +40,7 @@ from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope,
 from td2adaptor.runtime.goals import GoalRunner
 from td2adaptor.runtime.port import NoValue, PortError, RobotPort, StartResult
 from td2adaptor.runtime.procedures import ProcedureStatus, read
-from td2adaptor.runtime.replay import ReplayGuard, Verdict, digest
+from td2adaptor.runtime.replay import ReplayGuard, Verdict, digest, time_problem
 from td2adaptor.runtime.streams import PropertyStreams, streams
 from td2adaptor.runtime.thingbus import WOT_SOURCE
 from td2adaptor.runtime.words import INTERNAL, describe
@@ -58,6 +58,7 @@ _DEFAULT_MISSION_PATH = ("state", "header", "id")
 _REFUSALS = {
     Verdict.EXPIRED: "not run: sent at {time}, more than {window:g} s ago (the freshness window)",
     Verdict.FUTURE: "not run: sent at {time}, later than this node's clock allows",
+    Verdict.BAD_TIME: "not run: its `time` {time!r} names no instant: {why}",
     Verdict.REUSED: "not run: event id {id!r} was already used by another event (on another topic or with other "
     "content); give every event an id of its own",
 }
@@ -243,13 +244,27 @@ class Engine:
         self._publish(self.catalog.find(Kind.ERROR), event)
 
     def _refuse(
-        self, code: str, message: str, msg: Message, spec: EventSpec, refs: tuple[str | None, int | None]
+        self,
+        code: str,
+        message: str,
+        msg: Message,
+        spec: EventSpec,
+        refs: tuple[str | None, int | None],
+        errors: tuple[tuple[str, str], ...] = (),
     ) -> None:
         """Answer an inbound event that is not run (retained, stale, replayed, ...) with an error event carrying
-        `refs`, its correlation and mission."""
+        `refs`, its correlation and mission (and `errors`: the members at fault, as a schema error names them)."""
         self._count("refused")
         corr, mission = refs
-        self._error(code, message, topic=msg.topic, affordance=spec.affordance, correlation=corr, mission=mission)
+        self._error(
+            code,
+            message,
+            topic=msg.topic,
+            affordance=spec.affordance,
+            correlation=corr,
+            mission=mission,
+            errors=errors,
+        )
 
     def _state(
         self,
@@ -363,12 +378,14 @@ class Engine:
             return
         if verdict is not Verdict.NEW:
             corr, mission = references(event)
+            why = time_problem(sent) if verdict is Verdict.BAD_TIME and isinstance(sent, str) else None
             self._refuse(
                 verdict.value,
-                _REFUSALS[verdict].format(id=event_id, time=sent, window=self.config.freshness_window),
+                _REFUSALS[verdict].format(id=event_id, time=sent, window=self.config.freshness_window, why=why),
                 msg,
                 spec,
                 (corr or (event_id if isinstance(event_id, str) else None), mission),
+                (("/time", why),) if why else (),
             )
             return
         component = self.model.component(spec.component or "")
