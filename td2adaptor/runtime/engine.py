@@ -322,6 +322,9 @@ class Engine:
         if robot not in (self.config.robot, ALL_ROBOTS):
             return
         if msg.retain and spec.kind.inbound:  # the broker would hand it over again at every reconnect
+            if not msg.payload:  # the empty retained message that clears one: no command, nothing to answer
+                self._count("cleared")
+                return
             self._refuse(
                 "retained",
                 "not run: a command published with the retain flag would run again at every reconnect; publish "

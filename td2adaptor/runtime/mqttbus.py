@@ -24,6 +24,7 @@ from paho.mqtt.enums import CallbackAPIVersion, MQTTErrorCode, MQTTProtocolVersi
 from paho.mqtt.packettypes import PacketTypes
 from paho.mqtt.properties import Properties
 from paho.mqtt.reasoncodes import ReasonCode
+from paho.mqtt.subscribeoptions import SubscribeOptions
 
 from td2adaptor.runtime.bus import BusError, Handler, Message, check_qos, topic_matches, valid_filter, valid_topic
 from td2adaptor.runtime.security import ENV_PASSWORD, ENV_USERNAME, BrokerAddress, ConnectionSecurity, TlsOptions
@@ -101,6 +102,7 @@ class MqttBus:
         keepalive: int = 30,
         connect_timeout: float = 10.0,
         reconnect_delay: tuple[int, int] = (1, 4),
+        retain_as_published: bool = True,
     ) -> None:
         self.address = address
         self.security = security or ConnectionSecurity()
@@ -116,6 +118,7 @@ class MqttBus:
         self.keepalive = keepalive
         self.connect_timeout = connect_timeout
         self.reconnect_delay = reconnect_delay
+        self.retain_as_published = retain_as_published  # MQTT 5; off: only a new subscription's retained are flagged
         self.connects = 0  # successful CONNACKs, for tests and logs
         self.probe = False  # a connection made only to learn what the broker allows: its refusal is no error
         self._handlers: list[tuple[str, Handler]] = []
@@ -270,7 +273,7 @@ class MqttBus:
         with self._lock:
             patterns = [(p, self._qos[p]) for p in dict.fromkeys(p for p, _ in self._handlers)]
         if patterns:
-            rc, mid = client.subscribe(patterns)
+            rc, mid = self._subscribe(client, patterns)
             if self.connects == 1 and rc is MQTTErrorCode.MQTT_ERR_SUCCESS and mid is not None:
                 self._first_subscribe = mid  # connect() waits for its SUBACK
         for message in (*self.announce, *([self.birth] if self.birth is not None else [])):
@@ -340,11 +343,20 @@ class MqttBus:
         client = self._client
         if client is None or known or not self._connected:
             return  # subscribed on (re)connect
-        rc, mid = client.subscribe(pattern, qos=qos)  # never under self._lock: paho calls back holding its own
+        rc, mid = self._subscribe(client, [(pattern, qos)])  # never under self._lock: paho calls back holding its own
         if rc is not MQTTErrorCode.MQTT_ERR_SUCCESS or mid is None:
             return  # not connected after all: subscribed on reconnect
         with self._lock:
             self._await_suback(mid, pattern)
+
+    def _subscribe(self, client: mqtt.Client, patterns: list[tuple[str, int]]) -> tuple[MQTTErrorCode, int | None]:
+        """Subscribe to (filter, QoS) pairs; in MQTT 5 with retain-as-published, so that a message published
+        retained keeps its flag also when it reaches this client already subscribed (a broker clears it
+        otherwise, and a command published retained while the node is online looks live). MQTT 3.1.1 has no
+        such option: there only the retained messages a new subscription finds are flagged."""
+        if self.mqtt_version != "5" or not self.retain_as_published:
+            return client.subscribe(patterns)
+        return client.subscribe([(p, SubscribeOptions(qos=q, retainAsPublished=True)) for p, q in patterns])
 
     def publish(self, topic: str, payload: bytes, *, retain: bool = False, qos: int = 1) -> None:
         if not valid_topic(topic):

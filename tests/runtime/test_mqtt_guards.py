@@ -1,0 +1,107 @@
+"""What the node keeps true across the life of its broker connection, on a real mosquitto (issue 30):
+commands published retained while it is online are refused."""
+
+from __future__ import annotations
+
+import json
+import threading
+import uuid
+from pathlib import Path
+from typing import Any
+
+import paho.mqtt.client as mqtt
+from paho.mqtt.enums import CallbackAPIVersion, MQTTProtocolVersion
+
+from td2adaptor.model.wot import CORRELATION
+from td2adaptor.runtime import RuntimeConfig, serve
+from td2adaptor.runtime.replay import now_text
+from td2adaptor.runtime.simport import SimPort
+from tests.runtime.broker import Mosquitto
+from tests.runtime.client import AppClient
+from tests.runtime.rb1 import GOAL, check_outbound, rb1_model, sim, terminal
+
+ROBOT = "rb1_guard"
+ROOT = f"td2adaptor/{ROBOT}"
+GOTO, CANCEL = f"{ROOT}/GoToComponent/gotoRun", f"{ROOT}/GoToComponent/gotoCancel"
+WOT_GOTO, WOT_CANCEL = f"{ROOT}/wot-thing/GoToComponent/gotoRun", f"{ROOT}/wot-thing/GoToComponent/gotoCancel"
+
+
+def config(broker: Mosquitto, **kw: Any) -> RuntimeConfig:
+    base: dict[str, Any] = {"robot": ROBOT, "bus": broker.url, "poll_period": 0.05, "property_period": 0}
+    return RuntimeConfig(**{**base, "call_timeout": 2, "state_dir": "", **kw})
+
+
+def retained(broker: Mosquitto, topics: list[str], timeout: float = 5.0) -> dict[str, bytes]:
+    """The retained message of each of `topics` that has one, as a client that subscribes now gets them."""
+    host, port = broker.url.removeprefix("mqtt://").rsplit(":", 1)
+    got: dict[str, bytes] = {}
+    cond = threading.Condition()
+    client = mqtt.Client(
+        CallbackAPIVersion.VERSION2, client_id=f"late-{uuid.uuid4().hex[:8]}", protocol=MQTTProtocolVersion.MQTTv5
+    )
+
+    def on_message(_c: Any, _u: Any, msg: Any) -> None:
+        with cond:
+            if msg.retain and msg.topic in topics:
+                got[msg.topic] = bytes(msg.payload)
+                cond.notify_all()
+
+    client.on_message = on_message
+    client.on_connect = lambda c, *_: c.subscribe([(t, 1) for t in topics])
+    client.connect(host, int(port), 30)
+    client.loop_start()
+    try:
+        with cond:
+            cond.wait_for(lambda: len(got) == len(topics), timeout)
+            return dict(got)
+    finally:
+        client.disconnect()
+        client.loop_stop()
+
+
+# -- item 3: retained commands ---------------------------------------------------------------------------
+
+
+def test_a_command_published_retained_while_the_node_is_online_is_refused(tmp_path: Path) -> None:
+    """The broker hands a retained message to a client already subscribed with the retain flag cleared, so a
+    retained invoke or cancel, envelope or WoT, ran (150 of 150). The node subscribes with retain-as-published
+    (MQTT 5): each is answered `retained` and nothing reaches the robot; the empty retained messages that clear
+    them are no command and get no answer; a command sent as usual still runs."""
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    model = rb1_model()
+    port = SimPort(model, sim(0.1))
+    engine = serve(model, port, config(broker))
+    app = AppClient(broker, [f"{ROOT}/error", f"{ROOT}/+/+/feedback", f"{ROOT}/+/+/state"])
+    commands = {
+        GOTO: {"id": "ret-1", "correlation": "ret-env", "time": now_text(), "payload": GOAL},
+        CANCEL: {"id": "ret-2", "correlation": "ret-cancel", "time": now_text()},
+        WOT_GOTO: {**GOAL, CORRELATION: "ret-wot"},
+        WOT_CANCEL: {CORRELATION: "ret-wot-cancel"},
+    }
+    try:
+        for topic, event in commands.items():
+            app.client.publish(topic, json.dumps(event).encode(), qos=1, retain=True).wait_for_publish(10)
+        wanted = {"ret-env", "ret-cancel", "ret-wot", "ret-wot-cancel"}
+        app.wait(lambda ev: wanted <= {e.get("correlation") for _, e in ev if e.get("type") == "error"})
+        for _, error in app.events:
+            assert error["type"] == "error" and error["payload"]["code"] == "retained", error
+        for topic in commands:  # the clears, then on the same topics an invalid command, answered after them
+            app.client.publish(topic, b"", qos=1, retain=True).wait_for_publish(10)
+        marks = {GOTO: {"correlation": "m-env", "payload": 1}, CANCEL: {"correlation": "m-cancel", "x": 1}}
+        marks |= {WOT_GOTO: {CORRELATION: "m-wot", "procedure": 1}, WOT_CANCEL: {CORRELATION: "m-wc", "x": 1}}
+        for topic, event in marks.items():
+            app.send(topic, event)
+        wanted |= {"m-env", "m-cancel", "m-wot", "m-wc"}
+        app.wait(lambda ev: wanted <= {e.get("correlation") for _, e in ev if e.get("type") == "error"})
+        errors = [e for _, e in app.events if e.get("type") == "error"]
+        assert sorted(e.get("correlation") for e in errors) == sorted(wanted), [e["payload"] for e in errors]
+        assert [e for _, e in app.events if e.get("type") != "error"] == []
+        assert port.calls == []  # nothing reached the robot
+        app.send(GOTO, {"id": "live-1", "correlation": "live", "time": now_text(), "payload": GOAL})
+        app.wait(terminal("feedback", "live"))
+    finally:
+        engine.stop()
+        app.close()
+        broker.stop()
+    check_outbound(app.events)
