@@ -5,7 +5,9 @@ MQTT 5 (or 3.1.1 for brokers that speak only that: `mqtt_version`), QoS 1 both w
 sessions) so that neither side loses messages while the other is away (except on the filters subscribed at
 QoS 0, which the broker does not queue for an absent client); paho reconnects by itself with
 back-off, keeps unacknowledged QoS 1 publishes and resends them; we resubscribe and republish the birth
-message on every (re)connect.
+message on every (re)connect, and on a reconnect every retained message this client published last on a topic
+(property values, their WoT form): a broker restarted without persistence has forgotten them, and a client
+that reads a retained value (node-wot's readProperty) would otherwise wait until the value changes.
 The will (the retained `offline` status) is published by the broker when the connection drops uncleanly.
 """
 
@@ -121,6 +123,9 @@ class MqttBus:
         self.retain_as_published = retain_as_published  # MQTT 5; off: only a new subscription's retained are flagged
         self.connects = 0  # successful CONNACKs, for tests and logs
         self.probe = False  # a connection made only to learn what the broker allows: its refusal is no error
+        self._retained: dict[str, tuple[bytes, int]] = {}  # topic -> (payload, QoS) of the last retained publish
+        self._retained_inflight: dict[int, str] = {}  # QoS 1 retained publishes not acknowledged: paho resends them
+        self._retain_lock = threading.RLock()  # orders retained publishes with their republication on reconnect
         self._handlers: list[tuple[str, Handler]] = []
         self._routes: dict[str, list[Handler]] = {}  # topic -> its handlers, of the topics seen (see _on_message)
         self._qos: dict[str, int] = {}  # each filter's QoS: the highest any of its subscriptions asked for
@@ -276,11 +281,25 @@ class MqttBus:
             rc, mid = self._subscribe(client, patterns)
             if self.connects == 1 and rc is MQTTErrorCode.MQTT_ERR_SUCCESS and mid is not None:
                 self._first_subscribe = mid  # connect() waits for its SUBACK
-        for message in (*self.announce, *([self.birth] if self.birth is not None else [])):
+        announced = (*self.announce, *([self.birth] if self.birth is not None else []))
+        if self.connects > 1:
+            self._republish(client, {m.topic for m in announced})
+        for message in announced:
             self._send(client, message.topic, message.payload, message.retain)
         if self.connects > 1:
             log.info("reconnected to %s (session present: %s)", self.address, flags.session_present)
         self._connack.set()
+
+    def _republish(self, client: mqtt.Client, skip: set[str]) -> None:
+        """Publish again the last retained message of each topic (but `skip`, and those paho resends itself):
+        the broker may have lost them (a restart without persistence); to a broker that kept them it is the
+        same message again. Before the birth message: a client that sees the robot online finds its values."""
+        with self._retain_lock:
+            with self._lock:
+                resent = set(self._retained_inflight.values())
+            for topic, (payload, qos) in list(self._retained.items()):
+                if topic not in skip and topic not in resent:
+                    self._send(client, topic, payload, True, qos)
 
     def _on_disconnect(
         self, _client: mqtt.Client, _userdata: Any, _flags: Any, reason: ReasonCode, _props: Properties | None
@@ -318,6 +337,7 @@ class MqttBus:
                 self._unacked.discard(mid)
             elif mid in self._pending:
                 self._pending.discard(mid)
+                self._retained_inflight.pop(mid, None)
             else:
                 self._acked_early.add(mid)
             self._lock.notify_all()
@@ -365,7 +385,15 @@ class MqttBus:
         client = self._client
         if client is None:
             raise BusError("publish before connect")
-        self._send(client, topic, payload, retain, qos)
+        if not retain:
+            self._send(client, topic, payload, retain, qos)
+            return
+        with self._retain_lock:  # the record and the message in the same order (see _republish)
+            if payload:
+                self._retained[topic] = (bytes(payload), qos)
+            else:  # cleared: no longer ours to publish again
+                self._retained.pop(topic, None)
+            self._send(client, topic, payload, retain, qos)
 
     def _send(self, client: mqtt.Client, topic: str, payload: bytes, retain: bool, qos: int = 1) -> None:
         """Publish; at QoS 1 track the message id until its PUBACK (for `flush`)."""
@@ -386,6 +414,8 @@ class MqttBus:
                 self._acked_early.discard(info.mid)
             else:
                 self._pending.add(info.mid)
+                if retain:
+                    self._retained_inflight[info.mid] = topic
 
     def flush(self, timeout: float) -> bool:
         with self._lock:

@@ -1,5 +1,6 @@
 """What the node keeps true across the life of its broker connection, on a real mosquitto (issue 30):
-commands published retained while it is online are refused."""
+commands published retained while it is online are refused, and every retained value it owns is back after
+a broker restart that lost them."""
 
 from __future__ import annotations
 
@@ -14,10 +15,14 @@ from paho.mqtt.enums import CallbackAPIVersion, MQTTProtocolVersion
 
 from td2adaptor.model.wot import CORRELATION
 from td2adaptor.runtime import RuntimeConfig, serve
+from td2adaptor.runtime.drivenbus import DrivenBus
+from td2adaptor.runtime.mqttbus import MqttBus
 from td2adaptor.runtime.replay import now_text
+from td2adaptor.runtime.security import parse_broker_url
 from td2adaptor.runtime.simport import SimPort
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
+from tests.runtime.edge import bus_of, until
 from tests.runtime.rb1 import GOAL, check_outbound, rb1_model, sim, terminal
 
 ROBOT = "rb1_guard"
@@ -105,3 +110,57 @@ def test_a_command_published_retained_while_the_node_is_online_is_refused(tmp_pa
         app.close()
         broker.stop()
     check_outbound(app.events)
+
+
+# -- item 8: retained values after a broker restart ------------------------------------------------------
+
+
+def test_every_retained_value_is_back_after_a_broker_restart_that_lost_them(tmp_path: Path) -> None:
+    """A broker restarted without persistence forgets retained messages; the node published its TD and status
+    again but its property values only once they changed, so a WoT consumer's readProperty waited forever.
+    After the restart a new subscriber gets every retained message the node owns: TD, status and each property
+    value on the envelope and the WoT topic, as they were."""
+    broker = Mosquitto(tmp_path / "broker", persistence=False)
+    broker.start()
+    model = rb1_model()
+    engine = serve(model, SimPort(model, sim(0.1)), config(broker, property_period=0.05, td_broker=broker.url))
+    properties = ["AvailabilityComponent/availability", "PoseMarkerComponent/poseMarker"]
+    topics = [f"{ROOT}/td", f"{ROOT}/status"]
+    topics += [f"{ROOT}/{p}" for p in properties] + [f"{ROOT}/wot-thing/{p}" for p in properties]
+    bus = bus_of(engine)
+    assert isinstance(bus, MqttBus)
+    try:
+        assert until(lambda: engine.stats.get("out.property", 0) >= len(properties), 10) and bus.flush(5)
+        before = retained(broker, topics)
+        assert sorted(before) == sorted(topics)
+        broker.restart()
+        assert until(lambda: bus.connects >= 2, 20) and bus.flush(5)
+        after = retained(broker, topics)
+        assert sorted(after) == sorted(topics)
+        assert after == before  # nothing changed on the robot: the same events, byte for byte
+    finally:
+        engine.stop()
+        broker.stop()
+
+
+def test_a_stream_connection_publishes_its_retained_values_again_after_a_broker_restart(tmp_path: Path) -> None:
+    """The property streams publish on a connection of their own (drivenbus.py), which must do the same."""
+    broker = Mosquitto(tmp_path / "broker", persistence=False)
+    broker.start()
+    bus = DrivenBus(parse_broker_url(broker.url), client_id="streams", clean_start=True, session_expiry=0)
+    try:
+        bus.connect()
+        bus.publish("s/a", b"1", retain=True)
+        bus.publish("s/b", b"2", retain=True, qos=0)
+        bus.publish("s/c", b"3", retain=True)
+        bus.publish("s/c", b"", retain=True)  # cleared: not the node's any more
+        bus.publish("s/d", b"not retained")
+        assert bus.flush(5)
+        assert retained(broker, ["s/a", "s/b"]) == {"s/a": b"1", "s/b": b"2"}
+        broker.restart()
+        assert until(lambda: (bus.step(), bus.connects >= 2)[1], 20, 0.05)
+        assert bus.flush(5)
+        assert retained(broker, ["s/a", "s/b", "s/c", "s/d"], timeout=2) == {"s/a": b"1", "s/b": b"2"}
+    finally:
+        bus.close()
+        broker.stop()
