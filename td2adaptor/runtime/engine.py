@@ -125,6 +125,8 @@ class Engine:
         self.clock = clock
         self.td = td  # the robot's TD as the bus announces it on connecting: cleared on stop
         self.on_stop: list[Callable[[], None]] = []  # run first by stop() (e.g. leaving a TD directory)
+        self.on_halt: list[Callable[[str], None]] = []  # told why, when the bus stops serving the broker (halt)
+        self.failure: str | None = None  # why the bus stopped serving the broker, if it did
         self.stats: dict[str, int] = {}
         self._lock = threading.Lock()
         self._inbox: queue.Queue[Message | None] = queue.Queue()
@@ -199,6 +201,18 @@ class Engine:
             log.warning("could not publish the offline status: %s", exc)
         self.bus.close()
         self.guard.close()
+
+    def halt(self, reason: str) -> None:
+        """The bus stopped serving its broker for good (a reconnection failed the check every connection
+        passes, see app.py): nothing more comes in; remember why and tell `on_halt` (`run` exits with it)."""
+        if self.failure is not None:
+            return
+        self.failure = reason
+        for hook in list(self.on_halt):
+            try:
+                hook(reason)
+            except Exception:  # a hook must not keep the others from hearing it
+                log.exception("while halting robot %s", self.config.robot)
 
     def idle(self) -> bool:
         """No queued event and no mission in progress (tests, benchmarks)."""

@@ -9,6 +9,8 @@ message on every (re)connect, and on a reconnect every retained message this cli
 (property values, their WoT form): a broker restarted without persistence has forgotten them, and a client
 that reads a retained value (node-wot's readProperty) would otherwise wait until the value changes.
 The will (the retained `offline` status) is published by the broker when the connection drops uncleanly.
+`verify` (the anonymous-broker check, app.py) runs on every connection before anything of it is handled; a
+connection that fails it ends the client's service of the broker for good (`refused`, `on_refused`).
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import os
 import socket
 import ssl
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import paho.mqtt.client as mqtt
@@ -29,7 +31,14 @@ from paho.mqtt.reasoncodes import ReasonCode
 from paho.mqtt.subscribeoptions import SubscribeOptions
 
 from td2adaptor.runtime.bus import BusError, Handler, Message, check_qos, topic_matches, valid_filter, valid_topic
-from td2adaptor.runtime.security import ENV_PASSWORD, ENV_USERNAME, BrokerAddress, ConnectionSecurity, TlsOptions
+from td2adaptor.runtime.security import (
+    ENV_PASSWORD,
+    ENV_USERNAME,
+    BrokerAddress,
+    ConnectionSecurity,
+    SecurityError,
+    TlsOptions,
+)
 
 log = logging.getLogger("td2adaptor.runtime.bus")
 
@@ -87,7 +96,8 @@ def _tls_hint(exc: ssl.SSLError, tls: TlsOptions | None, host: str) -> str:
 
 
 class MqttBus:
-    """One MQTT client; `connect()` returns once the broker has accepted it (or raises `BusError`)."""
+    """One MQTT client; `connect()` returns once the broker has accepted it (or raises `BusError`, or
+    `SecurityError` when the first connection fails `verify`)."""
 
     def __init__(
         self,
@@ -105,6 +115,7 @@ class MqttBus:
         connect_timeout: float = 10.0,
         reconnect_delay: tuple[int, int] = (1, 4),
         retain_as_published: bool = True,
+        verify: Callable[[], str | None] | None = None,
     ) -> None:
         self.address = address
         self.security = security or ConnectionSecurity()
@@ -123,6 +134,9 @@ class MqttBus:
         self.retain_as_published = retain_as_published  # MQTT 5; off: only a new subscription's retained are flagged
         self.connects = 0  # successful CONNACKs, for tests and logs
         self.probe = False  # a connection made only to learn what the broker allows: its refusal is no error
+        self.verify = verify  # run on every connection before anything of it is handled: why not to serve, or None
+        self.refused: str | None = None  # why this client stopped serving the broker (a connection failed `verify`)
+        self.on_refused: Callable[[str], None] | None = None  # told `refused` when a reconnection fails `verify`
         self._retained: dict[str, tuple[bytes, int]] = {}  # topic -> (payload, QoS) of the last retained publish
         self._retained_inflight: dict[int, str] = {}  # QoS 1 retained publishes not acknowledged: paho resends them
         self._retain_lock = threading.RLock()  # orders retained publishes with their republication on reconnect
@@ -222,6 +236,9 @@ class MqttBus:
                 f"the MQTT broker at {self.address} closed the connection before accepting it ({self._dropped}); "
                 "with TLS, check that the broker accepts this client's certificate"
             )
+        if self.refused is not None:
+            self._abort()
+            raise SecurityError(self.refused)
         refusal = self._refusal
         if refusal is not None:
             self._abort()
@@ -273,8 +290,12 @@ class MqttBus:
             if not self.probe:
                 log.error("MQTT broker %s refused the connection: %s", self.address, reason.getName())
             return
+        refusal = self._verified()
+        if refusal is not None:
+            self._stop_serving(client, refusal)
+            return
         self.connects += 1
-        self._connected = True
+        self._connected = True  # from now on what arrives on this connection is handled
         with self._lock:
             patterns = [(p, self._qos[p]) for p in dict.fromkeys(p for p, _ in self._handlers)]
         if patterns:
@@ -301,6 +322,35 @@ class MqttBus:
                 if topic not in skip and topic not in resent:
                     self._send(client, topic, payload, True, qos)
 
+    def _verified(self) -> str | None:
+        """`verify`'s verdict on this connection; a check that cannot be made refuses it (fails closed)."""
+        if self.verify is None:
+            return None
+        try:
+            return self.verify()
+        except Exception:  # noqa: BLE001 - paho's network thread must live; the details go to the log
+            log.exception("checking the MQTT broker at %s failed", self.address)
+            return f"the check of the MQTT broker at {self.address} failed (see the log), so it is not trusted"
+
+    def _stop_serving(self, client: mqtt.Client, why: str) -> None:
+        """A connection failed `verify`: handle nothing from it, disconnect, and stay away from this broker
+        (on the first connection `connect()` raises; on a later one `on_refused` is told, and the retained
+        `offline` status keeps the robot from looking online there)."""
+        first = self.connects == 0 and self.refused is None
+        self.refused = why if first else f"stopped serving: after reconnecting, {why}"
+        self._connected = False
+        if not first:
+            log.error("%s", self.refused)
+            if self.will is not None:
+                self._send(client, self.will.topic, self.will.payload, self.will.retain)
+        client.disconnect()  # paho's thread ends with this connection: no reconnection
+        self._connack.set()
+        if not first and self.on_refused is not None:
+            try:
+                self.on_refused(self.refused)
+            except Exception:  # noqa: BLE001 - never let a hook kill paho's network thread
+                log.exception("while stopping serving %s", self.address)
+
     def _on_disconnect(
         self, _client: mqtt.Client, _userdata: Any, _flags: Any, reason: ReasonCode, _props: Properties | None
     ) -> None:
@@ -314,6 +364,8 @@ class MqttBus:
             log.warning("lost the MQTT broker %s (%s); reconnecting", self.address, reason.getName())
 
     def _on_message(self, _client: mqtt.Client, _userdata: Any, msg: mqtt.MQTTMessage) -> None:
+        if not self._connected:  # a connection that failed `verify`: nothing of it is handled
+            return
         message = Message(msg.topic, bytes(msg.payload), bool(msg.retain))
         with self._lock:  # an edge node subscribes to dozens of filters: match each topic once, not every time
             handlers = self._routes.get(msg.topic)
@@ -385,6 +437,8 @@ class MqttBus:
         client = self._client
         if client is None:
             raise BusError("publish before connect")
+        if self.refused is not None:
+            raise BusError(f"not connected: this node stopped serving the MQTT broker at {self.address}")
         if not retain:
             self._send(client, topic, payload, retain, qos)
             return
@@ -418,6 +472,8 @@ class MqttBus:
                     self._retained_inflight[info.mid] = topic
 
     def flush(self, timeout: float) -> bool:
+        if self.refused is not None:
+            return False  # no broker will acknowledge what is pending
         with self._lock:
             return self._lock.wait_for(lambda: not self._pending, timeout)
 

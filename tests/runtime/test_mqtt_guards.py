@@ -1,16 +1,19 @@
 """What the node keeps true across the life of its broker connection, on a real mosquitto (issue 30):
-commands published retained while it is online are refused, and every retained value it owns is back after
-a broker restart that lost them."""
+commands published retained while it is online are refused, every retained value it owns is back after a
+broker restart that lost them, and a broker that lets anonymous clients in after a restart gets no command
+through."""
 
 from __future__ import annotations
 
 import json
+import logging
 import threading
 import uuid
 from pathlib import Path
 from typing import Any
 
 import paho.mqtt.client as mqtt
+import pytest
 from paho.mqtt.enums import CallbackAPIVersion, MQTTProtocolVersion
 
 from td2adaptor.model.wot import CORRELATION
@@ -23,7 +26,7 @@ from td2adaptor.runtime.simport import SimPort
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.edge import bus_of, until
-from tests.runtime.rb1 import GOAL, check_outbound, rb1_model, sim, terminal
+from tests.runtime.rb1 import GOAL, check_outbound, rb1_model, sim, td_with_security, terminal
 
 ROBOT = "rb1_guard"
 ROOT = f"td2adaptor/{ROBOT}"
@@ -163,4 +166,53 @@ def test_a_stream_connection_publishes_its_retained_values_again_after_a_broker_
         assert retained(broker, ["s/a", "s/b", "s/c", "s/d"], timeout=2) == {"s/a": b"1", "s/b": b"2"}
     finally:
         bus.close()
+        broker.stop()
+
+
+# -- item 9: the anonymous-broker check on every connection ----------------------------------------------
+
+
+def test_a_broker_restarted_open_to_anonymous_clients_runs_no_command(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The node checked at start only that a broker refuses anonymous clients when the TD requires
+    authentication: restarted with `allow_anonymous true`, it was rejoined and an anonymous client moved the
+    robot. The node checks on every connection before anything from it is handled: it stops serving that
+    broker, says why, and the anonymous command never runs (not even once the broker is fixed: the node has
+    stopped)."""
+    broker = Mosquitto(tmp_path / "broker", users={"robot": "s3cret", "app": "app-pass"})
+    broker.start()
+    model = td_with_security(tmp_path, {"basic_sc": {"scheme": "basic"}})
+    port = SimPort(model, sim(0.1))
+    env = {"TD2ADAPTOR_MQTT_USERNAME": "robot", "TD2ADAPTOR_MQTT_PASSWORD": "s3cret"}
+    engine = serve(model, port, config(broker), env=env)
+    halted: list[str] = []
+    engine.on_halt.append(halted.append)
+    bus = bus_of(engine)
+    assert isinstance(bus, MqttBus)
+    anonymous: AppClient | None = None
+    try:
+        app = AppClient(broker, [f"{ROOT}/+/+/feedback"], username="app", password="app-pass")
+        app.send(GOTO, {"id": "ok-1", "correlation": "before", "time": now_text(), "payload": GOAL})
+        app.wait(terminal("feedback", "before"))
+        app.close()
+        calls = len(port.calls)
+        broker.conf.write_text(broker.conf.read_text().replace("allow_anonymous false", "allow_anonymous true"))
+        with caplog.at_level(logging.ERROR, logger="td2adaptor"):
+            broker.restart()
+            assert until(lambda: bool(halted) or bus.connects >= 2, 20)
+            anonymous = AppClient(broker, [f"{ROOT}/#"])  # it really gets in
+            anonymous.send(GOTO, {"id": "anon-1", "correlation": "anon", "time": now_text(), "payload": GOAL})
+            assert not until(lambda: len(port.calls) > calls, 3.0)  # (the old node ran it within 0.1 s)
+        assert len(halted) == 1 and "accepts clients without credentials" in halted[0], halted
+        assert engine.failure == halted[0]
+        assert any("accepts clients without credentials" in r.getMessage() for r in caplog.records)
+        assert not bus.connected
+        assert [t for t, e in anonymous.events if e.get("correlation") == "anon" and t != GOTO] == []  # no answer
+        status = [e["payload"]["state"] for t, e in anonymous.events if t == f"{ROOT}/status"]
+        assert status[-1:] == ["offline"], status  # it does not look online on that broker
+    finally:
+        if anonymous is not None:
+            anonymous.close()
+        engine.stop()
         broker.stop()
