@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import json
 import logging
+import os
+import subprocess
 import threading
 import uuid
 from pathlib import Path
@@ -141,6 +143,40 @@ def test_every_retained_value_is_back_after_a_broker_restart_that_lost_them(tmp_
         after = retained(broker, topics)
         assert sorted(after) == sorted(topics)
         assert after == before  # nothing changed on the robot: the same events, byte for byte
+    finally:
+        engine.stop()
+        broker.stop()
+
+
+def test_node_wot_reads_every_property_after_a_broker_restart_that_lost_them(tmp_path: Path) -> None:
+    """What the issue saw: node-wot's readProperty waits for the retained value, and hung after such a
+    restart. Now it reads each property at once, before the restart and after it."""
+    from tests.runtime.test_edge_node_wot import node_modules
+
+    modules = node_modules()
+    broker = Mosquitto(tmp_path / "broker", persistence=False)
+    broker.start()
+    model = rb1_model()
+    engine = serve(model, SimPort(model, sim(0.1)), config(broker, property_period=0.05, td_broker=broker.url))
+    bus = bus_of(engine)
+    assert isinstance(bus, MqttBus)
+
+    def read() -> dict[str, Any]:
+        command = ["node", str(Path(__file__).parent / "nodewot_read.js"), broker.url, ROBOT]
+        env = {**os.environ, "NODE_PATH": str(modules)}
+        out = subprocess.run(
+            [*command, "availability", "poseMarker"], env=env, capture_output=True, text=True, timeout=30
+        )
+        assert out.returncode == 0, out.stdout + out.stderr
+        return {line["name"]: line["value"] for line in map(json.loads, out.stdout.splitlines())}
+
+    try:
+        assert until(lambda: engine.stats.get("out.property", 0) >= 2, 10) and bus.flush(5)
+        before = read()
+        assert sorted(before) == ["availability", "poseMarker"]
+        broker.restart()
+        assert until(lambda: bus.connects >= 2, 20) and bus.flush(5)
+        assert read() == before
     finally:
         engine.stop()
         broker.stop()
