@@ -202,7 +202,9 @@ class Counter:
         self.n = 0
         self.online: set[str] = set()
         self.lock = threading.Lock()
-        self.bus = MqttBus(parse_broker_url(url), client_id=f"stream-bench-{os.getpid()}", clean_start=True)
+        self.bus = MqttBus(  # retained flag on the values a subscription finds only, not on the live events
+            parse_broker_url(url), client_id=f"stream-bench-{os.getpid()}", clean_start=True, retain_as_published=False
+        )
         self.bus.subscribe("td2adaptor/+/BaseComponent/odom", self._count)
         self.bus.subscribe("td2adaptor/+/LaserComponent/scan", self._count)
         self.bus.subscribe("td2adaptor/+/status", self._status)

@@ -137,15 +137,14 @@ def run(
     Precedence of settings: options > TD2ADAPTOR_* environment > --config file. Once online, each robot's
     Thing Description (what `td2adaptor expose` writes) is retained on td2adaptor/<robot>/td and, with
     --directory, registered with a TD directory. SIGINT/SIGTERM stop it cleanly (the TD is cleared and
-    deregistered, the robot's status becomes offline).
+    deregistered, the robot's status becomes offline). When the TD requires authentication, a broker that
+    accepts anonymous clients is refused at start and on every reconnection: the node stops and exits 1.
     """
     import logging
     import signal
-    import threading
 
     from td2adaptor.runtime.node import EdgeNode, RosOptions, wait_for_signal
 
-    stop = threading.Event()
     result = _compile([source], interfaces, sets, values_file, strict, max_bytes, None, no_cache, max_affordances)
     if result.model is None:
         report(result.diagnostics, "human", label=_label([source]))
@@ -209,10 +208,12 @@ def run(
         signal.signal(signal.SIGTERM, previous)
     click.echo(f"td2adaptor run: {node.describe()}; SIGINT/SIGTERM stops", err=True)
     try:
-        wait_for_signal(stop)
+        wait_for_signal(node.halted)  # or until a robot's broker fails the check on reconnecting
     finally:
         node.stop()
         click.echo("td2adaptor run: stopped", err=True)
+    if node.failure is not None:
+        _fail("run", node.failure)
     sys.exit(EXIT_OK)
 
 

@@ -16,7 +16,6 @@ from td2adaptor.runtime.port import RobotPort
 from td2adaptor.runtime.security import (
     BrokerAddress,
     ConnectionSecurity,
-    SecurityError,
     TlsOptions,
     login_name,
     parse_broker_url,
@@ -101,7 +100,10 @@ def open_bus(
     """`local` (the process-wide in-process broker, or `broker`) or MQTT, secured as the TD says; `announce`
     (retained messages) is published on every connection, before the online status.
 
-    Raises `SecurityError` when the configuration does not satisfy the TD's security definitions.
+    Raises `SecurityError` when the configuration does not satisfy the TD's security definitions. When the TD
+    requires authentication, every connection of the MQTT bus first checks that the broker refuses anonymous
+    clients (unless `allow_anonymous_broker`): the first one's `connect()` raises `SecurityError` if it does
+    not, a later one stops serving that broker (`MqttBus.refused`, see `serve`).
     """
     will = status_event(config, model, "offline")
     birth = status_event(config, model, "online")
@@ -110,16 +112,9 @@ def open_bus(
     from td2adaptor.runtime.mqttbus import MqttBus  # paho only when it is used
 
     address, security = bus_security(config, model, env=env)
+    verify = None
     if security.username and not config.allow_anonymous_broker:
-        from td2adaptor.runtime.mqttbus import accepts_anonymous
-
-        if accepts_anonymous(address, security.tls, mqtt_version=config.mqtt_version):
-            raise SecurityError(
-                f"the MQTT broker at {address} accepts clients without credentials, although the Thing "
-                "Description requires authentication: anyone who reaches it could command the robot or forge "
-                "its feedback. Configure the broker to refuse anonymous clients (mosquitto: allow_anonymous "
-                "false; see docs/security.md), or run anyway with --allow-anonymous-broker"
-            )
+        verify = _anonymous_check(address, security.tls, config.mqtt_version)
     return MqttBus(
         address,
         security,
@@ -130,7 +125,27 @@ def open_bus(
         session_expiry=config.session_expiry,
         mqtt_version=config.mqtt_version,
         keepalive=config.keepalive,
+        verify=verify,
     )
+
+
+def _anonymous_check(address: BrokerAddress, tls: TlsOptions | None, mqtt_version: str) -> Callable[[], str | None]:
+    """The check the node's connection runs each time it connects, before anything from it is handled, when
+    the TD requires authentication: does the broker refuse a client without credentials? A broker restarted
+    with anonymous access while the node runs would otherwise let anyone command the robot."""
+    from td2adaptor.runtime.mqttbus import accepts_anonymous
+
+    def check() -> str | None:
+        if not accepts_anonymous(address, tls, mqtt_version=mqtt_version):
+            return None
+        return (
+            f"the MQTT broker at {address} accepts clients without credentials, although the Thing "
+            "Description requires authentication: anyone who reaches it could command the robot or forge "
+            "its feedback. Configure the broker to refuse anonymous clients (mosquitto: allow_anonymous "
+            "false; see docs/security.md), or run anyway with --allow-anonymous-broker"
+        )
+
+    return check
 
 
 def serve(
@@ -152,14 +167,20 @@ def serve(
     catalog = build_catalog(model, port_distro(port) if distro is None else distro)
     td = td_message(config, model, catalog, env=env)
     announce = () if td is None else (td,)
+    raw = open_bus(config, model, broker=broker, env=env, announce=announce)
     bus = thing_bus(
-        open_bus(config, model, broker=broker, env=env, announce=announce),
+        raw,
         catalog,
         config.robot,
         config.topic_root,
         correlation_ids=config.require_id_and_time,
     )
     engine = Engine(model, port, bus, config, catalog=catalog, td=td)
+    if config.bus != "local":
+        from td2adaptor.runtime.mqttbus import MqttBus
+
+        if isinstance(raw, MqttBus):
+            raw.on_refused = engine.halt  # a reconnection the broker check refused: the engine halts
     engine.start()
     registration = register(config, td)
     if registration is not None:

@@ -20,6 +20,10 @@ class BusError(Exception):
 
 @dataclass(frozen=True)
 class Message:
+    """A message; `retain` as its publisher set it, also when it reaches a client already subscribed (MQTT 5
+    retain-as-published; MQTT 3.1.1 cannot: there only a retained message handed to a new subscription is
+    flagged), and on the empty retained message that clears a topic."""
+
     topic: str
     payload: bytes
     retain: bool = False

@@ -61,7 +61,7 @@ class RuntimeConfig:
     ros_master_uri: str | None = None  # for the ROS 1 adapter
     ros_domain_id: int | None = None  # for the ROS 2 adapter
     freshness_window: float = 300.0  # an inbound event older than this (by its `time`) is expired, not run
-    clock_skew: float = 30.0  # tolerated difference between the sender's clock and ours
+    clock_skew: float = 30.0  # how far a sender's clock may run ahead of ours (a `time` that far ahead is fresh)
     require_id_and_time: bool = False  # refuse inbound events without `id` or `time` (WoT: without correlationId)
     state_dir: str | None = None  # where event ids are remembered (default: the user cache's state/; "" keeps none)
     directory: str | None = None  # a W3C WoT Thing Description Directory to register the robot's TD with

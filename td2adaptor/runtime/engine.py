@@ -40,7 +40,7 @@ from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope,
 from td2adaptor.runtime.goals import GoalRunner
 from td2adaptor.runtime.port import NoValue, PortError, RobotPort, StartResult
 from td2adaptor.runtime.procedures import ProcedureStatus, read
-from td2adaptor.runtime.replay import ReplayGuard, Verdict, digest
+from td2adaptor.runtime.replay import ReplayGuard, Verdict, digest, time_problem
 from td2adaptor.runtime.streams import PropertyStreams, streams
 from td2adaptor.runtime.thingbus import WOT_SOURCE
 from td2adaptor.runtime.words import INTERNAL, describe
@@ -58,6 +58,7 @@ _DEFAULT_MISSION_PATH = ("state", "header", "id")
 _REFUSALS = {
     Verdict.EXPIRED: "not run: sent at {time}, more than {window:g} s ago (the freshness window)",
     Verdict.FUTURE: "not run: sent at {time}, later than this node's clock allows",
+    Verdict.BAD_TIME: "not run: its `time` {time!r} names no instant: {why}",
     Verdict.REUSED: "not run: event id {id!r} was already used by another event (on another topic or with other "
     "content); give every event an id of its own",
 }
@@ -124,6 +125,8 @@ class Engine:
         self.clock = clock
         self.td = td  # the robot's TD as the bus announces it on connecting: cleared on stop
         self.on_stop: list[Callable[[], None]] = []  # run first by stop() (e.g. leaving a TD directory)
+        self.on_halt: list[Callable[[str], None]] = []  # told why, when the bus stops serving the broker (halt)
+        self.failure: str | None = None  # why the bus stopped serving the broker, if it did
         self.stats: dict[str, int] = {}
         self._lock = threading.Lock()
         self._inbox: queue.Queue[Message | None] = queue.Queue()
@@ -199,6 +202,18 @@ class Engine:
         self.bus.close()
         self.guard.close()
 
+    def halt(self, reason: str) -> None:
+        """The bus stopped serving its broker for good (a reconnection failed the check every connection
+        passes, see app.py): nothing more comes in; remember why and tell `on_halt` (`run` exits with it)."""
+        if self.failure is not None:
+            return
+        self.failure = reason
+        for hook in list(self.on_halt):
+            try:
+                hook(reason)
+            except Exception:  # a hook must not keep the others from hearing it
+                log.exception("while halting robot %s", self.config.robot)
+
     def idle(self) -> bool:
         """No queued event and no mission in progress (tests, benchmarks)."""
         with self._lock:
@@ -243,13 +258,27 @@ class Engine:
         self._publish(self.catalog.find(Kind.ERROR), event)
 
     def _refuse(
-        self, code: str, message: str, msg: Message, spec: EventSpec, refs: tuple[str | None, int | None]
+        self,
+        code: str,
+        message: str,
+        msg: Message,
+        spec: EventSpec,
+        refs: tuple[str | None, int | None],
+        errors: tuple[tuple[str, str], ...] = (),
     ) -> None:
         """Answer an inbound event that is not run (retained, stale, replayed, ...) with an error event carrying
-        `refs`, its correlation and mission."""
+        `refs`, its correlation and mission (and `errors`: the members at fault, as a schema error names them)."""
         self._count("refused")
         corr, mission = refs
-        self._error(code, message, topic=msg.topic, affordance=spec.affordance, correlation=corr, mission=mission)
+        self._error(
+            code,
+            message,
+            topic=msg.topic,
+            affordance=spec.affordance,
+            correlation=corr,
+            mission=mission,
+            errors=errors,
+        )
 
     def _state(
         self,
@@ -307,6 +336,9 @@ class Engine:
         if robot not in (self.config.robot, ALL_ROBOTS):
             return
         if msg.retain and spec.kind.inbound:  # the broker would hand it over again at every reconnect
+            if not msg.payload:  # the empty retained message that clears one: no command, nothing to answer
+                self._count("cleared")
+                return
             self._refuse(
                 "retained",
                 "not run: a command published with the retain flag would run again at every reconnect; publish "
@@ -363,12 +395,14 @@ class Engine:
             return
         if verdict is not Verdict.NEW:
             corr, mission = references(event)
+            why = time_problem(sent) if verdict is Verdict.BAD_TIME and isinstance(sent, str) else None
             self._refuse(
                 verdict.value,
-                _REFUSALS[verdict].format(id=event_id, time=sent, window=self.config.freshness_window),
+                _REFUSALS[verdict].format(id=event_id, time=sent, window=self.config.freshness_window, why=why),
                 msg,
                 spec,
                 (corr or (event_id if isinstance(event_id, str) else None), mission),
+                (("/time", why),) if why else (),
             )
             return
         component = self.model.component(spec.component or "")

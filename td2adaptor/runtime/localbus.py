@@ -6,6 +6,8 @@
 * each client has one delivery thread, so messages arrive in publish order (per topic and overall);
 * a handler that raises gets the message again (at least once, up to `attempts` times);
 * retained messages are delivered to new subscriptions; an empty retained payload deletes;
+* a message keeps the retain flag it was published with, also for the clients already subscribed (MQTT 5's
+  retain-as-published, which `MqttBus` asks for): a command published retained is told from a live one;
 * a will is published when a client disappears without `close()` (`crash()`).
 """
 
@@ -101,10 +103,9 @@ class LocalBroker:
                     self._retained[msg.topic] = msg
                 else:
                     self._retained.pop(msg.topic, None)
-            live = Message(msg.topic, msg.payload, False)
             for session in self._sessions.values():
                 if session.matches(msg.topic):
-                    self._enqueue(session, live)
+                    self._enqueue(session, msg)  # its retain flag as published (an empty clear's too)
             self.cond.notify_all()
 
 

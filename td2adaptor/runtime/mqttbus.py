@@ -5,8 +5,12 @@ MQTT 5 (or 3.1.1 for brokers that speak only that: `mqtt_version`), QoS 1 both w
 sessions) so that neither side loses messages while the other is away (except on the filters subscribed at
 QoS 0, which the broker does not queue for an absent client); paho reconnects by itself with
 back-off, keeps unacknowledged QoS 1 publishes and resends them; we resubscribe and republish the birth
-message on every (re)connect.
+message on every (re)connect, and on a reconnect every retained message this client published last on a topic
+(property values, their WoT form): a broker restarted without persistence has forgotten them, and a client
+that reads a retained value (node-wot's readProperty) would otherwise wait until the value changes.
 The will (the retained `offline` status) is published by the broker when the connection drops uncleanly.
+`verify` (the anonymous-broker check, app.py) runs on every connection before anything of it is handled; a
+connection that fails it ends the client's service of the broker for good (`refused`, `on_refused`).
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ import os
 import socket
 import ssl
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import paho.mqtt.client as mqtt
@@ -24,9 +28,17 @@ from paho.mqtt.enums import CallbackAPIVersion, MQTTErrorCode, MQTTProtocolVersi
 from paho.mqtt.packettypes import PacketTypes
 from paho.mqtt.properties import Properties
 from paho.mqtt.reasoncodes import ReasonCode
+from paho.mqtt.subscribeoptions import SubscribeOptions
 
 from td2adaptor.runtime.bus import BusError, Handler, Message, check_qos, topic_matches, valid_filter, valid_topic
-from td2adaptor.runtime.security import ENV_PASSWORD, ENV_USERNAME, BrokerAddress, ConnectionSecurity, TlsOptions
+from td2adaptor.runtime.security import (
+    ENV_PASSWORD,
+    ENV_USERNAME,
+    BrokerAddress,
+    ConnectionSecurity,
+    SecurityError,
+    TlsOptions,
+)
 
 log = logging.getLogger("td2adaptor.runtime.bus")
 
@@ -110,7 +122,8 @@ def _tls_hint(exc: ssl.SSLError, tls: TlsOptions | None, host: str) -> str:
 
 
 class MqttBus:
-    """One MQTT client; `connect()` returns once the broker has accepted it (or raises `BusError`)."""
+    """One MQTT client; `connect()` returns once the broker has accepted it (or raises `BusError`, or
+    `SecurityError` when the first connection fails `verify`)."""
 
     def __init__(
         self,
@@ -127,6 +140,8 @@ class MqttBus:
         keepalive: int = 30,
         connect_timeout: float = 10.0,
         reconnect_delay: tuple[int, int] = (1, 4),
+        retain_as_published: bool = True,
+        verify: Callable[[], str | None] | None = None,
     ) -> None:
         self.address = address
         self.security = security or ConnectionSecurity()
@@ -142,8 +157,15 @@ class MqttBus:
         self.keepalive = keepalive
         self.connect_timeout = connect_timeout
         self.reconnect_delay = reconnect_delay
+        self.retain_as_published = retain_as_published  # MQTT 5; off: only a new subscription's retained are flagged
         self.connects = 0  # successful CONNACKs, for tests and logs
         self.probe = False  # a connection made only to learn what the broker allows: its refusal is no error
+        self.verify = verify  # run on every connection before anything of it is handled: why not to serve, or None
+        self.refused: str | None = None  # why this client stopped serving the broker (a connection failed `verify`)
+        self.on_refused: Callable[[str], None] | None = None  # told `refused` when a reconnection fails `verify`
+        self._retained: dict[str, tuple[bytes, int]] = {}  # topic -> (payload, QoS) of the last retained publish
+        self._retained_inflight: dict[int, str] = {}  # QoS 1 retained publishes not acknowledged: paho resends them
+        self._retain_lock = threading.RLock()  # orders retained publishes with their republication on reconnect
         self._handlers: list[tuple[str, Handler]] = []
         self._routes: dict[str, list[Handler]] = {}  # topic -> its handlers, of the topics seen (see _on_message)
         self._qos: dict[str, int] = {}  # each filter's QoS: the highest any of its subscriptions asked for
@@ -240,6 +262,9 @@ class MqttBus:
                 f"the MQTT broker at {self.address} closed the connection before accepting it ({self._dropped}); "
                 "with TLS, check that the broker accepts this client's certificate"
             )
+        if self.refused is not None:
+            self._abort()
+            raise SecurityError(self.refused)
         refusal = self._refusal
         if refusal is not None:
             self._abort()
@@ -291,19 +316,66 @@ class MqttBus:
             if not self.probe:
                 log.error("MQTT broker %s refused the connection: %s", self.address, reason.getName())
             return
+        refusal = self._verified()
+        if refusal is not None:
+            self._stop_serving(client, refusal)
+            return
         self.connects += 1
-        self._connected = True
+        self._connected = True  # from now on what arrives on this connection is handled
         with self._lock:
             patterns = [(p, self._qos[p]) for p in dict.fromkeys(p for p, _ in self._handlers)]
         if patterns:
-            rc, mid = client.subscribe(patterns)
+            rc, mid = self._subscribe(client, patterns)
             if self.connects == 1 and rc is MQTTErrorCode.MQTT_ERR_SUCCESS and mid is not None:
                 self._first_subscribe = mid  # connect() waits for its SUBACK
-        for message in (*self.announce, *([self.birth] if self.birth is not None else [])):
+        announced = (*self.announce, *([self.birth] if self.birth is not None else []))
+        if self.connects > 1:
+            self._republish(client, {m.topic for m in announced})
+        for message in announced:
             self._send(client, message.topic, message.payload, message.retain)
         if self.connects > 1:
             log.info("reconnected to %s (session present: %s)", self.address, flags.session_present)
         self._connack.set()
+
+    def _republish(self, client: mqtt.Client, skip: set[str]) -> None:
+        """Publish again the last retained message of each topic (but `skip`, and those paho resends itself):
+        the broker may have lost them (a restart without persistence); to a broker that kept them it is the
+        same message again. Before the birth message: a client that sees the robot online finds its values."""
+        with self._retain_lock:
+            with self._lock:
+                resent = set(self._retained_inflight.values())
+            for topic, (payload, qos) in list(self._retained.items()):
+                if topic not in skip and topic not in resent:
+                    self._send(client, topic, payload, True, qos)
+
+    def _verified(self) -> str | None:
+        """`verify`'s verdict on this connection; a check that cannot be made refuses it (fails closed)."""
+        if self.verify is None:
+            return None
+        try:
+            return self.verify()
+        except Exception:  # noqa: BLE001 - paho's network thread must live; the details go to the log
+            log.exception("checking the MQTT broker at %s failed", self.address)
+            return f"the check of the MQTT broker at {self.address} failed (see the log), so it is not trusted"
+
+    def _stop_serving(self, client: mqtt.Client, why: str) -> None:
+        """A connection failed `verify`: handle nothing from it, disconnect, and stay away from this broker
+        (on the first connection `connect()` raises; on a later one `on_refused` is told, and the retained
+        `offline` status keeps the robot from looking online there)."""
+        first = self.connects == 0 and self.refused is None
+        self.refused = why if first else f"stopped serving: after reconnecting, {why}"
+        self._connected = False
+        if not first:
+            log.error("%s", self.refused)
+            if self.will is not None:
+                self._send(client, self.will.topic, self.will.payload, self.will.retain)
+        client.disconnect()  # paho's thread ends with this connection: no reconnection
+        self._connack.set()
+        if not first and self.on_refused is not None:
+            try:
+                self.on_refused(self.refused)
+            except Exception:  # noqa: BLE001 - never let a hook kill paho's network thread
+                log.exception("while stopping serving %s", self.address)
 
     def _on_disconnect(
         self, _client: mqtt.Client, _userdata: Any, _flags: Any, reason: ReasonCode, _props: Properties | None
@@ -318,6 +390,8 @@ class MqttBus:
             log.warning("lost the MQTT broker %s (%s); reconnecting", self.address, reason.getName())
 
     def _on_message(self, _client: mqtt.Client, _userdata: Any, msg: mqtt.MQTTMessage) -> None:
+        if not self._connected:  # a connection that failed `verify`: nothing of it is handled
+            return
         message = Message(msg.topic, bytes(msg.payload), bool(msg.retain))
         with self._lock:  # an edge node subscribes to dozens of filters: match each topic once, not every time
             handlers = self._routes.get(msg.topic)
@@ -341,6 +415,7 @@ class MqttBus:
                 self._unacked.discard(mid)
             elif mid in self._pending:
                 self._pending.discard(mid)
+                self._retained_inflight.pop(mid, None)
             else:
                 self._acked_early.add(mid)
             self._lock.notify_all()
@@ -366,11 +441,20 @@ class MqttBus:
         client = self._client
         if client is None or known or not self._connected:
             return  # subscribed on (re)connect
-        rc, mid = client.subscribe(pattern, qos=qos)  # never under self._lock: paho calls back holding its own
+        rc, mid = self._subscribe(client, [(pattern, qos)])  # never under self._lock: paho calls back holding its own
         if rc is not MQTTErrorCode.MQTT_ERR_SUCCESS or mid is None:
             return  # not connected after all: subscribed on reconnect
         with self._lock:
             self._await_suback(mid, pattern)
+
+    def _subscribe(self, client: mqtt.Client, patterns: list[tuple[str, int]]) -> tuple[MQTTErrorCode, int | None]:
+        """Subscribe to (filter, QoS) pairs; in MQTT 5 with retain-as-published, so that a message published
+        retained keeps its flag also when it reaches this client already subscribed (a broker clears it
+        otherwise, and a command published retained while the node is online looks live). MQTT 3.1.1 has no
+        such option: there only the retained messages a new subscription finds are flagged."""
+        if self.mqtt_version != "5" or not self.retain_as_published:
+            return client.subscribe(patterns)
+        return client.subscribe([(p, SubscribeOptions(qos=q, retainAsPublished=True)) for p, q in patterns])
 
     def publish(self, topic: str, payload: bytes, *, retain: bool = False, qos: int = 1) -> None:
         if not valid_topic(topic):
@@ -379,7 +463,17 @@ class MqttBus:
         client = self._client
         if client is None:
             raise BusError("publish before connect")
-        self._send(client, topic, payload, retain, qos)
+        if self.refused is not None:
+            raise BusError(f"not connected: this node stopped serving the MQTT broker at {self.address}")
+        if not retain:
+            self._send(client, topic, payload, retain, qos)
+            return
+        with self._retain_lock:  # the record and the message in the same order (see _republish)
+            if payload:
+                self._retained[topic] = (bytes(payload), qos)
+            else:  # cleared: no longer ours to publish again
+                self._retained.pop(topic, None)
+            self._send(client, topic, payload, retain, qos)
 
     def _send(self, client: mqtt.Client, topic: str, payload: bytes, retain: bool, qos: int = 1) -> None:
         """Publish; at QoS 1 track the message id until its PUBACK (for `flush`)."""
@@ -400,8 +494,12 @@ class MqttBus:
                 self._acked_early.discard(info.mid)
             else:
                 self._pending.add(info.mid)
+                if retain:
+                    self._retained_inflight[info.mid] = topic
 
     def flush(self, timeout: float) -> bool:
+        if self.refused is not None:
+            return False  # no broker will acknowledge what is pending
         with self._lock:
             return self._lock.wait_for(lambda: not self._pending, timeout)
 

@@ -4,7 +4,9 @@ The command line compiles the TD and loads the configuration; `EdgeNode` connect
 to ROS (`ros.connect`), serves every robot (`app.serve_fleet`: each robot's Thing Description retained on
 `td2adaptor/<robot>/td`, then its `online` status) and, on `stop()`, stops the engines (each clears its TD,
 publishes its retained `offline` status and flushes the bus) before it leaves the ROS graph. The MQTT will
-publishes the same `offline` status when the process dies without stopping.
+publishes the same `offline` status when the process dies without stopping. When a robot's connection fails
+the check every connection passes (a broker that lets anonymous clients in, docs/security.md), the node sets
+`halted` with the reason in `failure`: `run` stops it and exits with that message.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ import signal
 import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from types import FrameType
 
@@ -59,6 +62,8 @@ class EdgeNode:
         self.link: RosLink | None = None
         self.engines: list[Engine] = []
         self._stopped = threading.Event()
+        self.halted = threading.Event()  # set when a robot's bus stopped serving its broker (`failure` says why)
+        self.failure: str | None = None
 
     def check_bus(self) -> None:
         """Refuse a bus the TD's security does not allow before anything connects (raises `SecurityError`)."""
@@ -93,6 +98,17 @@ class EdgeNode:
         except BaseException:
             self.link.close()
             raise
+        for engine in self.engines:
+            engine.on_halt.append(partial(self._halt, engine.config.robot))
+            if engine.failure is not None:  # halted before the hook was in place
+                self._halt(engine.config.robot, engine.failure)
+
+    def _halt(self, robot: str, reason: str) -> None:
+        """A robot's bus stopped serving its broker (it failed the check every connection passes): the node
+        does not go on half-served; `run` stops it and exits with `reason`."""
+        if self.failure is None:
+            self.failure = f"robot {robot}: {reason}"
+        self.halted.set()
 
     def stop(self) -> None:
         """Stop serving (offline status published by each engine), then leave the ROS graph. Idempotent."""

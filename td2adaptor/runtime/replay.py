@@ -3,8 +3,11 @@
 An MQTT broker delivers a QoS 1 message at least once, and a persistent session keeps what was published
 while the node was away; a recorded command can also be published again by anyone allowed to publish. So:
 
-* an event whose `time` is older than `freshness_window` (plus `clock_skew`), or more than `clock_skew` in
-  the future, is answered with an error event and not run (`expired` / `from-the-future`);
+* an event whose `time` is older than `freshness_window` by the node's clock, or more than `clock_skew` in
+  the future, is answered with an error event and not run (`expired` / `from-the-future`): the skew lets a
+  sender's clock run ahead of the node's; one that runs behind shortens the window for its events by as much;
+* a `time` that names no instant (month 13, 30 February, hour 24, offset +99:99, second 60) is refused
+  (`invalid-event`, naming what is wrong), never taken for an event without a time;
 * an event id is remembered for as long as an event carrying it could still be fresh, in a small SQLite file
   per robot (so a restart forgets nothing that could still be replayed), with a digest of the event: the same
   id on the same topic with the same content is a redelivery and handled once (ignored in silence); the same
@@ -17,6 +20,7 @@ Events without `time` are accepted and remembered for the window from their arri
 
 from __future__ import annotations
 
+import calendar
 import hashlib
 import json
 import re
@@ -29,7 +33,12 @@ from enum import Enum
 from pathlib import Path
 from typing import Any
 
-_RFC3339 = re.compile(r"^(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d(?:\.\d+)?)(Z|[+-]\d\d:\d\d)$", re.IGNORECASE)
+# RFC 3339's date-time, its fields apart (ASCII digits only: `\d` would take any script's)
+_RFC3339 = re.compile(
+    r"^([0-9]{4})-([0-9]{2})-([0-9]{2})T([0-9]{2}):([0-9]{2}):([0-9]{2})(\.[0-9]+)?(Z|([+-])([0-9]{2}):([0-9]{2}))$",
+    re.IGNORECASE,
+)
+_MONTHS = "January February March April May June July August September October November December".split()
 
 
 class Verdict(str, Enum):
@@ -38,6 +47,7 @@ class Verdict(str, Enum):
     REUSED = "id-reused"  # the same id on another topic or with other content: answered with an error
     EXPIRED = "expired"
     FUTURE = "from-the-future"
+    BAD_TIME = "invalid-event"  # a `time` that names no instant (see `time_problem`)
 
 
 def digest(event: Any) -> str:
@@ -51,15 +61,45 @@ def digest(event: Any) -> str:
 
 
 def parse_time(text: str) -> float | None:
-    """Seconds since the epoch of an RFC 3339 time, or None when it is not one."""
+    """Seconds since the epoch of an RFC 3339 time, or None when it is not one (`time_problem` says why)."""
+    found = _instant(text)
+    return found if isinstance(found, float) else None
+
+
+def time_problem(text: str) -> str | None:
+    """Why `text` is no RFC 3339 time naming a real instant, in words for the sender; None when it is one."""
+    found = _instant(text)
+    return found if isinstance(found, str) else None
+
+
+def _instant(text: str) -> float | str:
+    """The instant `text` names (seconds since the epoch), or what is wrong with it."""
     match = _RFC3339.match(text)
     if match is None:
-        return None
-    zone = "+00:00" if match[2].upper() == "Z" else match[2]
+        return "not an RFC 3339 date-time such as 2026-05-01T12:00:00Z"
+    year, month, day, hour, minute, second = (int(match[i]) for i in range(1, 7))
+    if year == 0:
+        return "year 0000 is before year 1, the first this node handles"
+    if not 1 <= month <= 12:
+        return f"month {match[2]} does not exist (01 to 12)"
+    if not 1 <= day <= calendar.monthrange(year, month)[1]:
+        return f"{_MONTHS[month - 1]} {match[1]} has no day {match[3]}"
+    if hour > 23:
+        return f"hour {match[4]} does not exist (00 to 23)"
+    if minute > 59:
+        return f"minute {match[5]} does not exist (00 to 59)"
+    if second == 60:
+        return "second 60 (a leap second) is not accepted: give the instant after it, 00 of the next minute"
+    if second > 59:
+        return f"second {match[6]} does not exist (00 to 59)"
+    if match[9] is not None and (int(match[10]) > 23 or int(match[11]) > 59):
+        return f"offset {match[9]}{match[10]}:{match[11]} is no time zone offset (hours 00 to 23, minutes 00 to 59)"
+    zone = "+00:00" if match[8].upper() == "Z" else match[8]
+    fraction = (match[7] or "")[:7]  # to the microsecond: what a timestamp holds
     try:
-        return datetime.fromisoformat(match[1] + zone).timestamp()
-    except ValueError:
-        return None
+        return datetime.fromisoformat(text[:19].upper() + fraction + zone).timestamp()
+    except (ValueError, OverflowError):
+        return "outside the times this node can handle"
 
 
 class ReplayGuard:
@@ -98,9 +138,13 @@ class ReplayGuard:
         topic and digest, until it could no longer be fresh. Where either digest is unknown, the same id on the
         same topic counts as a redelivery."""
         now = self.clock()
-        stamp = parse_time(sent) if sent is not None else None
-        if stamp is not None:
-            if stamp < now - self.window - self.skew:
+        stamp = None
+        if sent is not None:
+            found = _instant(sent)
+            if isinstance(found, str):
+                return Verdict.BAD_TIME
+            stamp = found
+            if stamp < now - self.window:
                 return Verdict.EXPIRED
             if stamp > now + self.skew:
                 return Verdict.FUTURE

@@ -65,7 +65,8 @@ class ThingBus:
             return  # the all-robots channel and anything else: envelope only
 
         def inbound(msg: Message, spec: EventSpec = spec, native: str = pattern) -> None:
-            handler(Message(native, self.wrap(spec, msg.payload), msg.retain))
+            cleared = msg.retain and not msg.payload  # a retained command cleared: no message without input
+            handler(Message(native, b"" if cleared else self.wrap(spec, msg.payload), msg.retain))
 
         self.bus.subscribe(topic, inbound, qos=0)  # not queued while the node is away (see above)
 

@@ -29,7 +29,8 @@ def free_port() -> int:
 
 
 class Mosquitto:
-    """One broker process; `restart()` keeps its port and its persisted sessions."""
+    """One broker process; `restart()` keeps its port and, unless `persistence` is off, its sessions and
+    retained messages."""
 
     mqtt_version = "5"
 
@@ -44,6 +45,7 @@ class Mosquitto:
         require_certificate: bool = True,
         identity_as_username: bool = False,
         extra: tuple[str, ...] = (),
+        persistence: bool = True,
     ) -> None:
         self.dir = workdir
         self.dir.mkdir(parents=True, exist_ok=True)
@@ -55,7 +57,7 @@ class Mosquitto:
             f"listener {self.port} 127.0.0.1",
             *extra,  # more of the listener's settings (e.g. max_connections), right after it
             f"user {getpass.getuser()}",
-            "persistence true",
+            f"persistence {'true' if persistence else 'false'}",  # false: a restart forgets sessions, retained
             f"persistence_location {self.dir}/",
             f"log_dest file {self.dir}/mosquitto.log",
             "log_type error",

@@ -136,6 +136,26 @@ def test_a_qos_0_subscription_keeps_nothing_while_away(make_bus: BusFactory) -> 
     assert [m.payload for m in dropped.wait(1)] == [b"back"]  # the one sent while away never came
 
 
+def test_a_retained_message_keeps_its_flag_for_a_subscriber_already_there(make_bus: BusFactory) -> None:
+    """Issue 30, item 3: MQTT clears the retain flag of a message delivered to a client already subscribed,
+    so a command published retained while the node was online looked live and ran. The node subscribes with
+    MQTT 5's retain-as-published and the local bus keeps the flag the same way: a retained message, and the
+    empty retained message that clears it, arrive flagged; a plain one does not; at QoS 0 too."""
+    sub, pub = make_bus("flag-keeper"), make_bus("pub")
+    kept, loose = Inbox(), Inbox()
+    sub.subscribe("r/#", kept)
+    sub.subscribe("w/#", loose, qos=0)
+    sub.connect()
+    pub.connect()
+    for topic in ("r/1", "w/1"):
+        pub.publish(topic, b"live")
+        pub.publish(topic, b"kept", retain=True)
+        pub.publish(topic, b"", retain=True)  # clears it: delivered, flagged too
+    want = [(b"live", False), (b"kept", True), (b"", True)]
+    assert [(m.payload, m.retain) for m in kept.wait(3)] == want
+    assert [(m.payload, m.retain) for m in loose.wait(3)] == want
+
+
 def test_local_redelivers_when_a_handler_fails() -> None:
     broker = LocalBroker()
     bus = LocalBus(broker, "flaky")

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from td2adaptor.runtime import LocalBroker, RuntimeConfig, serve
-from td2adaptor.runtime.replay import ReplayGuard, Verdict, now_text, parse_time
+from td2adaptor.runtime.replay import ReplayGuard, Verdict, now_text, parse_time, time_problem
 from td2adaptor.runtime.simport import SimPort
 from tests.runtime.rb1 import GOAL, LocalApp, check_outbound, rb1_model, sim, terminal
 
@@ -34,7 +34,7 @@ def test_the_guard_decides_by_time_id_and_topic(tmp_path: Path) -> None:
     assert guard.check("a", "t/1", "2026-11-23T11:59:00Z") is Verdict.DUPLICATE
     assert guard.check("a", "t/2", "2026-11-23T11:59:00Z") is Verdict.REUSED
     assert guard.check("old", "t/1", "2001-01-01T00:00:00Z") is Verdict.EXPIRED
-    assert guard.check("late", "t/1", "2026-11-23T11:54:31Z") is Verdict.NEW  # 329 s: inside window + skew
+    assert guard.check("late", "t/1", "2026-11-23T11:55:01Z") is Verdict.NEW  # 299 s: inside the window
     assert guard.check("ahead", "t/1", "2026-11-23T12:00:29+00:00") is Verdict.NEW  # within the skew
     assert guard.check("future", "t/1", "2026-11-23T13:00:00+01:00") is Verdict.NEW  # the same instant
     assert guard.check("future2", "t/1", "2026-11-23T12:01:00Z") is Verdict.FUTURE
@@ -90,6 +90,73 @@ def test_many_events_do_not_push_an_id_out_while_it_could_be_fresh(tmp_path: Pat
     for i in range(10_050):
         assert guard.check(f"other-{i}", "t/x", sent) is Verdict.NEW
     assert guard.check("replayed", "t/x", sent) is Verdict.DUPLICATE
+
+
+def test_the_freshness_window_is_the_cut_off_the_docs_give(tmp_path: Path) -> None:
+    """Issue 30, item 4: the node refused an event only once it was older than the window plus the clock skew
+    (330 s by default) while the docs, the configuration and the refusal itself say the window (300 s). The
+    window is the cut-off by the node's clock; the skew lets a sender's clock run ahead, not behind."""
+    clock = Clock(parse_time("2026-11-23T12:00:00Z") or 0.0)
+    guard = ReplayGuard(None, window=300, skew=30, clock=clock)
+    assert guard.check("in", "t/1", "2026-11-23T11:55:00Z") is Verdict.NEW  # 300 s: the last fresh second
+    assert guard.check("out", "t/1", "2026-11-23T11:54:59.900Z") is Verdict.EXPIRED  # 300.1 s
+    assert guard.check("out2", "t/1", "2026-11-23T11:54:31Z") is Verdict.EXPIRED  # 329 s ran before
+    assert guard.check("ahead", "t/1", "2026-11-23T12:00:30Z") is Verdict.NEW  # the skew, ahead
+    assert guard.check("ahead2", "t/1", "2026-11-23T12:00:30.1Z") is Verdict.FUTURE
+
+
+#: times with the shape of RFC 3339 that name no instant (issue 30, item 4: each ran without a freshness check)
+NOT_INSTANTS = {
+    "2026-13-01T00:00:00Z": "month 13",
+    "2026-02-30T12:00:00Z": "February 2026 has no day 30",
+    "2024-02-30T12:00:00Z": "February 2024 has no day 30",
+    "2026-04-31T12:00:00Z": "April 2026 has no day 31",
+    "2026-05-01T24:00:00Z": "hour 24",
+    "2026-05-01T12:60:00Z": "minute 60",
+    "2026-05-01T12:00:60Z": "second 60",
+    "2026-05-01T12:00:00+99:99": "offset +99:99",
+    "2026-05-01T12:00:00-24:00": "offset -24:00",
+    "2026-00-01T12:00:00Z": "month 00",
+    "2026-05-00T12:00:00Z": "day 00",
+    "0000-05-01T12:00:00Z": "year 0000",
+}
+
+
+def test_a_time_that_is_no_real_instant_is_refused_by_the_guard() -> None:
+    guard = ReplayGuard(None, window=300, skew=30)
+    for text, why in NOT_INSTANTS.items():
+        assert parse_time(text) is None, text
+        assert why in (time_problem(text) or ""), (text, time_problem(text))
+        assert guard.check(f"id-{text}", "t/1", text) is Verdict.BAD_TIME, text
+        assert guard.check(None, "t/1", text) is Verdict.BAD_TIME, text
+    assert guard.check("leap-year", "t/1", "2024-02-29T12:00:00Z") is Verdict.EXPIRED  # a real day, long ago
+    assert time_problem("2024-02-29T23:59:59.999999999+23:59") is None
+    assert time_problem("2026-05-01t12:00:00z") is None  # RFC 3339 allows lower case
+    assert time_problem("2026-05-01 12:00:00Z") is not None and time_problem("٢٠٢٦-05-01T12:00:00Z") is not None
+
+
+def test_a_command_whose_time_is_no_real_instant_is_answered_and_not_run(tmp_path: Path) -> None:
+    """Even with `require_id_and_time`, a malformed time skipped the freshness check and the command ran: it is
+    refused with an error event that names the member and says what is wrong with it."""
+    broker, model, robot = LocalBroker(), rb1_model(), sim(0.05)
+    port = SimPort(model, robot)
+    app = LocalApp(broker)
+    engine = serve(model, port, _config(tmp_path, require_id_and_time=True), broker=broker)
+    try:
+        for i, (text, why) in enumerate(NOT_INSTANTS.items()):
+            app.send(GOTO, {"id": f"bad-{i}", "correlation": f"bad-{i}", "time": text, "payload": GOAL})
+            app.wait(lambda ev, c=f"bad-{i}": bool(app.of("error", c)))
+            (error,) = app.of("error", f"bad-{i}")
+            assert error["payload"]["code"] == "invalid-event", error
+            assert "`time`" in error["payload"]["message"] and why in error["payload"]["message"], error
+            assert error["payload"]["errors"] == [{"path": "/time", "message": time_problem(text)}]
+        app.send(GOTO, {"id": "good", "correlation": "good", "time": now_text(), "payload": GOAL})
+        app.wait(terminal("feedback", "good"))
+        assert [c for c in port.calls if c[1] == "gotoRun"] == [("GoToComponent", "gotoRun")]  # the good one
+        assert not [e for e in app.of("feedback") if e.get("correlation", "").startswith("bad-")]
+    finally:
+        engine.stop()
+    check_outbound(app.events)
 
 
 def _config(state: Path, **kw: Any) -> RuntimeConfig:
