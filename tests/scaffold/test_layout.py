@@ -263,6 +263,11 @@ def test_field_comments_of_interface_files_become_descriptions_and_units(tmp_pat
         "# the mode\n"
         "uint8 mode\n"
         "float32 temperature  # in degrees Celsius\n"
+        "float64[2] velocity  # linear [m/s], angular [rad/s]\n"
+        "float32 current  # in amperes, at most 3 [A]\n"
+        "uint8 LIGHT_OFF=0\n"
+        "uint8 LIGHT_ON=1\n"
+        "uint8 light  # the lamp:\n"
         "string name\n"
         "Inner inner  # the nested part\n"
     )
@@ -276,8 +281,13 @@ def test_field_comments_of_interface_files_become_descriptions_and_units(tmp_pat
     speed = props["speed"]
     assert speed["description"] == "How fast it goes, measured at the wheels. [m/s]" and speed["unit"] == "m/s"
     assert props["charge"] == {"type": "number", "unit": "%"}  # a comment that only names the unit
-    assert props["mode"]["description"].startswith("the mode One of the message's constants: MODE_IDLE = 0")
+    # a comment that ends no sentence is one before the constants
+    assert props["mode"]["description"].startswith("the mode. One of the message's constants: MODE_IDLE = 0")
+    assert props["light"]["description"] == "the lamp. One of the message's constants: LIGHT_OFF = 0, LIGHT_ON = 1."
     assert props["temperature"]["unit"] == "°C"
+    # two units in one comment: no one unit is the field's (not the first one for the whole field)
+    assert props["velocity"]["description"] == "linear [m/s], angular [rad/s]" and "unit" not in props["velocity"]
+    assert props["current"]["unit"] == "A"  # the same unit named twice is the one unit
     assert "description" not in props["name"] and "unit" not in props["name"]
     inner = props["inner"]
     assert inner["description"] == "the nested part"
