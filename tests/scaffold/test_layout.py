@@ -111,6 +111,35 @@ def test_a_topic_the_robot_publishes_and_reads_is_read_and_one_it_only_reads_is_
     assert doc["properties"]["cmd"]["forms"][0]["rosv:role"] == "publisher"
 
 
+def test_td2adaptor_s_own_nodes_are_left_out_and_said_unless_named() -> None:
+    bridge = "/td2adaptor_edge_rb1_12345_1700000000000"  # the ROS 1 bridge's anonymous rospy node
+    graph = Graph(
+        "g",
+        [
+            topic("/robot/cmd", role="subscriber"),
+            topic("/robot/cmd", node="/td2adaptor_edge_rb1"),  # an edge node publishes what the robot reads
+            topic("/robot/odom", role="subscriber", node=bridge),  # and reads what the robot publishes
+            topic("/robot/odom"),
+            topic("/robot/cmd", node="/td2adaptor_edge_d3"),  # a fleet's node on a second domain
+            topic("/robot/cmd", node="/td2adaptor_edgeless"),  # somebody else's node
+        ],
+    )
+    diags = Diagnostics()
+    kept = {(e.name, e.role): e.nodes for e in select(graph, Filters(), diags)}
+    assert kept == {
+        ("/robot/cmd", "subscriber"): ("/robot/driver",),
+        ("/robot/cmd", "publisher"): ("/td2adaptor_edgeless",),
+        ("/robot/odom", "publisher"): ("/robot/driver",),
+    }
+    assert diags.codes() == ["SCF115"]
+    said = next(iter(diags)).message
+    assert f"/td2adaptor_edge_d3, /td2adaptor_edge_rb1, {bridge}:" in said, said
+    named = select(graph, Filters(nodes=("/td2adaptor_edge_rb1",)), diags)
+    assert [(e.name, e.role) for e in named] == [("/robot/cmd", "publisher")]
+    doc, _ = run(graph.endpoints[:4])
+    assert doc is not None and doc["properties"]["cmd"]["writeOnly"] is True
+
+
 def test_a_robot_namespace_becomes_the_placeholder_and_a_root_graph_stays_verbatim() -> None:
     doc, diags = run([topic("/rb/odom"), topic("/rb/scan"), topic("/door/cmd", role="subscriber")])
     assert doc is not None and doc["@type"] == "Thing"
