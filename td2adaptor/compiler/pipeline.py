@@ -260,6 +260,9 @@ def compile(  # noqa: A001 - the public name the docs promise
             package=package,
             fallback_title=fallback,
         )
+        if model is not None and inp.kind == "tm" and model.thing.description:
+            # the description is the Thing Model's: a robot's TD made from the model does not repeat it
+            model = replace(model, thing=replace(model.thing, model_description=True))
         if finish is not None:
             finish()
         td_diags.extend(lowered)

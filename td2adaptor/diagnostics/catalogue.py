@@ -364,6 +364,19 @@ _ENTRIES: tuple[Entry, ...] = (
         "--robot-namespace of several segments: {{robotName}} stands for one name segment",
         "give one segment (e.g. rb1_base_a): robotName is also the robot id and its MQTT topic root",
     ),
+    Entry("SCF113", (_I,), "--merge: hand-written data schema constraints the ROS types allow are kept (listed)"),
+    Entry(
+        "SCF114",
+        (_W,),
+        "--merge: a hand-written data schema constraint the ROS type contradicts is dropped",
+        "a bound looser than the type's own, one that leaves no value, or one for another JSON type",
+    ),
+    Entry(
+        "SCF115",
+        (_I,),
+        "td2adaptor's own ROS nodes (an edge node, the scaffold's reader) are left out: they are not the robot",
+        "--node NAME keeps one",
+    ),
     # -- CFG9: project configuration ---------------------------------------------------------------------
     Entry("CFG900", (_E,), "configuration file cannot be read"),
     Entry("CFG901", (_E,), "configuration file is not valid TOML"),

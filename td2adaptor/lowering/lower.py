@@ -79,6 +79,12 @@ def thing_of(td: Mapping[str, Any], fallback_title: str) -> Thing:
     title = td.get("title") if isinstance(td.get("title"), str) and td.get("title") else fallback_title
     master = td.get("rosv:masterURI", td.get("ros:masterURI"))
     version = obj(td.get("version")).get("instance")
+    links = td.get("links")
+    types = [
+        lk["href"]
+        for lk in (links if isinstance(links, list) else [])
+        if isinstance(lk, dict) and lk.get("rel") == "type" and isinstance(lk.get("href"), str)
+    ]
     return Thing(
         title=str(title),
         id=td["id"] if isinstance(td.get("id"), str) else None,
@@ -86,6 +92,7 @@ def thing_of(td: Mapping[str, Any], fallback_title: str) -> Thing:
         version=version if isinstance(version, str) else None,
         master_uri=master if isinstance(master, str) else None,
         security=freeze(obj(td.get("securityDefinitions"))),
+        model=types[0] if types else None,
     )
 
 

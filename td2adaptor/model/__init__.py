@@ -374,6 +374,12 @@ class Thing:
     version: str | None = None
     master_uri: str | None = None
     security: Any = None  # frozen securityDefinitions of the Thing, for the runtime
+    #: the Thing Model this Thing is an instance of: the href of the TD's `rel: type` link (an instantiated
+    #: model's file name); a robot's exposed TD links it too
+    model: str | None = None
+    #: whether `description` is the Thing Model's (the TD was instantiated from one here), which describes the
+    #: model ("instantiate it per robot ...") rather than any one robot
+    model_description: bool = False
 
 
 @dataclass(frozen=True)

@@ -18,6 +18,8 @@ from td2adaptor.model.wot import wot_data, wot_topic
 
 TD_CONTEXT = "https://www.w3.org/2022/wot/td/v1.1"
 MQV_NAMESPACE = "http://www.example.org/mqtt-binding#"
+#: the media type of a Thing Model (TD 1.1), on a robot TD's `rel: type` link to the model it instantiates
+TM_MEDIA_TYPE = "application/tm+json"
 ROBOT_PLACEHOLDER = "{{robotName}}"
 BROKER_PLACEHOLDER = "{{mqttBroker}}"
 #: the QoS a consumer publishes and subscribes with (the binding's `mqv:qos` is a string): 1, as the runtime
@@ -163,9 +165,13 @@ def exposed_td(
     td["id"] = thing_id(model, robot)
     td["title"] = thing.title
     description = f"{thing.title} ({robot}) through its td2adaptor event adaptor."
-    if thing.description:
+    # a Thing Model's own description tells how to use the model ("instantiate it per robot ..."): the fleet's
+    # model keeps it, a robot's TD says which robot it is and links the model instead
+    if thing.description and (is_model or not thing.model_description):
         description = f"{thing.description} {description}"
     td["description"] = description
+    if thing.model and not is_model:
+        td["links"] = [{"rel": "type", "href": thing.model, "type": TM_MEDIA_TYPE}]
     if thing.version:
         td["version"] = {"model" if is_model else "instance": thing.version}
     security = thaw(thing.security) if isinstance(thing.security, Mapping) and thing.security else None

@@ -35,6 +35,18 @@ _INFRASTRUCTURE_SERVICE_LEAVES = frozenset(
     }
 )
 
+#: the ROS nodes td2adaptor runs itself, by their last name segment: the edge node (`td2adaptor run`:
+#: `td2adaptor_edge_<robot>`, or `td2adaptor_edge` for a fleet, `_d<domain>` per extra ROS 2 domain, and the
+#: ROS 1 bridge's anonymous `td2adaptor_edge_<robot>_<pid>_<time>`) and the scaffold's own graph reader.
+#: Their publishers and subscriptions mirror the robot's (an edge node publishes what the robot subscribes)
+#: and are never the robot's interface.
+_OWN_NODE = re.compile(r"td2adaptor_(?:edge|scaffold)(?:_\w*)?")
+
+
+def is_own_node(node: str) -> bool:
+    """Whether `node` (a full name) is one td2adaptor runs itself."""
+    return _OWN_NODE.fullmatch(node.rsplit("/", 1)[-1]) is not None
+
 
 @dataclass(frozen=True)
 class Endpoint:
@@ -111,7 +123,7 @@ class Filters:
             return (
                 not is_infrastructure(kind, name, self.keep)
                 and (not self.namespaces or any(_under(name, ns) for ns in self.namespaces))
-                and (not nodes or node in nodes)
+                and (node in nodes if nodes else not is_own_node(node))
                 and (not include or any(p.search(name) for p in include))
                 and not any(p.search(name) for p in exclude)
             )
@@ -133,8 +145,12 @@ def select(graph: Graph, filters: Filters, diags: Diagnostics) -> list[Endpoint]
     wanted_nodes = {"/" + n.strip("/") for n in filters.nodes}
     merged: dict[tuple[str, str, str], Endpoint] = {}
     types: dict[tuple[str, str], str] = {}
+    own: set[str] = set()
     for ep in graph.endpoints:
         if is_infrastructure(ep.kind, ep.name, filters.keep):
+            continue
+        if ep.nodes and all(is_own_node(n) and n not in wanted_nodes for n in ep.nodes):
+            own.update(ep.nodes)
             continue
         if filters.namespaces and not any(_under(ep.name, ns) for ns in filters.namespaces):
             continue
@@ -155,6 +171,13 @@ def select(graph: Graph, filters: Filters, diags: Diagnostics) -> list[Endpoint]
         else:
             nodes = tuple(sorted(set(old.nodes) | set(ep.nodes)))
             merged[key] = Endpoint(ep.kind, ep.name, ep.type, ep.role, nodes, old.qos or ep.qos, old.latch or ep.latch)
+    if own:
+        diags.info(
+            "SCF115",
+            f"left out td2adaptor's own node{'s' * (len(own) > 1)} {', '.join(sorted(own))}: an edge node "
+            "publishes what the robot subscribes and subscribes what it publishes",
+            hint="--node NAME keeps one",
+        )
     return fold_actionlib(list(merged.values()))
 
 

@@ -5,16 +5,20 @@ hand-chosen name survives. From the existing TD are kept: every Thing-level memb
 titles, descriptions, semantic annotations (`@type`, any prefixed term, `rosv:component`,
 `rosv:procedure`), `safe`/`idempotent`, extra forms and form members the scaffold does not own, and the
 titles, descriptions, units and enums inside data schemas (wherever the existing TD has the schema, also
-when it has none of them: the scaffold's texts and enums go only into what is new). From the source come
-the ROS binding (type, role, interface, QoS) and the data schemas' structure. Existing affordances the
-source does not show are kept (SCF109); new ones are added.
+when it has none of them: the scaffold's texts and enums go only into what is new), and the constraints
+inside them that the ROS types do not contradict (`constraints`: the limits the edge node enforces; what was
+kept and what dropped, and why, is said: SCF113, SCF114). From the source come the ROS binding (type, role,
+interface, QoS) and the data schemas' structure. Existing affordances the source does not show are kept
+(SCF109); new ones are added.
 """
 
 from __future__ import annotations
 
+import json
 from typing import Any
 
 from td2adaptor.diagnostics import Diagnostics
+from td2adaptor.scaffold.constraints import CONSTRAINTS, Change, gone, lay_over
 
 SECTIONS = ("properties", "actions", "events")
 #: form members the scaffold writes (the rest of an existing form is the user's)
@@ -36,19 +40,27 @@ def _rosname(affordance: Any) -> str | None:
     return None
 
 
-def merge_schema(old: Any, new: Any) -> Any:
-    """`new`'s structure with `old`'s annotations wherever the two share a path."""
+def merge_schema(old: Any, new: Any, where: str = "", changes: list[Change] | None = None) -> Any:
+    """`new`'s structure with `old`'s annotations, and the constraints of `old` that `new` (the ROS type's
+    schema) does not contradict, wherever the two share a path (`where`: its JSON pointer, for `changes`)."""
     if not isinstance(old, dict) or not isinstance(new, dict):
         return new
+    changes = [] if changes is None else changes
     out = {k: v for k, v in new.items() if k not in _PERSONS}
     for key, value in old.items():
         if key in _PERSONS or (":" in key and key not in out):
             out[key] = value
+    lay_over(old, new, out, where, changes)
     for key in ("items", "input", "output"):
         if key in old and key in new:
-            out[key] = merge_schema(old[key], new[key])
-    if isinstance(old.get("properties"), dict) and isinstance(new.get("properties"), dict):
-        out["properties"] = {k: merge_schema(old["properties"].get(k), v) for k, v in new["properties"].items()}
+            out[key] = merge_schema(old[key], new[key], f"{where}/{key}", changes)
+    old_props, new_props = old.get("properties"), new.get("properties")
+    if isinstance(old_props, dict) and isinstance(new_props, dict):
+        at = f"{where}/properties"
+        out["properties"] = {k: merge_schema(old_props.get(k), v, f"{at}/{k}", changes) for k, v in new_props.items()}
+        for name, sub in old_props.items():
+            if name not in new_props and isinstance(sub, dict):
+                gone(sub, f"{at}/{name}", changes)
     return out
 
 
@@ -61,13 +73,14 @@ def _merge_form(old: dict[str, Any], new: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _merge_affordance(old: dict[str, Any], new: dict[str, Any]) -> dict[str, Any]:
-    out = merge_schema({k: v for k, v in old.items() if k != "forms"}, {k: v for k, v in new.items() if k != "forms"})
+def _merge_affordance(old: dict[str, Any], new: dict[str, Any], where: str, changes: list[Change]) -> dict[str, Any]:
+    mine = {k: v for k, v in old.items() if k != "forms"}
+    out = merge_schema(mine, {k: v for k, v in new.items() if k != "forms"}, where, changes)
     for key in ("rosv:component", "rosv:procedure", *_DECIDED):
         if key in old:
             out[key] = old[key]
     for key, value in old.items():  # the user's own members (semantic annotations, links, uriVariables...)
-        if key not in out and key != "forms":
+        if key not in out and key != "forms" and key not in CONSTRAINTS:  # constraints: merge_schema decided
             out[key] = value
     forms = old.get("forms")
     old_forms: list[Any] = forms if isinstance(forms, list) else []
@@ -103,6 +116,7 @@ def merge(existing: dict[str, Any], fresh: dict[str, Any], diags: Diagnostics) -
             renames[name] = final
             added[section][final] = aff
     out = {k: v for k, v in existing.items() if k not in SECTIONS}
+    changes: list[Change] = []
     for key, value in fresh.items():
         if key not in SECTIONS and key not in out:
             out[key] = value
@@ -110,7 +124,8 @@ def merge(existing: dict[str, Any], fresh: dict[str, Any], diags: Diagnostics) -
         merged: dict[str, Any] = {}
         for name, aff in (existing.get(section) or {}).items():
             if (section, name) in matched:
-                merged[name] = _merge_affordance(aff, _renamed(matched[(section, name)][1], renames))
+                fresh_aff = _renamed(matched[(section, name)][1], renames)
+                merged[name] = _merge_affordance(aff, fresh_aff, f"/{section}/{name}", changes)
             else:
                 merged[name] = aff
                 if isinstance(aff, dict) and _rosname(aff) is not None:
@@ -119,7 +134,28 @@ def merge(existing: dict[str, Any], fresh: dict[str, Any], diags: Diagnostics) -
             merged[name] = _renamed(aff, renames)
         if merged:
             out[section] = merged
+    _say(changes, diags)
     return out
+
+
+def _say(changes: list[Change], diags: Diagnostics) -> None:
+    """One warning per dropped constraint (with the ROS type's reason), one line naming the kept ones."""
+    for change in changes:
+        if change.reason is not None:
+            what = change.pointer.rsplit("/", 1)[-1]
+            diags.warning(
+                "SCF114",
+                f"hand-written {what} {json.dumps(change.value)} dropped: {change.reason}",
+                change.pointer,
+            )
+    kept = [c.pointer for c in changes if c.reason is None]
+    if kept:
+        dropped = len(changes) - len(kept)
+        diags.info(
+            "SCF113",
+            f"kept {len(kept)} hand-written constraint{'s' * (len(kept) != 1)} the ROS types allow "
+            f"({dropped} dropped): {', '.join(kept)}",
+        )
 
 
 def _renamed(aff: dict[str, Any], renames: dict[str, str]) -> dict[str, Any]:

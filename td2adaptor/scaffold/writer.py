@@ -89,18 +89,23 @@ def _only_unit(comment: str) -> bool:
 
 def unit_of(comment: str) -> str | None:
     """The unit a field's comment names where that is plain: the whole comment a unit symbol (`V`), a
-    symbol in brackets (`speed [m/s]`), or a unit word after "in" (`Voltage in Volts`, `in degrees Celsius`)."""
+    symbol in brackets (`speed [m/s]`), or a unit word after "in" (`Voltage in Volts`, `in degrees Celsius`).
+    A comment naming several units (`linear [m/s], angular [rad/s]`) gives none: no one unit is the field's."""
     text = comment.strip().rstrip(".")
     if text in _UNIT_SYMBOLS:
         return text
     if text.lower() in _UNIT_WORDS:
         return _UNIT_WORDS[text.lower()]
-    for inner in re.findall(r"\[([^\]]+)\]", text):
-        symbol = str(inner).strip()
-        if symbol in _UNIT_SYMBOLS:
-            return symbol
-    found = re.search(r"\bin (?:degrees )?([A-Za-z]+)", text)
-    return _UNIT_WORDS.get(found[1].lower()) if found else None
+    named = [str(inner).strip() for inner in re.findall(r"\[([^\]]+)\]", text)]
+    named += [_UNIT_WORDS.get(word.lower(), "") for word in re.findall(r"\bin (?:degrees )?([A-Za-z]+)", text)]
+    units = {unit for unit in named if unit in _UNIT_SYMBOLS or unit in _UNIT_WORDS.values()}
+    return units.pop() if len(units) == 1 else None
+
+
+def sentences(texts: Sequence[str]) -> str:
+    """Texts joined as sentences: one that does not end a sentence (`the mode`, `How fast,`) gets a full stop."""
+    ended = [t if t.endswith((".", "!", "?")) else t.rstrip(",;: ") + "." for t in texts[:-1]]
+    return " ".join([*ended, *texts[-1:]])
 
 
 def annotated(schema: dict[str, Any], msg: MessageDef, table: TypeTable) -> dict[str, Any]:
@@ -127,7 +132,7 @@ def annotated(schema: dict[str, Any], msg: MessageDef, table: TypeTable) -> dict
             )
             texts.append(f"One of the message's constants: {named}.")
         if texts:
-            sub["description"] = " ".join(texts)
+            sub["description"] = sentences(texts)
         if unit is not None:
             sub["unit"] = unit
         if f.type.is_message:

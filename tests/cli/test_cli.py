@@ -287,3 +287,39 @@ def test_expose_writes_the_td_of_one_robot(runner: CliRunner, tmp_path: Path) ->
         assert refused.exit_code == 1 and "td2adaptor expose:" in refused.output, (bad, refused.output)
     refused = runner.invoke(cli, ["expose", TD, *IFACE, *args, "--property-qos", "2"])
     assert refused.exit_code == 2 and "'2' is not one of '0', '1'" in refused.output, refused.output
+
+
+def test_a_robot_td_made_from_a_thing_model_links_it_and_does_not_repeat_its_description(
+    runner: CliRunner, tmp_path: Path
+) -> None:
+    """TD 1.1: an instance links its model (`rel: type`, application/tm+json); the model's description says how
+    to instantiate it, which is no robot's description. The fleet's exposed Thing Model keeps it."""
+    model = tmp_path / "rb1.tm.json"
+    model.write_bytes((EXAMPLE / "rb1.tm.json").read_bytes())
+    said = json.loads(model.read_text(encoding="utf-8"))["description"]
+    assert "instantiate it per robot" in said
+    out = tmp_path / "rb1_a.td.json"
+    result = runner.invoke(cli, ["expose", str(model), *IFACE, "--robot", "rb1_a", "--broker", "mqtt://h:1883", "-o",
+                                 str(out)])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    td = json.loads(out.read_text(encoding="utf-8"))
+    assert td["links"] == [{"rel": "type", "href": "rb1.tm.json", "type": "application/tm+json"}]
+    assert "instantiate" not in td["description"] and td["description"].startswith("Robotnik RB-1 (rb1_a)")
+    # the link is the model's real place: validate reads it and checks the robot offers what it makes mandatory
+    validated = runner.invoke(cli, ["validate", str(out)])
+    assert validated.exit_code == 0 and "TM35" not in validated.output, validated.output
+    del td["actions"]["gotoRun"]
+    out.write_text(json.dumps(td), encoding="utf-8")
+    broken = runner.invoke(cli, ["validate", str(out)])
+    assert broken.exit_code == 1 and "TM352" in broken.output and "gotoRun" in broken.output, broken.output
+    # a TD that is no instance of a model links none, and keeps its own description
+    plain = json.loads(runner.invoke(cli, ["expose", TD, *IFACE, "--robot", "rb1_a", "--broker", "mqtt://h:1"]).output)
+    assert "links" not in plain and plain["description"].startswith(json.loads(Path(TD).read_text())["description"])
+    # the fleet's Thing Model (gen -b events) is the model: its description stays
+    from td2adaptor import compile as compile_td
+    from td2adaptor.model.exposed import exposed_td
+
+    compiled = compile_td(model, interfaces=[EXAMPLE / "interfaces"])
+    assert compiled.model is not None
+    fleet = exposed_td(compiled.model)
+    assert fleet["description"].startswith(said) and "links" not in fleet

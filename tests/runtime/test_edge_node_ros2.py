@@ -278,6 +278,9 @@ def test_the_generated_entry_point_serves_a_fleet_from_the_thing_model_and_stops
             tds = app.wait(lambda ev, r=robot: tds_of(ev, r)[-1:] == [{"raw": ""}], timeout=10)
             (td,) = [e for e in tds_of(tds, robot) if e != {"raw": ""}][:1]
             assert td["@type"] == "Thing" and td["id"].endswith(f":{robot}")
+            # an instance of the Thing Model it was run from: linked as its type, not its instructions repeated
+            assert td["links"] == [{"rel": "type", "href": "rb1.tm.json", "type": "application/tm+json"}]
+            assert "instantiate" not in td["description"], td["description"]
             wot = goto_topic(robot).replace(f"/{robot}/", f"/{robot}/wot-thing/")  # the WoT topic of gotoRun
             assert td["actions"]["gotoRun"]["forms"][0]["href"] == f"{broker.url}/{wot}"
     finally:

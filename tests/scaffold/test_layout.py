@@ -111,6 +111,35 @@ def test_a_topic_the_robot_publishes_and_reads_is_read_and_one_it_only_reads_is_
     assert doc["properties"]["cmd"]["forms"][0]["rosv:role"] == "publisher"
 
 
+def test_td2adaptor_s_own_nodes_are_left_out_and_said_unless_named() -> None:
+    bridge = "/td2adaptor_edge_rb1_12345_1700000000000"  # the ROS 1 bridge's anonymous rospy node
+    graph = Graph(
+        "g",
+        [
+            topic("/robot/cmd", role="subscriber"),
+            topic("/robot/cmd", node="/td2adaptor_edge_rb1"),  # an edge node publishes what the robot reads
+            topic("/robot/odom", role="subscriber", node=bridge),  # and reads what the robot publishes
+            topic("/robot/odom"),
+            topic("/robot/cmd", node="/td2adaptor_edge_d3"),  # a fleet's node on a second domain
+            topic("/robot/cmd", node="/td2adaptor_edgeless"),  # somebody else's node
+        ],
+    )
+    diags = Diagnostics()
+    kept = {(e.name, e.role): e.nodes for e in select(graph, Filters(), diags)}
+    assert kept == {
+        ("/robot/cmd", "subscriber"): ("/robot/driver",),
+        ("/robot/cmd", "publisher"): ("/td2adaptor_edgeless",),
+        ("/robot/odom", "publisher"): ("/robot/driver",),
+    }
+    assert diags.codes() == ["SCF115"]
+    said = next(iter(diags)).message
+    assert f"/td2adaptor_edge_d3, /td2adaptor_edge_rb1, {bridge}:" in said, said
+    named = select(graph, Filters(nodes=("/td2adaptor_edge_rb1",)), diags)
+    assert [(e.name, e.role) for e in named] == [("/robot/cmd", "publisher")]
+    doc, _ = run(graph.endpoints[:4])
+    assert doc is not None and doc["properties"]["cmd"]["writeOnly"] is True
+
+
 def test_a_robot_namespace_becomes_the_placeholder_and_a_root_graph_stays_verbatim() -> None:
     doc, diags = run([topic("/rb/odom"), topic("/rb/scan"), topic("/door/cmd", role="subscriber")])
     assert doc is not None and doc["@type"] == "Thing"
@@ -263,6 +292,11 @@ def test_field_comments_of_interface_files_become_descriptions_and_units(tmp_pat
         "# the mode\n"
         "uint8 mode\n"
         "float32 temperature  # in degrees Celsius\n"
+        "float64[2] velocity  # linear [m/s], angular [rad/s]\n"
+        "float32 current  # in amperes, at most 3 [A]\n"
+        "uint8 LIGHT_OFF=0\n"
+        "uint8 LIGHT_ON=1\n"
+        "uint8 light  # the lamp:\n"
         "string name\n"
         "Inner inner  # the nested part\n"
     )
@@ -276,8 +310,13 @@ def test_field_comments_of_interface_files_become_descriptions_and_units(tmp_pat
     speed = props["speed"]
     assert speed["description"] == "How fast it goes, measured at the wheels. [m/s]" and speed["unit"] == "m/s"
     assert props["charge"] == {"type": "number", "unit": "%"}  # a comment that only names the unit
-    assert props["mode"]["description"].startswith("the mode One of the message's constants: MODE_IDLE = 0")
+    # a comment that ends no sentence is one before the constants
+    assert props["mode"]["description"].startswith("the mode. One of the message's constants: MODE_IDLE = 0")
+    assert props["light"]["description"] == "the lamp. One of the message's constants: LIGHT_OFF = 0, LIGHT_ON = 1."
     assert props["temperature"]["unit"] == "°C"
+    # two units in one comment: no one unit is the field's (not the first one for the whole field)
+    assert props["velocity"]["description"] == "linear [m/s], angular [rad/s]" and "unit" not in props["velocity"]
+    assert props["current"]["unit"] == "A"  # the same unit named twice is the one unit
     assert "description" not in props["name"] and "unit" not in props["name"]
     inner = props["inner"]
     assert inner["description"] == "the nested part"

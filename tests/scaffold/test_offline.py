@@ -97,6 +97,71 @@ def test_merge_keeps_annotations_updates_the_binding_and_adds_what_is_new(tmp_pa
     assert compiled_errors(doc, tmp_path) == []
 
 
+def test_merge_keeps_the_hand_written_constraints_the_ros_types_allow_and_says_what_it_dropped(
+    tmp_path: Path,
+) -> None:
+    example = example_td()
+    goals = example["actions"]["gotoRun"]["input"]["properties"]["procedure"]["properties"]["goals"]
+    goals["maxItems"] = 8  # an unbounded sequence: the person's limit stays
+    pose = goals["items"]["properties"]["pose"]
+    pose["properties"]["x"].update(minimum=-50, maximum=50)  # float64: any range is the person's
+    pose["required"] = ["x", "y", "z"]  # z is no field of the message: that name goes
+    state = example["properties"]["availability"]["properties"]
+    stamp = state["localization_status"]["properties"]["pose"]["properties"]["header"]["properties"]["stamp"]
+    stamp["properties"]["nanosec"]["minimum"] = -1  # below a uint32's 0: dropped
+    stamp["properties"]["nanosec"]["maximum"] = 999_999_999  # narrower than the uint32: kept
+    stamp["properties"]["sec"]["maximum"] = 2**40  # above an int32's maximum: dropped
+    state["robot_id"].update(maxLength=64, pattern="^rb1_", minimum=3)  # a string has no minimum
+    example["properties"]["door"]["properties"]["data"].update(minimum=0, maximum=1)
+    existing = tmp_path / "existing.json"
+    existing.write_text(json.dumps(example), encoding="utf-8")
+    listing = tmp_path / "rb1.yaml"
+    listing.write_text(RB1_LISTING, encoding="utf-8")
+    done = scaffold([str(listing), "-I", str(INTERFACES), "--merge", str(existing)], tmp_path / "td.json")
+    assert done.code == 0, done.stderr
+    doc = done.doc
+    assert doc is not None
+    # what the ROS types allow is kept: the merged TD is the edited one but for what they contradict
+    expected = json.loads(json.dumps(example))
+    exp_stamp = expected["properties"]["availability"]["properties"]["localization_status"]["properties"]["pose"]
+    exp_stamp = exp_stamp["properties"]["header"]["properties"]["stamp"]["properties"]
+    exp_stamp["nanosec"]["minimum"] = 0
+    exp_stamp["sec"]["maximum"] = 2**31 - 1
+    del expected["properties"]["availability"]["properties"]["robot_id"]["minimum"]
+    exp_goals = expected["actions"]["gotoRun"]["input"]["properties"]["procedure"]["properties"]["goals"]
+    exp_goals["items"]["properties"]["pose"]["required"] = ["x", "y"]
+    assert doc == expected
+    assert compiled_errors(doc, tmp_path) == []
+    # and said: each dropped one with the reason, one line naming the kept ones
+    at = "/properties/availability/properties/localization_status/properties/pose/properties/header/properties"
+    assert (
+        "warning SCF114: hand-written minimum -1 dropped: below the minimum of uint32 (0..4294967295) "
+        f"at {at}/stamp/properties/nanosec/minimum"
+    ) in done.stderr, done.stderr
+    assert (
+        f"hand-written maximum {2**40} dropped: above the maximum of int32 (-2147483648..2147483647)"
+    ) in done.stderr
+    assert "hand-written minimum 3 dropped: the field is a string at /properties/availability/properties/robot_id/" in (
+        done.stderr
+    )
+    assert 'hand-written required "z" dropped: the message has no field z' in done.stderr
+    kept = next(line for line in done.stderr.splitlines() if "SCF113" in line)
+    assert "kept 9 hand-written constraints the ROS types allow (4 dropped)" in kept, kept
+    for pointer in (
+        "/actions/gotoRun/input/properties/procedure/properties/goals/maxItems",
+        "/properties/door/properties/data/maximum",
+        "/properties/availability/properties/robot_id/pattern",
+    ):
+        assert pointer in kept
+
+
+def test_a_merge_with_nothing_hand_written_says_nothing_about_constraints(tmp_path: Path) -> None:
+    listing = tmp_path / "rb1.yaml"
+    listing.write_text(RB1_LISTING, encoding="utf-8")
+    done = scaffold([str(listing), "-I", str(INTERFACES), "--merge", str(EXAMPLE / "td.json")], tmp_path / "td.json")
+    assert done.code == 0 and "SCF113" not in done.stderr and "SCF114" not in done.stderr, done.stderr
+
+
 # ---------------------------------------------------------------------------------------------------------
 # bags
 

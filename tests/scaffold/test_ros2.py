@@ -143,6 +143,47 @@ def test_the_scaffolded_td_is_generated_and_run_and_a_mission_goes_end_to_end(
         broker.stop()
 
 
+def test_an_edge_node_running_beside_the_robot_is_not_the_robot(
+    robot: Process, rb1_prefix: Path, tmp_path: Path
+) -> None:
+    """`td2adaptor run` publishes the door command the robot subscribes to: scaffolded without --node, the
+    door must stay the robot's write-only command, not become a read-only property of the edge node's."""
+    gen = subprocess.run(
+        [sys.executable, "-m", "td2adaptor", "gen", str(EXAMPLE / "td.json"), "-I", str(INTERFACES), "-b", "rclpy",
+         "-o", str(tmp_path / "gen")],
+        cwd=REPO, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert gen.returncode == 0, gen.stderr
+    result = td2adaptor.compile(EXAMPLE / "td.json", interfaces=[INTERFACES])
+    assert result.model is not None
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    args = [str(EXAMPLE / "td.json"), "-I", str(INTERFACES), "--robot", ROBOT, "--bus", broker.url,
+            "--package-path", str(tmp_path / "gen" / "rclpy" / result.model.package_name),
+            "--prefix", str(rb1_prefix)]  # fmt: skip
+    run = RunProcess(args, env=env.child_env([rb1_prefix]))
+    try:
+        run.wait_ready()
+        done = scaffold(
+            ["ros2", "-I", str(INTERFACES), "--namespace", f"/{ROBOT}", "--namespace", "/door1"], tmp_path / "td.json"
+        )
+        assert done.code == 0, done.stderr
+        doc = done.doc
+        assert doc is not None
+        door = doc["properties"]["command"]
+        assert door.get("writeOnly") is True and "readOnly" not in door, door
+        assert door["forms"][0]["rosv:role"] == "publisher" and door["forms"][0]["rosv:latch"] is True
+        compare_with_example(doc, example_td(), "ros2")  # the robot's interface, and nothing of the edge node
+        assert f"SCF115: left out td2adaptor's own node /td2adaptor_edge_{ROBOT}" in done.stderr, done.stderr
+        # asked for by name, the edge node is scaffolded (what it publishes: the door, read from it)
+        done = scaffold(["ros2", "-I", str(INTERFACES), "--node", f"/td2adaptor_edge_{ROBOT}"], tmp_path / "edge.json")
+        assert done.code == 0 and "SCF115" not in done.stderr, done.stderr
+        assert done.doc is not None and done.doc["properties"]["command"]["readOnly"] is True
+    finally:
+        run.close()
+        broker.stop()
+
+
 def test_three_namespaced_robots_give_one_thing_model(fleet: Process, tmp_path: Path) -> None:
     done = scaffold(["ros2", "-I", str(INTERFACES), "--title", "Robotnik RB-1", *_only(*FLEET)], tmp_path / "tm.json")
     assert done.code == 0, done.stderr

@@ -8,7 +8,7 @@ into one output side by side):
   `schemas/status.schema.json` for the robot-level events; all refer to `schemas/envelope.schema.json` for
   the shared fields. Every `$id` is `https://td2adaptor.dev/events/<package>/schemas/<file>`: the layout of
   OUT/events/ mirrors the ids, so relative references resolve between the files and no two packages share one;
-* `asyncapi.json`: an AsyncAPI 3.0 document (MQTT channels, operations, messages referring to the schemas);
+* `asyncapi.json`: an AsyncAPI 3.1 document (MQTT channels, operations, messages referring to the schemas);
 * `td.mqtt.json`: the Thing Model of the robots' exposed Thing Descriptions: the same Thing with W3C MQTT
   binding forms (`mqv:`, the topic also in the href path), so a standard WoT consumer can invoke the actions,
   observe the properties and subscribe to the feedback; `{{robotName}}` stands for the robot id and
@@ -72,7 +72,7 @@ MQTT_BINDING_VERSION = "0.2.0"
 
 
 # ---------------------------------------------------------------------------------------------------------
-# AsyncAPI 3.0
+# AsyncAPI 3.1
 
 
 def _security_schemes(model: Model) -> dict[str, Any]:
@@ -88,7 +88,7 @@ def _security_schemes(model: Model) -> dict[str, Any]:
 
 
 def asyncapi(model: Model, catalog: EventCatalog | None = None, *, root: str = TOPIC_ROOT) -> dict[str, Any]:
-    """An AsyncAPI 3.0 document of the adaptor (the application described is the adaptor)."""
+    """An AsyncAPI 3.1 document of the adaptor (the application described is the adaptor)."""
     catalog = catalog or build_catalog(model)
     channels: dict[str, Any] = {}
     operations: dict[str, Any] = {}
@@ -179,7 +179,7 @@ def asyncapi(model: Model, catalog: EventCatalog | None = None, *, root: str = T
     if schemes:
         components["securitySchemes"] = schemes
     return {
-        "asyncapi": "3.0.0",
+        "asyncapi": "3.1.0",
         "info": info,
         "defaultContentType": "application/json",
         "servers": {"broker": server},
@@ -187,6 +187,33 @@ def asyncapi(model: Model, catalog: EventCatalog | None = None, *, root: str = T
         "operations": operations,
         "components": components,
     }
+
+
+# ---------------------------------------------------------------------------------------------------------
+# schema files
+
+
+def portable(schema: Any) -> Any:
+    """A schema document as code generators read it: a member an event must not carry is left out of its
+    closed object instead of given the boolean schema `false`.
+
+    In memory the contract marks such members `false` (so the runtime can name one in its refusal); with
+    `additionalProperties: false` beside them, leaving them out means the same, and AsyncAPI Modelina
+    (`asyncapi generate models`) refuses boolean subschemas where `{"not": {}}` would give every model a field
+    that must stay empty."""
+    if isinstance(schema, list):
+        return [portable(s) for s in schema]
+    if not isinstance(schema, Mapping):
+        return schema
+    out: dict[str, Any] = {}
+    for key, value in schema.items():
+        if key == "properties" and isinstance(value, Mapping) and schema.get("additionalProperties") is False:
+            out[key] = {name: portable(sub) for name, sub in value.items() if sub is not False}
+        elif key in ("properties", "$defs") and isinstance(value, Mapping):
+            out[key] = {name: portable(sub) for name, sub in value.items()}
+        else:
+            out[key] = portable(value)
+    return out
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -257,7 +284,7 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     tree.add(folder + "asyncapi.json", dump(asyncapi(model, catalog)))
     tree.add(folder + "td.mqtt.json", dump(exposed_td(model, catalog)))
     for path, document in catalog.files:
-        tree.add(folder + path, dump(document))
+        tree.add(folder + path, dump(portable(document)))
     tree.add(folder + "mosquitto.acl", _acl(model, catalog, robots))
     return tree
 

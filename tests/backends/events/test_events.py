@@ -225,7 +225,7 @@ def _refs(node: Any) -> list[str]:
 
 def test_asyncapi_document(files: dict[str, bytes]) -> None:
     api = doc(files, "asyncapi.json")
-    assert api["asyncapi"] == "3.0.0"
+    assert api["asyncapi"] == "3.1.0"
     assert api["info"]["title"] and api["info"]["version"]
     assert api["servers"]["broker"]["protocol"] == "mqtt"
     assert set(api["servers"]["broker"]["host"].strip("{}").split(":")) <= set(api["servers"]["broker"]["variables"])

@@ -98,7 +98,7 @@ def test_every_reference_and_link_resolves_from_the_files(files: dict[str, bytes
     for package in PACKAGES:
         api_path = f"{package}/asyncapi.json"
         api = doc(files, api_path)
-        assert api["asyncapi"] == "3.0.0"
+        assert api["asyncapi"] == "3.1.0"
         for ref in _refs(api):
             assert _resolve(files, api_path, api, ref) is not None, ref
         for message in api["components"]["messages"].values():
