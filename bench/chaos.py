@@ -349,7 +349,9 @@ def run_bad_phase(app: AppClient, sim: Process, count: int, seed: int) -> dict[s
         if bad.retain:  # clear it as docs/security.md says; the clearing message must not be answered
             app.client.publish(bad.topic, b"", qos=1, retain=True).wait_for_publish(10)
     time.sleep(1.0)
-    outcome["robot_calls"] = robot_calls(sim, robot) - ran_before
+    outcome["robot_calls"] = robot_calls(sim, robot)
+    outcome["robot_calls"].subtract(ran_before)
+    outcome["robot_calls"] = +outcome["robot_calls"]
     outcome["door_commands"] = sum(1 for e in drain(sim) if e.get("event") == "door")
     return outcome
 
@@ -365,8 +367,9 @@ def drain(sim: Process) -> list[dict[str, Any]]:
             return _sim_seen
 
 
-def robot_calls(sim: Process, robot: str) -> int:
-    return sum(1 for e in drain(sim) if e.get("event") == "call" and e.get("robot") == robot)
+def robot_calls(sim: Process, robot: str) -> Counter[str]:
+    """The service calls the simulation served for `robot`, by operation (add = a mission started)."""
+    return Counter(str(e.get("op")) for e in drain(sim) if e.get("event") == "call" and e.get("robot") == robot)
 
 
 class App(AppClient):
@@ -516,7 +519,7 @@ def main() -> int:
             bad_seconds = time.monotonic() - started
             print(
                 f"bad events: {bad['sent']} sent in {bad_seconds:.1f} s, {bad['answered']} answered, "
-                f"{sum(bad['unanswered'].values())} unanswered; robot calls {bad['robot_calls']}, "
+                f"{sum(bad['unanswered'].values())} unanswered; calls reaching the robot {dict(bad['robot_calls'])}, "
                 f"door commands {bad['door_commands']}"
             )
             for category, sent in sorted(bad["by_category"].items()):
@@ -582,7 +585,7 @@ def main() -> int:
             broker.stop()
     failed = (
         sum(bad["unanswered"].values()) > 0
-        or bad["robot_calls"] > 0
+        or sum(bad["robot_calls"].values()) > 0
         or bad["door_commands"] > 0
         or bool(total.lost)
         or any(n not in ("1",) for n in total.terminal)

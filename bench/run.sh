@@ -29,4 +29,5 @@ run "gen next to a peer generator (issue 3)" "$PY" bench/peer.py
 [ -f bench/fleet_ros2.py ] && run "a fleet of 100 robots on one broker: one edge node per robot, one for the fleet (issue 17)" "$PY" bench/fleet_ros2.py
 [ -f bench/sensor_stream_ros2.py ] && run "sensor streams (odom 100 Hz, scan 10 Hz) as property events (issue 17)" "$PY" bench/sensor_stream_ros2.py
 [ -f bench/service_clients_ros2.py ] && run "concurrent calls to one ROS 2 service through the generated adaptor (issue 17)" "$PY" bench/service_clients_ros2.py
+[ -f bench/chaos.py ] && run "chaos: 5,000 bad events answered, missions through broker restarts and SIGKILLs (issue 30)" "$PY" bench/chaos.py
 exit $status
