@@ -515,7 +515,7 @@ class Engine:
         with self._lock:
             free = r.component not in self._active
             follow = free and r.kind == "procedure" and r.state is not None and r.mission is not None
-            follow = follow and procedure.query is not None
+            follow = follow and procedure.query is not None and behind < self.config.mission_timeout
             if follow:
                 self._active[r.component] = m
                 self._missions.add(ended)
@@ -525,7 +525,7 @@ class Engine:
             self._runners.submit(lambda: self._run_mission(m, ended, resume=True))
             return
         self._count("restart-failed")
-        message = "the edge node restarted " + _restart_words(r)
+        message = "the edge node restarted " + _restart_words(r, behind, self.config.mission_timeout)
         log.warning("%s mission %s: failed: %s", r.action, r.mission, message)
         self._finish(m, ProcedureStatus("failed", message=message, reason="unreachable"))
 
@@ -846,15 +846,20 @@ def _answer(
         return exc.response
 
 
-def _restart_words(r: Record) -> str:
-    """Why a mission the last run left cannot be followed on, and that its outcome is unknown."""
+def _restart_words(r: Record, behind: float, timeout: float) -> str:
+    """Why a mission the last run left cannot be followed on (`behind` seconds after it started), and that its
+    outcome is unknown."""
     if r.state is None:
         return "before the robot answered this invoke: whether the robot runs it is unknown"
     if r.kind == "goal":
         return f"while it followed this goal ({r.goal}): its outcome is unknown (it may go on on the robot)"
     if r.kind == "call":
         return "during this call: its outcome is unknown"
-    return "while it followed this mission: its outcome is unknown (the robot gave no mission id to ask it about)"
+    if r.mission is None:
+        return "while it followed this mission: its outcome is unknown (the robot gave no mission id to ask it about)"
+    if behind >= timeout:  # it would have timed out meanwhile (and its id may name another mission by now)
+        return f"after this mission's timeout of {timeout:g} s had passed: its outcome is unknown"
+    return "while it followed this mission: its outcome is unknown"
 
 
 def _requested(state: str | None) -> ProcedureStatus:

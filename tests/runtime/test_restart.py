@@ -99,6 +99,19 @@ def test_what_cannot_be_followed_on_ends_failed_once_and_an_unsent_end_is_sent(t
         ended, mission=7, goal=None, state="finished", seq=3, reserved=3, latest=json.dumps(end), terminal=True
     )
     ledger.close()
+    # a mission with an id, started longer ago than the mission timeout: not followed (nor cancelled: its id
+    # may name another mission by now)
+    old = Ledger(_config(tmp_path).ids_file, keep=330, clock=lambda: time.time() - 1000)
+    stale = old.open(
+        event_id="stale",
+        topic=topic,
+        kind="procedure",
+        component="GoToComponent",
+        action="gotoRun",
+        correlation="stale",
+    )
+    old.event(stale, mission=1, goal=None, state="running", seq=2, reserved=2, latest="{}", terminal=False)
+    old.close()
 
     broker, model, robot = LocalBroker(), rb1_model(), sim(0.05)
     app = LocalApp(broker)
@@ -107,16 +120,17 @@ def test_what_cannot_be_followed_on_ends_failed_once_and_an_unsent_end_is_sent(t
         engine.stop()
     terminals = {
         c: [e for e in app.of("feedback", c) if e["payload"]["terminal"]]
-        for c in ("unanswered", "blind", "goal", "ended")
+        for c in ("unanswered", "blind", "goal", "ended", "stale")
     }
-    assert {c: len(t) for c, t in terminals.items()} == {"unanswered": 1, "blind": 1, "goal": 1, "ended": 1}
+    assert {c: len(t) for c, t in terminals.items()} == {"unanswered": 1, "blind": 1, "goal": 1, "ended": 1, "stale": 1}
     assert terminals["ended"][0] == end  # sent again as it was
-    for correlation in ("unanswered", "blind", "goal"):
+    for correlation in ("unanswered", "blind", "goal", "stale"):
         payload = terminals[correlation][0]["payload"]
         assert (payload["state"], payload["reason"]) == ("failed", "unreachable")
         assert payload["message"].startswith("the edge node restarted"), payload
     assert "unknown" in terminals["goal"][0]["payload"]["message"]
     assert "before the robot answered" in terminals["unanswered"][0]["payload"]["message"]
+    assert "timeout of 600 s had passed" in terminals["stale"][0]["payload"]["message"]
     assert terminals["blind"][0]["payload"]["seq"] == 3
     assert terminals["goal"][0]["payload"]["seq"] == 3 + SEQ_BLOCK + 1  # past every number it may have used
     assert terminals["goal"][0]["payload"]["goal"] == "ab" * 16
