@@ -39,7 +39,7 @@ class RuntimeConfig:
     feedback_period: float = 0.0  # ROS action feedback: 0 one event per message, else at most one per period
     goal_feedback_grace: float | None = None  # after a goal's result, wait this long for trailing feedback; None:
     # the ROS version's default (genport.FEEDBACK_GRACE: 0.01 s on ROS 2, 0.1 s on ROS 1)
-    action_server_timeout: float = 3.0  # ROS 2: a goal's action server silent this long (no feedback, no answer to
+    action_server_timeout: float = 2.5  # ROS 2: a goal's action server silent this long (no feedback, no answer to
     # a probe) is taken as gone and the goal fails `unreachable`; 0: only when discovery says so (its lease)
     property_period: float = 1.0  # property events: at most one per property and period (0: off)
     property_mode: str = "sample"  # "sample": every property_period; "message": one event per ROS message

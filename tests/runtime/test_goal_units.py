@@ -250,7 +250,7 @@ def _server_timeout(config: RuntimeConfig) -> float:
 
 
 def test_action_server_timeout_reaches_the_goal_handle(tmp_path: Path) -> None:
-    assert _server_timeout(RuntimeConfig(robot="r")) == RuntimeConfig(robot="r").action_server_timeout == 3.0
+    assert _server_timeout(RuntimeConfig(robot="r")) == RuntimeConfig(robot="r").action_server_timeout == 2.5
     path = tmp_path / "robot.yaml"
     path.write_text("robot: r\naction_server_timeout: 0\n")
     assert _server_timeout(load_config(path, env={})) == 0.0

@@ -798,7 +798,7 @@ FEEDBACK_BUFFER = 1000
 #: seconds a goal's action server may give no sign of life (no feedback, no answer to a probe) before the
 #: goal's waits take it as gone (`GoalHandle.server_timeout`): a server killed mid-goal sends nothing, and the
 #: middleware's discovery notices its absence only after the participant's lease (Fast DDS: 20 s)
-SERVER_TIMEOUT = 3.0
+SERVER_TIMEOUT = 2.5
 #: how often a wait on a goal checks that its server is still there
 LIVENESS_PERIOD = 0.1
 
