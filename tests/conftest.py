@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import os
+import shutil
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
+import pytest
 from hypothesis import settings
 
 # Property tests draw the same examples in every run (derandomize): a suite that passes must pass again; an
@@ -18,4 +21,14 @@ settings.load_profile("default")
 os.environ["TD2ADAPTOR_CACHE_DIR"] = tempfile.mkdtemp(prefix="td2adaptor-test-cache-")
 
 REPO = Path(__file__).resolve().parents[1]
+
 EXAMPLE = REPO / "examples" / "robotnik_rb1"
+
+
+@pytest.fixture(autouse=True)
+def _no_history_between_tests() -> Iterator[None]:
+    """Every test's edge nodes start without a past: the default state directory, where a node remembers
+    event ids and the missions it had in flight (a node started again follows on what the last one left),
+    is emptied before each test. A test of restarts gives its nodes a state_dir of its own."""
+    shutil.rmtree(Path(os.environ["TD2ADAPTOR_CACHE_DIR"]) / "state", ignore_errors=True)
+    yield

@@ -43,6 +43,8 @@ class RuntimeConfig:
     feedback_period: float = 0.0  # ROS action feedback: 0 one event per message, else at most one per period
     goal_feedback_grace: float | None = None  # after a goal's result, wait this long for trailing feedback; None:
     # the ROS version's default (genport.FEEDBACK_GRACE: 0.01 s on ROS 2, 0.1 s on ROS 1)
+    action_server_timeout: float = 2.5  # ROS 2: a goal's action server silent this long (no feedback, no answer to
+    # a probe) is taken as gone and the goal fails `unreachable`; 0: only when discovery says so (its lease)
     property_period: float = 1.0  # property events: at most one per property and period (0: off)
     property_mode: str = "sample"  # "sample": every property_period; "message": one event per ROS message
     property_interval: float = 0.0  # message mode: at least this long between two events of a property (0: none)
@@ -79,6 +81,8 @@ class RuntimeConfig:
                 raise ConfigError(f"{name} must be positive")
         if not self.freshness_window > 0 or self.clock_skew < 0:
             raise ConfigError("freshness_window must be positive and clock_skew >= 0")
+        if not 0 <= self.action_server_timeout < float("inf"):
+            raise ConfigError("action_server_timeout must be >= 0 seconds (0: only discovery tells a server is gone)")
         if self.feedback_period < 0:
             raise ConfigError("feedback_period must be >= 0 (0: one feedback event per ROS feedback message)")
         if self.goal_feedback_grace is not None and not 0 <= self.goal_feedback_grace <= TRAIL_LIMIT:

@@ -13,9 +13,13 @@ Policies (documented in README of the generated events):
 * query and cancel use the mission id the robot returned; -1 (the robot's "last one") only when it gave none;
 * every failure of a robot call becomes failure feedback or an error event; nothing ends the process;
 * inbound events are fresh and unique (replay.py): an `id` seen before on the same topic with the same
-  content (a QoS 1 redelivery) is handled once, on another topic or with other content it is answered with
-  an error, and an event older than the freshness window is answered with an error instead of run; ids are
-  remembered across restarts;
+  content (a QoS 1 redelivery, or a sender asking again) is run once, on another topic or with other content
+  it is answered with an error, and an event older than the freshness window is answered with an error
+  instead of run; ids are remembered across restarts;
+* missions outlive the node (ledger.py): a restarted node follows again each procedure mission the last run
+  left in flight (its mission id known) and ends every other one `failed`, so each gets exactly one terminal
+  event; an invoke sent again under its id is answered with the mission's last feedback event again (its
+  current state, or its terminal event);
 * feedback carries `correlation` (the requester's, else the invoke event's id) and `payload.seq` 1, 2, ...
 """
 
@@ -38,6 +42,7 @@ from td2adaptor.runtime.bus import Bus, BusError, Message
 from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope, excerpt, references, salvage
 from td2adaptor.runtime.goals import GoalRunner
+from td2adaptor.runtime.ledger import SEQ_BLOCK, Ledger, Record
 from td2adaptor.runtime.port import NoValue, PortError, RobotPort, StartResult
 from td2adaptor.runtime.procedures import ProcedureStatus, read
 from td2adaptor.runtime.replay import ReplayGuard, Verdict, digest, time_problem
@@ -74,6 +79,16 @@ def _guard(config: RuntimeConfig) -> ReplayGuard:
         return ReplayGuard(None, window=config.freshness_window, skew=config.clock_skew)
 
 
+def _ledger(config: RuntimeConfig) -> Ledger:
+    """The robot's mission ledger, in the replay guard's file: durable where it can be written, else in memory."""
+    path, keep = config.ids_file, config.freshness_window + config.clock_skew
+    try:
+        return Ledger(path, keep=keep)
+    except (OSError, sqlite3.Error) as exc:
+        log.warning("missions kept in memory only (%s: %s): a restart forgets them", path, exc)
+        return Ledger(None, keep=keep)
+
+
 @dataclass
 class Mission:
     component: str
@@ -89,6 +104,8 @@ class Mission:
     cancels: list[str | None] = field(default_factory=list)
     wake: threading.Event = field(default_factory=threading.Event)
     goal: str | None = None  # a ROS action goal: its id, once the server accepted it
+    key: str | None = None  # its row in the ledger (None: not recorded)
+    reserved: int = 0  # the ledger's bound on the feedback numbers published
 
 
 def status_event(config: RuntimeConfig, model: Model, state: str) -> Message:
@@ -133,6 +150,7 @@ class Engine:
         self._active: dict[str, Mission] = {}
         self._last_mission: dict[str, int] = {}
         self.guard = _guard(config)
+        self.ledger = _ledger(config)
         self._stopping = threading.Event()
         self._threads: list[threading.Thread] = []
         self._missions: set[threading.Event] = set()  # set when its mission's thread is done with it
@@ -150,6 +168,7 @@ class Engine:
             for robot in (self.config.robot, ALL_ROBOTS):
                 self.bus.subscribe(spec.topic(robot, root), self._inbox.put)
         self.bus.connect()
+        self._recover()  # before any event is taken: a resent invoke finds what the last run left
         self._spawn(self._dispatch, "dispatch")
         properties = [s for s in self.catalog.specs if s.kind is Kind.PROPERTY]
         if self.config.property_period > 0 and properties:
@@ -201,6 +220,7 @@ class Engine:
             log.warning("could not publish the offline status: %s", exc)
         self.bus.close()
         self.guard.close()
+        self.ledger.close()
 
     def halt(self, reason: str) -> None:
         """The bus stopped serving its broker for good (a reconnection failed the check every connection
@@ -227,8 +247,16 @@ class Engine:
 
     def _publish(self, spec: EventSpec, event: Mapping[str, Any], *, retain: bool = False, qos: int = 1) -> None:
         try:
+            data = encode(event)
+        except (TypeError, ValueError) as exc:
+            log.error("could not publish a %s event: %s", spec.kind.value, exc)
+            return
+        self._send(spec, data, retain=retain, qos=qos)
+
+    def _send(self, spec: EventSpec, data: bytes, *, retain: bool = False, qos: int = 1) -> None:
+        try:
             topic = spec.topic(self.config.robot, self.config.topic_root)
-            self.bus.publish(topic, encode(event), retain=retain, qos=qos)
+            self.bus.publish(topic, data, retain=retain, qos=qos)
             self._count(f"out.{spec.kind.value}")
         except (BusError, TypeError, ValueError) as exc:
             log.error("could not publish a %s event: %s", spec.kind.value, exc)
@@ -301,6 +329,7 @@ class Engine:
         output: Any = None,
         extra: Mapping[str, Any] | None = None,
     ) -> None:
+        changed = status.state != m.state
         m.seq += 1
         m.state = status.state
         payload: dict[str, Any] = {**status.payload(), "terminal": terminal, "seq": m.seq, **(extra or {})}
@@ -311,7 +340,40 @@ class Engine:
         event = self._event(
             Kind.FEEDBACK, payload, affordance=m.action, correlation=m.correlation, mission=m.mission_id
         )
-        self._publish(self.catalog.find(Kind.FEEDBACK, m.action), event)
+        spec = self.catalog.find(Kind.FEEDBACK, m.action)
+        if m.key is None:
+            self._publish(spec, event)
+            return
+        try:
+            data = encode(event)
+        except (TypeError, ValueError) as exc:
+            log.error("could not publish a %s event: %s", spec.kind.value, exc)
+            return
+        self._record(m, data, terminal, changed)
+        self._send(spec, data)
+        if terminal:
+            self.ledger.done(m.key)
+
+    def _record(self, m: Mission, data: bytes, terminal: bool, changed: bool) -> None:
+        """Put a feedback event in the ledger before it is published (see ledger.py): every state change and
+        the end with the event itself; feedback that changes nothing (a goal's) only numbers reserved ahead."""
+        assert m.key is not None
+        if terminal or changed:
+            m.reserved = m.seq
+            latest = data.decode("utf-8")
+            self.ledger.event(
+                m.key,
+                mission=m.mission_id,
+                goal=m.goal,
+                state=m.state or "",
+                seq=m.seq,
+                reserved=m.seq,
+                latest=latest,
+                terminal=terminal,
+            )
+        elif m.seq > m.reserved:
+            m.reserved = m.seq + SEQ_BLOCK
+            self.ledger.reserve(m.key, m.reserved)
 
     # -- inbound -------------------------------------------------------------------------------------------
 
@@ -391,7 +453,10 @@ class Engine:
         )
         if verdict is Verdict.DUPLICATE:
             self._count("duplicates")
-            log.info("duplicate event %s on %s ignored", event_id, msg.topic)
+            if spec.kind is Kind.INVOKE and isinstance(event_id, str):
+                self._answer_again(event_id, msg.topic)
+            else:
+                log.info("duplicate event %s on %s ignored", event_id, msg.topic)
             return
         if verdict is not Verdict.NEW:
             corr, mission = references(event)
@@ -418,7 +483,7 @@ class Engine:
         elif spec.kind is Kind.INVOKE and procedure is not None and procedure.run == spec.affordance:
             self._invoke(spec, procedure, event, msg.topic)
         elif spec.kind is Kind.INVOKE:
-            self._pool.submit(self._plain_call, spec, event)
+            self._pool.submit(self._plain_call, spec, event, self._open("call", spec, event, msg.topic))
         elif spec.kind is Kind.QUERY and procedure is not None:
             self._pool.submit(self._query, spec, procedure, event)
         elif spec.kind is Kind.CANCEL and procedure is not None:
@@ -427,6 +492,76 @@ class Engine:
             self._pool.submit(self._write, spec, event)
 
     # -- missions ------------------------------------------------------------------------------------------
+
+    def _open(self, kind: str, spec: EventSpec, event: Mapping[str, Any], topic: str) -> str:
+        """Put an invoke the node takes in the ledger (see ledger.py); its key."""
+        event_id = event.get("id")
+        return self.ledger.open(
+            event_id=event_id if isinstance(event_id, str) else None,
+            topic=topic,
+            kind=kind,
+            component=spec.component or "",
+            action=spec.affordance or "",
+            correlation=event.get("correlation") or event.get("id"),
+        )
+
+    def _answer_again(self, event_id: str, topic: str) -> None:
+        """An invoke sent again under its id (a redelivery, or a sender that lost track, also across a restart
+        of this node): answered with the last feedback event of its mission again, as it was published."""
+        record = self.ledger.latest(event_id, topic)
+        if record is None or record.latest is None:  # its first feedback event, about to come, answers it
+            log.info("invoke %s on %s again: its mission has no feedback yet", event_id, topic)
+            return
+        log.info("invoke %s on %s again: its last feedback event again (%s)", event_id, topic, record.state)
+        self._count("answered-again")
+        self._send(self.catalog.find(Kind.FEEDBACK, record.action), record.latest.encode("utf-8"))
+
+    def _recover(self) -> None:
+        """Finish what the last run of this node left (see ledger.py): follow each procedure mission again
+        whose mission id the robot gave, publish a terminal event stored but maybe not sent, and end every
+        other mission `failed`: whatever happened on the robot meanwhile, each gets one terminal event."""
+        for record in self.ledger.pending():
+            try:
+                self._recover_one(record)
+            except Exception:  # one mission's record must not keep the robot from being served
+                log.exception("recovering %s mission %s", record.action, record.mission)
+                self.ledger.done(record.key)
+
+    def _recover_one(self, r: Record) -> None:
+        try:
+            spec = self.catalog.find(Kind.FEEDBACK, r.action)
+            component = self.model.component(r.component)
+        except (StopIteration, KeyError):  # the TD changed between the two runs
+            log.warning("a %s mission of the last run is not in this TD: forgotten", r.action)
+            self.ledger.done(r.key)
+            return
+        if r.phase == "ending" and r.latest is not None:  # maybe not sent before the node died: again
+            log.info("%s mission %s: its terminal event again (the last run may not have sent it)", r.action, r.mission)
+            self._send(spec, r.latest.encode("utf-8"))
+            self.ledger.done(r.key)
+            return
+        procedure = (component.procedure_of(r.action) if r.kind == "procedure" else None) or Procedure(r.action)
+        behind = max(0.0, time.time() - r.started)
+        seq = max(r.seq, r.reserved)
+        m = Mission(r.component, r.action, procedure, r.correlation, {}, self.clock() - behind)
+        m.mission_id, m.goal, m.state, m.seq, m.reserved, m.key = r.mission, r.goal, r.state, seq, seq, r.key
+        ended = threading.Event()
+        with self._lock:
+            free = r.component not in self._active
+            follow = free and r.kind == "procedure" and r.state is not None and r.mission is not None
+            follow = follow and procedure.query is not None and behind < self.config.mission_timeout
+            if follow:
+                self._active[r.component] = m
+                self._missions.add(ended)
+        if follow:
+            log.info("following %s mission %s again (the edge node restarted)", r.action, r.mission)
+            self._count("resumed")
+            self._runners.submit(lambda: self._run_mission(m, ended, resume=True))
+            return
+        self._count("restart-failed")
+        message = "the edge node restarted " + _restart_words(r, behind, self.config.mission_timeout)
+        log.warning("%s mission %s: failed: %s", r.action, r.mission, message)
+        self._finish(m, ProcedureStatus("failed", message=message, reason="unreachable"))
 
     def _invoke(
         self, spec: EventSpec, procedure: Procedure, event: dict[str, Any], topic: str, *, goal: bool = False
@@ -444,6 +579,7 @@ class Engine:
             self._count("duplicates")  # a redelivery of the invoke we are following (sent without an id)
             log.info("invoke %s for mission %s already in progress: ignored", correlation, busy.mission_id)
             return
+        mission.key = self._open("goal" if goal else "procedure", spec, event, topic)
         if busy is not None:
             what = f"{busy.action} mission {busy.mission_id}" if busy.mission_id is not None else busy.action
             message = f"{component} is busy with {what}; send a cancel event or wait for its terminal feedback"
@@ -474,10 +610,12 @@ class Engine:
     def _path(self, procedure: Procedure) -> tuple[str, ...]:
         return procedure.mission_id or _DEFAULT_MISSION_PATH
 
-    def _run_mission(self, m: Mission, ended: threading.Event, goal: bool = False) -> None:
+    def _run_mission(self, m: Mission, ended: threading.Event, goal: bool = False, resume: bool = False) -> None:
         try:
             if goal:
                 self._goals.follow(m)
+            elif resume:  # the robot runs it already (a restart of this node): follow it on
+                self._poll(m, m.started + self.config.mission_timeout)
             else:
                 self._follow(m)
         except Exception:  # the last line of defence: report, never crash
@@ -525,6 +663,12 @@ class Engine:
         if proc.query is None:
             self._finish(m, ProcedureStatus("finished", message="started; no query action links to this procedure"))
             return
+        self._poll(m, deadline)
+
+    def _poll(self, m: Mission, deadline: float) -> None:
+        """Query a started mission every `poll_period` until its end (or the deadline, or a stop)."""
+        cfg, port, proc = self.config, self.port, m.procedure
+        assert proc.query is not None
         failures = 0
         while True:
             remaining = deadline - self.clock()
@@ -662,7 +806,7 @@ class Engine:
         mission = status.mission_id if status.mission_id is not None else (mid if mid != -1 else None)
         self._state(procedure.run, status, correlation, mission)
 
-    def _plain_call(self, spec: EventSpec, event: dict[str, Any]) -> None:
+    def _plain_call(self, spec: EventSpec, event: dict[str, Any], key: str | None = None) -> None:
         """A non-procedure action: one call, one terminal feedback with its output."""
         action = spec.affordance or ""
         m = Mission(
@@ -673,6 +817,7 @@ class Engine:
             event.get("payload") or {},
             self.clock(),
             done=True,
+            key=key,
         )
         try:
             output = dict(self.port.call(m.component, action, m.payload, self.config.call_timeout))
@@ -733,6 +878,22 @@ def _answer(
         if exc.response is None:
             raise
         return exc.response
+
+
+def _restart_words(r: Record, behind: float, timeout: float) -> str:
+    """Why a mission the last run left cannot be followed on (`behind` seconds after it started), and that its
+    outcome is unknown."""
+    if r.state is None:
+        return "before the robot answered this invoke: whether the robot runs it is unknown"
+    if r.kind == "goal":
+        return f"while it followed this goal ({r.goal}): its outcome is unknown (it may go on on the robot)"
+    if r.kind == "call":
+        return "during this call: its outcome is unknown"
+    if r.mission is None:
+        return "while it followed this mission: its outcome is unknown (the robot gave no mission id to ask it about)"
+    if behind >= timeout:  # it would have timed out meanwhile (and its id may name another mission by now)
+        return f"after this mission's timeout of {timeout:g} s had passed: its outcome is unknown"
+    return "while it followed this mission: its outcome is unknown"
 
 
 def _requested(state: str | None) -> ProcedureStatus:

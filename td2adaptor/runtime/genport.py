@@ -156,13 +156,17 @@ class GoalTrack:
     again, whichever of the two saw it first. A thread waits for the result; when it came, feedback
     may still trail it (a different channel, and rclpy hands a result over before feedback taken in the same
     wake-up): the goal counts as done once no message came for `grace` (at most `TRAIL_LIMIT`); a message
-    later than that is not reported (never after the terminal event).
+    later than that is not reported (never after the terminal event). `server_timeout` (None: the handle's
+    default) is how long a ROS 2 handle lets the action server stay silent before it takes it as gone (ROS 1
+    tells at once): the goal then ends `lost`.
     """
 
-    def __init__(self, handle: Any, grace: float = FEEDBACK_GRACE["ros2"]) -> None:
+    def __init__(self, handle: Any, grace: float = FEEDBACK_GRACE["ros2"], server_timeout: float | None = None) -> None:
         self.handle = handle
         self.grace = grace
         self.goal_id = str(handle.goal_id)
+        if server_timeout is not None and hasattr(handle, "server_timeout"):
+            handle.server_timeout = server_timeout
         self._cond = threading.Condition()
         self._items: list[Any] = []
         self._dropped = 0
@@ -238,8 +242,8 @@ class GoalTrack:
                     continue
                 response = getattr(exc, "response", None)
                 result = to_plain(response) if response is not None else None
-                if not self.handle.done:
-                    lost = f"{type(exc).__name__}: {exc}"  # e.g. the ROS 1 server went away
+                if not self.handle.done:  # the action server went away (ServiceUnavailable's reason says so)
+                    lost = str(getattr(exc, "reason", "") or exc) or "the goal's action server did not answer"
                 break
         if self._closed:
             return
@@ -284,7 +288,7 @@ class GeneratedPort:
 
     `model` is the compiled model (or just its `Layout`). `distro` "ros2" builds components as
     `Cls(node, robot_name, ...)`, "ros1" as `Cls(robot_name, ...)`. `feedback_grace` is each goal's
-    `GoalTrack.grace` (None: `FEEDBACK_GRACE` of the distro).
+    `GoalTrack.grace` (None: `FEEDBACK_GRACE` of the distro), `server_timeout` its `GoalTrack.server_timeout`.
     """
 
     def __init__(
@@ -298,6 +302,7 @@ class GeneratedPort:
         timeout: float = 10.0,
         wait_timeout: float = 5.0,
         feedback_grace: float | None = None,
+        server_timeout: float | None = None,
     ) -> None:
         if distro not in ("ros1", "ros2"):
             raise ValueError(f"distro must be 'ros1' or 'ros2', not {distro!r}")
@@ -307,6 +312,7 @@ class GeneratedPort:
         self.robot_name = robot_name
         self.distro = distro
         self.feedback_grace = FEEDBACK_GRACE[distro] if feedback_grace is None else feedback_grace
+        self.server_timeout = server_timeout
         module = importlib.import_module(package) if isinstance(package, str) else package
         self.components: dict[str, Any] = {}
         self._locks: dict[str, threading.BoundedSemaphore] = {}
@@ -413,7 +419,7 @@ class GeneratedPort:
         construct = self._method(component, f"construct_{action}_Goal")
         send = self._method(component, f"send_{action}")
         handle = self._guarded(component, lambda: send(construct(**payload), timeout=timeout))
-        track = GoalTrack(handle, self.feedback_grace)
+        track = GoalTrack(handle, self.feedback_grace, self.server_timeout)
         with self._goals_lock:
             self._goals[(component, action, track.goal_id)] = track
         return track.goal_id

@@ -5,7 +5,8 @@ a feedback event says so (`queued`, `result: accepted`, with the goal id); then 
 becomes one feedback event (`running`, the message in `feedback`), in order, or, with `feedback_period`
 > 0, at most one per period carrying the latest message; then exactly one terminal event: `finished`
 (succeeded), `cancelled` (canceled) or `failed` (aborted: reason `aborted`; refused: `rejected`; no end within
-`mission_timeout`: `timeout`; the port failing `max_query_failures` times in a row: `unreachable`), with the
+`mission_timeout`: `timeout`; the action server gone (the port says the goal is `lost`: on ROS 2 after
+`action_server_timeout` of silence) or the port failing `max_query_failures` times in a row: `unreachable`), with the
 server's result in `output` and its status word in `result`. A cancel event cancels the goal followed (the
 mission thread asks the server, and answers with a state event; the terminal feedback follows when the
 server ends the goal); a query answers with the goal's current state, or with the end of the last goal.

@@ -130,6 +130,7 @@ def make_port(
             timeout=config.call_timeout,
             wait_timeout=config.call_timeout,
             feedback_grace=config.goal_feedback_grace,
+            server_timeout=config.action_server_timeout,
         )
     except ValueError as exc:  # InvalidRobotName of the generated package
         raise RosSetupError(f"robot {config.robot}: {exc}") from None

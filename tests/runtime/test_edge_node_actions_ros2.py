@@ -4,7 +4,8 @@ The robot is `tests.runtime.fibo_ros2` (an rclpy ActionServer of test_msgs/actio
 process, the edge node is `connect` + `serve` in this process on the rclpy adaptor generated from
 tests.lowering.test_actions.action_td. Checked: invoke → the acceptance, one feedback event per ROS feedback
 message (in order, carrying it) → exactly one terminal event with the result; rejected and aborted goals;
-query and cancel; the throttle; the robot killed mid-goal → failure within the mission timeout.
+query and cancel; the throttle; the action server killed mid-goal → failure within `action_server_timeout`,
+the component free again.
 """
 
 from __future__ import annotations
@@ -229,20 +230,54 @@ def test_feedback_throttle(fibo_build: tuple[Model, Path], fibo_robot: Process, 
         edge.close()
 
 
-def test_robot_killed_mid_goal_fails_within_the_timeout(fibo_build: tuple[Model, Path], broker: Mosquitto) -> None:
+def test_a_server_killed_mid_goal_fails_it_within_the_bound_and_frees_the_component(
+    fibo_build: tuple[Model, Path], broker: Mosquitto
+) -> None:
+    """The action server's process killed (SIGKILL) mid-goal: discovery would notice only after the lease (20 s
+    with Fast DDS), the mission timeout after a minute; the goal ends `failed`/`unreachable` within
+    `action_server_timeout`, a cancel and a query sent meanwhile are answered, and so are they after; the
+    component is free again: a goal to the restarted server succeeds."""
     robot = robot_process(KILLED)
-    edge = Edge(fibo_build, broker, KILLED, mission_timeout=10.0, call_timeout=15.0)
+    edge = Edge(fibo_build, broker, KILLED, mission_timeout=60.0, call_timeout=15.0)
+    bound = edge.config.action_server_timeout
+    assert bound <= 3.0  # the default
     try:
         edge.send("", {"correlation": "k", "payload": {"order": SLOW}})
         edge.app.wait(lambda ev: any("feedback" in e["payload"] for e in feedback(ev, "k")), timeout=20)
+        goal = feedback(edge.app.events, "k")[0]["payload"]["goal"]
         robot.proc.send_signal(signal.SIGKILL)
         robot.proc.wait(10)
         killed = time.monotonic()
-        events = edge.ended("k", timeout=20)
-        assert time.monotonic() - killed < 10.0 + 5.0
+        edge.send("/cancel", {"correlation": "c-during"})
+        edge.send("/query", {"correlation": "q-during"})
+        events = edge.ended("k", timeout=bound + 10.0)
+        took = time.monotonic() - killed
         last = events[-1]["payload"]
-        assert (last["state"], last["reason"]) == ("failed", "timeout"), last
+        assert (last["state"], last["reason"]) == ("failed", "unreachable"), last
+        assert "action server went away" in last["message"], last
+        assert took < bound + 2.0, took  # the last feedback came before the kill: at most the bound after it
         assert sum(1 for e in events if e["payload"]["terminal"]) == 1
+        assert edge.answers("q-during")[0]["type"] == "state"
+        assert edge.answers("c-during", timeout=bound + 10.0)  # an error (the server is gone) or the end
+        # after the end: a query and a cancel are answered with it
+        edge.send("/query", {"correlation": "q-after"})
+        edge.send("/cancel", {"correlation": "c-after"})
+        for correlation in ("q-after", "c-after"):
+            (answer,) = edge.answers(correlation)
+            assert answer["type"] == "state", answer
+            assert (answer["payload"]["state"], answer["payload"]["goal"]) == ("failed", goal)
+
+        # the component is free: a goal to the restarted server runs to its end
+        robot.stop()
+        robot = robot_process(KILLED)
+        # the dead server's endpoints stay in the graph until its lease ends: a goal sent before the new server
+        # was discovered would go to the dead one only; wait for an answered goal, as the edge's start does
+        assert until(lambda: rejects(edge.link.ports[KILLED]), 30, 0.1)
+        edge.send("", {"correlation": "again", "payload": {"order": 3}})
+        events = edge.ended("again", timeout=30)
+        last = check_goal(events, sent_feedback(robot, KILLED, 3), "finished")
+        assert last["output"] == {"sequence": sequence(3)}
+        edge.check(edge.app.events)
     finally:
         edge.close()
         robot.stop()

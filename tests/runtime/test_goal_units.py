@@ -224,3 +224,41 @@ def test_goal_feedback_grace_reaches_the_goal_track(tmp_path: Path) -> None:
     for bad in ("-0.1", "2"):
         with pytest.raises(ConfigError, match="goal_feedback_grace"):
             load_config(path, env={"TD2ADAPTOR_GOAL_FEEDBACK_GRACE": bad})
+
+
+class _Watched(_Handle):
+    """A ROS 2 handle: it has a `server_timeout` the port sets."""
+
+    server_timeout = 99.0
+
+
+class _WatchedComponent(_Component):
+    def send_count(self, goal: Any, *, timeout: float) -> _Handle:
+        return _Watched()
+
+
+def _server_timeout(config: RuntimeConfig) -> float:
+    """The server_timeout of a goal's handle sent through the port the edge node makes for `config` (ROS 2)."""
+    package = ModuleType("fake_adaptor")
+    package.CountComponent = _WatchedComponent  # type: ignore[attr-defined]
+    port = make_port(Layout(("CountComponent",)), package, config, "ros2", node=object())
+    try:
+        goal = port.send_goal("CountComponent", "count", {"order": 3}, 1.0)
+        return float(port._track("CountComponent", "count", goal).handle.server_timeout)
+    finally:
+        port.close()
+
+
+def test_action_server_timeout_reaches_the_goal_handle(tmp_path: Path) -> None:
+    assert _server_timeout(RuntimeConfig(robot="r")) == RuntimeConfig(robot="r").action_server_timeout == 2.5
+    path = tmp_path / "robot.yaml"
+    path.write_text("robot: r\naction_server_timeout: 0\n")
+    assert _server_timeout(load_config(path, env={})) == 0.0
+    assert _server_timeout(load_config(path, env={"TD2ADAPTOR_ACTION_SERVER_TIMEOUT": "1.5"})) == 1.5
+    # a ROS 1 handle has none (ROS 1 tells at once): GoalTrack leaves it alone
+    track = GoalTrack(_Handle(), 0.0, 1.5)
+    track.close()
+    assert not hasattr(track.handle, "server_timeout")
+    for bad in ("-1", "nan", "inf", "x"):
+        with pytest.raises(ConfigError, match="action_server_timeout"):
+            load_config(path, env={"TD2ADAPTOR_ACTION_SERVER_TIMEOUT": bad})

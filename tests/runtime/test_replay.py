@@ -199,8 +199,11 @@ def test_a_replay_after_a_restart_runs_once_and_a_reused_id_is_answered(tmp_path
         app.wait(lambda ev: bool(app.of("error", "c3")))
         (error,) = app.of("error", "c3")
         assert error["payload"]["code"] == "id-reused" and "'once'" in error["payload"]["message"]
+        # no second mission: the invoke is answered with its terminal event again (the same event)
+        app.wait(lambda ev: len(app.of("feedback", "c2")) > runs)
         time.sleep(0.2)
-        assert len(app.of("feedback", "c2")) == runs  # no second mission
+        feedback = app.of("feedback", "c2")
+        assert len(feedback) == runs + 1 and feedback[-1] == feedback[runs - 1] and feedback[-1]["payload"]["terminal"]
         assert engine.stats.get("duplicates") == 1
     finally:
         engine.stop()
@@ -209,8 +212,8 @@ def test_a_replay_after_a_restart_runs_once_and_a_reused_id_is_answered(tmp_path
 
 def test_another_command_under_a_used_id_is_answered_and_not_run(tmp_path: Path) -> None:
     """Audit gap 6 through the engine: the same id and topic with another goal gets `id-reused`; the same
-    bytes again (a redelivery) are still ignored in silence; an equal event with its keys in another order
-    is the same content."""
+    bytes again (a redelivery) are not run, only answered with the terminal event again; an equal event with
+    its keys in another order is the same content."""
     broker, model, robot = LocalBroker(), rb1_model(), sim(0.05)
     app = LocalApp(broker)
     sent = now_text()
@@ -227,7 +230,8 @@ def test_another_command_under_a_used_id_is_answered_and_not_run(tmp_path: Path)
         (error,) = app.of("error", "c5")
         assert error["payload"]["code"] == "id-reused" and "'one-id'" in error["payload"]["message"]
         time.sleep(0.2)
-        assert len(app.of("feedback", "c4")) == runs and not app.of("feedback", "c5")
+        feedback = app.of("feedback", "c4")  # the redelivery: not run, answered with the terminal event again
+        assert len(feedback) == runs + 1 and feedback[-1] == feedback[runs - 1] and not app.of("feedback", "c5")
         assert not app.of("error", "c4")
         assert engine.stats.get("duplicates") == 1
     finally:
@@ -266,7 +270,8 @@ def test_require_id_and_time_refuses_what_the_guard_cannot_protect(tmp_path: Pat
         app.wait(lambda ev: bool(app.of("error", "wot-1")))
         assert app.of("error", "wot-1")[0]["payload"]["code"] == "id-reused"
         time.sleep(0.2)
-        assert len(app.of("feedback", "wot-1")) == runs
+        feedback = app.of("feedback", "wot-1")  # the replay: not run, answered with the terminal event again
+        assert len(feedback) == runs + 1 and feedback[-1] == feedback[runs - 1]
         assert engine.stats.get("duplicates") == 1
     finally:
         engine.stop()

@@ -4,14 +4,17 @@ The adaptor is generated from tests.lowering.test_actions.action_td (test_msgs/a
 types come from the `ros-jazzy-test-msgs` wheel) and imported from its source. The action server is a real
 `rclpy.action.ActionServer` on a node of this process, spun by its own multi-threaded executor, so that it
 executes goals while it answers cancel requests. What the server does depends on the goal's `order`:
-negative → rejected; 77 → aborted after two feedback messages; otherwise one feedback message per step
-(`STEP` seconds apart) and the sequence as the result, ending canceled when a cancel was requested.
+negative → rejected; 77 → aborted after two feedback messages; 55 → no feedback for `SILENT_FOR` seconds, then
+succeeded; otherwise one feedback message per step (`STEP` seconds apart) and the sequence as the result,
+ending canceled when a cancel was requested. A server killed mid-goal is tests.runtime.fibo_ros2 in a process
+of its own.
 """
 
 from __future__ import annotations
 
 import importlib
 import json
+import signal
 import sys
 import threading
 import time
@@ -24,13 +27,15 @@ import pytest
 
 from tests.backends.rclpy.test_rclpy_ros2 import run_in_executor
 from tests.lowering.test_actions import INTERFACES, action_td
-from tests.ros2.common import require_ros2
+from tests.ros2 import env
+from tests.ros2.common import Process, require_ros2
 
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain, ros_node
 
 ROBOT = "fibo_robot"
 STEP = 0.05
 ABORT = 77
+SILENT, SILENT_FOR = 55, 2.0
 
 
 def _sequence(order: int) -> list[int]:
@@ -87,6 +92,11 @@ class FiboServer:
             self.goals += 1
             order = handle.request.order
             result = Fibonacci.Result()
+            if order == SILENT:
+                self.stopping.wait(SILENT_FOR)
+                handle.succeed()
+                result.sequence = _sequence(1)
+                return result
             for i in range(1, order + 1):
                 if self.stopping.is_set():
                     handle.abort()
@@ -223,6 +233,53 @@ def test_server_absent(fibo_adaptor: ModuleType, ros_node: Any) -> None:
     with pytest.raises(fibo_adaptor.ServiceUnavailable, match="no_such_robot/fibonacci"):
         lonely.send_fibonacci()
     assert time.monotonic() - start < 3.0
+
+
+def test_a_silent_server_that_answers_its_probes_is_not_taken_as_gone(fibo_adaptor: ModuleType, fibo: Any) -> None:
+    """No feedback for several times the handle's server_timeout: the server answers the probes, the goal ends
+    as the server says."""
+    handle = fibo.send_fibonacci(fibo.construct_fibonacci_Goal(order=SILENT))
+    assert handle.server_timeout == fibo_adaptor.runtime.SERVER_TIMEOUT == 2.5
+    handle.server_timeout = SILENT_FOR / 4
+    assert list(handle.result(timeout=SILENT_FOR + 10.0).sequence) == _sequence(1)
+    assert handle.feedback_received == 0 and handle.status == "succeeded"
+
+
+def test_a_killed_server_ends_every_wait_with_service_unavailable(fibo_adaptor: ModuleType, ros_node: Any) -> None:
+    """The action server's process killed (SIGKILL) mid-goal: discovery would tell after the lease (20 s with
+    Fast DDS); result(), result_async() and cancel() end with ServiceUnavailable within the handle's
+    server_timeout instead of waiting out their timeouts."""
+    server = Process(
+        [sys.executable, "-m", "tests.runtime.fibo_ros2", "fibo_doomed_a", "fibo_doomed_b"], env.child_env([])
+    )
+    try:
+        server.wait_for(lambda e: e.get("event") == "ready", timeout=30)
+        goals = []
+        for ns in ("fibo_doomed_a", "fibo_doomed_b"):
+            component = fibo_adaptor.MathComponent(ros_node, ns, timeout=10.0, wait_timeout=15.0)
+            handle = component.send_fibonacci(component.construct_fibonacci_Goal(order=1000))  # slow, until canceled
+            handle.server_timeout = 1.0
+            next(handle.feedback(timeout=10.0))
+            goals.append(handle)
+        sync, coroutine = goals
+        server.proc.send_signal(signal.SIGKILL)
+        server.proc.wait(10)
+        killed = time.monotonic()
+        with pytest.raises(fibo_adaptor.ServiceUnavailable, match="action server went away"):
+            sync.result(timeout=30.0)
+        assert time.monotonic() - killed < 1.0 + 2.0
+        assert not sync.done
+        with pytest.raises(fibo_adaptor.ServiceUnavailable, match="action server went away"):
+            run_in_executor(ros_node, coroutine.result_async(timeout=30.0), timeout=40.0)
+        started = time.monotonic()
+        for handle in goals:
+            with pytest.raises(fibo_adaptor.ServiceUnavailable):
+                handle.cancel(timeout=30.0)
+            with pytest.raises(fibo_adaptor.ServiceUnavailable):
+                list(handle.feedback(timeout=30.0))  # the messages received, then a wait for more
+        assert time.monotonic() - started < 2.0  # known gone: at once
+    finally:
+        server.stop()
 
 
 def test_blocking_from_a_callback_is_refused(fibo_adaptor: ModuleType, fibo: Any) -> None:

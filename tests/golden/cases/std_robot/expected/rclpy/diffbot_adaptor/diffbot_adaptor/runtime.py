@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import threading
 import time
+import uuid
 import weakref
 from collections import deque
 from collections.abc import AsyncIterator, Callable, Generator, Iterator
@@ -66,6 +67,8 @@ class _Future(Protocol):
     def done(self) -> bool: ...
 
     def cancel(self) -> None: ...
+
+    def cancelled(self) -> bool: ...
 
     def result(self) -> Any: ...
 
@@ -792,6 +795,12 @@ GOAL_STATUS = {
 
 #: how many feedback messages a goal handle keeps for iterators that fall behind (older ones are dropped)
 FEEDBACK_BUFFER = 1000
+#: seconds a goal's action server may give no sign of life (no feedback, no answer to a probe) before the
+#: goal's waits take it as gone (`GoalHandle.server_timeout`): a server killed mid-goal sends nothing, and the
+#: middleware's discovery notices its absence only after the participant's lease (Fast DDS: 20 s)
+SERVER_TIMEOUT = 2.5
+#: how often a wait on a goal checks that its server is still there
+LIVENESS_PERIOD = 0.1
 
 
 class _ClientGoalHandle(Protocol):
@@ -884,7 +893,9 @@ class _RequestingActionClient(ActionClient):
             if not self._waiting:
                 return
             done = [(future, once) for future, once in self._waiting if future.done()]
-            self._waiting = tuple((future, once) for future, once in self._waiting if not future.done())
+            self._waiting = tuple(
+                (future, once) for future, once in self._waiting if not (future.done() or future.cancelled())
+            )
         for future, once in done:
             once(future)
 
@@ -982,7 +993,14 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
     message says so). Feedback arrives in the
     executor's thread: `on_feedback(callback)` calls a callback with each message, `feedback(timeout=...)`
     iterates over them in the caller's thread until the goal ends. `result(timeout=...)` waits for the end;
-    `cancel(timeout=...)` asks the server to cancel the goal. No method waits longer than its timeout.
+    `cancel(timeout=...)` asks the server to cancel the goal. No method waits longer than its timeout, and a
+    wait ends early with ServiceUnavailable when the action server went away: discovery says it is gone, or
+    it gave no sign of life for `server_timeout` seconds (default SERVER_TIMEOUT). While a wait finds the
+    server silent for a third of that, it probes it: it asks for the result of a goal the server does not
+    have (a random id), which any server that is there answers at once, changing nothing. A server whose
+    only executor thread is busy executing the goal cannot answer; it stays alive by sending feedback more
+    often than `server_timeout`. `server_timeout` 0: only discovery tells (after the lease of the server's
+    participant: 20 s with Fast DDS's defaults).
     """
 
     def __init__(
@@ -1003,6 +1021,12 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
         self._error: BaseException | None = None
         self._wakers: list[Callable[[], None]] = []  # coroutines waiting for feedback or the end (feedback_async)
         self._group = cast(CallbackGroup, client.callback_group)  # for the timers of the *_async waits
+        self.server_timeout = SERVER_TIMEOUT
+        self._heard = time.monotonic()  # the server's last sign of life: accepted, feedback, a probe answered
+        self._probed = self._heard  # when the last probe was sent
+        self._probes: list[_Future] = []  # probes not answered yet
+        self._missing = 0  # checks in a row that found no server in the graph
+        self._gone = ""  # why the server is taken as gone (once set, every wait raises ServiceUnavailable)
         self._result_future = cast(_Future, client.request(handle.get_result_async))
         client.when_done(self._result_future, self._finished)
 
@@ -1013,6 +1037,7 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
         with self._cond:
             self._feedback.append(feedback)
             self._received += 1
+            self._heard = time.monotonic()
             self._cond.notify_all()
             wakers = list(self._wakers)
         for wake in wakers:
@@ -1040,6 +1065,81 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
             wakers = list(self._wakers)
         for wake in wakers:
             wake()
+
+    def _poke(self, _future: _Future) -> None:
+        """Wake the waits (a request of this goal was answered)."""
+        with self._cond:
+            self._cond.notify_all()
+
+    def _answered(self, future: _Future) -> None:
+        """A probe's answer (executor's thread): the server is there."""
+        with self._cond:
+            if future in self._probes:
+                self._probes.remove(future)
+            if not future.cancelled():
+                self._heard = time.monotonic()
+
+    # the server's liveness, checked by every wait (lock held)
+
+    def _check_server(self) -> None:
+        """Raise ServiceUnavailable when the server is gone (see the class docstring); probe it when it has
+        been silent for a third of `server_timeout`."""
+        if self._final is not None:
+            return
+        if not self._gone:
+            ready = cast(_ActionClientApi, self._client).server_is_ready()
+            self._missing = 0 if ready else self._missing + 1
+            now = time.monotonic()
+            silent, limit = now - self._heard, self.server_timeout
+            if self._missing >= 2:  # twice in a row: once could be the graph being updated
+                self._gone = "the action server went away during the goal"
+            elif limit > 0 and silent >= limit:
+                self._gone = f"the action server went away during the goal: no sign of it for {silent:.1f} s"
+            elif limit > 0 and min(silent, now - self._probed) >= limit / 3:
+                self._probe(now)
+            if self._gone:
+                for probe in self._probes:
+                    probe.cancel()  # an answer will not come: leave no request pending in rclpy
+                self._probes = []
+        if self._gone:
+            raise ServiceUnavailable(self.action, self._gone)
+
+    def _probe(self, now: float) -> None:
+        """Ask the server for the result of a goal it does not have (a random id): it answers at once, with
+        status unknown, when it is there."""
+        self._probed = now
+        stranger = cast(_ClientGoalHandle, cast(Any, ClientGoalHandle)(self._client, self._stranger_id(), None))
+        future = cast(_Future, self._client.request(stranger.get_result_async))
+        self._probes.append(future)
+        self._client.when_done(future, self._answered)
+
+    def _stranger_id(self) -> Any:
+        """A goal id (unique_identifier_msgs/UUID, the type of this goal's) that no server has: a random one."""
+        return type(self._handle.goal_id)(uuid=list(uuid.uuid4().bytes))
+
+    def _wait_alive(self, predicate: Callable[[], bool], wait: float) -> None:
+        """Wait (lock held) at most `wait` seconds for `predicate`, checking the server meanwhile."""
+        deadline = time.monotonic() + wait
+        while not predicate():
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return
+            self._cond.wait(min(remaining, LIVENESS_PERIOD))
+            if not predicate():
+                self._check_server()
+
+    async def _await_alive(self, future: _Future, wait: float) -> bool:
+        """Await `future` for at most `wait` seconds, checking the server meanwhile; whether it is done."""
+        deadline = time.monotonic() + wait
+        while not future.done():
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return False
+            await _within(self.node, future, min(remaining, LIVENESS_PERIOD), self._group)
+            if not future.done():
+                with self._cond:
+                    self._check_server()
+        return True
 
     # the caller's side
 
@@ -1085,7 +1185,7 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
             with self._cond:
                 if not self._beyond(position):
                     ensure_can_block(self.node, self.action)
-                    self._cond.wait_for(self._past(position), wait)
+                    self._wait_alive(self._past(position), wait)
                 position, item = self._next(position, wait)
             if item is _END:
                 return
@@ -1137,7 +1237,7 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
             self._wakers.append(wake)
         try:
             wake()
-            await _within(self.node, woken, wait, self._group)
+            await self._await_alive(woken, wait)
         finally:
             with self._cond:
                 self._wakers.remove(wake)
@@ -1146,13 +1246,14 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
         """Wait at most `timeout` seconds (default: the component's timeout) for the goal to end; its result.
 
         Raises GoalAborted or GoalCanceled when it did not succeed (the result the server sent is the error's
-        `response`), CallTimeout when it did not end in time (the goal goes on: wait again or cancel()).
+        `response`), CallTimeout when it did not end in time (the goal goes on: wait again or cancel()),
+        ServiceUnavailable when the action server went away (see the class docstring).
         """
         wait = check_timeout(self.timeout if timeout is None else timeout, "timeout")
         with self._cond:
             if self._final is None:
                 ensure_can_block(self.node, self.action)
-                self._cond.wait_for(lambda: self._final is not None, wait)
+                self._wait_alive(lambda: self._final is not None, wait)
             return self._outcome(wait)
 
     async def result_async(self, timeout: float | None = None) -> ResultT:
@@ -1184,16 +1285,23 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
         if self.done:
             return False
         ensure_can_block(self.node, self.action)
+        with self._cond:
+            self._check_server()
         future = cast(_Future, self._client.request(self._handle.cancel_goal_async))
-        return self._canceling(future, wait, _wait(future, wait, self._client))
+        self._client.when_done(future, self._poke)
+        with self._cond:
+            self._wait_alive(future.done, wait)
+        return self._canceling(future, wait, future.done())
 
     async def cancel_async(self, timeout: float | None = None) -> bool:
         """`cancel`, awaitable in a coroutine callback of the node's executor: no thread blocks."""
         wait = check_timeout(self.timeout if timeout is None else timeout, "timeout")
         if self.done:
             return False
+        with self._cond:
+            self._check_server()
         future = cast(_Future, self._client.request(self._handle.cancel_goal_async))
-        return self._canceling(future, wait, await _within(self.node, future, wait, self._group))
+        return self._canceling(future, wait, await self._await_alive(future, wait))
 
     def _canceling(self, future: _Future, wait: float, answered: bool) -> bool:
         """Whether the server's answer to a cancel request says it cancels the goal."""
