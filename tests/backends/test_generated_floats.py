@@ -77,6 +77,7 @@ held = {
     "float64[] item": refused(lambda: c.construct_wide_Msg(data=[1e308, float("inf")]), "data", "finite"),
     "float64[] huge int": refused(lambda: c.construct_wide_Msg(data=[10**400]), "data", "finite"),
     "nested mapping": refused(lambda: c.construct_twist_Msg(linear={"x": float("-inf")}), "Vector3", ".x"),
+    "text": refused(lambda: c.construct_level_Msg(data="1.5")) == "TypeError: data must be a number, not str",
 }
 level = c.construct_level_Msg(data=FLT_MAX)
 held["FLT_MAX built"] = as_float32(level.data) == FLT_MAX
@@ -90,7 +91,7 @@ print(json.dumps(held))
 
 def check(held: dict[str, Any]) -> None:
     assert held == dict.fromkeys(held, True), {k: v for k, v in held.items() if v is not True}
-    assert len(held) == 10
+    assert len(held) == 11
 
 
 def test_rclpy_construct_refuses_floats_ros_2_cannot_hold(ros2_domain: int, tmp_path: Path, capsys: Any) -> None:

@@ -114,6 +114,8 @@ def _float32(number: float) -> float:
 
 
 def _finite(value: float, field: str, limit: float, kind: str) -> float:
+    if isinstance(value, (str, bytes)):  # float() would read "1.5" (callers without a type checker may pass it)
+        raise TypeError(f"{field} must be a number, not {type(value).__name__}")
     try:
         number = float(value)
     except OverflowError:  # an int beyond every double
