@@ -118,6 +118,13 @@ def test_a_write_holding_what_no_ros_number_or_text_is_an_invalid_event_naming_t
     encode({"message": problem.message, "errors": problem.errors})
 
 
+def test_an_integer_of_thousands_of_digits_is_out_of_range_not_python_words() -> None:
+    spec = rb1_catalog().find(Kind.WRITE, "door")
+    _, problem = rb1_validator().parse(spec, ROBOT, b'{"payload":{"data":' + b"9" * 5000 + b"}}")
+    assert problem is not None and problem.code == "invalid-event", problem
+    assert "out of range" in problem.message and "sys." not in problem.message and "4300" not in problem.message
+
+
 def test_deep_nesting_is_an_invalid_event_at_any_depth() -> None:
     spec = rb1_catalog().find(Kind.QUERY, "gotoQuery")
     for depth in (MAX_DEPTH + 1, 500, 990, 5000):  # 5000: deeper than the JSON parser follows
