@@ -3,9 +3,9 @@
 Used to describe payloads (event schemas, the exposed TD, TD data schemas written by migrate or by users) in
 the vocabulary TDs use. The schemas are strict, because a payload a ROS message cannot hold must be refused
 where it arrives, not fail in a constructor later: every object lists its fields and allows no other
-(`additionalProperties: false`); integers carry their ROS range, fixed arrays their length, bounded types
-their bound; time and duration follow the distro (`secs/nsecs` in ROS 1, `sec/nanosec` in ROS 2). A
-`complete` schema (a value the robot sends: a property, a response) also requires every field; an incomplete
+(`additionalProperties: false`); integers and float32 carry their ROS range, fixed arrays their length,
+bounded types their bound; time and duration follow the distro (`secs/nsecs` in ROS 1, `sec/nanosec` in ROS
+2). A `complete` schema (a value the robot sends: a property, a response) also requires every field; an incomplete
 one (a request or a written value) does not, since ROS gives a left-out field its default.
 
 `strictest` lays a TD's data schema over the ROS one: the TD may narrow (ranges, enums, required fields,
@@ -18,7 +18,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from td2adaptor.model import ArrayKind, FieldType, MessageDef, TypeTable
-from td2adaptor.rostypes.primitives import int_range
+from td2adaptor.rostypes.primitives import FLOAT32_MAX, int_range
 
 _TIME_TYPES = {"time", "duration", "builtin_interfaces/msg/Time", "builtin_interfaces/msg/Duration"}
 #: a time member's name in the other distro (a TD may be written for either)
@@ -50,7 +50,9 @@ def _scalar(base: str, distro: str = "ros2") -> dict[str, Any]:
     if rng is not None:
         lo, hi = rng
         return {"type": "integer", "minimum": lo, "maximum": hi}
-    if base in ("float32", "float64"):
+    if base == "float32":  # float64 takes every number an event may hold (runtime/events.py: finite ones)
+        return {"type": "number", "minimum": -FLOAT32_MAX, "maximum": FLOAT32_MAX}
+    if base == "float64":
         return {"type": "number"}
     if base in ("string", "wstring"):
         return {"type": "string"}

@@ -14,6 +14,9 @@ INT_RANGES: dict[str, tuple[int, int]] = {
     "char": (0, 2**8 - 1),
 }
 FLOATS = frozenset({"float32", "float64"})
+#: the largest finite float32 (C's FLT_MAX, (2 - 2**-23) * 2**127): a float32 field's range is +-this; a double
+#: beyond it would become infinity on the way into the message
+FLOAT32_MAX = 3.4028234663852886e38
 STRINGS = frozenset({"string", "wstring"})
 
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 import itertools
 import json
 import os
+import re
+import sys
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -18,6 +20,15 @@ from td2adaptor.model.events import EventCatalog, EventSpec, Kind
 
 MAX_ERRORS = 10
 EXCERPT = 1024
+#: the deepest nesting of objects and arrays an event may have (a ROS message is seldom ten deep): a deeper one
+#: is refused before a schema validator, a digest or a robot call has to follow it down
+MAX_DEPTH = 64
+#: the largest magnitude a number in an event may have: a double's (`1e400` parses as infinity)
+_DOUBLE_MAX = sys.float_info.max
+#: UTF-16 surrogates: a JSON string can hold one alone (`"\\ud800"`), but no UTF-8 text can
+_SURROGATE = re.compile(r"[\ud800-\udfff]")
+#: pointers in refusals are cut to this length (a member name can be as long as the event)
+_POINTER_MAX = 200
 
 
 @dataclass(frozen=True)
@@ -57,13 +68,10 @@ def new_id() -> str:
     return f"{_ids.prefix}{next(_ids.counter):016x}"
 
 
-def _no_constant(name: str) -> Any:
-    raise ValueError(f"{name} is not JSON")
-
-
 def loads(raw: bytes) -> Any:
-    """Strict JSON: UTF-8, no NaN/Infinity (they would not survive the trip to another JSON parser)."""
-    return json.loads(raw.decode("utf-8"), parse_constant=_no_constant)
+    """JSON in UTF-8. `NaN` and `Infinity` are read (as is `1e400`, which is infinity to a double) so that
+    `value_problem` can name where such a number is: no event that holds one is ever run or answered with it."""
+    return json.loads(raw.decode("utf-8"))
 
 
 def encode(event: Mapping[str, Any]) -> bytes:
@@ -75,7 +83,59 @@ def excerpt(raw: bytes) -> str:
 
 
 def _pointer(path: Any) -> str:
-    return "".join("/" + str(p).replace("~", "~0").replace("/", "~1") for p in path)
+    text = "".join("/" + str(p).replace("~", "~0").replace("/", "~1") for p in path)
+    if _SURROGATE.search(text):  # a member name that is no text: shown escaped, so the refusal can be sent
+        text = text.encode("utf-8", "backslashreplace").decode("utf-8")
+    return text if len(text) <= _POINTER_MAX else text[: _POINTER_MAX - 3] + "..."
+
+
+def is_text(value: str) -> bool:
+    """Whether `value` can be encoded as UTF-8 (holds no lone surrogate), so that it can be sent again."""
+    return value.isascii() or _SURROGATE.search(value) is None
+
+
+def value_problem(data: Any) -> tuple[str, str] | None:
+    """(JSON pointer, message) of the first thing in `data` that no event may hold, wherever it is: a number
+    that is not finite or beyond a double (NaN, Infinity, `1e400`: no ROS number holds it), a string or member
+    name that is not Unicode text (a lone surrogate: it cannot be encoded, so neither run nor echoed), nesting
+    deeper than MAX_DEPTH. None when there is none. The schemas then check each number against its ROS type."""
+    found = _problem(data, 0)
+    if found is None:
+        return None
+    path, message = found
+    return _pointer(reversed(path)), message
+
+
+def _problem(value: Any, depth: int) -> tuple[list[Any], str] | None:
+    """`value_problem` with the path in reverse (built only on the way back from a problem)."""
+    if isinstance(value, str):
+        return None if is_text(value) else ([], _not_text(value))
+    if isinstance(value, (int, float)):
+        if -_DOUBLE_MAX <= value <= _DOUBLE_MAX:
+            return None
+        if value != value:  # NaN
+            return [], "NaN: JSON has no such number"
+        return [], f"number out of range: numbers must be finite, at most {_DOUBLE_MAX!r} in magnitude"
+    if isinstance(value, (dict, list)):
+        if depth >= MAX_DEPTH:
+            return [], f"nested more than {MAX_DEPTH} levels deep"
+        items = value.items() if isinstance(value, dict) else enumerate(value)
+        for key, item in items:
+            if isinstance(key, str) and not is_text(key):
+                found: tuple[list[Any], str] | None = ([], "the member name is " + _not_text(key))
+            else:
+                found = _problem(item, depth + 1)
+            if found is not None:
+                found[0].append(key)
+                return found
+    return None
+
+
+def _not_text(value: str) -> str:
+    """Why a string with a lone surrogate is refused, the surrogate shown as its escape."""
+    match = _SURROGATE.search(value)
+    code = ord(match.group()) if match else 0
+    return f"not Unicode text: it holds a lone surrogate (\\u{code:04x}), which UTF-8 cannot encode"
 
 
 class EventValidator:
@@ -129,8 +189,20 @@ class EventValidator:
         """The inbound event in `raw` (arrived on `spec`'s topic for `robot`), or why it is refused."""
         try:
             event = loads(raw)
-        except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        except RecursionError:  # deeper than the parser follows: far beyond MAX_DEPTH
+            return None, Problem(
+                "invalid-event", f"not a valid {spec.key} event: nested more than {MAX_DEPTH} levels deep"
+            )
+        except (UnicodeDecodeError, ValueError) as exc:
+            if "integer string conversion" in str(exc):  # an integer of thousands of digits
+                message = f"not a valid {spec.key} event: a number out of range (thousands of digits)"
+                return None, Problem("invalid-event", message)
             return None, Problem("invalid-json", f"not a JSON document: {str(exc)[:200]}")
+        found = value_problem(event)
+        if found is not None:
+            return None, Problem(
+                "invalid-event", f"not a valid {spec.key} event ({found[0] or '/'}: {found[1]})", (found,)
+            )
         errors = self.errors(spec, event)
         if errors:
             first = f"{errors[0][0] or '/'}: {errors[0][1]}"
@@ -181,7 +253,7 @@ def references(data: Any) -> tuple[str | None, int | None]:
         return None, None
     corr = data.get("correlation")
     mission = data.get("mission")
-    ok_corr = corr if isinstance(corr, str) and 0 < len(corr) <= 256 else None
+    ok_corr = corr if isinstance(corr, str) and 0 < len(corr) <= 256 and is_text(corr) else None
     ok_mission = mission if isinstance(mission, int) and not isinstance(mission, bool) else None
     if ok_mission is not None and not -(2**63) <= ok_mission < 2**64:
         ok_mission = None

@@ -30,7 +30,7 @@ from typing import Any
 from td2adaptor.model.events import ALL_ROBOTS, TOPIC_ROOT, EventCatalog, EventSpec, Kind
 from td2adaptor.model.wot import CORRELATION, takes_correlation, wot_topic
 from td2adaptor.runtime.bus import Bus, Handler, Message
-from td2adaptor.runtime.events import encode, new_id, now_rfc3339
+from td2adaptor.runtime.events import loads, new_id, now_rfc3339
 
 log = logging.getLogger("td2adaptor.runtime")
 
@@ -65,8 +65,15 @@ class ThingBus:
             return  # the all-robots channel and anything else: envelope only
 
         def inbound(msg: Message, spec: EventSpec = spec, native: str = pattern) -> None:
-            cleared = msg.retain and not msg.payload  # a retained command cleared: no message without input
-            handler(Message(native, b"" if cleared else self.wrap(spec, msg.payload), msg.retain))
+            if msg.retain and not msg.payload:  # a retained command cleared: no message without input
+                handler(Message(native, b"", msg.retain))
+                return
+            try:
+                wrapped = self.wrap(spec, msg.payload)
+            except Exception:  # a bug here must not cost the message its answer: the engine answers it as it is
+                log.exception("could not wrap the WoT message on %s", msg.topic)
+                wrapped = msg.payload
+            handler(Message(native, wrapped, msg.retain))
 
         self.bus.subscribe(topic, inbound, qos=0)  # not queued while the node is away (see above)
 
@@ -93,19 +100,30 @@ class ThingBus:
     # -- translation ---------------------------------------------------------------------------------------
 
     def wrap(self, spec: EventSpec, raw: bytes) -> bytes:
-        """The envelope event of a WoT message on `spec`'s WoT topic (`raw` itself when it is no JSON)."""
+        """The envelope event of a WoT message on `spec`'s WoT topic (`raw` itself when it is no JSON, or nested
+        deeper than the parser follows: the engine then refuses it as it would the same envelope).
+
+        Whatever the data holds is carried over as it is for the engine to judge, also what no event may hold
+        (the engine refuses it, naming where): a lone surrogate stays its JSON escape, and a number no double
+        holds (`1e400`) is written `Infinity`, which the engine reads as such (runtime/events.py)."""
         if not raw.strip():
             data: Any = {} if spec.kind is not Kind.WRITE else None
         else:
             try:
-                data = json.loads(raw)
-            except ValueError:
-                return raw  # the engine answers: invalid-json
+                data = loads(raw)
+            except (ValueError, RecursionError):
+                return raw  # the engine answers: invalid-json (or nested too deeply)
+        try:
+            return self._envelope(spec, data)
+        except RecursionError:  # nested just short of what the parser follows: one level more is too many
+            return raw
+
+    def _envelope(self, spec: EventSpec, data: Any) -> bytes:
         event: dict[str, Any] = {"type": spec.kind.value, "affordance": spec.affordance, "robot": self.robot}
         event.update(id=new_id(), time=now_rfc3339(), source=WOT_SOURCE)
         if spec.kind is Kind.WRITE:
             event["payload"] = data
-            return encode(event)
+            return _encode(event)
         if self.correlation_ids:  # require_id_and_time: no correlationId, no id, and the engine refuses it
             del event["id"]
         if isinstance(data, dict) and takes_correlation(spec):
@@ -114,16 +132,19 @@ class ThingBus:
             if correlation is not None:
                 event["correlation"] = correlation  # the engine's schema checks it
                 if self.correlation_ids and isinstance(correlation, str) and correlation:
-                    event["id"] = correlation if len(correlation) <= 128 else sha256(correlation.encode()).hexdigest()
+                    long = len(correlation) > 128  # a lone surrogate hashes too: the engine refuses the correlation
+                    event["id"] = (
+                        sha256(correlation.encode("utf-8", "surrogatepass")).hexdigest() if long else correlation
+                    )
         if spec.kind in (Kind.QUERY, Kind.CANCEL) and isinstance(data, dict):
             mission = data.pop("mission", None)
             if mission is not None:
                 event["mission"] = mission
             if data:  # nothing else belongs there: the engine refuses it, naming the member
                 event["payload"] = data
-            return encode(event)
+            return _encode(event)
         event["payload"] = data
-        return encode(event)
+        return _encode(event)
 
     def unwrap(self, spec: EventSpec, event: Any) -> tuple[str, Any] | None:
         """(WoT topic, data) of an event the engine published, or None when it has no WoT form."""
@@ -155,6 +176,13 @@ class ThingBus:
             if wot is not None:
                 data["topic"] = wot
         return topic, data
+
+
+def _encode(event: dict[str, Any]) -> bytes:
+    """A wrapped event as the engine reads it: a lone surrogate written as its JSON escape (it cannot be UTF-8),
+    so that the engine sees the string as the consumer sent it and refuses it."""
+    text = json.dumps(event, separators=(",", ":"), ensure_ascii=False)
+    return text.encode("utf-8", "backslashreplace")
 
 
 def thing_bus(

@@ -15,6 +15,7 @@ from typing import Any
 from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.model import ActionDef, ArrayKind, Constant, MessageDef, ServiceDef, TypeTable
 from td2adaptor.model.msgschema import message_schema
+from td2adaptor.rostypes.primitives import FLOAT32_MAX
 from td2adaptor.rostypes.registry import TypeRegistry
 from td2adaptor.scaffold.layout import Layout, Plan
 
@@ -25,17 +26,21 @@ ROSV_CONTEXT = "https://td2adaptor.dev/ns/rosv/v1"
 #: what an event-contract schema adds that a TD's data schema leaves to the contract (which lays the message's
 #: own schema over the TD's anyway): closed objects and required fields
 _CONTRACT_ONLY = ("additionalProperties", "required")
+#: float32's own range, which the contract adds the same way: a TD written for a person leaves it out
+_FLOAT32_RANGE = {"minimum": -FLOAT32_MAX, "maximum": FLOAT32_MAX}
 
 
 def td_style(schema: Any) -> Any:
-    """A message schema as a TD writes it: structure, types, ranges and bounds, without `_CONTRACT_ONLY`."""
+    """A message schema as a TD writes it: structure, types, ranges and bounds, without `_CONTRACT_ONLY` (and
+    without float32's own range)."""
     if isinstance(schema, list):
         return [td_style(s) for s in schema]
     if not isinstance(schema, dict):
         return schema
     out = {}
+    float32 = all(schema.get(k) == v for k, v in _FLOAT32_RANGE.items())
     for key, value in schema.items():
-        if key in _CONTRACT_ONLY:
+        if key in _CONTRACT_ONLY or (float32 and key in _FLOAT32_RANGE):
             continue
         if key == "properties" and isinstance(value, dict):
             out[key] = {name: td_style(sub) for name, sub in value.items()}

@@ -158,6 +158,54 @@ def test_bridge_ports_drive_the_ros1_sim_and_a_mission_runs_through_the_engine(
         bridge.close()
 
 
+def test_values_no_ros_type_holds_never_reach_the_ros1_robot(
+    master: Master, sim: Sim, interfaces: Path, package_src: Path
+) -> None:
+    """Issue 30 on ROS 1: what no ROS number or text holds is refused before the bridge is asked (envelope and
+    WoT topics); the door hears only the valid command after them."""
+    model = rb1_model()
+    bridge = Ros1Bridge(
+        Layout.of(model),
+        PKG,
+        [(ROBOT, ROBOT)],
+        python=harness.SYSTEM_PYTHON,
+        pythonpath=[interfaces, package_src],
+        master_uri=master.uri,
+        timeout=5.0,
+        environ=master.env(),
+    )
+    bridge.start()
+    broker = LocalBroker()
+    app = LocalApp(broker, f"td2adaptor/{ROBOT}/error")
+    config = RuntimeConfig(robot=ROBOT, poll_period=0.05, property_period=0, call_timeout=5.0, state_dir="")
+    engine = serve(model, bridge.port(ROBOT), config, broker=broker, distro="ros1")
+    heard = len(sim.lines)
+    try:
+        refused = [
+            (f"td2adaptor/{ROBOT}/DoorComponent/door/write", b'{"payload":{"data":1e400}}', "/payload/data"),
+            (f"td2adaptor/{ROBOT}/wot-thing/DoorComponent/door", b'{"data":-1e999}', "/payload/data"),
+            (f"td2adaptor/{ROBOT}/wot-thing/DoorComponent/door", b'{"data":NaN}', "/payload/data"),
+            (
+                f"td2adaptor/{ROBOT}/DoorComponent/door/write",
+                b'{"correlation":"\\ud800","payload":{"data":1}}',
+                "/correlation",
+            ),
+        ]
+        for topic, raw, _ in refused:
+            app.send(topic, raw)
+        app.wait(lambda ev: len(ev) >= len(refused), timeout=20)
+        errors = app.of("error")
+        assert [(e["payload"]["code"], e["payload"]["errors"][0]["path"]) for e in errors] == [
+            ("invalid-event", path) for _, _, path in refused
+        ]
+        app.send(f"td2adaptor/{ROBOT}/DoorComponent/door/write", {"payload": {"data": 0.25}})
+        assert sim.read_until("door 0.25", 10.0)
+        assert [line for line in sim.lines[heard:] if line.startswith("door")] == ["door 0.25"]
+    finally:
+        engine.stop()
+        bridge.close()
+
+
 def _group_members(pgid: int) -> list[int]:
     """Processes of a process group, from /proc."""
     found = []

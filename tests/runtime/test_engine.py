@@ -133,7 +133,7 @@ def test_invalid_events_are_answered_and_the_engine_carries_on(rig: Rig) -> None
     cases: list[tuple[str, Any, str]] = [
         (GOTO, b"{not json", "invalid-json"),
         (GOTO, b"\xff\xfe", "invalid-json"),
-        (GOTO, b'{"payload": NaN}', "invalid-json"),
+        (GOTO, b'{"payload": NaN}', "invalid-event"),  # no ROS number holds it: named where it is
         (GOTO, {"correlation": "c1", "payload": {"procedure": {"goals": "north"}}}, "invalid-event"),
         (GOTO, {"correlation": "c2", "payload": GOAL, "colour": "red"}, "invalid-event"),
         (GOTO, {"correlation": "c3"}, "invalid-event"),

@@ -10,7 +10,7 @@ from td2adaptor.backends._python.imports import import_block, import_line, membe
 from td2adaptor.backends._python.names import METHOD_NAMES, defined_names, param_name, reserved_names
 from td2adaptor.backends._python.runtime import SHARED, common_names, constant, error_classes, shared_source
 from td2adaptor.backends._python.stubs import StubClass, StubField, StubModule
-from td2adaptor.backends._python.text import LINE, docstring, wrap
+from td2adaptor.backends._python.text import LINE, call_lines, docstring, wrap
 
 __all__ = [
     "METHOD_NAMES",
@@ -23,6 +23,7 @@ __all__ = [
     "constant",
     "defined_names",
     "param_name",
+    "call_lines",
     "docstring",
     "error_classes",
     "import_block",

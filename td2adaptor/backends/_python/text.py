@@ -1,8 +1,9 @@
-"""Docstrings of generated Python: TD text wrapped and escaped so that no line outgrows the package's ruff.toml."""
+"""Docstrings and calls of generated Python: TD text wrapped and escaped, calls split, so that no line outgrows
+the package's ruff.toml (and ruff's formatter leaves them as they are)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 
 from td2adaptor.generation import textsafe as ts
 
@@ -25,3 +26,15 @@ def docstring(
     width = LINE - len(indent) - margin
     blocks = [wrap(p, width, collapse=collapse) for p in paragraphs if p and p.strip()]
     return ts.py_docstring("\n\n".join(b for b in blocks if b), indent, fallback=fallback)
+
+
+def call_lines(lead: str, func: str, args: Sequence[str], tail: str, indent: int) -> list[str]:
+    """`lead` `func(args)` `tail` at `indent` columns as ruff's formatter lays it out: on one line if it fits,
+    else the arguments on a line of their own, else one per line with a trailing comma."""
+    inner = ", ".join(args)
+    one = f"{lead}{func}({inner}){tail}"
+    if indent + len(one) <= LINE:
+        return [one]
+    if indent + 4 + len(inner) <= LINE:
+        return [f"{lead}{func}(", f"    {inner}", f"){tail}"]
+    return [f"{lead}{func}(", *(f"    {arg}," for arg in args), f"){tail}"]

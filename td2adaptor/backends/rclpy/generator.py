@@ -135,6 +135,20 @@ class ParamView:
     field: str
     convert: str  # expression, the parameter (or mapping item) already substituted
     optional: bool
+    check: tuple[str, str, str] | None = None  # `convert` is check(value, what): what names the field in errors
+
+    def assign(self, target: str, indent: int) -> list[str]:
+        """`target[key] = convert` as lines at `indent`, as ruff lays them out."""
+        return self._lines(f"{target}[{self.key}] = ", "", indent)
+
+    def kwarg(self, indent: int) -> list[str]:
+        """`field=convert,` (an argument of the message's constructor) as lines at `indent`."""
+        return self._lines(f"{self.field}=", ",", indent)
+
+    def _lines(self, lead: str, tail: str, indent: int) -> list[str]:
+        if self.check is None:
+            return [f"{lead}{self.convert}{tail}"]
+        return py.call_lines(lead, self.check[0], self.check[1:], tail, indent)
 
 
 @dataclass
@@ -286,6 +300,7 @@ class Builder:
         # what components.py refers to, so that it imports exactly that
         self.msg_used: set[str] = set()
         self.conv_used: set[str] = set()
+        self.conv_checks: set[str] = set()  # the number checks convert.py calls (from .common)
         self.runtime_used: set[str] = {"DEFAULT_TIMEOUT", "DEFAULT_WAIT_TIMEOUT", "check_robot_name", "check_timeout"}
         self.std_used: set[tuple[str, str]] = set()
 
@@ -447,6 +462,9 @@ class Builder:
             name = py.param_name(f.name, taken)
             p = rt.param(f, local, conv, name)
             value = f"value[{ts.py_str(f.name)}]" if mapping else name
+            what = ts.py_str(f"{msg.name}.{f.name}" if mapping else f.name)  # a converter's field: of which type
+            if p.check is not None:
+                (self.conv_checks if mapping else self.runtime_used).add(p.check)
             if not mapping:
                 if f.type.is_message:
                     self.msg_used.add(f.type.base)
@@ -456,7 +474,14 @@ class Builder:
                     self.std_used.add(("collections.abc", "Sequence"))
             out.append(
                 ParamView(
-                    p.name, ts.py_str(f.name), p.annotation, p.default, f.name, p.convert.format(v=value), p.optional
+                    p.name,
+                    ts.py_str(f.name),
+                    p.annotation,
+                    p.default,
+                    f.name,
+                    p.convert.format(v=value, what=what),
+                    p.optional,
+                    None if p.check is None else (p.check, value, what),
                 )
             )
         return out
@@ -814,6 +839,7 @@ class Builder:
                 )
             )
         convert_pairs = conv_namer.import_pairs() + [("collections.abc", "Mapping")]
+        convert_pairs += [(".common", name) for name in sorted(self.conv_checks)]
         convert_pairs.append(("typing", "cast"))  # check_fields uses it
         if converters:  # `Any` is only in converter signatures: a package that sends nothing has none (F401)
             convert_pairs.append(("typing", "Any"))

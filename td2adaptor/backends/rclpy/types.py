@@ -93,6 +93,15 @@ class Param:
     default: str
     convert: str  # expression turning the parameter (`{v}`) into the field value
     optional: bool  # None means "leave the ROS default"
+    check: str | None = None  # the common.py function `convert` calls with (`{v}`, `{what}`: the field in errors)
+
+
+def float_check(ftype: FieldType) -> str | None:
+    """The common.py function that checks a float field's value (its items: an array's): finite, and within the
+    float32 range for float32, so that no infinity reaches the robot."""
+    if ftype.is_message or ftype.base not in FLOATS:
+        return None
+    return f"check_{ftype.base}" + ("s" if ftype.array is not ArrayKind.NONE else "")
 
 
 def param(field: MessageField, msg_name: str, converter: str | None, pyname: str) -> Param:
@@ -103,8 +112,9 @@ def param(field: MessageField, msg_name: str, converter: str | None, pyname: str
         default = literal(ftype, field.default) if field.default is not None else None
         if default is None:
             default = ZERO[kind]
-        convert = "float({v})" if kind == "float" else "{v}"
-        return Param(pyname, field.name, kind, default, convert, optional=False)
+        check = float_check(ftype)
+        convert = f"{check}({{v}}, {{what}})" if check else "{v}"
+        return Param(pyname, field.name, kind, default, convert, optional=False, check=check)
     if ftype.array is ArrayKind.NONE:
         return Param(pyname, field.name, f"{msg_name} | Mapping[str, Any] | None", "None", f"{converter}({{v}})", True)
     if ftype.is_message:
@@ -112,5 +122,7 @@ def param(field: MessageField, msg_name: str, converter: str | None, pyname: str
         convert = f"[{converter}(item) for item in {{v}}]"
     else:
         elem = SCALAR[ftype.base]
-        convert = "[float(item) for item in {v}]" if elem == "float" else "{v}"  # rosidl checks and copies
+        check = float_check(ftype)  # other arrays: rosidl checks and copies
+        convert = f"{check}({{v}}, {{what}})" if check else "{v}"
+        return Param(pyname, field.name, f"Sequence[{elem}] | None", "None", convert, True, check)
     return Param(pyname, field.name, f"Sequence[{elem}] | None", "None", convert, True)

@@ -9,6 +9,8 @@ from __future__ import annotations
 import keyword
 from dataclasses import dataclass
 
+from td2adaptor.backends._python.text import call_lines
+from td2adaptor.generation.textsafe import py_str
 from td2adaptor.model import ArrayKind, FieldType, MessageField
 
 _INTS = frozenset("byte char int8 uint8 int16 uint16 int32 uint32 int64 uint64".split())
@@ -83,14 +85,26 @@ class FieldView:
     annotation: str
     default: str
     value: str  # expression turning the parameter into the field's value
+    check: tuple[str, str] | None = None  # `value` is this common.py check called with (value, the field's name)
 
     @property
     def kwarg_lines(self) -> list[str]:
-        """`field=value,` in a call indented by 12, as ruff's formatter lays it out (parenthesised when long)."""
+        """`field=value,` in a call indented by 12, as ruff's formatter lays it out (parenthesised when long, a
+        check's arguments split)."""
+        if self.check is not None:
+            return call_lines(f"{self.field}=", self.check[0], (self.check[1], py_str(self.field)), ",", 12)
         line = f"{self.field}={self.value},"
         if 12 + len(line) <= 120:
             return [line]
         return [f"{self.field}=(", f"    {self.value}", "),"]
+
+
+def float_check(base: str, array: bool) -> str | None:
+    """The common.py function that checks a float field's value (an array's items): finite, and within the
+    float32 range for float32, so that no infinity reaches the robot."""
+    if base not in _FLOATS:
+        return None
+    return f"check_{base}" + ("s" if array else "")
 
 
 def field_view(field: MessageField, param: str, local: dict[str, str]) -> FieldView:
@@ -120,11 +134,18 @@ def field_view(field: MessageField, param: str, local: dict[str, str]) -> FieldV
             return FieldView(field.name, param, "bytes | Sequence[int] | None", "None", value)
         return FieldView(field.name, param, "bytes | Sequence[int]", 'b""', f"bytes({param})")
     scalar = py_scalar(ftype.base)
+    check = float_check(ftype.base, ftype.array is not ArrayKind.NONE)
     if ftype.array is ArrayKind.NONE:
-        return FieldView(field.name, param, scalar, scalar_default(ftype.base), param)
+        value = param if check is None else f"{check}({param}, {py_str(field.name)})"
+        return FieldView(field.name, param, scalar, scalar_default(ftype.base), value, _with(check, param))
     length = ftype.length if ftype.array is ArrayKind.FIXED else 0
     value = f"to_list({param}, {length}, {scalar_default(ftype.base)})"
-    return FieldView(field.name, param, f"Sequence[{scalar}] | None", "None", value)
+    checked = value if check is None else f"{check}({value}, {py_str(field.name)})"
+    return FieldView(field.name, param, f"Sequence[{scalar}] | None", "None", checked, _with(check, value))
+
+
+def _with(check: str | None, value: str) -> tuple[str, str] | None:
+    return None if check is None else (check, value)
 
 
 def stub_annotation(ftype: FieldType, ref: dict[str, str]) -> str:

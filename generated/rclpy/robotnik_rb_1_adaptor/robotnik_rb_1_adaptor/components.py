@@ -31,6 +31,7 @@ from .common import (
     DEFAULT_WAIT_TIMEOUT,
     LAST_MISSION,
     Started,
+    check_float64,
     check_robot_name,
     check_timeout,
     in_namespace,
@@ -1141,7 +1142,7 @@ class DoorComponent:
         fields (nested too), arrays as any sequence; None keeps the field's ROS default.
         """
         return Float64(
-            data=float(data),
+            data=check_float64(data, "data"),
         )
 
     def publish_door_Msg(

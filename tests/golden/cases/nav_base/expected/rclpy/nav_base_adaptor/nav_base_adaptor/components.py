@@ -15,7 +15,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import BatteryState, LaserScan
 from std_srvs.srv import SetBool, SetBool_Request, SetBool_Response, Trigger, Trigger_Request, Trigger_Response
 
-from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, check_robot_name, check_timeout, in_namespace
+from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, check_float32, check_robot_name, check_timeout, in_namespace
 from .convert import to_geometry_msgs_PoseStamped, to_geometry_msgs_Vector3
 from .runtime import (
     ActionGoalClient,
@@ -220,7 +220,7 @@ class DockingComponent:
         if dock_pose is not None:
             _fields["dock_pose"] = to_geometry_msgs_PoseStamped(dock_pose)
         _fields["dock_type"] = dock_type
-        _fields["max_staging_time"] = float(max_staging_time)
+        _fields["max_staging_time"] = check_float32(max_staging_time, "max_staging_time")
         _fields["navigate_to_staging_pose"] = navigate_to_staging_pose
         return DockRobot.Goal(**_fields)
 
@@ -284,7 +284,7 @@ class DockingComponent:
         """
         return UndockRobot.Goal(
             dock_type=dock_type,
-            max_undocking_time=float(max_undocking_time),
+            max_undocking_time=check_float32(max_undocking_time, "max_undocking_time"),
         )
 
     def send_undockRobot(

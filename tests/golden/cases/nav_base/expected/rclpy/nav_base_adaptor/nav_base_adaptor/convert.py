@@ -12,6 +12,8 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Vector3
 from std_msgs.msg import Header
 
+from .common import check_float64
+
 
 def check_fields(value: object, names: tuple[str, ...], type_name: str) -> None:
     """A mapping given for a message must name only its fields: a typo fails loudly instead of being ignored."""
@@ -42,11 +44,11 @@ def to_geometry_msgs_Point(value: Point | Mapping[str, Any]) -> Point:
     check_fields(value, ("x", "y", "z"), "geometry_msgs/msg/Point")
     fields: dict[str, Any] = {}
     if "x" in value:
-        fields["x"] = float(value["x"])
+        fields["x"] = check_float64(value["x"], "geometry_msgs/msg/Point.x")
     if "y" in value:
-        fields["y"] = float(value["y"])
+        fields["y"] = check_float64(value["y"], "geometry_msgs/msg/Point.y")
     if "z" in value:
-        fields["z"] = float(value["z"])
+        fields["z"] = check_float64(value["z"], "geometry_msgs/msg/Point.z")
     return Point(**fields)
 
 
@@ -83,13 +85,13 @@ def to_geometry_msgs_Quaternion(value: Quaternion | Mapping[str, Any]) -> Quater
     check_fields(value, ("x", "y", "z", "w"), "geometry_msgs/msg/Quaternion")
     fields: dict[str, Any] = {}
     if "x" in value:
-        fields["x"] = float(value["x"])
+        fields["x"] = check_float64(value["x"], "geometry_msgs/msg/Quaternion.x")
     if "y" in value:
-        fields["y"] = float(value["y"])
+        fields["y"] = check_float64(value["y"], "geometry_msgs/msg/Quaternion.y")
     if "z" in value:
-        fields["z"] = float(value["z"])
+        fields["z"] = check_float64(value["z"], "geometry_msgs/msg/Quaternion.z")
     if "w" in value:
-        fields["w"] = float(value["w"])
+        fields["w"] = check_float64(value["w"], "geometry_msgs/msg/Quaternion.w")
     return Quaternion(**fields)
 
 
@@ -100,11 +102,11 @@ def to_geometry_msgs_Vector3(value: Vector3 | Mapping[str, Any]) -> Vector3:
     check_fields(value, ("x", "y", "z"), "geometry_msgs/msg/Vector3")
     fields: dict[str, Any] = {}
     if "x" in value:
-        fields["x"] = float(value["x"])
+        fields["x"] = check_float64(value["x"], "geometry_msgs/msg/Vector3.x")
     if "y" in value:
-        fields["y"] = float(value["y"])
+        fields["y"] = check_float64(value["y"], "geometry_msgs/msg/Vector3.y")
     if "z" in value:
-        fields["z"] = float(value["z"])
+        fields["z"] = check_float64(value["z"], "geometry_msgs/msg/Vector3.z")
     return Vector3(**fields)
 
 

@@ -26,7 +26,15 @@ from robot_local_control_msgs.srv import (
 )
 from std_msgs.msg import Float64
 
-from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, LAST_MISSION, Started, check_robot_name, check_timeout
+from .common import (
+    DEFAULT_TIMEOUT,
+    DEFAULT_WAIT_TIMEOUT,
+    LAST_MISSION,
+    Started,
+    check_float64,
+    check_robot_name,
+    check_timeout,
+)
 from .convert import (
     to_procedures_msgs_ProcedureHeader,
     to_robot_local_control_msgs_GoTo,
@@ -1133,7 +1141,7 @@ class DoorComponent:
         fields (nested too), arrays as any sequence; None keeps the field's ROS default.
         """
         return Float64(
-            data=float(data),
+            data=check_float64(data, "data"),
         )
 
     def publish_door_Msg(

@@ -28,6 +28,7 @@ from .common import (
     DEFAULT_WAIT_TIMEOUT,
     LAST_MISSION,
     Started,
+    check_float64,
     check_robot_name,
     check_timeout,
     in_namespace,
@@ -839,7 +840,7 @@ class DoorComponent:
         fields (nested too), arrays as any sequence; None keeps the field's ROS default.
         """
         return Float64(
-            data=float(data),
+            data=check_float64(data, "data"),
         )
 
     def publish_door_Msg(

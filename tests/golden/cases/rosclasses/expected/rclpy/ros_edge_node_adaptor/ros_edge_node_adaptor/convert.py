@@ -14,6 +14,8 @@ from procedures_msgs.msg import ProcedureHeader
 from robot_local_control_msgs.msg import GoTo, Pick, Pose2DStamped, Twist2D
 from std_msgs.msg import Header
 
+from .common import check_float64
+
 
 def check_fields(value: object, names: tuple[str, ...], type_name: str) -> None:
     """A mapping given for a message must name only its fields: a typo fails loudly instead of being ignored."""
@@ -44,11 +46,11 @@ def to_geometry_msgs_Pose2D(value: Pose2D | Mapping[str, Any]) -> Pose2D:
     check_fields(value, ("x", "y", "theta"), "geometry_msgs/msg/Pose2D")
     fields: dict[str, Any] = {}
     if "x" in value:
-        fields["x"] = float(value["x"])
+        fields["x"] = check_float64(value["x"], "geometry_msgs/msg/Pose2D.x")
     if "y" in value:
-        fields["y"] = float(value["y"])
+        fields["y"] = check_float64(value["y"], "geometry_msgs/msg/Pose2D.y")
     if "theta" in value:
-        fields["theta"] = float(value["theta"])
+        fields["theta"] = check_float64(value["theta"], "geometry_msgs/msg/Pose2D.theta")
     return Pose2D(**fields)
 
 
@@ -115,11 +117,11 @@ def to_robot_local_control_msgs_Twist2D(value: Twist2D | Mapping[str, Any]) -> T
     check_fields(value, ("linear_x", "linear_y", "angular_z"), "robot_local_control_msgs/msg/Twist2D")
     fields: dict[str, Any] = {}
     if "linear_x" in value:
-        fields["linear_x"] = float(value["linear_x"])
+        fields["linear_x"] = check_float64(value["linear_x"], "robot_local_control_msgs/msg/Twist2D.linear_x")
     if "linear_y" in value:
-        fields["linear_y"] = float(value["linear_y"])
+        fields["linear_y"] = check_float64(value["linear_y"], "robot_local_control_msgs/msg/Twist2D.linear_y")
     if "angular_z" in value:
-        fields["angular_z"] = float(value["angular_z"])
+        fields["angular_z"] = check_float64(value["angular_z"], "robot_local_control_msgs/msg/Twist2D.angular_z")
     return Twist2D(**fields)
 
 

@@ -10,6 +10,8 @@ from typing import Any, cast
 
 from geometry_msgs.msg import Vector3
 
+from .common import check_float64
+
 
 def check_fields(value: object, names: tuple[str, ...], type_name: str) -> None:
     """A mapping given for a message must name only its fields: a typo fails loudly instead of being ignored."""
@@ -27,9 +29,9 @@ def to_geometry_msgs_Vector3(value: Vector3 | Mapping[str, Any]) -> Vector3:
     check_fields(value, ("x", "y", "z"), "geometry_msgs/msg/Vector3")
     fields: dict[str, Any] = {}
     if "x" in value:
-        fields["x"] = float(value["x"])
+        fields["x"] = check_float64(value["x"], "geometry_msgs/msg/Vector3.x")
     if "y" in value:
-        fields["y"] = float(value["y"])
+        fields["y"] = check_float64(value["y"], "geometry_msgs/msg/Vector3.y")
     if "z" in value:
-        fields["z"] = float(value["z"])
+        fields["z"] = check_float64(value["z"], "geometry_msgs/msg/Vector3.z")
     return Vector3(**fields)

@@ -36,6 +36,7 @@ from .common import (
     DEFAULT_TIMEOUT,
     DEFAULT_WAIT_TIMEOUT,
     FAILURE_WITHOUT_MESSAGE,
+    check_float32,
     check_robot_name,
     check_timeout,
     in_namespace,
@@ -204,7 +205,7 @@ class DockingComponent:
             dock_id=dock_id,
             dock_pose=dock_pose if isinstance(dock_pose, PoseStamped) else to_msg(PoseStamped, dock_pose),
             dock_type=dock_type,
-            max_staging_time=max_staging_time,
+            max_staging_time=check_float32(max_staging_time, "max_staging_time"),
             navigate_to_staging_pose=navigate_to_staging_pose,
         )
 
@@ -246,7 +247,7 @@ class DockingComponent:
         """
         return UndockRobotGoal(
             dock_type=dock_type,
-            max_undocking_time=max_undocking_time,
+            max_undocking_time=check_float32(max_undocking_time, "max_undocking_time"),
         )
 
     def send_undockRobot(

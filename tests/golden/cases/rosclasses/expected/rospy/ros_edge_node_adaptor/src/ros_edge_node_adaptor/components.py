@@ -29,6 +29,7 @@ from .common import (
     ERROR_WITHOUT_MESSAGE,
     LAST_MISSION,
     Started,
+    check_float64,
     check_robot_name,
     check_timeout,
     in_namespace,
@@ -597,7 +598,7 @@ class DoorComponent:
         Keyword arguments are the message's fields; nested messages may also be mappings of their fields.
         """
         return Float64(
-            data=data,
+            data=check_float64(data, "data"),
         )
 
     def publish_door_Msg(self, msg: Float64) -> None:

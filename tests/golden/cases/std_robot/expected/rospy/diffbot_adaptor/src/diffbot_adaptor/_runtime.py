@@ -29,7 +29,7 @@ from rospy.exceptions import TransportException, TransportInitError
 if TYPE_CHECKING:
     from typing import TypeGuard  # Python 3.10; only in annotations here, which Python 3.8 never evaluates
 
-from .common import Callbacks
+from .common import Callbacks, check_float32, check_float64
 from .errors import CallFailed, CallTimeout, InvalidMessage, NoMessage, NotInitialized, ServiceUnavailable
 
 Req = TypeVar("Req")
@@ -129,18 +129,22 @@ def _from_mapping(cls: type[M], fields: Mapping[Any, Any]) -> M:
         slot_type = slots.get(key) if isinstance(key, str) else None
         if slot_type is None:
             raise InvalidMessage(f"{_type_name(cls)} has no field {key!r}")
-        values[key] = _convert(slot_type, value)
+        values[key] = _convert(slot_type, value, f"{_type_name(cls)}.{key}")
     return cls(**values)
 
 
-def _convert(slot_type: str, value: Any) -> Any:
+def _convert(slot_type: str, value: Any, field: str) -> Any:
     base, bracket, _ = slot_type.partition("[")
     if bracket:
         if base in ("uint8", "char") or value is None:
             return value if value is not None else b""
         if "/" in base or base == "Header":
             return to_msgs(_message_class(base), value)
-        return [_convert(base, item) for item in to_list(value)]
+        return [_convert(base, item, field) for item in to_list(value)]
+    if base == "float64":
+        return check_float64(value, field)
+    if base == "float32":
+        return check_float32(value, field)
     if base == "time":
         return to_time(value)
     if base == "duration":
