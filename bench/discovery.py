@@ -20,9 +20,9 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from td2adaptor.runtime import RuntimeConfig, serve  # noqa: E402
-from td2adaptor.runtime.app import td_message  # noqa: E402
-from td2adaptor.runtime.discovery import Directory, registration_document  # noqa: E402
-from td2adaptor.runtime.simport import SimPort  # noqa: E402
+from td2adaptor.runtime.node.app import td_message  # noqa: E402
+from td2adaptor.runtime.node.discovery import Directory, registration_document  # noqa: E402
+from td2adaptor.runtime.ros.simport import SimPort  # noqa: E402
 
 RUNS = 5
 

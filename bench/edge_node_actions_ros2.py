@@ -42,10 +42,10 @@ from td2adaptor.diagnostics import Diagnostics  # noqa: E402
 from td2adaptor.generation.backend import GenOptions  # noqa: E402
 from td2adaptor.generation.registry import load as load_backend  # noqa: E402
 from td2adaptor.runtime import RuntimeConfig, serve  # noqa: E402
-from td2adaptor.runtime.genport import FEEDBACK_GRACE  # noqa: E402
-from td2adaptor.runtime.mqttbus import MqttBus  # noqa: E402
-from td2adaptor.runtime.ros import connect  # noqa: E402
-from td2adaptor.runtime.security import parse_broker_url  # noqa: E402
+from td2adaptor.runtime.bus.mqttbus import MqttBus  # noqa: E402
+from td2adaptor.runtime.bus.security import parse_broker_url  # noqa: E402
+from td2adaptor.runtime.node.roslink import connect  # noqa: E402
+from td2adaptor.runtime.ros.genport import FEEDBACK_GRACE  # noqa: E402
 from tests.lowering.test_actions import INTERFACES, action_td  # noqa: E402
 from tests.ros2 import env  # noqa: E402
 from tests.ros2.common import Process  # noqa: E402

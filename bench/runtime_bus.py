@@ -34,9 +34,9 @@ import td2adaptor  # noqa: E402
 from examples.robotnik_rb1.sim.core import RobotSim  # noqa: E402
 from td2adaptor.model import Model  # noqa: E402
 from td2adaptor.runtime import Bus, LocalBroker, LocalBus, Message, RuntimeConfig, serve  # noqa: E402
-from td2adaptor.runtime.mqttbus import MqttBus  # noqa: E402
-from td2adaptor.runtime.security import parse_broker_url  # noqa: E402
-from td2adaptor.runtime.simport import SimPort  # noqa: E402
+from td2adaptor.runtime.bus.mqttbus import MqttBus  # noqa: E402
+from td2adaptor.runtime.bus.security import parse_broker_url  # noqa: E402
+from td2adaptor.runtime.ros.simport import SimPort  # noqa: E402
 
 ROBOT = "bench"
 ROOT = f"td2adaptor/{ROBOT}/GoToComponent"

@@ -196,8 +196,8 @@ class Counter:
     """Property events arriving on the broker, counted (nothing parsed), from one MQTT client."""
 
     def __init__(self, url: str) -> None:
-        from td2adaptor.runtime.mqttbus import MqttBus
-        from td2adaptor.runtime.security import parse_broker_url
+        from td2adaptor.runtime.bus.mqttbus import MqttBus
+        from td2adaptor.runtime.bus.security import parse_broker_url
 
         self.n = 0
         self.online: set[str] = set()

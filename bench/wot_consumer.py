@@ -33,10 +33,10 @@ sys.path.insert(0, str(REPO / "bench"))
 from runtime_bus import latency, model, mosquitto  # noqa: E402
 
 from td2adaptor.runtime import RuntimeConfig, serve  # noqa: E402
-from td2adaptor.runtime.bus import Message  # noqa: E402
-from td2adaptor.runtime.genport import GeneratedPort  # noqa: E402
-from td2adaptor.runtime.mqttbus import MqttBus  # noqa: E402
-from td2adaptor.runtime.security import parse_broker_url  # noqa: E402
+from td2adaptor.runtime.bus.bus import Message  # noqa: E402
+from td2adaptor.runtime.bus.mqttbus import MqttBus  # noqa: E402
+from td2adaptor.runtime.bus.security import parse_broker_url  # noqa: E402
+from td2adaptor.runtime.ros.genport import GeneratedPort  # noqa: E402
 from tests.ros2 import env  # noqa: E402
 from tests.ros2.build import build_interfaces  # noqa: E402
 from tests.ros2.common import EXAMPLE, Process, generate_rclpy  # noqa: E402

@@ -75,7 +75,7 @@ def test_wheel_installs_and_validates_outside_the_repo(tmp_path: Path) -> None:
     # the interface-build helper is part of the wheel and works from it (a folder with no package: one line)
     (work / "empty").mkdir()
     build = subprocess.run(
-        [str(py), "-m", "td2adaptor.runtime.ros2build", "empty", "cache"],
+        [str(py), "-m", "td2adaptor.support.ros2build", "empty", "cache"],
         cwd=work,
         capture_output=True,
         text=True,

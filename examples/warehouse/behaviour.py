@@ -32,7 +32,7 @@ from typing import Any
 
 from td2adaptor.model import Model
 from td2adaptor.model.events import Kind, build_catalog
-from td2adaptor.runtime.bus import Bus, Message
+from td2adaptor.runtime.bus.bus import Bus, Message
 from td2adaptor.runtime.events import envelope, loads
 
 SOURCE = "warehouse/behaviour"

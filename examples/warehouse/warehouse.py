@@ -154,7 +154,7 @@ def generate_rclpy(model: Model, out: Path) -> Path:
 
 
 def build_interfaces(example: Path, cache: Path | None, say: Callable[[str], None], label: str = "RB-1") -> Path:
-    from td2adaptor.runtime import ros2build
+    from td2adaptor.support import ros2build
 
     root = HERE.parents[1] / ".cache"
     cache = cache or root / "ros2-interfaces"
@@ -304,7 +304,7 @@ def simulations(setup: Setup, robots: Sequence[str], options: WarehouseOptions) 
 def local_edge_nodes(setup: Setup, robots: Sequence[str], options: WarehouseOptions, broker: Any) -> Iterator[None]:
     """The robots' and the door's edge nodes in this process, on the in-process bus."""
     from td2adaptor.runtime.config import RuntimeConfig
-    from td2adaptor.runtime.node import EdgeNode, RosOptions
+    from td2adaptor.runtime.node.node import EdgeNode, RosOptions
 
     t = Timings.of(options)
 
@@ -378,13 +378,13 @@ def process_edge_nodes(setup: Setup, robots: Sequence[str], options: WarehouseOp
 
 
 def open_behaviour_bus(options: WarehouseOptions, model: Model, broker: Any) -> Any:
-    from td2adaptor.runtime.bus import BusError
-    from td2adaptor.runtime.localbus import LocalBus
+    from td2adaptor.runtime.bus.bus import BusError
+    from td2adaptor.runtime.bus.localbus import LocalBus
 
     if options.bus == "local":
         return LocalBus(broker, "warehouse-behaviour", clean_start=True)
-    from td2adaptor.runtime.mqttbus import MqttBus
-    from td2adaptor.runtime.security import SecurityError, parse_broker_url, plan_security
+    from td2adaptor.runtime.bus.mqttbus import MqttBus
+    from td2adaptor.runtime.bus.security import SecurityError, parse_broker_url, plan_security
 
     try:
         address = parse_broker_url(options.bus)
@@ -428,7 +428,7 @@ def run_warehouse(options: WarehouseOptions, out: Callable[[str], None] = print)
     try:
         with ExitStack() as stack:
             setup = prepare(options, work, say)
-            from td2adaptor.runtime.localbus import LocalBroker
+            from td2adaptor.runtime.bus.localbus import LocalBroker
 
             broker = LocalBroker()
             behaviour_bus = open_behaviour_bus(options, setup.robot_model, broker)

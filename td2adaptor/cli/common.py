@@ -52,7 +52,7 @@ class _Group(click.Group):
 
 
 def _redacted(exc: click.ClickException) -> click.ClickException:
-    from td2adaptor.runtime.security import redact_text
+    from td2adaptor.runtime.bus.security import redact_text
 
     said = exc.format_message()
     shown = redact_text(said)

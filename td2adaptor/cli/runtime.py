@@ -143,7 +143,7 @@ def run(
     import logging
     import signal
 
-    from td2adaptor.runtime.node import EdgeNode, RosOptions, wait_for_signal
+    from td2adaptor.runtime.node.node import EdgeNode, RosOptions, wait_for_signal
 
     result = _compile([source], interfaces, sets, values_file, strict, max_bytes, None, no_cache, max_affordances)
     if result.model is None:
@@ -183,10 +183,10 @@ def run(
         click.echo(
             "td2adaptor run: warning: --bus local is in-process; nothing outside this process can reach it", err=True
         )
-    from td2adaptor.runtime.bus import BusError
-    from td2adaptor.runtime.port import PortError
-    from td2adaptor.runtime.ros import RosSetupError
-    from td2adaptor.runtime.security import SecurityError
+    from td2adaptor.runtime.bus.bus import BusError
+    from td2adaptor.runtime.bus.security import SecurityError
+    from td2adaptor.runtime.node.roslink import RosSetupError
+    from td2adaptor.runtime.ros.port import PortError
 
     options = RosOptions(int(ros), package, package_paths, prefixes, ros1_python)
     node = EdgeNode(result.model, configs, options)
@@ -280,7 +280,7 @@ def expose(
     """
     from td2adaptor.model.events import ALL_ROBOTS, ROBOT_ID, build_catalog
     from td2adaptor.model.exposed import exposed_td
-    from td2adaptor.runtime.security import SecurityError, parse_broker_url
+    from td2adaptor.runtime.bus.security import SecurityError, parse_broker_url
     from td2adaptor.support.jsondump import dump
 
     if not ROBOT_ID.match(robot) or robot == ALL_ROBOTS:

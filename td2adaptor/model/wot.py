@@ -4,7 +4,7 @@ The events of `model.events` wrap every payload in the project's envelope (type,
 correlation, mission). A WoT consumer knows nothing of it: the Scripting API's `invokeAction(name, input)`
 sends the action's input as the whole message, `readProperty` expects the property's own value. So the robot
 also offers its affordances without the envelope, on topics of their own (the exposed TD's forms point
-there); the edge node's bus adapter (`runtime/thingbus.py`) translates between the two:
+there); the edge node's bus adapter (`runtime/bus/thingbus.py`) translates between the two:
 
     <root>/<robot>/wot-thing/<Component>/<affordance>           property value (out, retained) or written
                                                                 value (in); action input (in)

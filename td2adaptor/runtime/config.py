@@ -17,7 +17,7 @@ from typing import Any
 import yaml
 
 from td2adaptor.model.events import ALL_ROBOTS, ROBOT_ID, TOPIC_ROOT
-from td2adaptor.runtime.genport import TRAIL_LIMIT
+from td2adaptor.runtime.ros.genport import TRAIL_LIMIT
 
 #: what an HTTP `Authorization: Bearer` token may hold (RFC 6750 is narrower; this keeps the header well formed)
 _TOKEN = re.compile(r"[\x21-\x7e]{1,8192}")
@@ -98,7 +98,7 @@ class RuntimeConfig:
         if self.mqtt_version not in ("5", "3.1.1"):
             raise ConfigError(f"mqtt_version {self.mqtt_version!r} must be 5 or 3.1.1")
         if self.directory is not None:
-            from td2adaptor.runtime.discovery import check_directory_url
+            from td2adaptor.runtime.node.discovery import check_directory_url
 
             try:
                 object.__setattr__(self, "directory", check_directory_url(self.directory))

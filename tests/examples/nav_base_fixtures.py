@@ -1,7 +1,7 @@
 """Fixtures for the nav_base example against real ROS 2 Jazzy (loaded with `pytest_plugins`).
 
 Nothing is mocked: nav_base_msgs (the example's own actions) is built with the project's interface build
-(td2adaptor.runtime.ros2build, cached in .cache/ros2-interfaces), the rclpy adaptor is generated from
+(td2adaptor.support.ros2build, cached in .cache/ros2-interfaces), the rclpy adaptor is generated from
 examples/nav_base/td.json and imported from its source, and the simulated bases run in their own process
 (examples/nav_base/sim/ros2.py) with real rclpy action servers.
 """
@@ -21,7 +21,7 @@ import td2adaptor
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GenOptions
 from td2adaptor.generation.registry import load as load_backend
-from td2adaptor.runtime import ros2build
+from td2adaptor.support import ros2build
 from tests.examples.nav_base import BASES, EXAMPLE, FEEDBACK_RATE, INTERFACES, PACKAGE, SPEED
 from tests.ros2 import env
 from tests.ros2.build import CACHE, COLCON_HOME

@@ -1,4 +1,4 @@
-"""Build ROS 2 packages for the tests: `td2adaptor.runtime.ros2build` with the repository's paths as defaults.
+"""Build ROS 2 packages for the tests: `td2adaptor.support.ros2build` with the repository's paths as defaults.
 
 The build code lives in the package (the warehouse demo needs it too); this module keeps the names the tests
 and benchmarks import, with the RB-1 interfaces and the repository's `.cache/` as defaults.
@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from td2adaptor.runtime import ros2build
-from td2adaptor.runtime.ros2build import (
+from td2adaptor.support import ros2build
+from td2adaptor.support.ros2build import (
     definitions_hash,
     file_lock,
     fix_cmake_exports,
@@ -46,7 +46,7 @@ __all__ = [
 
 
 def build_env(prefixes: list[Path]) -> dict[str, str]:
-    """Environment for CMake/colcon (see td2adaptor.runtime.ros2build.build_env)."""
+    """Environment for CMake/colcon (see td2adaptor.support.ros2build.build_env)."""
     return ros2build.build_env(prefixes, COLCON_HOME)
 
 

@@ -10,7 +10,7 @@ import threading
 from pathlib import Path
 
 from td2adaptor.runtime import RuntimeConfig, serve
-from td2adaptor.runtime.simport import SimPort
+from td2adaptor.runtime.ros.simport import SimPort
 from tests.runtime.rb1 import compile_td, sim
 
 

@@ -14,9 +14,9 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from td2adaptor.runtime.bus import Bus
-from td2adaptor.runtime.engine import Engine
-from td2adaptor.runtime.thingbus import ThingBus
+from td2adaptor.runtime.bus.bus import Bus
+from td2adaptor.runtime.bus.thingbus import ThingBus
+from td2adaptor.runtime.engine.engine import Engine
 from tests.conftest import REPO
 
 Event = tuple[str, dict[str, Any]]

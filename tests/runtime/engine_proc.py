@@ -7,7 +7,7 @@ import sys
 import time
 
 from td2adaptor.runtime import RuntimeConfig, serve
-from td2adaptor.runtime.simport import SimPort
+from td2adaptor.runtime.ros.simport import SimPort
 from tests.runtime.rb1 import rb1_model, sim
 
 

@@ -16,8 +16,8 @@ from examples.robotnik_rb1.sim.core import RobotSim
 from td2adaptor.model import Model
 from td2adaptor.model.events import TD_LEVEL, EventCatalog, EventSpec, Kind, build_catalog
 from td2adaptor.model.wot import WOT_LEVEL, wot_data, wot_specs, wot_topic
+from td2adaptor.runtime.bus.localbus import LocalBroker, LocalBus
 from td2adaptor.runtime.events import EventValidator
-from td2adaptor.runtime.localbus import LocalBroker, LocalBus
 from tests.conftest import EXAMPLE
 
 Event = tuple[str, dict[str, Any]]

@@ -1,4 +1,4 @@
-"""runtime/cdr.py against rclpy itself: random messages of every test_msgs type (and the sensor messages streamed
+"""runtime/ros/cdr.py against rclpy itself: random messages of every test_msgs type (and the sensor messages streamed
 as properties) serialized by rclpy's own typesupport (real Fast DDS CDR) must decode to exactly what
 `genport.to_plain` gives for the message rclpy deserializes from the same bytes (what a subscription hands the
 edge node: float32 values already rounded), the same JSON text byte for byte. No mocks.
@@ -19,9 +19,9 @@ pytest.importorskip("rclpy", reason="needs the ROS 2 wheels (bash .ci/setup-ros2
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 
 from td2adaptor.rostypes.primitives import INT_RANGES  # noqa: E402
-from td2adaptor.runtime.cdr import CdrError, decoder  # noqa: E402
-from td2adaptor.runtime.genport import to_plain  # noqa: E402
-from td2adaptor.runtime.streams import plain  # noqa: E402
+from td2adaptor.runtime.engine.streams import plain  # noqa: E402
+from td2adaptor.runtime.ros.cdr import CdrError, decoder  # noqa: E402
+from td2adaptor.runtime.ros.genport import to_plain  # noqa: E402
 
 _FLOATS = [0.0, -0.0, 0.1, -2.5e10, 1e-300, 3.4e38, math.nan, math.inf, -math.inf, 12345.678]
 _TEXT = ["", "a", "odom", "grüße €", "😀 robot", "x" * 40]

@@ -18,7 +18,7 @@ from typing import Any
 from td2adaptor.model.events import EventSpec, Kind
 from td2adaptor.model.wot import CORRELATION, WOT_LEVEL, wot_topic
 from td2adaptor.runtime import LocalBroker, RuntimeConfig, serve
-from td2adaptor.runtime.simport import SimPort
+from td2adaptor.runtime.ros.simport import SimPort
 from tests.runtime.edge import Recorder
 from tests.runtime.rb1 import GOAL, check_outbound, rb1_catalog, rb1_model, sim, terminal
 

@@ -17,7 +17,7 @@ import pytest
 
 from td2adaptor.model import Model
 from td2adaptor.runtime import RuntimeConfig, serve
-from td2adaptor.runtime.simport import SimPort
+from td2adaptor.runtime.ros.simport import SimPort
 from tests.conftest import REPO
 from tests.runtime.broker import Mosquitto, free_port
 from tests.runtime.client import AppClient

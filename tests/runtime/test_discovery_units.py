@@ -12,9 +12,9 @@ import pytest
 from click.testing import CliRunner
 
 from td2adaptor.cli.main import cli
-from td2adaptor.runtime.app import register
 from td2adaptor.runtime.config import ConfigError, RuntimeConfig, load_config
-from td2adaptor.runtime.discovery import DISCOVERY_CONTEXT, Directory, backoff, registration_document
+from td2adaptor.runtime.node.app import register
+from td2adaptor.runtime.node.discovery import DISCOVERY_CONTEXT, Directory, backoff, registration_document
 from tests.conftest import EXAMPLE
 
 
@@ -92,7 +92,7 @@ def test_a_server_that_answers_no_http_is_a_directory_error() -> None:
     import socket
     import threading
 
-    from td2adaptor.runtime.discovery import DirectoryError
+    from td2adaptor.runtime.node.discovery import DirectoryError
 
     server = socket.create_server(("127.0.0.1", 0))
     port = server.getsockname()[1]
@@ -114,7 +114,7 @@ def test_a_server_that_answers_no_http_is_a_directory_error() -> None:
 
 
 def test_a_td_without_id_is_reported_and_not_registered(caplog: pytest.LogCaptureFixture) -> None:
-    from td2adaptor.runtime.bus import Message
+    from td2adaptor.runtime.bus.bus import Message
 
     config = RuntimeConfig(robot="r1", directory="http://127.0.0.1:9")
     td = Message("td2adaptor/r1/td", json.dumps({"title": "no id"}).encode(), retain=True)

@@ -1,4 +1,4 @@
-"""The property streams' own MQTT connection (runtime/drivenbus.py), on a real mosquitto: served by the
+"""The property streams' own MQTT connection (runtime/bus/drivenbus.py), on a real mosquitto: served by the
 thread that publishes on it (no network thread), it delivers in order at QoS 1 and 0, reads its
 acknowledgements when stepped, keeps itself alive, reconnects after a broker restart (also when many are
 served together, as a fleet's publishing thread does), and when the second
@@ -15,12 +15,12 @@ import pytest
 from td2adaptor.model.events import Kind
 from td2adaptor.model.wot import WOT_LEVEL
 from td2adaptor.runtime import RuntimeConfig, serve
-from td2adaptor.runtime.drivenbus import DrivenBus, twin
-from td2adaptor.runtime.drivenbus import serve as serve_all
-from td2adaptor.runtime.mqttbus import MqttBus
-from td2adaptor.runtime.security import parse_broker_url
-from td2adaptor.runtime.simport import SimPort
-from td2adaptor.runtime.streams import PropertyStreams, _Slot
+from td2adaptor.runtime.bus.drivenbus import DrivenBus, twin
+from td2adaptor.runtime.bus.drivenbus import serve as serve_all
+from td2adaptor.runtime.bus.mqttbus import MqttBus
+from td2adaptor.runtime.bus.security import parse_broker_url
+from td2adaptor.runtime.engine.streams import PropertyStreams, _Slot
+from td2adaptor.runtime.ros.simport import SimPort
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.edge import until

@@ -3,7 +3,7 @@
 Real parts only: Debian's rosmaster, rospy and actionlib; the robot is tests/runtime/fibo_ros1.py (an actionlib
 ActionServer of test_msgs/Fibonacci, genpy-built from tests/data/actions by tests/ros1/build_actions.py) in its
 own process; the rospy adaptor generated from tests.lowering.test_actions.action_td runs in the ROS 1 bridge
-(td2adaptor.runtime.bridge, under /usr/bin/python3), the engine and the bus here. Checked as on ROS 2
+(td2adaptor.runtime.ros.bridge, under /usr/bin/python3), the engine and the bus here. Checked as on ROS 2
 (test_edge_node_actions_ros2): invoke → acceptance, one feedback event per ROS feedback message, exactly one
 terminal event with the result; rejected and aborted with the server's words; query and cancel; the robot
 killed mid-goal → failure within the timeout.
@@ -31,9 +31,9 @@ from td2adaptor.model import Model
 from td2adaptor.model.events import Kind, build_catalog
 from td2adaptor.model.wot import WOT_LEVEL, wot_data, wot_specs, wot_topic
 from td2adaptor.runtime import RuntimeConfig, serve
-from td2adaptor.runtime.bridge import Ros1Bridge
 from td2adaptor.runtime.events import EventValidator
-from td2adaptor.runtime.genport import Layout
+from td2adaptor.runtime.ros.bridge import Ros1Bridge
+from td2adaptor.runtime.ros.genport import Layout
 from tests.conftest import REPO
 from tests.lowering.test_actions import INTERFACES, action_td
 from tests.ros1 import harness

@@ -24,7 +24,7 @@ from td2adaptor.model.events import Kind, build_catalog
 from td2adaptor.model.wot import WOT_LEVEL
 from td2adaptor.runtime import PortRejected, PortTimeout, PortUnavailable, RuntimeConfig, serve
 from td2adaptor.runtime.events import EventValidator
-from td2adaptor.runtime.ros import RosLink, connect
+from td2adaptor.runtime.node.roslink import RosLink, connect
 from tests.lowering.test_actions import INTERFACES, action_td
 from tests.ros2 import env
 from tests.ros2.common import Process

@@ -23,7 +23,7 @@ import pytest
 from td2adaptor.diagnostics import Severity
 from td2adaptor.model import Model
 from td2adaptor.runtime import LocalBroker, RuntimeConfig, serve
-from td2adaptor.runtime.ros import RosLink, connect
+from td2adaptor.runtime.node.roslink import RosLink, connect
 from tests.lowering.test_procedures import INTERFACES
 from tests.runtime.edge import check_mission, until
 from tests.runtime.rb1 import LocalApp, terminal

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from td2adaptor.runtime import LocalBroker, RuntimeConfig, serve, serve_fleet
-from td2adaptor.runtime.simport import SimPort
+from td2adaptor.runtime.ros.simport import SimPort
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.edge import Recorder

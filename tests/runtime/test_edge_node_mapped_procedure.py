@@ -18,7 +18,7 @@ import pytest
 
 from td2adaptor.model import Model
 from td2adaptor.runtime import RuntimeConfig, serve
-from td2adaptor.runtime.ros import connect
+from td2adaptor.runtime.node.roslink import connect
 from tests.lowering.test_procedures import INTERFACES, MAPPED, procedure_td
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient

@@ -25,8 +25,8 @@ import pytest
 from td2adaptor.diagnostics import Severity
 from td2adaptor.model import Model
 from td2adaptor.runtime import LocalBroker, RuntimeConfig, serve
-from td2adaptor.runtime.genport import GeneratedPort, _takes_mission_id
-from td2adaptor.runtime.ros import RosLink, connect
+from td2adaptor.runtime.node.roslink import RosLink, connect
+from td2adaptor.runtime.ros.genport import GeneratedPort, _takes_mission_id
 from tests.lowering.test_procedures import INTERFACES, STATES, procedure_td
 from tests.runtime.edge import check_mission, until
 from tests.runtime.rb1 import LocalApp, terminal

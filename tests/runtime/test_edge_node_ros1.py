@@ -1,5 +1,5 @@
 """The edge node on real ROS 1 (Debian's rospy and rosmaster, no mocks): the generated rospy package's
-`GeneratedPort`s run under /usr/bin/python3 in the ROS 1 bridge (td2adaptor.runtime.bridge) against the
+`GeneratedPort`s run under /usr/bin/python3 in the ROS 1 bridge (td2adaptor.runtime.ros.bridge) against the
 simulated RB-1; a mission goes end to end through the engine and the local bus; `td2adaptor run --ros 1`
 serves a robot over a real mosquitto.
 """
@@ -27,8 +27,8 @@ from td2adaptor.cli.main import cli
 from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.generation.backend import GenOptions
 from td2adaptor.runtime import LocalBroker, PortCallFailed, PortTimeout, PortUnavailable, RuntimeConfig, serve
-from td2adaptor.runtime.bridge import Ros1Bridge
-from td2adaptor.runtime.genport import Layout
+from td2adaptor.runtime.ros.bridge import Ros1Bridge
+from td2adaptor.runtime.ros.genport import Layout
 from tests.conftest import EXAMPLE
 from tests.ros1 import harness
 from tests.ros1.harness import Master, Sim

@@ -34,8 +34,8 @@ from td2adaptor.runtime import (
     RuntimeConfig,
     serve,
 )
-from td2adaptor.runtime.genport import GeneratedPort
-from td2adaptor.runtime.mqttbus import MqttBus
+from td2adaptor.runtime.bus.mqttbus import MqttBus
+from td2adaptor.runtime.ros.genport import GeneratedPort
 from tests.conftest import REPO
 from tests.ros2 import env
 from tests.ros2.common import EXAMPLE, PACKAGE, Process

@@ -20,7 +20,7 @@ import pytest
 from td2adaptor.model import Model
 from td2adaptor.model.wot import WOT_LEVEL
 from td2adaptor.runtime import PortTimeout, PortUnavailable, RuntimeConfig, serve
-from td2adaptor.runtime.ros import connect
+from td2adaptor.runtime.node.roslink import connect
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.edge import until

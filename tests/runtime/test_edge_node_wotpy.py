@@ -23,7 +23,7 @@ import pytest
 
 from td2adaptor.model.exposed import exposed_td
 from td2adaptor.runtime import RuntimeConfig, serve
-from td2adaptor.runtime.simport import SimPort
+from td2adaptor.runtime.ros.simport import SimPort
 from td2adaptor.support.jsondump import dump
 from tests.conftest import REPO
 from tests.runtime.broker import Mosquitto

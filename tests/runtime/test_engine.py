@@ -19,7 +19,7 @@ from td2adaptor.runtime import (
     serve,
     serve_fleet,
 )
-from td2adaptor.runtime.simport import SimPort
+from td2adaptor.runtime.ros.simport import SimPort
 from tests.runtime.rb1 import GOAL, LocalApp, check_outbound, rb1_model, sim, terminal
 
 ROBOT = "rb1_base_a"
@@ -338,7 +338,7 @@ def test_stop_publishes_offline_and_crash_leaves_the_will() -> None:
     engine2 = Engine(model, SimPort(model, sim()), LocalBus(broker, "crashy"), config(robot="rb1_base_c"))
     bus = engine2.bus
     assert isinstance(bus, LocalBus)
-    from td2adaptor.runtime.engine import status_event
+    from td2adaptor.runtime.engine.engine import status_event
 
     bus.will = status_event(engine2.config, model, "offline")
     engine2.start()

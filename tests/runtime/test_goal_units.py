@@ -15,13 +15,13 @@ import pytest
 
 from td2adaptor.model import Procedure
 from td2adaptor.model.events import GOAL_WORDS, STATES
-from td2adaptor.runtime.bridge import Ros1Bridge
 from td2adaptor.runtime.config import ConfigError, RuntimeConfig, load_config
-from td2adaptor.runtime.genport import FEEDBACK_GRACE, GoalTrack, Layout
-from td2adaptor.runtime.goals import goal_status
-from td2adaptor.runtime.port import GOAL_STATES, GoalProgress
-from td2adaptor.runtime.procedures import read
-from td2adaptor.runtime.ros import make_port
+from td2adaptor.runtime.engine.goals import goal_status
+from td2adaptor.runtime.node.roslink import make_port
+from td2adaptor.runtime.ros.bridge import Ros1Bridge
+from td2adaptor.runtime.ros.genport import FEEDBACK_GRACE, GoalTrack, Layout
+from td2adaptor.runtime.ros.port import GOAL_STATES, GoalProgress
+from td2adaptor.runtime.ros.procedures import read
 
 MAPPED = Procedure(
     "taskRun",

@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 
 from td2adaptor.runtime import BusError, LocalBroker, LocalBus, Message
-from td2adaptor.runtime.bus import Bus, topic_matches, valid_filter
-from td2adaptor.runtime.mqttbus import MqttBus
-from td2adaptor.runtime.security import parse_broker_url
+from td2adaptor.runtime.bus.bus import Bus, topic_matches, valid_filter
+from td2adaptor.runtime.bus.mqttbus import MqttBus
+from td2adaptor.runtime.bus.security import parse_broker_url
 from tests.runtime.broker import Mosquitto
 
 

@@ -15,9 +15,9 @@ from typing import Any
 import pytest
 
 from td2adaptor.runtime import BusError, RuntimeConfig, SecurityError, open_bus, serve
-from td2adaptor.runtime.mqttbus import MqttBus, _tls_hint
-from td2adaptor.runtime.security import TlsOptions
-from td2adaptor.runtime.simport import SimPort
+from td2adaptor.runtime.bus.mqttbus import MqttBus, _tls_hint
+from td2adaptor.runtime.bus.security import TlsOptions
+from td2adaptor.runtime.ros.simport import SimPort
 from tests.conftest import REPO
 from tests.runtime.broker import Amqtt, Broker, Mosquitto
 from tests.runtime.certs import make_certs, server_cert
@@ -225,8 +225,8 @@ def test_a_broker_that_identifies_clients_by_certificate_is_not_taken_for_an_ano
     """Issue 16 (audit gap 4): with `require_certificate` + `use_identity_as_username` (docs/security.md), the
     node's client certificate is its identity and a client without one is refused in the TLS handshake. The
     anonymous probe used to present the node's certificate, so it got in and the node refused to start."""
-    from td2adaptor.runtime.mqttbus import accepts_anonymous
-    from td2adaptor.runtime.security import parse_broker_url
+    from td2adaptor.runtime.bus.mqttbus import accepts_anonymous
+    from td2adaptor.runtime.bus.security import parse_broker_url
 
     certs = make_certs(tmp_path / "certs")
     tls = (certs.ca, certs.server_cert, certs.server_key)
@@ -637,7 +637,7 @@ def test_a_wot_command_sent_while_the_node_was_away_does_not_run_when_it_comes_b
 
 
 def _now() -> str:
-    from td2adaptor.runtime.replay import now_text
+    from td2adaptor.runtime.engine.replay import now_text
 
     return now_text()
 
@@ -699,8 +699,8 @@ def test_serve_follows_the_ros_version_the_port_declares() -> None:
     """`serve` without `distro`: the port's own ROS version (a ROS 1 bridge's port says "ros1"), "ros2" for a
     port that declares none; an explicit `distro` still wins."""
     from td2adaptor.backends.events.generator import exposed_td
-    from td2adaptor.runtime.bridge import BridgePort
-    from td2adaptor.runtime.localbus import LocalBroker
+    from td2adaptor.runtime.bus.localbus import LocalBroker
+    from td2adaptor.runtime.ros.bridge import BridgePort
     from tests.runtime.rb1 import LocalApp, rb1_catalog
 
     class Ros1SimPort(SimPort):
@@ -770,8 +770,8 @@ def _retained(broker: Broker, topic: str, timeout: float = 5.0) -> bytes | None:
 def test_a_3_1_1_only_broker_is_named_with_the_setting_that_fixes_it(tmp_path: Path) -> None:
     """amqtt speaks MQTT 3.1.1 only and leaves an MQTT 5 CONNECT unanswered: the node says which setting to use,
     and with it the same node connects."""
+    from td2adaptor.runtime.bus.security import parse_broker_url
     from td2adaptor.runtime.config import ConfigError
-    from td2adaptor.runtime.security import parse_broker_url
 
     broker = Amqtt(tmp_path / "broker")
     broker.start()
@@ -801,7 +801,7 @@ def test_connect_returns_once_the_first_subscriptions_are_in_place(broker: Broke
     """An edge node subscribes before it connects; an application that sees it online may publish at once, and
     the broker drops an event for a filter it does not know yet (a clean-clone CI run lost an invoke so). So
     connect() returns only after the SUBACK of those subscriptions; it returned right after the CONNACK before."""
-    from td2adaptor.runtime.security import parse_broker_url
+    from td2adaptor.runtime.bus.security import parse_broker_url
 
     got: list[bytes] = []
     bus = _SlowSuback(

@@ -20,11 +20,11 @@ from paho.mqtt.enums import CallbackAPIVersion, MQTTProtocolVersion
 
 from td2adaptor.model.wot import CORRELATION
 from td2adaptor.runtime import RuntimeConfig, serve
-from td2adaptor.runtime.drivenbus import DrivenBus
-from td2adaptor.runtime.mqttbus import MqttBus
-from td2adaptor.runtime.replay import now_text
-from td2adaptor.runtime.security import parse_broker_url
-from td2adaptor.runtime.simport import SimPort
+from td2adaptor.runtime.bus.drivenbus import DrivenBus
+from td2adaptor.runtime.bus.mqttbus import MqttBus
+from td2adaptor.runtime.bus.security import parse_broker_url
+from td2adaptor.runtime.engine.replay import now_text
+from td2adaptor.runtime.ros.simport import SimPort
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.edge import bus_of, until

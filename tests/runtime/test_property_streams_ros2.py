@@ -1,4 +1,4 @@
-"""Property events per ROS message (`property_mode: message`, runtime/streams.py) on real ROS 2 Jazzy (PyPI
+"""Property events per ROS message (`property_mode: message`, runtime/engine/streams.py) on real ROS 2 Jazzy (PyPI
 wheels) and a real mosquitto, with the generated package spun as the edge node spins it: every
 message becomes one event, in order, on the envelope and the WoT topic; a throttled property publishes the
 latest message and never withholds the last one. No mocks.
@@ -21,9 +21,9 @@ import td2adaptor
 from td2adaptor.model.events import Kind, build_catalog
 from td2adaptor.model.wot import WOT_LEVEL
 from td2adaptor.runtime import RuntimeConfig, serve
+from td2adaptor.runtime.engine.streams import plain
 from td2adaptor.runtime.events import EventValidator, encode, envelope
-from td2adaptor.runtime.genport import GeneratedPort, to_plain
-from td2adaptor.runtime.streams import plain
+from td2adaptor.runtime.ros.genport import GeneratedPort, to_plain
 from tests.conftest import REPO
 from tests.ros2 import env
 from tests.ros2.common import Process, build_rclpy

@@ -21,8 +21,8 @@ import td2adaptor
 from td2adaptor.diagnostics import Severity
 from td2adaptor.model import Model
 from td2adaptor.runtime import RuntimeConfig, serve
-from td2adaptor.runtime.app import td_message
-from td2adaptor.runtime.simport import SimPort
+from td2adaptor.runtime.node.app import td_message
+from td2adaptor.runtime.ros.simport import SimPort
 from tests import wot_corpus
 from tests.conftest import REPO
 from tests.runtime.broker import Mosquitto

@@ -10,8 +10,8 @@ from pathlib import Path
 from typing import Any
 
 from td2adaptor.runtime import LocalBroker, RuntimeConfig, serve
-from td2adaptor.runtime.replay import ReplayGuard, Verdict, now_text, parse_time, time_problem
-from td2adaptor.runtime.simport import SimPort
+from td2adaptor.runtime.engine.replay import ReplayGuard, Verdict, now_text, parse_time, time_problem
+from td2adaptor.runtime.ros.simport import SimPort
 from tests.runtime.rb1 import GOAL, LocalApp, check_outbound, rb1_model, sim, terminal
 
 ROBOT = "rb1_base_a"

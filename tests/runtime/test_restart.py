@@ -12,9 +12,9 @@ from pathlib import Path
 from typing import Any
 
 from td2adaptor.runtime import LocalBroker, RuntimeConfig, serve
-from td2adaptor.runtime.ledger import SEQ_BLOCK, Ledger
-from td2adaptor.runtime.replay import now_text
-from td2adaptor.runtime.simport import SimPort
+from td2adaptor.runtime.engine.ledger import SEQ_BLOCK, Ledger
+from td2adaptor.runtime.engine.replay import now_text
+from td2adaptor.runtime.ros.simport import SimPort
 from tests.runtime.rb1 import GOAL, LocalApp, check_outbound, rb1_model, sim, terminal
 
 ROBOT = "rb1_base_a"

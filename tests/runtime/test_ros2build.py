@@ -1,4 +1,4 @@
-"""`python -m td2adaptor.runtime.ros2build` refuses what it cannot build with one line and exit 1, never a
+"""`python -m td2adaptor.support.ros2build` refuses what it cannot build with one line and exit 1, never a
 traceback (the build itself is exercised by every ROS 2 test through tests/ros2/build.py)."""
 
 from __future__ import annotations
@@ -9,13 +9,13 @@ from pathlib import Path
 
 import pytest
 
-from td2adaptor.runtime.ros2build import BuildError, packages_in
+from td2adaptor.support.ros2build import BuildError, packages_in
 from tests.conftest import EXAMPLE
 
 
 def _run(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "td2adaptor.runtime.ros2build", *args], capture_output=True, text=True, timeout=300
+        [sys.executable, "-m", "td2adaptor.support.ros2build", *args], capture_output=True, text=True, timeout=300
     )
 
 
@@ -73,7 +73,7 @@ def test_a_build_shows_progress_on_a_terminal_and_is_quiet_in_a_log(tmp_path: Pa
     leader, follower = pty.openpty()  # stderr on a terminal, as for a user at a shell
     try:
         proc = subprocess.run(
-            [sys.executable, "-m", "td2adaptor.runtime.ros2build", str(src), str(tmp_path / "cache")],
+            [sys.executable, "-m", "td2adaptor.support.ros2build", str(src), str(tmp_path / "cache")],
             stdout=subprocess.PIPE,
             stderr=follower,
             text=True,
@@ -101,7 +101,7 @@ def test_relative_paths_as_the_readme_writes_them(tmp_path: Path) -> None:
     pytest.importorskip("rclpy", reason="needs the ROS 2 wheels (bash .ci/setup-ros2.sh)")
     _tiny_package(tmp_path)
     proc = subprocess.run(
-        [sys.executable, "-m", "td2adaptor.runtime.ros2build", "interfaces", "cache"],
+        [sys.executable, "-m", "td2adaptor.support.ros2build", "interfaces", "cache"],
         capture_output=True,
         text=True,
         timeout=300,

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from td2adaptor.runtime.security import redact_text, redact_url
+from td2adaptor.runtime.bus.security import redact_text, redact_url
 from tests.conftest import EXAMPLE, REPO
 from tests.runtime.broker import Mosquitto, free_port
 
@@ -120,8 +120,8 @@ def test_redact_text_hides_every_url_password_in_a_message() -> None:
     ],
 )
 def test_every_refused_bus_or_directory_url_is_shown_redacted(url: str) -> None:
-    from td2adaptor.runtime.discovery import check_directory_url
-    from td2adaptor.runtime.security import SecurityError, parse_broker_url
+    from td2adaptor.runtime.bus.security import SecurityError, parse_broker_url
+    from td2adaptor.runtime.node.discovery import check_directory_url
 
     with pytest.raises(SecurityError) as bus:
         parse_broker_url(url)

@@ -1,4 +1,4 @@
-"""The WoT adapter at the bus edge (runtime/thingbus.py), on the in-process bus with the simulated RB-1: a WoT
+"""The WoT adapter at the bus edge (runtime/bus/thingbus.py), on the in-process bus with the simulated RB-1: a WoT
 consumer's messages (the affordance's own data) become the engine's envelope events and back, for every kind;
 what it cannot wrap is answered as a native client's would be; the envelope topics stay as they were."""
 
@@ -13,10 +13,10 @@ from jsonschema import Draft202012Validator  # type: ignore[import-untyped, unus
 from td2adaptor.model.events import Kind
 from td2adaptor.model.wot import CORRELATION, WOT_LEVEL, action_input, wot_specs, wot_topic
 from td2adaptor.runtime import LocalBroker, RuntimeConfig, serve
-from td2adaptor.runtime.bus import Message
-from td2adaptor.runtime.localbus import LocalBus
-from td2adaptor.runtime.simport import SimPort
-from td2adaptor.runtime.thingbus import WOT_SOURCE, ThingBus
+from td2adaptor.runtime.bus.bus import Message
+from td2adaptor.runtime.bus.localbus import LocalBus
+from td2adaptor.runtime.bus.thingbus import WOT_SOURCE, ThingBus
+from td2adaptor.runtime.ros.simport import SimPort
 from tests.runtime.rb1 import GOAL, LocalApp, check_outbound, rb1_catalog, rb1_model, rb1_validator, sim
 
 ROBOT = "thing_rb1"

@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 
 from td2adaptor.runtime import ConfigError, RuntimeConfig, SecurityError, load_config, load_fleet
-from td2adaptor.runtime.procedures import interpret
-from td2adaptor.runtime.security import BrokerAddress, TlsOptions, is_loopback, parse_broker_url, plan_security
+from td2adaptor.runtime.bus.security import BrokerAddress, TlsOptions, is_loopback, parse_broker_url, plan_security
+from td2adaptor.runtime.ros.procedures import interpret
 
 
 def test_config_precedence_and_fleets(tmp_path: Path) -> None:

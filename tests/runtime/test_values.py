@@ -4,7 +4,7 @@ naming where it is, on the envelope topics and the WoT topics alike, before anyt
 that reaches the node is answered, whatever it holds.
 
 The rules (runtime/events.py `value_problem`, the float32 range in model/msgschema.py), the WoT adapter
-(runtime/thingbus.py), then the engine with the simulated RB-1 on the in-process bus.
+(runtime/bus/thingbus.py), then the engine with the simulated RB-1 on the in-process bus.
 """
 
 from __future__ import annotations
@@ -23,10 +23,10 @@ from td2adaptor.model import Model
 from td2adaptor.model.events import EventCatalog, Kind, build_catalog
 from td2adaptor.model.wot import WOT_LEVEL
 from td2adaptor.runtime import LocalBroker, RuntimeConfig, serve
+from td2adaptor.runtime.bus.localbus import LocalBus
+from td2adaptor.runtime.bus.thingbus import ThingBus
 from td2adaptor.runtime.events import MAX_DEPTH, EventValidator, encode, references, salvage, value_problem
-from td2adaptor.runtime.localbus import LocalBus
-from td2adaptor.runtime.simport import SimPort
-from td2adaptor.runtime.thingbus import ThingBus
+from td2adaptor.runtime.ros.simport import SimPort
 from tests.conftest import REPO
 from tests.runtime.edge import Recorder
 from tests.runtime.rb1 import GOAL, check_outbound, rb1_catalog, rb1_model, rb1_validator, sim, terminal

@@ -270,7 +270,7 @@ def ensure_interfaces(prefixes: Sequence[str]) -> str | None:
         use_prefix(Path(prefix))
     if prefixes or importlib.util.find_spec("nav_base_msgs") is not None:
         return None
-    from td2adaptor.runtime import ros2build
+    from td2adaptor.support import ros2build
 
     repo = Path(__file__).resolve().parents[3]
     src, cache = repo / "examples" / "nav_base" / "interfaces", repo / ".cache" / "ros2-interfaces"

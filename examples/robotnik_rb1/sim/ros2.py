@@ -238,7 +238,7 @@ def ensure_interfaces(prefixes: Sequence[str]) -> str | None:
         use_prefix(Path(prefix))
     if prefixes or importlib.util.find_spec("ar_track_alvar_msgs") is not None:
         return None
-    from td2adaptor.runtime import ros2build
+    from td2adaptor.support import ros2build
 
     repo = Path(__file__).resolve().parents[3]
     src, cache = repo / "examples" / "robotnik_rb1" / "interfaces", repo / ".cache" / "ros2-interfaces"

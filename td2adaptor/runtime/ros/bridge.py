@@ -2,7 +2,7 @@
 
 rospy lives in the ROS 1 distribution's Python (Debian's /usr/bin/python3, /opt/ros/noetic's), which
 usually has none of td2adaptor's dependencies; the edge node's engine and bus run where td2adaptor is
-installed. `Ros1Bridge` starts `python -m td2adaptor.runtime.bridge` under the ROS 1 interpreter with only
+installed. `Ros1Bridge` starts `python -m td2adaptor.runtime.ros.bridge` under the ROS 1 interpreter with only
 the td2adaptor package (through a symlink, never the rest of our environment) and the given paths on
 PYTHONPATH; the child initialises one rospy node and serves every robot's `GeneratedPort` over stdin/stdout,
 one JSON object per line, requests handled concurrently:
@@ -13,7 +13,7 @@ one JSON object per line, requests handled concurrently:
 
 `BridgePort` is the `RobotPort` of one robot on a bridge. A bridge that dies fails its calls as
 `PortUnavailable` and is restarted by the next call (at most every `restart_period` seconds).
-The child side imports only the standard library, `td2adaptor.runtime.genport` and `.port`.
+The child side imports only the standard library, `td2adaptor.runtime.ros.genport` and `.port`.
 """
 
 from __future__ import annotations
@@ -34,8 +34,8 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import IO, Any
 
-from td2adaptor.runtime.genport import GeneratedPort, Layout
-from td2adaptor.runtime.port import (
+from td2adaptor.runtime.ros.genport import GeneratedPort, Layout
+from td2adaptor.runtime.ros.port import (
     GoalProgress,
     NoValue,
     PortCallFailed,
@@ -170,7 +170,7 @@ class Ros1Bridge:
 
     def start(self) -> None:
         """Start the child and wait until its node and ports are up; raises `PortUnavailable` on failure."""
-        from td2adaptor.runtime.ros import RosSetupError
+        from td2adaptor.runtime.node.roslink import RosSetupError
 
         with self._lock:
             if self._closed:
@@ -184,7 +184,7 @@ class Ros1Bridge:
             env = child_environment(self.environ, [self._shim_dir(), *self.pythonpath], self.master_uri)
             try:
                 proc = subprocess.Popen(
-                    [self.python, "-m", "td2adaptor.runtime.bridge"],
+                    [self.python, "-m", "td2adaptor.runtime.ros.bridge"],
                     stdin=subprocess.PIPE,
                     stdout=subprocess.PIPE,
                     stderr=subprocess.PIPE,
@@ -475,7 +475,7 @@ def _serve(requests: IO[str], replies: IO[str]) -> int:
 
 
 def main() -> int:
-    """`python -m td2adaptor.runtime.bridge`: requests on stdin, replies on the original stdout."""
+    """`python -m td2adaptor.runtime.ros.bridge`: requests on stdin, replies on the original stdout."""
     # The parent ends the bridge by closing its input (its death closes it too). A SIGINT/SIGTERM sent to the
     # whole process group (Ctrl-C, a launch system stopping the node) must not end it first: the parent would
     # log the property reads of its last moments as failures of a clean stop.

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from typing import Any
 from urllib.parse import quote, urlsplit
 
-from td2adaptor.runtime.security import redact_url
+from td2adaptor.runtime.bus.security import redact_url
 
 log = logging.getLogger("td2adaptor.runtime.discovery")
 

@@ -15,8 +15,8 @@ from typing import Any, Protocol
 from td2adaptor.model import Model
 from td2adaptor.model.events import payload_schema
 from td2adaptor.model.msgschema import fill
-from td2adaptor.runtime.port import NoValue, PortCallFailed, PortUnavailable, StartResult
-from td2adaptor.runtime.procedures import mission_id_of
+from td2adaptor.runtime.ros.port import NoValue, PortCallFailed, PortUnavailable, StartResult
+from td2adaptor.runtime.ros.procedures import mission_id_of
 
 
 class SimComponent(Protocol):

@@ -24,7 +24,7 @@ import time
 import paho.mqtt.client as mqtt
 from paho.mqtt.enums import MQTTErrorCode
 
-from td2adaptor.runtime.mqttbus import MqttBus
+from td2adaptor.runtime.bus.mqttbus import MqttBus
 
 log = logging.getLogger("td2adaptor.runtime.bus")
 

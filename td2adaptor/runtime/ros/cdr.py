@@ -376,7 +376,7 @@ def plain_reader(cls: type) -> Callable[[bytes], Any]:
     deserialization for what it does not read (wide strings, big-endian or XCDR2 data)."""
     from rclpy.serialization import deserialize_message
 
-    from td2adaptor.runtime.genport import to_plain
+    from td2adaptor.runtime.ros.genport import to_plain
 
     decode = decoder(cls)
 

@@ -7,7 +7,7 @@
 * ROS 1 in this interpreter (rospy importable): `rospy.init_node` once (rospy allows one node per process),
   so every robot must use the same master.
 * ROS 1 from another interpreter (`ros1_python`, or rospy not importable here): the ports run in a bridge
-  process under that interpreter (`td2adaptor.runtime.bridge`), one per ROS master.
+  process under that interpreter (`td2adaptor.runtime.ros.bridge`), one per ROS master.
 
 The generated package must be importable: from an installed/sourced workspace, or by `package_paths`
 (directories put on `sys.path`, e.g. the generated source) and `prefixes` (ROS 2 install prefixes whose
@@ -31,8 +31,8 @@ from typing import Any
 
 from td2adaptor.model import Model
 from td2adaptor.runtime.config import RuntimeConfig
-from td2adaptor.runtime.genport import GeneratedPort, Layout
-from td2adaptor.runtime.port import PortError, RobotPort
+from td2adaptor.runtime.ros.genport import GeneratedPort, Layout
+from td2adaptor.runtime.ros.port import PortError, RobotPort
 
 PY_DIR = f"python{sys.version_info.major}.{sys.version_info.minor}"
 _loaded_prefixes: set[Path] = set()
@@ -203,7 +203,7 @@ def connect_ros1(
     environ = os.environ if environ is None else environ
     if python is None and importlib.util.find_spec("rospy") is not None:
         return _connect_rospy(model, package, configs, name=name)
-    from td2adaptor.runtime.bridge import Ros1Bridge, default_python
+    from td2adaptor.runtime.ros.bridge import Ros1Bridge, default_python
 
     interpreter = python or default_python()
     if interpreter is None:

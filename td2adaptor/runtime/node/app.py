@@ -8,12 +8,9 @@ from typing import TYPE_CHECKING
 
 from td2adaptor.model import Model
 from td2adaptor.model.events import EventCatalog, build_catalog, td_topic
-from td2adaptor.runtime.bus import Bus, Message
-from td2adaptor.runtime.config import RuntimeConfig
-from td2adaptor.runtime.engine import Engine, status_event
-from td2adaptor.runtime.localbus import LocalBroker, LocalBus
-from td2adaptor.runtime.port import RobotPort
-from td2adaptor.runtime.security import (
+from td2adaptor.runtime.bus.bus import Bus, Message
+from td2adaptor.runtime.bus.localbus import LocalBroker, LocalBus
+from td2adaptor.runtime.bus.security import (
     BrokerAddress,
     ConnectionSecurity,
     TlsOptions,
@@ -21,10 +18,13 @@ from td2adaptor.runtime.security import (
     parse_broker_url,
     plan_security,
 )
-from td2adaptor.runtime.thingbus import thing_bus
+from td2adaptor.runtime.bus.thingbus import thing_bus
+from td2adaptor.runtime.config import RuntimeConfig
+from td2adaptor.runtime.engine.engine import Engine, status_event
+from td2adaptor.runtime.ros.port import RobotPort
 
 if TYPE_CHECKING:
-    from td2adaptor.runtime.discovery import Registration
+    from td2adaptor.runtime.node.discovery import Registration
 
 log = logging.getLogger("td2adaptor.runtime")
 
@@ -109,7 +109,7 @@ def open_bus(
     birth = status_event(config, model, "online")
     if config.bus == "local":
         return LocalBus(broker, config.mqtt_client_id, will=will, birth=birth, announce=announce)
-    from td2adaptor.runtime.mqttbus import MqttBus  # paho only when it is used
+    from td2adaptor.runtime.bus.mqttbus import MqttBus  # paho only when it is used
 
     address, security = bus_security(config, model, env=env)
     verify = None
@@ -133,7 +133,7 @@ def _anonymous_check(address: BrokerAddress, tls: TlsOptions | None, mqtt_versio
     """The check the node's connection runs each time it connects, before anything from it is handled, when
     the TD requires authentication: does the broker refuse a client without credentials? A broker restarted
     with anonymous access while the node runs would otherwise let anyone command the robot."""
-    from td2adaptor.runtime.mqttbus import accepts_anonymous
+    from td2adaptor.runtime.bus.mqttbus import accepts_anonymous
 
     def check() -> str | None:
         if not accepts_anonymous(address, tls, mqtt_version=mqtt_version):
@@ -177,7 +177,7 @@ def serve(
     )
     engine = Engine(model, port, bus, config, catalog=catalog, td=td)
     if config.bus != "local":
-        from td2adaptor.runtime.mqttbus import MqttBus
+        from td2adaptor.runtime.bus.mqttbus import MqttBus
 
         if isinstance(raw, MqttBus):
             raw.on_refused = engine.halt  # a reconnection the broker check refused: the engine halts
@@ -205,7 +205,7 @@ def register(config: RuntimeConfig, td: Message | None) -> Registration | None:
             config.robot,
         )
         return None
-    from td2adaptor.runtime.discovery import Directory, Registration
+    from td2adaptor.runtime.node.discovery import Directory, Registration
 
     directory = Directory(config.directory, token=config.directory_token, ca_file=config.directory_ca_file)
     try:

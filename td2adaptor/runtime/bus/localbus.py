@@ -20,7 +20,7 @@ from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from td2adaptor.runtime.bus import BusError, Handler, Message, check_qos, topic_matches, valid_filter, valid_topic
+from td2adaptor.runtime.bus.bus import BusError, Handler, Message, check_qos, topic_matches, valid_filter, valid_topic
 
 log = logging.getLogger("td2adaptor.runtime.bus")
 

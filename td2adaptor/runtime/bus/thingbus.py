@@ -29,7 +29,7 @@ from typing import Any
 
 from td2adaptor.model.events import ALL_ROBOTS, TOPIC_ROOT, EventCatalog, EventSpec, Kind
 from td2adaptor.model.wot import CORRELATION, takes_correlation, wot_topic
-from td2adaptor.runtime.bus import Bus, Handler, Message
+from td2adaptor.runtime.bus.bus import Bus, Handler, Message
 from td2adaptor.runtime.events import loads, new_id, now_rfc3339
 
 log = logging.getLogger("td2adaptor.runtime")

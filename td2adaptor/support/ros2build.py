@@ -15,7 +15,7 @@ The result is cached in `<cache>/<hash>` (hash of the definitions, this file and
 built once, under a file lock, however many processes ask at once. It needs the `ros2` extra (the ROS 2
 wheels with their build tools, colcon) in this interpreter's environment, and cmake, ninja and a C compiler.
 
-    python -m td2adaptor.runtime.ros2build INTERFACES CACHE   # build (or find) the interfaces, print the prefix
+    python -m td2adaptor.support.ros2build INTERFACES CACHE   # build (or find) the interfaces, print the prefix
 """
 
 from __future__ import annotations
@@ -288,9 +288,9 @@ def build_interfaces(
 
 
 def main(argv: list[str]) -> int:
-    """`python -m td2adaptor.runtime.ros2build INTERFACES CACHE`: print the install prefix, or one line why not."""
+    """`python -m td2adaptor.support.ros2build INTERFACES CACHE`: print the install prefix, or one line why not."""
     if len(argv) != 2:
-        print("usage: python -m td2adaptor.runtime.ros2build INTERFACES CACHE", file=sys.stderr)
+        print("usage: python -m td2adaptor.support.ros2build INTERFACES CACHE", file=sys.stderr)
         return 2
 
     def say(message: str) -> None:

@@ -30,7 +30,7 @@ from types import ModuleType
 from typing import Any
 
 from td2adaptor.model import Model, ProcedureRole
-from td2adaptor.runtime.port import (
+from td2adaptor.runtime.ros.port import (
     GoalProgress,
     NoValue,
     PortCallFailed,
@@ -107,7 +107,7 @@ def _port_error(exc: BaseException) -> PortError:
     names = {cls.__name__ for cls in type(exc).__mro__}
     response = getattr(exc, "response", None)
     plain = to_plain(response) if response is not None else None
-    message = str(exc).strip()  # may be empty: the error event then says the kind in words (runtime/words.py)
+    message = str(exc).strip()  # may be empty: the error event then says the kind in words (runtime/engine/words.py)
     if "GoalRejected" in names:  # the server's words, without the action's name in front
         return PortRejected(str(getattr(exc, "message", "") or message))
     if "ServiceUnavailable" in names:

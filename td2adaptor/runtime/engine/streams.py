@@ -41,16 +41,16 @@ from typing import TYPE_CHECKING, Any
 
 from td2adaptor.model.events import EventSpec, Kind
 from td2adaptor.model.wot import wot_topic
-from td2adaptor.runtime.bus import Bus, BusError
-from td2adaptor.runtime.cdr import message_class, plain_reader
+from td2adaptor.runtime.bus.bus import Bus, BusError
+from td2adaptor.runtime.bus.thingbus import ThingBus
+from td2adaptor.runtime.engine.words import describe
 from td2adaptor.runtime.events import new_id, now_rfc3339
-from td2adaptor.runtime.genport import to_plain
-from td2adaptor.runtime.thingbus import ThingBus
-from td2adaptor.runtime.words import describe
+from td2adaptor.runtime.ros.cdr import message_class, plain_reader
+from td2adaptor.runtime.ros.genport import to_plain
 
 if TYPE_CHECKING:
-    from td2adaptor.runtime.drivenbus import DrivenBus
-    from td2adaptor.runtime.engine import Engine
+    from td2adaptor.runtime.bus.drivenbus import DrivenBus
+    from td2adaptor.runtime.engine.engine import Engine
 
 log = logging.getLogger("td2adaptor.runtime")
 
@@ -313,7 +313,7 @@ class Pump:
         if not due or not buses:
             return
         self._served = now
-        from td2adaptor.runtime.drivenbus import serve  # only with stream connections, which imported it
+        from td2adaptor.runtime.bus.drivenbus import serve  # only with stream connections, which imported it
 
         try:
             serve(buses)
@@ -403,8 +403,8 @@ class PropertyStreams:
     def _connection(self) -> DrivenBus | None:
         """The robot's own connection for its streams (drivenbus.py), beside its bus; None: not on MQTT, or
         the broker would not take a second connection (the streams then go through the robot's bus)."""
-        from td2adaptor.runtime.drivenbus import DrivenBus, twin
-        from td2adaptor.runtime.mqttbus import MqttBus
+        from td2adaptor.runtime.bus.drivenbus import DrivenBus, twin
+        from td2adaptor.runtime.bus.mqttbus import MqttBus
 
         inner = _plain_bus(self.engine)
         if not isinstance(inner, MqttBus) or isinstance(inner, DrivenBus):

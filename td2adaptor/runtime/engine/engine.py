@@ -38,17 +38,17 @@ from typing import Any
 
 from td2adaptor.model import Model, Procedure
 from td2adaptor.model.events import ALL_ROBOTS, EventCatalog, EventSpec, Kind, build_catalog
-from td2adaptor.runtime.bus import Bus, BusError, Message
+from td2adaptor.runtime.bus.bus import Bus, BusError, Message
+from td2adaptor.runtime.bus.thingbus import WOT_SOURCE
 from td2adaptor.runtime.config import RuntimeConfig
+from td2adaptor.runtime.engine.goals import GoalRunner
+from td2adaptor.runtime.engine.ledger import SEQ_BLOCK, Ledger, Record
+from td2adaptor.runtime.engine.replay import ReplayGuard, Verdict, digest, time_problem
+from td2adaptor.runtime.engine.streams import PropertyStreams, streams
+from td2adaptor.runtime.engine.words import INTERNAL, describe
 from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope, excerpt, references, salvage
-from td2adaptor.runtime.goals import GoalRunner
-from td2adaptor.runtime.ledger import SEQ_BLOCK, Ledger, Record
-from td2adaptor.runtime.port import NoValue, PortError, RobotPort, StartResult
-from td2adaptor.runtime.procedures import ProcedureStatus, read
-from td2adaptor.runtime.replay import ReplayGuard, Verdict, digest, time_problem
-from td2adaptor.runtime.streams import PropertyStreams, streams
-from td2adaptor.runtime.thingbus import WOT_SOURCE
-from td2adaptor.runtime.words import INTERNAL, describe
+from td2adaptor.runtime.ros.port import NoValue, PortError, RobotPort, StartResult
+from td2adaptor.runtime.ros.procedures import ProcedureStatus, read
 from td2adaptor.runtime.workers import Workers
 
 log = logging.getLogger("td2adaptor.runtime")
@@ -172,7 +172,7 @@ class Engine:
         self._spawn(self._dispatch, "dispatch")
         properties = [s for s in self.catalog.specs if s.kind is Kind.PROPERTY]
         if self.config.property_period > 0 and properties:
-            if self.config.property_mode == "message":  # one event per ROS message (runtime/streams.py)
+            if self.config.property_mode == "message":  # one event per ROS message (runtime/engine/streams.py)
                 self._streams = streams(self, properties)
             if self._streams is not None:
                 self._streams.start()
@@ -913,4 +913,4 @@ def _says_error(response: Mapping[str, Any]) -> bool:
 
 
 def _describe(exc: BaseException) -> str:
-    return describe(exc)  # user words, never class names (runtime/words.py)
+    return describe(exc)  # user words, never class names (runtime/engine/words.py)

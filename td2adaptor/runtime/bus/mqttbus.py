@@ -30,8 +30,8 @@ from paho.mqtt.properties import Properties
 from paho.mqtt.reasoncodes import ReasonCode
 from paho.mqtt.subscribeoptions import SubscribeOptions
 
-from td2adaptor.runtime.bus import BusError, Handler, Message, check_qos, topic_matches, valid_filter, valid_topic
-from td2adaptor.runtime.security import (
+from td2adaptor.runtime.bus.bus import BusError, Handler, Message, check_qos, topic_matches, valid_filter, valid_topic
+from td2adaptor.runtime.bus.security import (
     ENV_PASSWORD,
     ENV_USERNAME,
     BrokerAddress,

@@ -22,12 +22,12 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from td2adaptor.model.events import GOAL_WORDS, EventSpec, Kind
-from td2adaptor.runtime.port import GoalPort, GoalProgress, PortError, PortRejected
-from td2adaptor.runtime.procedures import ProcedureStatus
-from td2adaptor.runtime.words import describe
+from td2adaptor.runtime.engine.words import describe
+from td2adaptor.runtime.ros.port import GoalPort, GoalProgress, PortError, PortRejected
+from td2adaptor.runtime.ros.procedures import ProcedureStatus
 
 if TYPE_CHECKING:
-    from td2adaptor.runtime.engine import Engine, Mission
+    from td2adaptor.runtime.engine.engine import Engine, Mission
 
 log = logging.getLogger("td2adaptor.runtime")
 

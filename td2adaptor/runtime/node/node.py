@@ -21,12 +21,12 @@ from pathlib import Path
 from types import FrameType
 
 from td2adaptor.model import Model
-from td2adaptor.runtime.app import bus_security, serve_fleet, td_broker
+from td2adaptor.runtime.bus.localbus import LocalBroker
 from td2adaptor.runtime.config import RuntimeConfig
-from td2adaptor.runtime.engine import Engine
-from td2adaptor.runtime.localbus import LocalBroker
-from td2adaptor.runtime.port import RobotPort
-from td2adaptor.runtime.ros import RosLink, connect
+from td2adaptor.runtime.engine.engine import Engine
+from td2adaptor.runtime.node.app import bus_security, serve_fleet, td_broker
+from td2adaptor.runtime.node.roslink import RosLink, connect
+from td2adaptor.runtime.ros.port import RobotPort
 
 log = logging.getLogger("td2adaptor.runtime")
 
@@ -122,7 +122,7 @@ class EdgeNode:
 
     def describe(self) -> str:
         robots = ", ".join(f"{c.robot} (namespace {c.ros_namespace or '/'})" for c in self.configs)
-        from td2adaptor.runtime.security import redact_url
+        from td2adaptor.runtime.bus.security import redact_url
 
         bus = redact_url(self.configs[0].bus)
         how = self.link.description if self.link is not None else f"ROS {self.options.ros}"

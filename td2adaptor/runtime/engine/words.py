@@ -7,7 +7,7 @@ programs is the event's `code` (or the feedback's `reason`); the message is for 
 
 from __future__ import annotations
 
-from td2adaptor.runtime.port import NoValue, PortError, PortTimeout, PortUnavailable
+from td2adaptor.runtime.ros.port import NoValue, PortError, PortTimeout, PortUnavailable
 
 INTERNAL = "internal error in the edge node (its log has the details)"
 
