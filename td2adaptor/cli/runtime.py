@@ -185,8 +185,7 @@ def run(
         )
     from td2adaptor.runtime.bus.bus import BusError
     from td2adaptor.runtime.bus.security import SecurityError
-    from td2adaptor.runtime.node.roslink import RosSetupError
-    from td2adaptor.runtime.ros.port import PortError
+    from td2adaptor.runtime.ros.port import PortError, RosSetupError
 
     options = RosOptions(int(ros), package, package_paths, prefixes, ros1_python)
     node = EdgeNode(result.model, configs, options)

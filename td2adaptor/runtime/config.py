@@ -13,18 +13,45 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlsplit
 
 import yaml
 
 from td2adaptor.model.events import ALL_ROBOTS, ROBOT_ID, TOPIC_ROOT
+from td2adaptor.runtime.bus.security import redact_url
 from td2adaptor.runtime.ros.genport import TRAIL_LIMIT
 
 #: what an HTTP `Authorization: Bearer` token may hold (RFC 6750 is narrower; this keeps the header well formed)
 _TOKEN = re.compile(r"[\x21-\x7e]{1,8192}")
+ENV_DIRECTORY_TOKEN = "TD2ADAPTOR_DIRECTORY_TOKEN"
 
 
 class ConfigError(Exception):
     """A configuration value is missing or wrong; the message names it."""
+
+
+def check_directory_url(url: str) -> str:
+    """`url` as a directory base URL (http(s)://host[:port][/path], no trailing slash); raises ValueError with a
+    message that shows the URL redacted. Credentials do not belong in it (they would show in process lists)."""
+    shown = redact_url(url)
+    try:
+        parts = urlsplit(url)
+    except ValueError:  # its words may quote the URL
+        raise ValueError(f"directory URL {shown!r} is not a well-formed URL") from None
+    try:
+        parts.port  # noqa: B018 - raises ValueError for a bad port
+    except ValueError:  # "Port could not be cast to integer value as '<what was typed>'"
+        raise ValueError(f"directory URL {shown!r}: the port must be a number from 0 to 65535") from None
+    if parts.scheme not in ("http", "https") or not parts.hostname:
+        raise ValueError(f"directory URL {shown!r}: use http(s)://host[:port][/path] of a Thing Description Directory")
+    if parts.username or parts.password:
+        raise ValueError(
+            f"directory URL {shown!r} carries credentials: give a token in the configuration "
+            f"(directory_token) or in {ENV_DIRECTORY_TOKEN} instead"
+        )
+    if parts.query or parts.fragment:
+        raise ValueError(f"directory URL {shown!r}: no query or fragment (the directory's base URL)")
+    return url.rstrip("/")
 
 
 @dataclass(frozen=True)
@@ -98,8 +125,6 @@ class RuntimeConfig:
         if self.mqtt_version not in ("5", "3.1.1"):
             raise ConfigError(f"mqtt_version {self.mqtt_version!r} must be 5 or 3.1.1")
         if self.directory is not None:
-            from td2adaptor.runtime.node.discovery import check_directory_url
-
             try:
                 object.__setattr__(self, "directory", check_directory_url(self.directory))
             except ValueError as exc:

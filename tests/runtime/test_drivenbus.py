@@ -135,7 +135,7 @@ def test_streams_use_the_robots_own_connection_when_they_cannot_have_their_own(
     try:
         broker.stop()
         with caplog.at_level(logging.WARNING, logger="td2adaptor.runtime"):
-            streams = PropertyStreams(engine, [])
+            streams = PropertyStreams(engine.outbox, engine.port, engine.model, [])
             streams.start()
         assert streams.out is None
         assert "no connection of its own for the property streams" in caplog.text
@@ -143,7 +143,7 @@ def test_streams_use_the_robots_own_connection_when_they_cannot_have_their_own(
         broker.start()
         app = AppClient(broker, ["td2adaptor/solo/#"])
         assert until(lambda: engine.bus.bus.connected, 15.0)  # type: ignore[attr-defined]
-        slot = _Slot(engine, spec)
+        slot = _Slot(engine.outbox, spec)
         assert slot.out is None
         slot.emit({"value": 42})
         topic = spec.topic("solo")

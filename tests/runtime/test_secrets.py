@@ -121,7 +121,7 @@ def test_redact_text_hides_every_url_password_in_a_message() -> None:
 )
 def test_every_refused_bus_or_directory_url_is_shown_redacted(url: str) -> None:
     from td2adaptor.runtime.bus.security import SecurityError, parse_broker_url
-    from td2adaptor.runtime.node.discovery import check_directory_url
+    from td2adaptor.runtime.config import check_directory_url
 
     with pytest.raises(SecurityError) as bus:
         parse_broker_url(url)

@@ -33,7 +33,6 @@ import threading
 import time
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
 from typing import Any
 
 from td2adaptor.model import Model, Procedure
@@ -42,11 +41,13 @@ from td2adaptor.runtime.bus.bus import Bus, BusError, Message
 from td2adaptor.runtime.bus.thingbus import WOT_SOURCE
 from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.engine.goals import GoalRunner
-from td2adaptor.runtime.engine.ledger import SEQ_BLOCK, Ledger, Record
+from td2adaptor.runtime.engine.ledger import Ledger, Record
+from td2adaptor.runtime.engine.missions import Mission, MissionTable
+from td2adaptor.runtime.engine.outbox import Outbox
 from td2adaptor.runtime.engine.replay import ReplayGuard, Verdict, digest, time_problem
 from td2adaptor.runtime.engine.streams import PropertyStreams, streams
 from td2adaptor.runtime.engine.words import INTERNAL, describe
-from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope, excerpt, references, salvage
+from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope, references, salvage
 from td2adaptor.runtime.ros.port import NoValue, PortError, RobotPort, StartResult
 from td2adaptor.runtime.ros.procedures import ProcedureStatus, read
 from td2adaptor.runtime.workers import Workers
@@ -89,25 +90,6 @@ def _ledger(config: RuntimeConfig) -> Ledger:
         return Ledger(None, keep=keep)
 
 
-@dataclass
-class Mission:
-    component: str
-    action: str
-    procedure: Procedure
-    correlation: str | None
-    payload: Mapping[str, Any]
-    started: float
-    mission_id: int | None = None
-    state: str | None = None
-    seq: int = 0
-    done: bool = False
-    cancels: list[str | None] = field(default_factory=list)
-    wake: threading.Event = field(default_factory=threading.Event)
-    goal: str | None = None  # a ROS action goal: its id, once the server accepted it
-    key: str | None = None  # its row in the ledger (None: not recorded)
-    reserved: int = 0  # the ledger's bound on the feedback numbers published
-
-
 def status_event(config: RuntimeConfig, model: Model, state: str) -> Message:
     """The retained online/offline status message (the offline one is the bus's will)."""
     event = envelope(
@@ -144,19 +126,17 @@ class Engine:
         self.on_stop: list[Callable[[], None]] = []  # run first by stop() (e.g. leaving a TD directory)
         self.on_halt: list[Callable[[str], None]] = []  # told why, when the bus stops serving the broker (halt)
         self.failure: str | None = None  # why the bus stopped serving the broker, if it did
-        self.stats: dict[str, int] = {}
-        self._lock = threading.Lock()
         self._inbox: queue.Queue[Message | None] = queue.Queue()
-        self._active: dict[str, Mission] = {}
-        self._last_mission: dict[str, int] = {}
         self.guard = _guard(config)
         self.ledger = _ledger(config)
+        self.missions = MissionTable()  # which mission each component runs (missions.py)
+        self.outbox = Outbox(bus, config, self.catalog, self.ledger, self.missions)  # what we publish (outbox.py)
+        self.stats = self.outbox.stats
         self._stopping = threading.Event()
         self._threads: list[threading.Thread] = []
-        self._missions: set[threading.Event] = set()  # set when its mission's thread is done with it
         self._runners = Workers(f"td2adaptor-{config.robot}-mission")  # no thread start per invoke
         self._pool = ThreadPoolExecutor(max_workers=CALL_WORKERS, thread_name_prefix=f"td2adaptor-{config.robot}-call")
-        self._goals = GoalRunner(self)
+        self._goals = GoalRunner(port, config, self.missions, self.outbox, self._pool, self._stopping, clock)
         self._streams: PropertyStreams | None = None
 
     # -- life cycle ----------------------------------------------------------------------------------------
@@ -173,7 +153,7 @@ class Engine:
         properties = [s for s in self.catalog.specs if s.kind is Kind.PROPERTY]
         if self.config.property_period > 0 and properties:
             if self.config.property_mode == "message":  # one event per ROS message (runtime/engine/streams.py)
-                self._streams = streams(self, properties)
+                self._streams = streams(self.outbox, port=self.port, model=self.model, specs=properties)
             if self._streams is not None:
                 self._streams.start()
             else:
@@ -199,16 +179,12 @@ class Engine:
         self._inbox.put(None)
         if self._streams is not None:
             self._streams.stop()
-        with self._lock:
-            missions = list(self._active.values())
-        for m in missions:
+        for m in self.missions.running():
             m.wake.set()
         for thread in self._threads:
             thread.join(timeout)
         self._pool.shutdown(wait=True, cancel_futures=True)
-        with self._lock:
-            runners = list(self._missions)
-        for ended in runners:
+        for ended in self.missions.held():
             ended.wait(timeout)
         try:
             if self.td is not None:  # an empty retained message removes the TD from the broker
@@ -236,54 +212,9 @@ class Engine:
 
     def idle(self) -> bool:
         """No queued event and no mission in progress (tests, benchmarks)."""
-        with self._lock:
-            return self._inbox.empty() and not self._active
-
-    def _count(self, key: str, n: int = 1) -> None:
-        with self._lock:
-            self.stats[key] = self.stats.get(key, 0) + n
+        return self._inbox.empty() and self.missions.idle()
 
     # -- publishing ----------------------------------------------------------------------------------------
-
-    def _publish(self, spec: EventSpec, event: Mapping[str, Any], *, retain: bool = False, qos: int = 1) -> None:
-        try:
-            data = encode(event)
-        except (TypeError, ValueError) as exc:
-            log.error("could not publish a %s event: %s", spec.kind.value, exc)
-            return
-        self._send(spec, data, retain=retain, qos=qos)
-
-    def _send(self, spec: EventSpec, data: bytes, *, retain: bool = False, qos: int = 1) -> None:
-        try:
-            topic = spec.topic(self.config.robot, self.config.topic_root)
-            self.bus.publish(topic, data, retain=retain, qos=qos)
-            self._count(f"out.{spec.kind.value}")
-        except (BusError, TypeError, ValueError) as exc:
-            log.error("could not publish a %s event: %s", spec.kind.value, exc)
-
-    def _event(self, kind: Kind, payload: Any, **kw: Any) -> dict[str, Any]:
-        return envelope(kind, robot=self.config.robot, source=self.config.event_source, payload=payload, **kw)
-
-    def _error(
-        self,
-        code: str,
-        message: str,
-        *,
-        topic: str,
-        raw: bytes | None = None,
-        affordance: str | None = None,
-        correlation: str | None = None,
-        mission: int | None = None,
-        errors: tuple[tuple[str, str], ...] = (),
-    ) -> None:
-        log.warning("%s on %s: %s", code, topic, message)
-        payload: dict[str, Any] = {"code": code, "message": message, "topic": topic}
-        if raw is not None:
-            payload["event"] = excerpt(raw)
-        if errors:
-            payload["errors"] = [{"path": p, "message": m} for p, m in errors]
-        event = self._event(Kind.ERROR, payload, affordance=affordance, correlation=correlation, mission=mission)
-        self._publish(self.catalog.find(Kind.ERROR), event)
 
     def _refuse(
         self,
@@ -296,9 +227,9 @@ class Engine:
     ) -> None:
         """Answer an inbound event that is not run (retained, stale, replayed, ...) with an error event carrying
         `refs`, its correlation and mission (and `errors`: the members at fault, as a schema error names them)."""
-        self._count("refused")
+        self.outbox.count("refused")
         corr, mission = refs
-        self._error(
+        self.outbox.error(
             code,
             message,
             topic=msg.topic,
@@ -307,73 +238,6 @@ class Engine:
             mission=mission,
             errors=errors,
         )
-
-    def _state(
-        self,
-        run: str,
-        status: ProcedureStatus,
-        correlation: str | None,
-        mission: int | None,
-        extra: Mapping[str, Any] | None = None,
-    ) -> None:
-        payload = {**status.payload(), "terminal": status.terminal, **(extra or {})}
-        event = self._event(Kind.STATE, payload, affordance=run, correlation=correlation, mission=mission)
-        self._publish(self.catalog.find(Kind.STATE, run), event)
-
-    def _feedback(
-        self,
-        m: Mission,
-        status: ProcedureStatus,
-        *,
-        terminal: bool,
-        output: Any = None,
-        extra: Mapping[str, Any] | None = None,
-    ) -> None:
-        changed = status.state != m.state
-        m.seq += 1
-        m.state = status.state
-        payload: dict[str, Any] = {**status.payload(), "terminal": terminal, "seq": m.seq, **(extra or {})}
-        if m.goal is not None:
-            payload["goal"] = m.goal
-        if output is not None:
-            payload["output"] = output
-        event = self._event(
-            Kind.FEEDBACK, payload, affordance=m.action, correlation=m.correlation, mission=m.mission_id
-        )
-        spec = self.catalog.find(Kind.FEEDBACK, m.action)
-        if m.key is None:
-            self._publish(spec, event)
-            return
-        try:
-            data = encode(event)
-        except (TypeError, ValueError) as exc:
-            log.error("could not publish a %s event: %s", spec.kind.value, exc)
-            return
-        self._record(m, data, terminal, changed)
-        self._send(spec, data)
-        if terminal:
-            self.ledger.done(m.key)
-
-    def _record(self, m: Mission, data: bytes, terminal: bool, changed: bool) -> None:
-        """Put a feedback event in the ledger before it is published (see ledger.py): every state change and
-        the end with the event itself; feedback that changes nothing (a goal's) only numbers reserved ahead."""
-        assert m.key is not None
-        if terminal or changed:
-            m.reserved = m.seq
-            latest = data.decode("utf-8")
-            self.ledger.event(
-                m.key,
-                mission=m.mission_id,
-                goal=m.goal,
-                state=m.state or "",
-                seq=m.seq,
-                reserved=m.seq,
-                latest=latest,
-                terminal=terminal,
-            )
-        elif m.seq > m.reserved:
-            m.reserved = m.seq + SEQ_BLOCK
-            self.ledger.reserve(m.key, m.reserved)
 
     # -- inbound -------------------------------------------------------------------------------------------
 
@@ -386,20 +250,20 @@ class Engine:
                 self._handle(msg)
             except Exception:  # a bug here must cost one event, not the process
                 log.exception("internal error on %s", msg.topic)
-                self._error("internal", INTERNAL, topic=msg.topic, raw=msg.payload)
+                self.outbox.error("internal", INTERNAL, topic=msg.topic, raw=msg.payload)
 
     def _handle(self, msg: Message) -> None:
-        self._count("in")
+        self.outbox.count("in")
         routed = self.catalog.route(msg.topic, self.config.topic_root)
         if routed is None:
-            self._error("unknown-topic", "no event is defined for this topic", topic=msg.topic, raw=msg.payload)
+            self.outbox.error("unknown-topic", "no event is defined for this topic", topic=msg.topic, raw=msg.payload)
             return
         spec, robot = routed
         if robot not in (self.config.robot, ALL_ROBOTS):
             return
         if msg.retain and spec.kind.inbound:  # the broker would hand it over again at every reconnect
             if not msg.payload:  # the empty retained message that clears one: no command, nothing to answer
-                self._count("cleared")
+                self.outbox.count("cleared")
                 return
             self._refuse(
                 "retained",
@@ -418,9 +282,9 @@ class Engine:
             event, problem = self.validator.parse(spec, robot, msg.payload)
         if problem is not None or event is None:
             assert problem is not None
-            self._count("invalid")
+            self.outbox.count("invalid")
             corr, mission = salvage(msg.payload) if problem.code != "too-large" else (None, None)
-            self._error(
+            self.outbox.error(
                 problem.code,
                 problem.message,
                 topic=msg.topic,
@@ -452,7 +316,7 @@ class Engine:
             digest(event) if isinstance(event_id, str) else None,
         )
         if verdict is Verdict.DUPLICATE:
-            self._count("duplicates")
+            self.outbox.count("duplicates")
             if spec.kind is Kind.INVOKE and isinstance(event_id, str):
                 self._answer_again(event_id, msg.topic)
             else:
@@ -513,8 +377,8 @@ class Engine:
             log.info("invoke %s on %s again: its mission has no feedback yet", event_id, topic)
             return
         log.info("invoke %s on %s again: its last feedback event again (%s)", event_id, topic, record.state)
-        self._count("answered-again")
-        self._send(self.catalog.find(Kind.FEEDBACK, record.action), record.latest.encode("utf-8"))
+        self.outbox.count("answered-again")
+        self.outbox.send(self.catalog.find(Kind.FEEDBACK, record.action), record.latest.encode("utf-8"))
 
     def _recover(self) -> None:
         """Finish what the last run of this node left (see ledger.py): follow each procedure mission again
@@ -537,7 +401,7 @@ class Engine:
             return
         if r.phase == "ending" and r.latest is not None:  # maybe not sent before the node died: again
             log.info("%s mission %s: its terminal event again (the last run may not have sent it)", r.action, r.mission)
-            self._send(spec, r.latest.encode("utf-8"))
+            self.outbox.send(spec, r.latest.encode("utf-8"))
             self.ledger.done(r.key)
             return
         procedure = (component.procedure_of(r.action) if r.kind == "procedure" else None) or Procedure(r.action)
@@ -546,22 +410,18 @@ class Engine:
         m = Mission(r.component, r.action, procedure, r.correlation, {}, self.clock() - behind)
         m.mission_id, m.goal, m.state, m.seq, m.reserved, m.key = r.mission, r.goal, r.state, seq, seq, r.key
         ended = threading.Event()
-        with self._lock:
-            free = r.component not in self._active
-            follow = free and r.kind == "procedure" and r.state is not None and r.mission is not None
-            follow = follow and procedure.query is not None and behind < self.config.mission_timeout
-            if follow:
-                self._active[r.component] = m
-                self._missions.add(ended)
+        follow = r.kind == "procedure" and r.state is not None and r.mission is not None
+        follow = follow and procedure.query is not None and behind < self.config.mission_timeout
+        follow = follow and self.missions.claim(m, ended) is None  # only when the component is free
         if follow:
             log.info("following %s mission %s again (the edge node restarted)", r.action, r.mission)
-            self._count("resumed")
+            self.outbox.count("resumed")
             self._runners.submit(lambda: self._run_mission(m, ended, resume=True))
             return
-        self._count("restart-failed")
+        self.outbox.count("restart-failed")
         message = "the edge node restarted " + _restart_words(r, behind, self.config.mission_timeout)
         log.warning("%s mission %s: failed: %s", r.action, r.mission, message)
-        self._finish(m, ProcedureStatus("failed", message=message, reason="unreachable"))
+        self.outbox.finish(m, ProcedureStatus("failed", message=message, reason="unreachable"))
 
     def _invoke(
         self, spec: EventSpec, procedure: Procedure, event: dict[str, Any], topic: str, *, goal: bool = False
@@ -570,42 +430,22 @@ class Engine:
         correlation = event.get("correlation") or event.get("id")
         mission = Mission(component, procedure.run, procedure, correlation, event.get("payload") or {}, self.clock())
         ended = threading.Event()
-        with self._lock:
-            busy = self._active.get(component)
-            if busy is None:
-                self._active[component] = mission
-                self._missions.add(ended)
+        busy = self.missions.claim(mission, ended)
         if busy is not None and correlation is not None and busy.correlation == correlation:
-            self._count("duplicates")  # a redelivery of the invoke we are following (sent without an id)
+            self.outbox.count("duplicates")  # a redelivery of the invoke we are following (sent without an id)
             log.info("invoke %s for mission %s already in progress: ignored", correlation, busy.mission_id)
             return
         mission.key = self._open("goal" if goal else "procedure", spec, event, topic)
         if busy is not None:
             what = f"{busy.action} mission {busy.mission_id}" if busy.mission_id is not None else busy.action
             message = f"{component} is busy with {what}; send a cancel event or wait for its terminal feedback"
-            self._error("busy", message, topic=topic, affordance=procedure.run, correlation=correlation)
+            self.outbox.error("busy", message, topic=topic, affordance=procedure.run, correlation=correlation)
             mission.done = True
             status = ProcedureStatus("failed", message=message, reason="busy")
-            self._feedback(mission, status, terminal=True)
+            self.outbox.feedback(mission, status, terminal=True)
             return
-        self._count("missions")
+        self.outbox.count("missions")
         self._runners.submit(lambda: self._run_mission(mission, ended, goal))
-
-    def _finish(self, m: Mission, status: ProcedureStatus, output: Any = None) -> None:
-        """The one terminal feedback; the component is free again before it is published."""
-        with self._lock:
-            if m.done:
-                return
-            m.done = True
-            if self._active.get(m.component) is m:
-                del self._active[m.component]
-            if m.mission_id is not None:
-                self._last_mission[m.action] = m.mission_id
-            late, m.cancels = m.cancels, []
-        self._feedback(m, status, terminal=True, output=output)
-        extra = {"goal": m.goal} if m.goal is not None else None
-        for correlation in late:  # cancels that came as the mission ended: its end is their answer
-            self._state(m.action, status, correlation, m.mission_id, extra)
 
     def _path(self, procedure: Procedure) -> tuple[str, ...]:
         return procedure.mission_id or _DEFAULT_MISSION_PATH
@@ -620,10 +460,9 @@ class Engine:
                 self._follow(m)
         except Exception:  # the last line of defence: report, never crash
             log.exception("mission %s failed internally", m.action)
-            self._finish(m, ProcedureStatus("failed", message=INTERNAL, reason="call-failed"))
+            self.outbox.finish(m, ProcedureStatus("failed", message=INTERNAL, reason="call-failed"))
         finally:
-            with self._lock:
-                self._missions.discard(ended)
+            self.missions.release(ended)
             ended.set()
 
     def _follow(self, m: Mission) -> None:
@@ -635,12 +474,12 @@ class Engine:
         except PortError as exc:
             if exc.response is None:  # no answer: we cannot know whether it runs
                 log.warning("%s: failed (%s): %s", m.action, exc.reason, _describe(exc))
-                self._finish(m, ProcedureStatus("failed", message=_describe(exc), reason=exc.reason))
+                self.outbox.finish(m, ProcedureStatus("failed", message=_describe(exc), reason=exc.reason))
                 return
             started, refused = StartResult(exc.response, None), True  # the robot answered, and refused
         except Exception as exc:
             log.warning("%s: failed: %s", m.action, _describe(exc))
-            self._finish(m, ProcedureStatus("failed", message=_describe(exc), reason="call-failed"))
+            self.outbox.finish(m, ProcedureStatus("failed", message=_describe(exc), reason="call-failed"))
             return
         reading = read(started.response, proc, "run", _DEFAULT_MISSION_PATH)
         status = reading.status or ProcedureStatus("running", message="started")
@@ -651,17 +490,21 @@ class Engine:
         if status.state == "failed":  # refused by the robot: the id in its answer is not ours
             why = "answered with an error" if refused or _says_error(started.response) else "reported it failed"
             log.warning("%s: rejected: the robot %s: %s", m.action, why, status.message or "(no message)")
-            self._finish(m, ProcedureStatus("failed", status.result, status.message, status.last_event, "rejected"))
+            self.outbox.finish(
+                m, ProcedureStatus("failed", status.result, status.message, status.last_event, "rejected")
+            )
             return
         m.mission_id = started.mission_id if started.mission_id is not None else status.mission_id
         if m.mission_id is None:
             log.warning("%s returned no mission id; following mission -1 (the robot's last one)", m.action)
         if status.terminal:
-            self._finish(m, status)
+            self.outbox.finish(m, status)
             return
-        self._feedback(m, status, terminal=False)
+        self.outbox.feedback(m, status, terminal=False)
         if proc.query is None:
-            self._finish(m, ProcedureStatus("finished", message="started; no query action links to this procedure"))
+            self.outbox.finish(
+                m, ProcedureStatus("finished", message="started; no query action links to this procedure")
+            )
             return
         self._poll(m, deadline)
 
@@ -691,7 +534,7 @@ class Engine:
                 log.warning("query %d of %s mission %s failed: %s", failures, m.action, mid, _describe(exc))
                 if failures >= cfg.max_query_failures:
                     message = f"the robot did not answer {failures} queries: {_describe(exc)}"
-                    self._finish(m, ProcedureStatus("failed", message=message, reason="unreachable"))
+                    self.outbox.finish(m, ProcedureStatus("failed", message=message, reason="unreachable"))
                     return
                 continue
             failures = 0
@@ -702,20 +545,19 @@ class Engine:
             if current.terminal:
                 if current.state == "failed":
                     log.warning("%s mission %s: the robot reports it failed: %s", m.action, mid, current.message)
-                self._finish(m, current)
+                self.outbox.finish(m, current)
                 return
             if current.state != m.state:
-                self._feedback(m, current, terminal=False)
+                self.outbox.feedback(m, current, terminal=False)
 
     def _pending_cancels(self, m: Mission) -> bool:
         """Carry out cancel events for this mission; True when the mission ended."""
-        with self._lock:
-            requests, m.cancels = m.cancels, []
+        requests = self.missions.take_cancels(m)
         proc = m.procedure
         for correlation in requests:
             mid = m.mission_id if m.mission_id is not None else -1
             if proc.cancel is None:
-                self._error(
+                self.outbox.error(
                     "unsupported",
                     f"{m.action} has no cancel action",
                     topic=self.catalog.find(Kind.INVOKE, m.action).topic(self.config.robot, self.config.topic_root),
@@ -728,7 +570,7 @@ class Engine:
                 response = _answer(self.port.cancel, m.component, proc.cancel, mid, self.config.call_timeout)
                 status = read(response, proc, "cancel", _DEFAULT_MISSION_PATH).status or _requested(m.state)
             except Exception as exc:
-                self._error(
+                self.outbox.error(
                     "call-failed",
                     f"cancelling {m.action} mission {mid} failed: {_describe(exc)}",
                     topic=self.catalog.find(Kind.CANCEL, proc.cancel).topic(self.config.robot, self.config.topic_root),
@@ -737,12 +579,12 @@ class Engine:
                     mission=m.mission_id,
                 )
                 continue
-            self._state(m.action, status, correlation, m.mission_id)
+            self.outbox.state(m.action, status, correlation, m.mission_id)
             if status.terminal:
-                self._finish(m, status)
+                self.outbox.finish(m, status)
                 return True
             if status.state != m.state:
-                self._feedback(m, status, terminal=False)
+                self.outbox.feedback(m, status, terminal=False)
         return False
 
     def _give_up(self, m: Mission) -> None:
@@ -754,27 +596,25 @@ class Engine:
                 log.warning("could not cancel timed-out %s mission %s: %s", m.action, m.mission_id, _describe(exc))
         message = f"no terminal state within the mission timeout of {self.config.mission_timeout:g} s"
         last = f" (last state: {m.state})" if m.state else ""
-        self._finish(m, ProcedureStatus("failed", message=message + last, reason="timeout"))
+        self.outbox.finish(m, ProcedureStatus("failed", message=message + last, reason="timeout"))
 
     def _cancel(self, spec: EventSpec, procedure: Procedure, event: dict[str, Any]) -> None:
         wanted = event.get("mission")
         correlation = event.get("correlation") or event.get("id")
-        with self._lock:
-            m = self._active.get(spec.component or "")
-            if m is not None and m.action == procedure.run and wanted in (None, m.mission_id) and not m.done:
-                m.cancels.append(correlation)
-                m.wake.set()
-                return
+        m = self.missions.add_cancel(
+            spec.component or "",
+            correlation,
+            lambda m: m.action == procedure.run and wanted in (None, m.mission_id) and not m.done,
+        )
+        if m is not None:
+            m.wake.set()
+            return
         self._pool.submit(self._cancel_direct, spec, procedure, event)
 
     def _mission_for(self, procedure: Procedure, wanted: Any) -> int:
         if isinstance(wanted, int):
             return wanted
-        with self._lock:
-            for m in self._active.values():
-                if m.action == procedure.run and m.mission_id is not None:
-                    return m.mission_id
-            return self._last_mission.get(procedure.run, -1)
+        return self.missions.mission_id(procedure.run)
 
     def _cancel_direct(self, spec: EventSpec, procedure: Procedure, event: dict[str, Any]) -> None:
         self._ask(spec, procedure, event, cancel=True)
@@ -791,7 +631,7 @@ class Engine:
             call = self.port.cancel if cancel else self.port.query
             response = _answer(call, spec.component or "", action, mid, self.config.call_timeout)
         except Exception as exc:
-            self._error(
+            self.outbox.error(
                 "call-failed",
                 f"{action} of mission {mid} failed: {_describe(exc)}",
                 topic=spec.topic(self.config.robot, self.config.topic_root),
@@ -804,7 +644,7 @@ class Engine:
         if status is None:
             status = _requested(None) if cancel else ProcedureStatus("running", message="no state in the answer")
         mission = status.mission_id if status.mission_id is not None else (mid if mid != -1 else None)
-        self._state(procedure.run, status, correlation, mission)
+        self.outbox.state(procedure.run, status, correlation, mission)
 
     def _plain_call(self, spec: EventSpec, event: dict[str, Any], key: str | None = None) -> None:
         """A non-procedure action: one call, one terminal feedback with its output."""
@@ -824,16 +664,16 @@ class Engine:
         except Exception as exc:
             reason = exc.reason if isinstance(exc, PortError) else "call-failed"
             log.warning("%s: failed (%s): %s", action, reason, _describe(exc))
-            self._feedback(m, ProcedureStatus("failed", message=_describe(exc), reason=reason), terminal=True)
+            self.outbox.feedback(m, ProcedureStatus("failed", message=_describe(exc), reason=reason), terminal=True)
             return
-        self._feedback(m, ProcedureStatus("finished"), terminal=True, output=output)
+        self.outbox.feedback(m, ProcedureStatus("finished"), terminal=True, output=output)
 
     def _write(self, spec: EventSpec, event: dict[str, Any]) -> None:
         name = spec.affordance or ""
         try:
             self.port.write_property(spec.component or "", name, event.get("payload"))
         except Exception as exc:
-            self._error(
+            self.outbox.error(
                 "call-failed",
                 f"writing {name} failed: {_describe(exc)}",
                 topic=spec.topic(self.config.robot, self.config.topic_root),
@@ -864,8 +704,8 @@ class Engine:
                 if last.get(name) == text:
                     continue
                 last[name] = text
-                event = self._event(Kind.PROPERTY, value, affordance=name)
-                self._publish(spec, event, retain=True, qos=self.config.property_qos)
+                event = self.outbox.event(Kind.PROPERTY, value, affordance=name)
+                self.outbox.publish(spec, event, retain=True, qos=self.config.property_qos)
 
 
 def _answer(

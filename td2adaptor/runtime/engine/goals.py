@@ -17,17 +17,18 @@ from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from concurrent.futures import Executor
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from td2adaptor.model.events import GOAL_WORDS, EventSpec, Kind
+from td2adaptor.runtime.config import RuntimeConfig
+from td2adaptor.runtime.engine.missions import Mission, MissionTable
+from td2adaptor.runtime.engine.outbox import Outbox
 from td2adaptor.runtime.engine.words import describe
-from td2adaptor.runtime.ros.port import GoalPort, GoalProgress, PortError, PortRejected
+from td2adaptor.runtime.ros.port import GoalPort, GoalProgress, PortError, PortRejected, RobotPort
 from td2adaptor.runtime.ros.procedures import ProcedureStatus
-
-if TYPE_CHECKING:
-    from td2adaptor.runtime.engine.engine import Engine, Mission
 
 log = logging.getLogger("td2adaptor.runtime")
 
@@ -74,27 +75,44 @@ class _Ended:
 
 
 class GoalRunner:
-    """Follows the ROS action goals of one engine (see the module docstring)."""
+    """Follows the ROS action goals of one robot (see the module docstring): its missions in the engine's
+    `missions` table, its events through the engine's `outbox`; queries and cancels of goals nobody follows
+    are answered on `pool`; `stopping` set, the goals are left to the robot."""
 
-    def __init__(self, engine: Engine) -> None:
-        self.engine = engine
+    def __init__(
+        self,
+        port: RobotPort,
+        config: RuntimeConfig,
+        missions: MissionTable,
+        outbox: Outbox,
+        pool: Executor,
+        stopping: threading.Event,
+        clock: Callable[[], float],
+    ) -> None:
+        self.port = port
+        self.config = config
+        self.missions = missions
+        self.outbox = outbox
+        self.pool = pool
+        self.stopping = stopping
+        self.clock = clock
         self._lock = threading.Lock()
         self._last: dict[str, _Ended] = {}  # per action: how its last goal ended
 
     def _port(self) -> GoalPort | None:
-        port = self.engine.port
+        port = self.port
         return port if isinstance(port, GoalPort) else None
 
     # -- the mission thread --------------------------------------------------------------------------------
 
     def follow(self, m: Mission) -> None:
         """Send the goal and report it until its end (run in the mission's own thread)."""
-        e, cfg = self.engine, self.engine.config
+        out, cfg = self.outbox, self.config
         port = self._port()
         if port is None:
             message = "this robot's port cannot send ROS action goals"
             log.warning("%s: failed: %s", m.action, message)
-            e._finish(m, ProcedureStatus("failed", message=message, reason="call-failed"))
+            out.finish(m, ProcedureStatus("failed", message=message, reason="call-failed"))
             return
         try:
             goal = port.send_goal(m.component, m.action, m.payload, cfg.call_timeout)
@@ -102,11 +120,11 @@ class GoalRunner:
             word = "rejected" if isinstance(exc, PortRejected) else ""
             message = (str(exc) or "the action server rejected the goal") if word else describe(exc)
             log.warning("%s goal failed (%s): %s", m.action, exc.reason, message)
-            e._finish(m, ProcedureStatus("failed", word, message, reason=exc.reason))
+            out.finish(m, ProcedureStatus("failed", word, message, reason=exc.reason))
             return
         m.goal = goal
         log.info("%s goal %s accepted", m.action, goal)
-        e._feedback(m, ProcedureStatus("queued", "accepted", "goal accepted"), terminal=False)
+        out.feedback(m, ProcedureStatus("queued", "accepted", "goal accepted"), terminal=False)
         try:
             self._watch(port, m, goal)
         finally:
@@ -116,16 +134,16 @@ class GoalRunner:
                 log.debug("forgetting %s goal %s: %s", m.action, goal, describe(exc))
 
     def _watch(self, port: GoalPort, m: Mission, goal: str) -> None:
-        e, cfg = self.engine, self.engine.config
+        out, cfg = self.outbox, self.config
         deadline = m.started + cfg.mission_timeout
         since, failures, sent = 0, 0, -1e18
         held: Any = None
         while True:
-            if e._stopping.is_set():
+            if self.stopping.is_set():
                 log.info("stopping: no longer following %s goal %s", m.action, goal)
                 return
             self._carry_out_cancels(port, m, goal)
-            remaining = deadline - e.clock()
+            remaining = deadline - self.clock()
             if remaining <= 0:
                 self._give_up(port, m, goal)
                 return
@@ -137,7 +155,7 @@ class GoalRunner:
                 if failures >= cfg.max_query_failures:
                     message = f"the robot did not answer {failures} times: {describe(exc)}"
                     log.warning("%s goal %s: failed: %s", m.action, goal, message)
-                    e._finish(m, ProcedureStatus("failed", message=message, reason="unreachable"))
+                    out.finish(m, ProcedureStatus("failed", message=message, reason="unreachable"))
                     return
                 continue
             failures = 0
@@ -145,27 +163,27 @@ class GoalRunner:
             running = ProcedureStatus("running", progress.status if not progress.done else "executing")
             for message in progress.feedback:
                 if cfg.feedback_period <= 0:
-                    e._feedback(m, running, terminal=False, extra={"feedback": message})
+                    out.feedback(m, running, terminal=False, extra={"feedback": message})
                 else:
                     held = message
-            if held is not None and (progress.done or e.clock() - sent >= cfg.feedback_period):
-                e._feedback(m, running, terminal=False, extra={"feedback": held})
-                held, sent = None, e.clock()
+            if held is not None and (progress.done or self.clock() - sent >= cfg.feedback_period):
+                out.feedback(m, running, terminal=False, extra={"feedback": held})
+                held, sent = None, self.clock()
             if progress.done:
                 status = goal_status(progress)
                 if status.state == "failed":
                     log.warning("%s goal %s: failed: %s", m.action, goal, status.message)
                 self._remember(m.action, goal, status)
-                e._finish(m, status, output=progress.result)
+                out.finish(m, status, output=progress.result)
                 return
 
     def _give_up(self, port: GoalPort, m: Mission, goal: str) -> None:
-        e, cfg = self.engine, self.engine.config
+        out, cfg = self.outbox, self.config
         message = f"no result within the mission timeout of {cfg.mission_timeout:g} s"
         log.warning("%s goal %s: failed: %s", m.action, goal, message)
         status = ProcedureStatus("failed", message=message, reason="timeout")
         self._remember(m.action, goal, status)
-        e._finish(m, status)
+        out.finish(m, status)
         try:
             port.cancel_goal(m.component, m.action, goal, cfg.call_timeout)
         except Exception as exc:  # noqa: BLE001 - the server may be gone: that is why we gave up
@@ -173,12 +191,9 @@ class GoalRunner:
 
     def _carry_out_cancels(self, port: GoalPort, m: Mission, goal: str) -> None:
         """Cancel events for the goal followed: ask the server, answer each with a state event."""
-        e = self.engine
-        with e._lock:
-            requests, m.cancels = m.cancels, []
-        for correlation in requests:
+        for correlation in self.missions.take_cancels(m):
             try:
-                accepted = port.cancel_goal(m.component, m.action, goal, e.config.call_timeout)
+                accepted = port.cancel_goal(m.component, m.action, goal, self.config.call_timeout)
                 progress = port.goal_progress(m.component, m.action, goal, None, 0.0)
             except Exception as exc:
                 message = f"cancelling {m.action} goal {goal} failed: {describe(exc)}"
@@ -188,7 +203,7 @@ class GoalRunner:
             word = "cancel requested" if accepted else "the server did not accept to cancel"
             log.info("%s goal %s: %s", m.action, goal, word)
             status = ProcedureStatus(status.state, status.result, status.message or word, reason=status.reason)
-            e._state(m.action, status, correlation, None, {"goal": goal})
+            self.outbox.state(m.action, status, correlation, None, {"goal": goal})
 
     def _remember(self, action: str, goal: str, status: ProcedureStatus) -> None:
         with self._lock:
@@ -196,33 +211,25 @@ class GoalRunner:
 
     # -- query and cancel events ---------------------------------------------------------------------------
 
-    def _followed(self, spec: EventSpec, wanted: Any) -> Mission | None:
-        e = self.engine
-        m = e._active.get(spec.component or "")
-        if m is None or m.action != spec.affordance or m.done or m.goal is None:
-            return None
-        return m if wanted in (None, m.goal) else None
+    @staticmethod
+    def _followed(spec: EventSpec, wanted: Any) -> Callable[[Mission], bool]:
+        """Whether a component's mission follows the goal a query or cancel of `spec` (for goal `wanted`) is for."""
+        return lambda m: m.action == spec.affordance and not m.done and m.goal is not None and wanted in (None, m.goal)
 
     def cancel(self, spec: EventSpec, event: Mapping[str, Any]) -> None:
         """A cancel event (dispatcher thread): hand it to the mission that follows the goal."""
-        e = self.engine
         wanted = _wanted(event)
         correlation = event.get("correlation") or event.get("id")
-        with e._lock:
-            m = self._followed(spec, wanted)
-            if m is not None:
-                m.cancels.append(correlation)
-                return
-        e._pool.submit(self._answer_ended, spec, wanted, correlation)
+        if self.missions.add_cancel(spec.component or "", correlation, self._followed(spec, wanted)) is not None:
+            return
+        self.pool.submit(self._answer_ended, spec, wanted, correlation)
 
     def query(self, spec: EventSpec, event: Mapping[str, Any]) -> None:
         """A query event (pool thread): the followed goal's state, else how the last one ended."""
-        e = self.engine
         wanted = _wanted(event)
         correlation = event.get("correlation") or event.get("id")
         port = self._port()
-        with e._lock:
-            m = self._followed(spec, wanted)
+        m = self.missions.find(spec.component or "", self._followed(spec, wanted))
         if m is not None and m.goal is not None and port is not None:
             try:
                 progress = port.goal_progress(m.component, m.action, m.goal, None, 0.0)
@@ -230,7 +237,7 @@ class GoalRunner:
                 message = f"querying {m.action} goal {m.goal} failed: {describe(exc)}"
                 self._refuse(Kind.QUERY, m.action, m.component, "call-failed", message, correlation)
                 return
-            e._state(m.action, goal_status(progress), correlation, None, {"goal": m.goal})
+            self.outbox.state(m.action, goal_status(progress), correlation, None, {"goal": m.goal})
             return
         self._answer_ended(spec, wanted, correlation)
 
@@ -239,7 +246,7 @@ class GoalRunner:
         with self._lock:
             ended = self._last.get(action)
         if ended is not None and wanted in (None, ended.goal):
-            self.engine._state(action, ended.status, correlation, None, {"goal": ended.goal})
+            self.outbox.state(action, ended.status, correlation, None, {"goal": ended.goal})
             return
         which = f"goal {wanted}" if wanted is not None else "goal"
         message = f"{spec.kind.value}: no {action} {which} is known to this node"
@@ -248,13 +255,13 @@ class GoalRunner:
     def _refuse(
         self, kind: Kind, action: str, component: str, code: str, message: str, correlation: str | None
     ) -> None:
-        e = self.engine
+        catalog, cfg = self.outbox.catalog, self.config
         spec = next(
-            (s for s in e.catalog.specs if s.kind is kind and s.affordance == action and s.component == component),
+            (s for s in catalog.specs if s.kind is kind and s.affordance == action and s.component == component),
             None,
         )
-        topic = spec.topic(e.config.robot, e.config.topic_root) if spec is not None else ""
-        e._error(code, message, topic=topic, affordance=action, correlation=correlation)
+        topic = spec.topic(cfg.robot, cfg.topic_root) if spec is not None else ""
+        self.outbox.error(code, message, topic=topic, affordance=action, correlation=correlation)
 
 
 def _wanted(event: Mapping[str, Any]) -> Any:

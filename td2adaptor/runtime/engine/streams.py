@@ -39,18 +39,20 @@ from collections import deque
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
+from td2adaptor.model import Model
 from td2adaptor.model.events import EventSpec, Kind
 from td2adaptor.model.wot import wot_topic
 from td2adaptor.runtime.bus.bus import Bus, BusError
 from td2adaptor.runtime.bus.thingbus import ThingBus
+from td2adaptor.runtime.engine.outbox import Outbox
 from td2adaptor.runtime.engine.words import describe
 from td2adaptor.runtime.events import new_id, now_rfc3339
 from td2adaptor.runtime.ros.cdr import message_class, plain_reader
 from td2adaptor.runtime.ros.genport import to_plain
+from td2adaptor.runtime.ros.port import RobotPort
 
 if TYPE_CHECKING:
     from td2adaptor.runtime.bus.drivenbus import DrivenBus
-    from td2adaptor.runtime.engine.engine import Engine
 
 log = logging.getLogger("td2adaptor.runtime")
 
@@ -97,7 +99,7 @@ class _Slot:
     """One property of one robot: its topics, envelope text around the value, and its throttle state."""
 
     __slots__ = (
-        "engine",
+        "outbox",
         "spec",
         "name",
         "topic",
@@ -118,14 +120,14 @@ class _Slot:
         "bus",
     )
 
-    def __init__(self, engine: Engine, spec: EventSpec) -> None:
-        config = engine.config
-        self.engine = engine
+    def __init__(self, outbox: Outbox, spec: EventSpec) -> None:
+        config = outbox.config
+        self.outbox = outbox  # the robot's: its bus, its configuration, its counts
         self.spec = spec
         self.name = spec.affordance or ""
         self.topic = spec.topic(config.robot, config.topic_root)
-        self.wot = wot_topic(spec, config.robot, config.topic_root) if isinstance(engine.bus, ThingBus) else None
-        self.bus = _plain_bus(engine)  # the WoT form is published beside the envelope here, not by ThingBus
+        self.wot = wot_topic(spec, config.robot, config.topic_root) if isinstance(outbox.bus, ThingBus) else None
+        self.bus = _plain_bus(outbox.bus)  # the WoT form is published beside the envelope here, not by ThingBus
         text = _ENCODER.encode
         kind, robot = text(Kind.PROPERTY.value), text(config.robot)
         self.head = f'{{"type":{kind},"affordance":{text(self.name)},"robot":{robot},"id":"'
@@ -157,7 +159,7 @@ class _Slot:
         except (BusError, ValueError) as exc:
             log.error("could not publish a property event: %s", exc)
             return
-        self.engine._count("out.property")
+        self.outbox.count("out.property")
 
 
 class Pump:
@@ -240,7 +242,7 @@ class Pump:
                 if len(self._ready) >= BACKLOG:
                     old, _ = self._ready.popleft()
                     self._dropped += 1
-                    old.engine._count("dropped.property")
+                    old.outbox.count("dropped.property")
                 self._ready.append((slot, message))
             else:
                 slot.latest = message
@@ -346,9 +348,8 @@ class Pump:
             self._serve()
 
 
-def _plain_bus(engine: Engine) -> Bus:
-    """The engine's bus without its WoT adapter (ThingBus), which the streams do the work of themselves."""
-    bus = engine.bus
+def _plain_bus(bus: Bus) -> Bus:
+    """The robot's bus without its WoT adapter (ThingBus), which the streams do the work of themselves."""
     return bus.bus if isinstance(bus, ThingBus) else bus
 
 
@@ -371,23 +372,26 @@ class _Value:
 
 
 class PropertyStreams:
-    """One robot's properties in message mode: its callbacks on the port, fed to the process's `Pump`."""
+    """One robot's properties in message mode: its callbacks on the port, fed to the process's `Pump`, its
+    events published on the bus of its `outbox` (and counted there)."""
 
-    def __init__(self, engine: Engine, specs: list[EventSpec]) -> None:
-        self.engine = engine
+    def __init__(self, outbox: Outbox, port: RobotPort, model: Model, specs: list[EventSpec]) -> None:
+        self.outbox = outbox
+        self.port = port
+        self.model = model
         self.specs = specs
         self.slots: list[_Slot] = []
         self.pump: Pump | None = None
         self.out: DrivenBus | None = None
 
     def start(self) -> None:
-        port: Any = self.engine.port
+        port: Any = self.port  # watch_property is no part of RobotPort: streams() checked it is there
         self.out = self._connection()
         self.pump = pump = Pump.acquire()
         if self.out is not None:
             pump.attach(self.out)
         for spec in self.specs:
-            slot = _Slot(self.engine, spec)
+            slot = _Slot(self.outbox, spec)
             slot.out = self.out
             slot.remove = self._watch_serialized(slot, pump)
             if slot.remove is None:
@@ -406,7 +410,7 @@ class PropertyStreams:
         from td2adaptor.runtime.bus.drivenbus import DrivenBus, twin
         from td2adaptor.runtime.bus.mqttbus import MqttBus
 
-        inner = _plain_bus(self.engine)
+        inner = _plain_bus(self.outbox.bus)
         if not isinstance(inner, MqttBus) or isinstance(inner, DrivenBus):
             return None
         out = twin(inner)
@@ -415,7 +419,7 @@ class PropertyStreams:
         except BusError as exc:
             log.warning(
                 "robot %s: no connection of its own for the property streams, they share the robot's: %s",
-                self.engine.config.robot,
+                self.outbox.config.robot,
                 exc,
             )
             return None
@@ -423,10 +427,10 @@ class PropertyStreams:
 
     def _watch_serialized(self, slot: _Slot, pump: Pump) -> Callable[[], None] | None:
         """Watch `slot`'s messages serialized, read by the type's CDR decoder (None: the port cannot)."""
-        watch = getattr(self.engine.port, "watch_property_serialized", None)
+        watch = getattr(self.port, "watch_property_serialized", None)
         if not callable(watch):
             return None
-        component = self.engine.model.component(slot.spec.component or "")
+        component = self.model.component(slot.spec.component or "")
         type_name = next((t.type_name for t in component.topics if t.name == slot.name), "")
         cls = message_class(type_name)
         if cls is None:
@@ -453,13 +457,13 @@ class PropertyStreams:
         self.out = None
 
 
-def streams(engine: Engine, specs: list[EventSpec]) -> PropertyStreams | None:
-    """Message-mode streams of `specs` when the engine's port can watch properties, else None (sampled)."""
-    if not callable(getattr(engine.port, "watch_property", None)):
+def streams(outbox: Outbox, *, port: RobotPort, model: Model, specs: list[EventSpec]) -> PropertyStreams | None:
+    """Message-mode streams of `specs` when the robot's port can watch properties, else None (sampled)."""
+    if not callable(getattr(port, "watch_property", None)):
         log.warning(
             "robot %s: its port cannot relay every message (property_mode message): properties are sampled "
             "every property_period instead",
-            engine.config.robot,
+            outbox.config.robot,
         )
         return None
-    return PropertyStreams(engine, specs)
+    return PropertyStreams(outbox, port, model, specs)

@@ -25,7 +25,7 @@ import urllib.request
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
-from urllib.parse import quote, urlsplit
+from urllib.parse import quote
 
 from td2adaptor.runtime.bus.security import redact_url
 
@@ -33,7 +33,6 @@ log = logging.getLogger("td2adaptor.runtime.discovery")
 
 DISCOVERY_CONTEXT = "https://www.w3.org/2022/wot/discovery"
 TD_MEDIA_TYPE = "application/td+json"
-ENV_DIRECTORY_TOKEN = "TD2ADAPTOR_DIRECTORY_TOKEN"
 PUT_TIMEOUT = 30.0  # a directory may take its time to store a large TD (it turns it into RDF)
 DELETE_TIMEOUT = 5.0  # stopping waits at most this long for the directory
 MAX_BACKOFF = 60.0
@@ -41,30 +40,6 @@ MAX_BACKOFF = 60.0
 
 class DirectoryError(Exception):
     """A directory request failed; the message says which and why (never a credential)."""
-
-
-def check_directory_url(url: str) -> str:
-    """`url` as a directory base URL (http(s)://host[:port][/path], no trailing slash); raises ValueError with a
-    message that shows the URL redacted. Credentials do not belong in it (they would show in process lists)."""
-    shown = redact_url(url)
-    try:
-        parts = urlsplit(url)
-    except ValueError:  # its words may quote the URL
-        raise ValueError(f"directory URL {shown!r} is not a well-formed URL") from None
-    try:
-        parts.port  # noqa: B018 - raises ValueError for a bad port
-    except ValueError:  # "Port could not be cast to integer value as '<what was typed>'"
-        raise ValueError(f"directory URL {shown!r}: the port must be a number from 0 to 65535") from None
-    if parts.scheme not in ("http", "https") or not parts.hostname:
-        raise ValueError(f"directory URL {shown!r}: use http(s)://host[:port][/path] of a Thing Description Directory")
-    if parts.username or parts.password:
-        raise ValueError(
-            f"directory URL {shown!r} carries credentials: give a token in the configuration "
-            f"(directory_token) or in {ENV_DIRECTORY_TOKEN} instead"
-        )
-    if parts.query or parts.fragment:
-        raise ValueError(f"directory URL {shown!r}: no query or fragment (the directory's base URL)")
-    return url.rstrip("/")
 
 
 def registration_document(td_text: str | bytes, ttl: int) -> dict[str, Any]:
@@ -89,7 +64,7 @@ def backoff(attempt: int, base: float = 1.0, cap: float = MAX_BACKOFF) -> float:
 class Directory:
     """A Thing Description Directory's `/things` API, over HTTP(S) with the standard library."""
 
-    url: str  # base URL, checked (check_directory_url)
+    url: str  # base URL, checked (config.check_directory_url)
     token: str | None = None  # Bearer token, if the directory wants one
     ca_file: str | None = None  # CA bundle for an https directory with a private CA
 

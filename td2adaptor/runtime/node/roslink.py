@@ -32,14 +32,10 @@ from typing import Any
 from td2adaptor.model import Model
 from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.ros.genport import GeneratedPort, Layout
-from td2adaptor.runtime.ros.port import PortError, RobotPort
+from td2adaptor.runtime.ros.port import PortError, RobotPort, RosSetupError
 
 PY_DIR = f"python{sys.version_info.major}.{sys.version_info.minor}"
 _loaded_prefixes: set[Path] = set()
-
-
-class RosSetupError(Exception):
-    """ROS, the generated package or a robot cannot be reached; the message says what to do."""
 
 
 @dataclass

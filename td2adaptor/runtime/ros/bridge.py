@@ -43,6 +43,7 @@ from td2adaptor.runtime.ros.port import (
     PortRejected,
     PortTimeout,
     PortUnavailable,
+    RosSetupError,
     StartResult,
 )
 
@@ -170,8 +171,6 @@ class Ros1Bridge:
 
     def start(self) -> None:
         """Start the child and wait until its node and ports are up; raises `PortUnavailable` on failure."""
-        from td2adaptor.runtime.node.roslink import RosSetupError
-
         with self._lock:
             if self._closed:
                 raise PortUnavailable("the ROS 1 bridge is closed")

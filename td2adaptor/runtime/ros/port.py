@@ -73,6 +73,11 @@ class NoValue(PortError):
     """A subscribed property has not received any message yet."""
 
 
+class RosSetupError(Exception):
+    """ROS, the generated package or a robot cannot be reached; the message says what to do. (Not a
+    `PortError`: no call failed, the ports cannot be made; raised by node/roslink.py and by the ROS 1 bridge.)"""
+
+
 @dataclass(frozen=True)
 class StartResult:
     """Answer to starting a procedure: the robot's response and the mission id it assigned (None if none)."""
