@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import ast
 import os
+import re
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -202,6 +203,22 @@ def test_goals_and_streams_are_handed_objects_not_the_engine(module: str) -> Non
     }
     assert "engine" not in named
     assert [n.lineno for n in ast.walk(tree) if isinstance(n, ast.Name) and n.id == "Engine"] == []
+
+
+def test_the_architecture_page_names_every_runtime_module_in_its_place() -> None:
+    """docs/architecture.md's runtime section names each subpackage and, on the lines after it, each of its
+    modules (the top-level ones anywhere in the section)."""
+    text = (PACKAGE.parent / "docs" / "architecture.md").read_text(encoding="utf-8")
+    section = text[text.index("**runtime/**") : text.index("**diagnostics/**")]
+    missing = []
+    for path in _modules().values():
+        if path.name == "__init__.py":
+            continue
+        unit = _unit(path)
+        start = section.find(f"{unit}/") if unit != path.stem else 0
+        if start < 0 or not re.search(rf"\b{re.escape(path.stem)}\b", section[start:]):
+            missing.append(path.relative_to(RUNTIME).as_posix())
+    assert missing == []
 
 
 def test_the_ros1_bridge_runs_with_the_standard_library_only(tmp_path: Path) -> None:
