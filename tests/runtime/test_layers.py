@@ -205,6 +205,14 @@ def test_goals_and_streams_are_handed_objects_not_the_engine(module: str) -> Non
     assert [n.lineno for n in ast.walk(tree) if isinstance(n, ast.Name) and n.id == "Engine"] == []
 
 
+def test_the_public_api_still_offers_every_name() -> None:
+    """`td2adaptor.runtime`'s names (loaded on first use) are found where its map says, also after moves."""
+    import td2adaptor.runtime as runtime
+
+    for name in runtime.__all__:
+        assert getattr(runtime, name).__name__ == name
+
+
 def test_the_architecture_page_names_every_runtime_module_in_its_place() -> None:
     """docs/architecture.md's runtime section names each subpackage and, on the lines after it, each of its
     modules (the top-level ones anywhere in the section)."""
