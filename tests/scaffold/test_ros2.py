@@ -143,11 +143,12 @@ def test_the_scaffolded_td_is_generated_and_run_and_a_mission_goes_end_to_end(
         broker.stop()
 
 
-def test_an_edge_node_running_beside_the_robot_is_not_the_robot(
-    robot: Process, rb1_prefix: Path, tmp_path: Path
-) -> None:
+def test_an_edge_node_running_beside_the_robot_is_not_the_robot(rb1_prefix: Path, tmp_path: Path) -> None:
     """`td2adaptor run` publishes the door command the robot subscribes to: scaffolded without --node, the
-    door must stay the robot's write-only command, not become a read-only property of the edge node's."""
+    door must stay the robot's write-only command, not become a read-only property of the edge node's.
+    Robot, edge node and scaffold meet on a ROS domain of their own: on the worker's, an adaptor another test
+    left publishing the door would be a (non-td2adaptor) publisher of it."""
+    domain = {"ROS_DOMAIN_ID": str(env.private_domain_id())}
     gen = subprocess.run(
         [sys.executable, "-m", "td2adaptor", "gen", str(EXAMPLE / "td.json"), "-I", str(INTERFACES), "-b", "rclpy",
          "-o", str(tmp_path / "gen")],
@@ -161,11 +162,17 @@ def test_an_edge_node_running_beside_the_robot_is_not_the_robot(
     args = [str(EXAMPLE / "td.json"), "-I", str(INTERFACES), "--robot", ROBOT, "--bus", broker.url,
             "--package-path", str(tmp_path / "gen" / "rclpy" / result.model.package_name),
             "--prefix", str(rb1_prefix)]  # fmt: skip
-    run = RunProcess(args, env=env.child_env([rb1_prefix]))
+    robot = started(
+        [sys.executable, "-m", "examples.robotnik_rb1.sim.ros2", "--duration", "0.5", "--namespace", ROBOT],
+        {**env.child_env([rb1_prefix]), **domain},
+    )
+    run = RunProcess(args, env={**env.child_env([rb1_prefix]), **domain})
     try:
         run.wait_ready()
         done = scaffold(
-            ["ros2", "-I", str(INTERFACES), "--namespace", f"/{ROBOT}", "--namespace", "/door1"], tmp_path / "td.json"
+            ["ros2", "-I", str(INTERFACES), "--namespace", f"/{ROBOT}", "--namespace", "/door1"],
+            tmp_path / "td.json",
+            env={**env.child_env([rb1_prefix]), **domain},
         )
         assert done.code == 0, done.stderr
         doc = done.doc
@@ -176,12 +183,17 @@ def test_an_edge_node_running_beside_the_robot_is_not_the_robot(
         compare_with_example(doc, example_td(), "ros2")  # the robot's interface, and nothing of the edge node
         assert f"SCF115: left out td2adaptor's own node /td2adaptor_edge_{ROBOT}" in done.stderr, done.stderr
         # asked for by name, the edge node is scaffolded (what it publishes: the door, read from it)
-        done = scaffold(["ros2", "-I", str(INTERFACES), "--node", f"/td2adaptor_edge_{ROBOT}"], tmp_path / "edge.json")
+        done = scaffold(
+            ["ros2", "-I", str(INTERFACES), "--node", f"/td2adaptor_edge_{ROBOT}"],
+            tmp_path / "edge.json",
+            env={**env.child_env([rb1_prefix]), **domain},
+        )
         assert done.code == 0 and "SCF115" not in done.stderr, done.stderr
         assert done.doc is not None and done.doc["properties"]["command"]["readOnly"] is True
     finally:
         run.close()
         broker.stop()
+        robot.stop()
 
 
 def test_three_namespaced_robots_give_one_thing_model(fleet: Process, tmp_path: Path) -> None:

@@ -196,6 +196,7 @@ def test_hostile_titles_and_descriptions_stay_text(tmp_path: Path) -> None:
         "numpy.typing",
         "array",
         "os",
+        "uuid",  # runtime.py: a random goal id to probe an action server with
         "setuptools",
         "components",
         "common",
