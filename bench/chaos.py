@@ -326,6 +326,8 @@ def run_bad_phase(app: AppClient, sim: Process, count: int, seed: int) -> dict[s
         "examples": [],
     }
     ran_before = robot_calls(sim, robot)
+    with app.cond:
+        first = len(app.events)
     for bad in bad_events(robot, count, seed):
         with app.cond:
             mark = len(app.events)
@@ -349,6 +351,9 @@ def run_bad_phase(app: AppClient, sim: Process, count: int, seed: int) -> dict[s
         if bad.retain:  # clear it as docs/security.md says; the clearing message must not be answered
             app.client.publish(bad.topic, b"", qos=1, retain=True).wait_for_publish(10)
     time.sleep(1.0)
+    with app.cond:  # every bad event has exactly one envelope error event (the WoT error mirrors it)
+        errors = sum(1 for t, _ in app.events[first:] if t in envelope_answers)
+    outcome["extra"] = errors - outcome["sent"]
     outcome["robot_calls"] = robot_calls(sim, robot)
     outcome["robot_calls"].subtract(ran_before)
     outcome["robot_calls"] = +outcome["robot_calls"]
@@ -519,7 +524,8 @@ def main() -> int:
             bad_seconds = time.monotonic() - started
             print(
                 f"bad events: {bad['sent']} sent in {bad_seconds:.1f} s, {bad['answered']} answered, "
-                f"{sum(bad['unanswered'].values())} unanswered; calls reaching the robot {dict(bad['robot_calls'])}, "
+                f"{sum(bad['unanswered'].values())} unanswered, {bad['extra']} answers beyond one each; "
+                f"calls reaching the robot {dict(bad['robot_calls'])}, "
                 f"door commands {bad['door_commands']}"
             )
             for category, sent in sorted(bad["by_category"].items()):
@@ -585,6 +591,7 @@ def main() -> int:
             broker.stop()
     failed = (
         sum(bad["unanswered"].values()) > 0
+        or bad["extra"] != 0
         or sum(bad["robot_calls"].values()) > 0
         or bad["door_commands"] > 0
         or bool(total.lost)

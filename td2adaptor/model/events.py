@@ -445,7 +445,8 @@ def _state_payload(*, feedback: bool, output: Any = None) -> dict[str, Any]:
     }
     if feedback:
         props["seq"] = {
-            "description": "1, 2, ... per mission: a gap means a lost event, a repeat a redelivery.",
+            "description": "1, 2, ... per mission: a repeat is a redelivery; a gap is a lost event, or numbers "
+            "skipped by an edge node that restarted during a ROS action goal (reserved ahead, never reused).",
             "type": "integer",
             "minimum": 1,
         }

@@ -31,11 +31,14 @@ def time_names(distro: str) -> tuple[str, str]:
 
 
 def time_schema(distro: str, *, signed: bool = False, complete: bool = False) -> dict[str, Any]:
+    """A time (`signed`: a duration) as `distro` defines it: ROS 1's primitives are uint32 pairs (time) and
+    int32 pairs (duration); ROS 2's builtin_interfaces has an int32 `sec` and a uint32 `nanosec` in both."""
     secs, nsecs = time_names(distro)
     sec_type = "int32" if signed or distro == "ros2" else "uint32"
+    nsec_type = "int32" if signed and distro == "ros1" else "uint32"
     schema: dict[str, Any] = {
         "type": "object",
-        "properties": {secs: _scalar(sec_type), nsecs: _scalar("int32" if signed else "uint32")},
+        "properties": {secs: _scalar(sec_type), nsecs: _scalar(nsec_type)},
         "additionalProperties": False,
     }
     if complete:

@@ -9,6 +9,7 @@ from typing import Any
 
 import pytest
 
+import td2adaptor
 from tests.conftest import EXAMPLE, REPO
 from tests.scaffold.common import (
     INTERFACES,
@@ -317,3 +318,22 @@ def test_the_command_is_documented() -> None:
     for code in ("SCF100", "SCF103", "SCF104", "SCF109"):
         assert code in text
     assert "td2adaptor scaffold" in (REPO / "README.md").read_text(encoding="utf-8")
+
+
+def test_a_scaffolded_time_and_duration_agree_with_the_validator(tmp_path: Path) -> None:
+    """A new user's conveyor: the scaffold wrote a ROS 2 Duration's `nanosec` as an int32 and `validate` then
+    warned (XC611) that the TD it had just written contradicts the type (uint32). Both now read the type."""
+    package = tmp_path / "ifs" / "belt_msgs" / "msg"
+    package.mkdir(parents=True)
+    (package / "Timing.msg").write_text("duration max_wait\ntime stamp\n", encoding="utf-8")
+    listing = tmp_path / "belt.yaml"
+    listing.write_text("publishes:\n  /belt1/timing: belt_msgs/msg/Timing\n  /belt1/on: std_msgs/Bool\n", "utf-8")
+    done = scaffold([str(listing), "-I", str(tmp_path / "ifs")], tmp_path / "td.json")
+    assert done.code == 0, done.stderr
+    assert done.doc is not None
+    nanosec = done.doc["properties"]["timing"]["properties"]["max_wait"]["properties"]["nanosec"]
+    assert (nanosec["minimum"], nanosec["maximum"]) == (0, 2**32 - 1)
+    path = tmp_path / "check.td.json"
+    path.write_text(json.dumps(done.doc), encoding="utf-8")
+    result = td2adaptor.compile(path, interfaces=[tmp_path / "ifs"])
+    assert [d.code for d in result.diagnostics if d.code.startswith("XC")] == []

@@ -7,6 +7,7 @@ line longer than the line length is exploded one name per line, with a trailing 
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable
 
 from td2adaptor.backends._python.text import LINE
@@ -16,10 +17,11 @@ STDLIB = frozenset({"array", "collections", "typing"})
 
 
 def member_key(member: str) -> tuple[int, str, str]:
-    """isort's order-by-type for one imported name (`Name` or `Name as alias`)."""
+    """isort's order-by-type for one imported name (`Name` or `Name as alias`), numbers in natural order as
+    ruff compares them (`check_uint8` before `check_uint32`)."""
     name = member.split(" as ")[0]
     kind = 0 if name.isupper() and len(name) > 1 else 1 if name[:1].isupper() else 2
-    return kind, name.lower(), member
+    return kind, re.sub(r"\d+", lambda digits: digits[0].zfill(20), name.lower()), member
 
 
 def import_line(module: str, members: Iterable[str]) -> str:

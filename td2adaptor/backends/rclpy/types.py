@@ -97,9 +97,10 @@ class Param:
 
 
 def float_check(ftype: FieldType) -> str | None:
-    """The common.py function that checks a float field's value (its items: an array's): finite, and within the
-    float32 range for float32, so that no infinity reaches the robot."""
-    if ftype.is_message or ftype.base not in FLOATS:
+    """The common.py function that checks a number field's value (its items: an array's): a float finite, and
+    within the float32 range for float32, so that no infinity reaches the robot; an integer within its type's
+    range, since Jazzy's rosidl checks nothing by default and would carry 300 in a uint8 as 44."""
+    if ftype.is_message or ftype.base not in FLOATS | INTS:
         return None
     return f"check_{ftype.base}" + ("s" if ftype.array is not ArrayKind.NONE else "")
 
@@ -122,7 +123,7 @@ def param(field: MessageField, msg_name: str, converter: str | None, pyname: str
         convert = f"[{converter}(item) for item in {{v}}]"
     else:
         elem = SCALAR[ftype.base]
-        check = float_check(ftype)  # other arrays: rosidl checks and copies
+        check = float_check(ftype)  # other arrays (bool, text): rosidl copies them
         convert = f"{check}({{v}}, {{what}})" if check else "{v}"
         return Param(pyname, field.name, f"Sequence[{elem}] | None", "None", convert, True, check)
     return Param(pyname, field.name, f"Sequence[{elem}] | None", "None", convert, True)

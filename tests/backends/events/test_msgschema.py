@@ -86,3 +86,23 @@ def test_defaults_are_ros_defaults() -> None:
     }
     assert default_of(schema) == {"a": 0, "b": "", "c": False, "d": [0.0, 0.0, 0.0], "e": []}
     assert fill(schema, {"a": 5, "e": [1.0]}) == {"a": 5, "e": [1.0], "b": "", "c": False, "d": [0.0, 0.0, 0.0]}
+
+
+def test_time_and_duration_ranges_are_the_type_sets_own() -> None:
+    """ROS 2's Duration has a uint32 `nanosec` like Time (a negative one was let through to rclpy, whose C
+    conversion then failed with Python's internal words); ROS 1's `duration` is two int32s."""
+    from rosbags.typesys import Stores, get_typestore
+
+    from td2adaptor.rostypes.primitives import int_range
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    for name, signed in (("builtin_interfaces/msg/Time", False), ("builtin_interfaces/msg/Duration", True)):
+        schema = time_schema("ros2", signed=signed)["properties"]
+        for field, (_kind, (base, _)) in store.fielddefs[name][1]:
+            lo, hi = int_range(base, "ros2") or (None, None)
+            assert (schema[field]["minimum"], schema[field]["maximum"]) == (lo, hi), (name, field)
+    assert not _valid(time_schema("ros2", signed=True), {"sec": 1, "nanosec": -1})
+    assert _valid(time_schema("ros2", signed=True), {"sec": -1, "nanosec": 2**32 - 1})
+    ros1_duration = time_schema("ros1", signed=True)["properties"]
+    assert ros1_duration["nsecs"]["minimum"] == -(2**31) and ros1_duration["secs"]["minimum"] == -(2**31)
+    assert time_schema("ros1")["properties"]["nsecs"]["minimum"] == 0

@@ -359,7 +359,7 @@ def test_server_killed_mid_goal(master: Master, interfaces: Path, path: list[Pat
             "emit({'errors': errors, 'early': time.monotonic() - start < 30, 'done': goal.done})\n",
         )
     assert out == {
-        "errors": ["service /fibo_doomed/fibonacci is not available (the action server went away during the goal)"] * 2,
+        "errors": ["action /fibo_doomed/fibonacci is not available (the action server went away during the goal)"] * 2,
         "early": True,
         "done": False,
     }
@@ -376,7 +376,7 @@ def test_server_absent(master: Master, path: list[Path]) -> None:
         "except ServiceUnavailable as e:\n"
         "    emit(str(e))\n",
     )
-    assert out == "service /nobody_here/fibonacci is not available (no action server within 0.5 s)"
+    assert out == "action /nobody_here/fibonacci is not available (no action server within 0.5 s)"
 
 
 def test_invalid_goal_and_uninitialised_node(master: Master, path: list[Path]) -> None:

@@ -194,7 +194,7 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
             self._cond.wait(min(remaining, LIVENESS_PERIOD))
             missing = 0 if predicate() or self._server_alive() else missing + 1
             if missing >= 2:
-                raise ServiceUnavailable(self.action, "the action server went away during the goal")
+                raise ServiceUnavailable(self.action, "the action server went away during the goal", kind="action")
 
     def result(self, timeout: float | None = None) -> ResultT:
         """Wait at most `timeout` seconds (default: the component's timeout) for the goal to end; its result.
@@ -385,15 +385,15 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
         deadline = time.monotonic() + wait_timeout
         while not self.server_ready():
             if rospy.is_shutdown():
-                raise ServiceUnavailable(self.name, "rospy is shutting down")
+                raise ServiceUnavailable(self.name, "rospy is shutting down", kind="action")
             remaining = deadline - time.monotonic()
             if remaining <= 0:
-                raise ServiceUnavailable(self.name, f"no action server within {wait_timeout:g} s")
+                raise ServiceUnavailable(self.name, f"no action server within {wait_timeout:g} s", kind="action")
             time.sleep(min(POLL_PERIOD, remaining))
         handle: GoalHandle[ResultT, FeedbackT] = GoalHandle(self.name, timeout, self.server_connected)
         client = self._client
         if client is None:  # closed by another thread meanwhile
-            raise ServiceUnavailable(self.name, "the client was closed")
+            raise ServiceUnavailable(self.name, "the client was closed", kind="action")
         with self._goals_lock:
             raw = client.send_goal(goal, transition_cb=handle.transition)
             handle.attach(raw)
@@ -401,7 +401,7 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
         if not handle.wait_taken_up(timeout):
             raw.cancel()  # the server may take it up later: nobody would follow it
             if not self.server_ready():
-                raise ServiceUnavailable(self.name, f"the server went away within {timeout:g} s")
+                raise ServiceUnavailable(self.name, f"the server went away within {timeout:g} s", kind="action")
             raise CallTimeout(self.name, timeout)
         if handle.status == "rejected":
             raise GoalRejected(self.name, handle.reason)

@@ -125,6 +125,74 @@ def _finite(value: float, field: str, limit: float, kind: str) -> float:
     raise ValueError(f"{field} must be a finite{kind} number, at most {limit!r} in magnitude, not {number!r}")
 
 
+#: each ROS integer type's range (`char` is a uint8 in ROS 2): rclpy's messages of Jazzy check a field only with
+#: ROS_PYTHON_CHECK_FIELDS=1 and otherwise carry 300 in a uint8 to the robot as 44
+_INT_RANGES = {
+    "char": (0, 2**8 - 1),
+    "int8": (-(2**7), 2**7 - 1),
+    "uint8": (0, 2**8 - 1),
+    "int16": (-(2**15), 2**15 - 1),
+    "uint16": (0, 2**16 - 1),
+    "int32": (-(2**31), 2**31 - 1),
+    "uint32": (0, 2**32 - 1),
+    "int64": (-(2**63), 2**63 - 1),
+    "uint64": (0, 2**64 - 1),
+}
+
+
+def _integer(value: int, field: str, base: str) -> int:
+    index = getattr(type(value), "__index__", None)  # an int, a bool or a numpy integer; not a float or a text
+    if index is None:
+        raise TypeError(f"{field} must be an integer, not {type(value).__name__}")
+    number: int = index(value)
+    low, high = _INT_RANGES[base]
+    if low <= number <= high:
+        return number
+    raise ValueError(f"{field} must be an integer within {low}..{high} ({base}), not {number}")
+
+
+def _integers(values: Iterable[int], field: str, base: str) -> Iterable[int]:
+    if isinstance(values, (bytes, bytearray)) and base in ("uint8", "char"):
+        return values  # every byte is a uint8: passed on as it is (an image's data need not be copied)
+    return [_integer(value, f"{field}[{i}]", base) for i, value in enumerate(values)]
+
+
+def _integer_check(base: str) -> Callable[[int, str], int]:
+    def check(value: int, field: str) -> int:
+        return _integer(value, field, base)
+
+    return check
+
+
+def _integers_check(base: str) -> Callable[[Iterable[int], str], Iterable[int]]:
+    def check(values: Iterable[int], field: str) -> Iterable[int]:
+        return _integers(values, field, base)
+
+    return check
+
+
+#: an integer field's value (`s`: an array's items; bytes pass into a uint8 array as they are): an integer within
+#: the field type's range, never wrapped; a ValueError (a TypeError for a float or a text) naming the field
+check_char = _integer_check("char")
+check_int8 = _integer_check("int8")
+check_uint8 = _integer_check("uint8")
+check_int16 = _integer_check("int16")
+check_uint16 = _integer_check("uint16")
+check_int32 = _integer_check("int32")
+check_uint32 = _integer_check("uint32")
+check_int64 = _integer_check("int64")
+check_uint64 = _integer_check("uint64")
+check_chars = _integers_check("char")
+check_int8s = _integers_check("int8")
+check_uint8s = _integers_check("uint8")
+check_int16s = _integers_check("int16")
+check_uint16s = _integers_check("uint16")
+check_int32s = _integers_check("int32")
+check_uint32s = _integers_check("uint32")
+check_int64s = _integers_check("int64")
+check_uint64s = _integers_check("uint64")
+
+
 class Callbacks(Generic[MessageT]):
     """The callbacks of one topic: added and removed from any thread while messages arrive in another."""
 

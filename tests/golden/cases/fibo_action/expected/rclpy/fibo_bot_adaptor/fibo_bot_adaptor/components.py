@@ -11,7 +11,7 @@ from rclpy.node import Node
 from std_msgs.msg import String
 from test_msgs.action import Fibonacci
 
-from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, check_robot_name, check_timeout, in_namespace
+from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, check_int32, check_robot_name, check_timeout, in_namespace
 from .runtime import ActionGoalClient, GoalHandle, TopicSubscriber, qos_profile
 
 
@@ -80,7 +80,7 @@ class MathComponent:
         fields (nested too), arrays as any sequence; None keeps the field's ROS default.
         """
         return Fibonacci.Goal(
-            order=order,
+            order=check_int32(order, "order"),
         )
 
     def send_fibonacci(

@@ -12,7 +12,7 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Vector3
 from std_msgs.msg import Header
 
-from .common import check_float64
+from .common import check_float64, check_int32, check_uint32
 
 
 def check_fields(value: object, names: tuple[str, ...], type_name: str) -> None:
@@ -31,9 +31,9 @@ def to_builtin_interfaces_Time(value: Time | Mapping[str, Any]) -> Time:
     check_fields(value, ("sec", "nanosec"), "builtin_interfaces/msg/Time")
     fields: dict[str, Any] = {}
     if "sec" in value:
-        fields["sec"] = value["sec"]
+        fields["sec"] = check_int32(value["sec"], "builtin_interfaces/msg/Time.sec")
     if "nanosec" in value:
-        fields["nanosec"] = value["nanosec"]
+        fields["nanosec"] = check_uint32(value["nanosec"], "builtin_interfaces/msg/Time.nanosec")
     return Time(**fields)
 
 

@@ -14,7 +14,7 @@ from procedures_msgs.msg import ProcedureHeader
 from robot_local_control_msgs.msg import GoTo, Pick, Place, Pose2DStamped, Twist2D
 from std_msgs.msg import Header
 
-from .common import check_float64
+from .common import check_float64, check_int32, check_uint32
 
 
 def check_fields(value: object, names: tuple[str, ...], type_name: str) -> None:
@@ -33,9 +33,9 @@ def to_builtin_interfaces_Time(value: Time | Mapping[str, Any]) -> Time:
     check_fields(value, ("sec", "nanosec"), "builtin_interfaces/msg/Time")
     fields: dict[str, Any] = {}
     if "sec" in value:
-        fields["sec"] = value["sec"]
+        fields["sec"] = check_int32(value["sec"], "builtin_interfaces/msg/Time.sec")
     if "nanosec" in value:
-        fields["nanosec"] = value["nanosec"]
+        fields["nanosec"] = check_uint32(value["nanosec"], "builtin_interfaces/msg/Time.nanosec")
     return Time(**fields)
 
 
@@ -61,9 +61,9 @@ def to_procedures_msgs_ProcedureHeader(value: ProcedureHeader | Mapping[str, Any
     check_fields(value, ("id", "priority", "stamp", "name"), "procedures_msgs/msg/ProcedureHeader")
     fields: dict[str, Any] = {}
     if "id" in value:
-        fields["id"] = value["id"]
+        fields["id"] = check_int32(value["id"], "procedures_msgs/msg/ProcedureHeader.id")
     if "priority" in value:
-        fields["priority"] = value["priority"]
+        fields["priority"] = check_int32(value["priority"], "procedures_msgs/msg/ProcedureHeader.priority")
     if "stamp" in value:
         fields["stamp"] = to_builtin_interfaces_Time(value["stamp"])
     if "name" in value:

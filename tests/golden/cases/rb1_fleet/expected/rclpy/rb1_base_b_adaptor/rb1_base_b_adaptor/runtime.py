@@ -1102,7 +1102,7 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
                     probe.cancel()  # an answer will not come: leave no request pending in rclpy
                 self._probes = []
         if self._gone:
-            raise ServiceUnavailable(self.action, self._gone)
+            raise ServiceUnavailable(self.action, self._gone, kind="action")
 
     def _probe(self, now: float) -> None:
         """Ask the server for the result of a goal it does not have (a random id): it answers at once, with
@@ -1348,7 +1348,7 @@ class _SentGoal(Generic[ResultT, FeedbackT]):
         if not answered:
             self.future.add_done_callback(self._cancel_late)
             if not cast(_ActionClientApi, self.client).server_is_ready():
-                raise ServiceUnavailable(name, f"the server went away within {timeout:g} s")
+                raise ServiceUnavailable(name, f"the server went away within {timeout:g} s", kind="action")
             raise CallTimeout(name, timeout)
         error = self.future.exception()
         if error is not None:
@@ -1413,7 +1413,7 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
         while not server_is_ready():
             remaining = deadline - time.monotonic()
             if remaining <= 0:
-                raise ServiceUnavailable(self.name, f"no action server within {wait_timeout:g} s")
+                raise ServiceUnavailable(self.name, f"no action server within {wait_timeout:g} s", kind="action")
             time.sleep(min(POLL_PERIOD, remaining))
         sent = _SentGoal[ResultT, FeedbackT](self, client, goal)
         return sent.handle(timeout, _wait(sent.future, timeout, client))
@@ -1424,6 +1424,6 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
         client = self._client()
         server_is_ready = cast(_ActionClientApi, client).server_is_ready
         if not server_is_ready() and not await _ready_within(self.node, server_is_ready, wait_timeout, self._group):
-            raise ServiceUnavailable(self.name, f"no action server within {wait_timeout:g} s")
+            raise ServiceUnavailable(self.name, f"no action server within {wait_timeout:g} s", kind="action")
         sent = _SentGoal[ResultT, FeedbackT](self, client, goal)
         return sent.handle(timeout, await _within(self.node, sent.future, timeout, self._group))

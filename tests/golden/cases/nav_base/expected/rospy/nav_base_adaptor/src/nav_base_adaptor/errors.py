@@ -30,10 +30,11 @@ class InvalidMessage(AdaptorError, TypeError):
 
 
 class ServiceUnavailable(AdaptorError):
-    """No server offered the service in time, or the connection to it could not be made or was lost."""
+    """No server offered the service (`kind` "action": the ROS action) in time, or the connection to it could
+    not be made or was lost."""
 
-    def __init__(self, service: str, reason: str) -> None:
-        super().__init__(f"service {service} is not available ({reason})")
+    def __init__(self, service: str, reason: str, *, kind: str = "service") -> None:
+        super().__init__(f"{kind} {service} is not available ({reason})")
         self.service = service
         self.reason = reason
 
