@@ -185,8 +185,14 @@ _ENTRIES: tuple[Entry, ...] = (
     Entry("ROS421", (_E,), "type kind does not fit the ROS interface (msg for topics, srv for services)"),
     Entry("ROS422", (_W,), "declared class name does not match the ROS type"),
     Entry("ROS423", (_E,), "unknown ROS type", "add its definition with --interfaces DIR"),
-    Entry("ROS424", (_W,), "ROS type not known for one ROS version: that version's backends cannot use it"),
-    Entry("ROS426", (_W,), "type used by the interface definitions not known for one ROS version"),
+    Entry(
+        "ROS424",
+        (_W, _E),
+        "ROS type usable with one ROS version only (the other does not define it, or a type it uses, or cannot "
+        "read its file): the other version's backends cannot use it",
+        None,
+        "error when neither version can use it",
+    ),
     Entry("ROS427", (_W,), "type written in a ROS 1 or rosjava spelling", "write pkg/msg/Name (srv, action)"),
     Entry(
         "ROS428",
@@ -333,7 +339,12 @@ _ENTRIES: tuple[Entry, ...] = (
     Entry("GEN822", (_E,), "rclpy backend: generated method names clash", "rename one of the affordances"),
     Entry("GEN840", (_E,), "rospy backend cannot express a message field"),
     Entry("GEN841", (_E,), "rospy backend: a component would define a name twice"),
-    Entry("GEN842", (_E,), "rospy backend: ROS 1 types not found", "add their definitions with --interfaces"),
+    Entry(
+        "GEN842",
+        (_E,),
+        "rospy backend: a type ROS 1 cannot use (not found, or for ROS 2 only: the message says why)",
+        "add definitions ROS 1 can build with --interfaces, or use the rclpy backend",
+    ),
     # -- SCF1: scaffolding a TD from a robot ------------------------------------------------------------
     Entry("SCF100", (_E,), "scaffold source cannot be read (bag or listing missing, unreadable or malformed)"),
     Entry("SCF101", (_E,), "the ROS graph cannot be read (no rclpy, no ROS 1 master at the URI)"),
@@ -432,7 +443,7 @@ _ENTRIES: tuple[Entry, ...] = (
         "error when the generated names collide",
     ),
     Entry("MROS930", (_W,), "no property bound to a topic: only a README is generated"),
-    Entry("MROS931", (_E,), "ROS 1 message types not found"),
+    Entry("MROS931", (_E,), "a topic's message type ROS 1 cannot use (not found, or for ROS 2 only)"),
     Entry("MROS932", (_E,), "field type ROS 1 lacks, e.g. wstring"),
     Entry("MROS933", (_W,), "constant C++ cannot hold (non-finite float) or of an unknown type: left out"),
 )

@@ -12,8 +12,9 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from td2adaptor.diagnostics import Diagnostics, Severity, pointer_join
+from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity, pointer_join
 from td2adaptor.frontend.extract import BINDING, REFERENCE, RawEndpoint, obj
+from td2adaptor.lowering.distros import BACKENDS, DISTROS, LABELS, Loss, loss, other, split_problems, usable
 from td2adaptor.lowering.procstate import READING_KEYS, RoleInfo, check_reading, parse_reading
 from td2adaptor.lowering.rosnames import (
     BINDING_PLACEHOLDER,
@@ -44,8 +45,6 @@ from td2adaptor.model import (
 
 if TYPE_CHECKING:
     from td2adaptor.rostypes.registry import TypeRegistry
-
-DISTROS = ("ros1", "ros2")
 
 #: ROS name suffixes and affordance-name suffixes that identify procedure roles in the reference dialect.
 _RUN_SUFFIXES = ("/add",)
@@ -120,9 +119,13 @@ def lower(
     groups = _group(endpoints, diags)
     procedures = {g.name: _procedures(g, diags) for g in groups}
     found = Diagnostics()
-    regs = registries if registries is not None else _registries(interface_dirs, found)
-    tables = _resolve_types(endpoints, regs, diags)
-    _report_interface_problems(found, endpoints, tables, diags)
+    own: dict[str, list[Diagnostic]] = {d: [] for d in DISTROS}
+    if registries is not None:
+        regs = registries
+    else:
+        regs, own = _registries(interface_dirs, found)
+    tables, closures = _resolve_types(endpoints, regs, own, diags)
+    _report_interface_problems(found, endpoints, closures, diags)
     for g in groups:
         procedures[g.name] = tuple(_mission_ids(g, procedures[g.name], tables, diags))
         procedures[g.name] = tuple(check_reading(proc, _roles(g, proc), tables, diags) for proc in procedures[g.name])
@@ -556,13 +559,18 @@ def _mission_ids(
 # types
 
 
-def _registries(interface_dirs: Sequence[Path], diags: Diagnostics) -> dict[str, TypeRegistry]:
+def _registries(
+    interface_dirs: Sequence[Path], found: Diagnostics
+) -> tuple[dict[str, TypeRegistry], dict[str, list[Diagnostic]]]:
+    """Both versions' registries; the interface folders' problems both versions share (and ROS 1's warnings)
+    go to `found`, each version's own errors come back beside the registries (see `distros`)."""
     from td2adaptor.rostypes.registry import TypeRegistry
 
-    # user-file problems are the same for both distros: report them once
-    regs = {"ros1": TypeRegistry("ros1", interface_dirs, diags)}
-    regs["ros2"] = TypeRegistry("ros2", interface_dirs, Diagnostics())
-    return regs
+    per = {d: Diagnostics() for d in DISTROS}
+    regs = {d: TypeRegistry(d, interface_dirs, per[d]) for d in DISTROS}  # type: ignore[arg-type]
+    shared, own = split_problems(per)
+    found.extend(shared)
+    return regs, own
 
 
 def _report_interface_problems(
@@ -621,18 +629,24 @@ def _where_to_find(type_name: str) -> str:
 
 
 def _resolve_types(
-    endpoints: Sequence[_Endpoint], regs: Mapping[str, TypeRegistry], diags: Diagnostics
-) -> dict[str, TypeTable]:
+    endpoints: Sequence[_Endpoint],
+    regs: Mapping[str, TypeRegistry],
+    own: Mapping[str, Sequence[Diagnostic]],
+    diags: Diagnostics,
+) -> tuple[dict[str, TypeTable], dict[str, TypeTable]]:
+    """Per version: the table of the types it can use (with every message they use; the others `missing`,
+    with the reason in `unavailable`), and the table of everything the TD names, usable or not (which
+    interface files the TD needs)."""
     names = list(dict.fromkeys(ep.type_name for ep in endpoints))
-    tables = {d: regs[d].table(names) for d in DISTROS}
-    tables["ros1"] = _with_digests(tables["ros1"], regs["ros1"])
+    fits = {d: {n: usable(regs[d], n) for n in names} for d in DISTROS}
+    losses: dict[str, dict[str, Loss]] = {d: {} for d in DISTROS}
     reported: set[str] = set()
     for ep in endpoints:
-        missing = [d for d in DISTROS if tables[d].get(ep.type_name) is None]
-        if not missing or ep.type_name in reported:
+        bad = [d for d in DISTROS if not fits[d][ep.type_name]]
+        if not bad or ep.type_name in reported:
             continue
         reported.add(ep.type_name)
-        if len(missing) == len(DISTROS):
+        if all(regs[d].resolve(ep.type_name) is None for d in DISTROS):
             close = regs["ros2"].closest(ep.type_name) or regs["ros1"].closest(ep.type_name)
             diags.error(
                 "ROS423",
@@ -642,21 +656,40 @@ def _resolve_types(
                 + "; "
                 + _where_to_find(ep.type_name),
             )
-        else:
-            backends = "rospy and mROS" if missing == ["ros1"] else "rclpy"
+            continue
+        lost = {d: loss(ep.type_name, d, regs, own[d]) for d in bad}
+        what = f"{ep.raw.kind} {ep.raw.name!r}: type {ep.type_name!r}"
+        if len(bad) == 1:
+            d = bad[0]
+            losses[d][ep.type_name] = lost[d]
             diags.warning(
                 "ROS424",
-                f"{ep.raw.kind} {ep.raw.name!r}: type {ep.type_name!r} is not known for "
-                f"{'ROS 1' if missing == ['ros1'] else 'ROS 2'}; the {backends} backends cannot use it",
+                f"{what} is for {LABELS[other(d)]} only: {lost[d].reason}; {BACKENDS[d]} cannot use it",
+                ep.raw.type_name.pointer,
+                lost[d].hint,
+            )
+        elif all(found.specific for found in lost.values()):
+            diags.error(
+                "ROS424",
+                f"{what} can be used with neither ROS version: "
+                + "; ".join(f"{LABELS[d]}: {lost[d].reason}" for d in DISTROS),
                 ep.raw.type_name.pointer,
             )
+        # otherwise a problem of the interface files both versions find says why, as an error of its own
     _name_standard_packages(endpoints, regs["ros2"], diags)
-    # message types referenced inside resolved definitions but missing for a distro
+    closures = {d: regs[d].table(names) for d in DISTROS}
+    tables = {}
     for d in DISTROS:
-        for name in tables[d].missing:
-            if name not in names:
-                diags.warning("ROS426", f"type {name!r} used by the interface definitions is not known for {d}")
-    return tables
+        table = regs[d].table([n for n in names if fits[d][n]])
+        rest = [n for n in names if not fits[d][n]]
+        missing = [*table.missing, *rest, *(regs[d].table(rest).missing if rest else ())]
+        tables[d] = replace(
+            table,
+            missing=tuple(dict.fromkeys(missing)),
+            unavailable=tuple((n, found.reason) for n, found in losses[d].items()),
+        )
+    tables["ros1"] = _with_digests(tables["ros1"], regs["ros1"])
+    return tables, closures
 
 
 def _standard_packages(tables: Mapping[str, TypeTable], regs: Mapping[str, TypeRegistry]) -> tuple[str, ...]:

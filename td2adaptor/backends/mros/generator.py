@@ -617,6 +617,16 @@ def plan(model: Model, options: GenOptions, diags: Diagnostics) -> Plan | None:
             "(only README.md is generated)",
         )
         return Plan(root, base, empty=True)
+    unusable = [(what, ep, why) for what, ep, why in model.unusable("ros1") if ep in topics]
+    for what, ep, why in unusable:
+        diags.error(
+            "MROS931",
+            f"mros backend: {what} cannot be generated: its type {ep.type_name} is for ROS 2 only ({why})",
+            ep.pointer,
+            hint="for ROS 1, give a definition ROS 1 can build with --interfaces",
+        )
+    if unusable:
+        return None
     table = model.ros1
     roots = list(dict.fromkeys(t.type_name for t in topics))
     names, missing = closure(table, roots)
