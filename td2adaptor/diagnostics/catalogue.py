@@ -209,6 +209,12 @@ _ENTRIES: tuple[Entry, ...] = (
     Entry("ROS430", (_E,), "component name unusable as a class name", "use a CamelCase name"),
     Entry("ROS431", (_E,), "affordance name unusable in generated method names"),
     Entry("ROS432", (_E,), "package name is not a valid ROS package name"),
+    Entry(
+        "ROS433",
+        (_E,),
+        "interface type name too long: no file system could hold its definition file (255 bytes per name)",
+        "give the type's real name",
+    ),
     Entry("ROS440", (_I,), "procedure linkage derived from names", "'td2adaptor migrate' writes rosv:procedure"),
     Entry("ROS441", (_E,), "malformed rosv:procedure"),
     Entry("ROS442", (_E,), "procedure link target is not an action of the component"),

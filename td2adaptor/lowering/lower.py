@@ -176,7 +176,7 @@ def _check_unbound_actions(td: Mapping[str, Any], raws: Sequence[RawEndpoint], d
 
 
 def _endpoint(raw: RawEndpoint, diags: Diagnostics) -> _Endpoint | None:
-    from td2adaptor.rostypes.names import hidden_action_part, normalize_type_name
+    from td2adaptor.rostypes.names import file_name_problem, hidden_action_part, normalize_type_name
 
     what = f"{raw.kind} {raw.name!r}"
     ok = True
@@ -230,6 +230,15 @@ def _endpoint(raw: RawEndpoint, diags: Diagnostics) -> _Endpoint | None:
             raw.type_name.pointer,
         )
         ok = False
+    elif (too_long := file_name_problem(type_name)) is not None:
+        diags.error(
+            "ROS433",
+            f"{what}: type {type_name[:40] + '…'!r} ({len(type_name)} characters) cannot be an interface type: "
+            f"{too_long}",
+            raw.type_name.pointer,
+            "give the type's real name (pkg/msg/Name, pkg/srv/Name or pkg/action/Name)",
+        )
+        return None
     else:
         _check_declared(raw, type_name, diags)
         if raw.dialect == BINDING and raw.type_name.value.strip() != type_name:
@@ -621,8 +630,11 @@ def _where_to_find(type_name: str) -> str:
     package, kind, name = parts
     for prefix in _prefixes():
         file = prefix / "share" / package / kind / f"{name}.{kind}"
-        if file.is_file():
-            return f"{file} defines it: add --interfaces {file.parent.parent}"
+        try:
+            if file.is_file():
+                return f"{file} defines it: add --interfaces {file.parent.parent}"
+        except OSError:  # a prefix we may not read: it defines nothing we could use
+            continue
     if kind == "action":
         return f"add its definition with --interfaces DIR, a folder holding {package}/action/{name}.action"
     return "add its definition with --interfaces DIR"
