@@ -239,6 +239,12 @@ _ENTRIES: tuple[Entry, ...] = (
         "a procedure without a query: only its start can be reported",
         "link a query action whose response carries the state",
     ),
+    Entry(
+        "ROS449",
+        (_E,),
+        "rosv:procedure on an action bound to a ROS action, which has its own goal states, feedback and cancel",
+        "remove rosv:procedure",
+    ),
     # -- TY5: ROS interface types ------------------------------------------------------------------------
     Entry("TY500", (_E,), "interface folder not found"),
     Entry("TY501", (_W,), "interface folder contains no .msg/.srv/.action files", "use <pkg>/msg/*.msg etc."),

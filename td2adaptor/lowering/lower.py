@@ -364,6 +364,16 @@ def _group(endpoints: Sequence[_Endpoint], diags: Diagnostics) -> list[_Group]:
 
 
 def _procedures(group: _Group, diags: Diagnostics) -> tuple[Procedure, ...]:
+    for ep in group.endpoints:
+        if ep.raw.interface is Interface.ACTION and ep.raw.procedure is not None:
+            diags.error(
+                "ROS449",
+                f"action {ep.raw.name!r} is bound to a ROS action: rosv:procedure links services into a procedure, "
+                "and a ROS action has its own goal states, feedback and cancel, so the procedure would be ignored",
+                ep.raw.procedure.pointer,
+                "remove rosv:procedure: the edge node follows the goal itself (its query and cancel events: "
+                "docs/binding.md)",
+            )
     services = {ep.raw.name: ep for ep in group.endpoints if ep.raw.interface is Interface.SERVICE}
     explicit = [ep for ep in services.values() if ep.raw.procedure is not None]
     derived_from_names = all(ep.raw.dialect == REFERENCE for ep in services.values())
@@ -416,9 +426,15 @@ def _explicit_procedure(
             continue
         tptr = pointer_join(loc.pointer, key)
         if not isinstance(target, str) or target not in services:
+            ros_action = any(e.raw.name == target and e.raw.interface is Interface.ACTION for e in group.endpoints)
             diags.error(
                 "ROS442",
-                f"action {ep.raw.name!r}: procedure {key} {target!r} is not an action of component {group.name!r}",
+                f"action {ep.raw.name!r}: procedure {key} {target!r} "
+                + (
+                    "is bound to a ROS action, not a service"
+                    if ros_action
+                    else f"is not an action of component {group.name!r}"
+                ),
                 tptr,
                 "name an action bound to a ROS service in the same rosv:component",
             )
