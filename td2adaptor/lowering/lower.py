@@ -228,6 +228,7 @@ def _endpoint(raw: RawEndpoint, diags: Diagnostics) -> _Endpoint | None:
             "ROS421",
             f"{what}: a ROS {raw.interface.value} needs a {kind} type, not {type_name!r}",
             raw.type_name.pointer,
+            _interface_hint(raw, type_name.split("/")[1]),
         )
         ok = False
     elif (too_long := file_name_problem(type_name)) is not None:
@@ -253,6 +254,20 @@ def _endpoint(raw: RawEndpoint, diags: Diagnostics) -> _Endpoint | None:
         return None
     # other problems were reported; keep going so type resolution can report its own too
     return _Endpoint(raw, component, ros_name, type_name, errors=not ok)
+
+
+def _interface_hint(raw: RawEndpoint, kind: str) -> str:
+    """ROS421's way out: the binding that fits a `kind` type on this affordance."""
+    if raw.kind == "action" and kind == "action":
+        return (
+            'to bind a ROS action, add "rosv:interface": "action" to the form (the goal is the input, the '
+            "result the output)"
+        )
+    if raw.kind == "action" and kind == "srv":
+        return 'to bind a service, remove "rosv:interface": "action" from the form'
+    if raw.kind == "action":
+        return 'an action binds a service (pkg/srv/Name) or, with "rosv:interface": "action", a pkg/action/Name'
+    return f"a {raw.kind} binds a topic: pkg/msg/Name"
 
 
 def _check_relative_names(endpoints: Sequence[_Endpoint], diags: Diagnostics) -> None:

@@ -164,7 +164,20 @@ def test_action_type_for_a_service_binding_is_refused(tmp_path: Path) -> None:
     del td["actions"]["fibonacci"]["forms"][0]["rosv:interface"]
     result = compile_td(tmp_path, td)
     assert result.model is None
-    assert "ROS421" in codes(result, Severity.ERROR)
+    (found,) = [d for d in result.diagnostics if d.code == "ROS421"]
+    assert found.severity is Severity.ERROR and found.pointer == "/actions/fibonacci/forms/0/rosv:type"
+    assert found.hint == (
+        'to bind a ROS action, add "rosv:interface": "action" to the form (the goal is the input, the result the '
+        "output)"
+    )
+
+
+def test_a_service_type_for_an_action_binding_says_how_to_bind_a_service(tmp_path: Path) -> None:
+    td = action_td()
+    td["actions"]["fibonacci"]["forms"][0]["rosv:type"] = "std_srvs/srv/Trigger"
+    result = compile_td(tmp_path, td)
+    (found,) = [d for d in result.diagnostics if d.code == "ROS421"]
+    assert found.hint == 'to bind a service, remove "rosv:interface": "action" from the form'
 
 
 def test_ros1_robot_gets_no_action_warning(tmp_path: Path) -> None:
