@@ -98,7 +98,11 @@ def _gen_options(f: Any) -> Any:
         help="Output directory; each backend writes OUT/<backend>/ (default: generated).",
     )(f)
     f = click.option("--package-name", help="Override the ROS package name derived from the Thing title.")(f)
-    f = click.option("--partial", is_flag=True, help="Skip what a backend cannot express, with a warning each.")(f)
+    f = click.option(
+        "--partial",
+        is_flag=True,
+        help="Skip what a backend cannot express, and warn (mROS: one warning lists the skipped actions).",
+    )(f)
     f = click.option(
         "--option",
         "backend_options",

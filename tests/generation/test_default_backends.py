@@ -96,3 +96,13 @@ def test_every_backend_code_names_its_backend() -> None:
     assert {code for code, owner in owners.items() if owner == "rospy"} == {"GEN840", "GEN841", "GEN842"}
     assert all(owners[code] == "mros" for code in owners if code.startswith("MROS"))
     assert owners["GEN805"] is None and owners["GEN802"] is None
+
+
+def test_the_readme_first_command_says_the_configured_skip_once(tmp_path: Path) -> None:
+    """The project's own configuration (partial mROS target): the nine skipped services are one line."""
+    result = CliRunner().invoke(
+        cli, ["gen", "--config", str(REPO / "pyproject.toml"), "-o", str(tmp_path / "out"), "--no-cache"]
+    )
+    assert result.exit_code == 0, result.output
+    skipped = [line for line in result.output.splitlines() if "MROS900" in line]
+    assert len(skipped) == 1 and "skipped 9 actions bound to services (--partial; mROS 1 has none)" in skipped[0]
