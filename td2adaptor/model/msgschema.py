@@ -33,9 +33,11 @@ def time_names(distro: str) -> tuple[str, str]:
 def time_schema(distro: str, *, signed: bool = False, complete: bool = False) -> dict[str, Any]:
     secs, nsecs = time_names(distro)
     sec_type = "int32" if signed or distro == "ros2" else "uint32"
+    # ROS 1's duration has signed nanoseconds; ROS 2's builtin_interfaces Time and Duration have uint32 nanosec
+    nsec_type = "int32" if signed and distro == "ros1" else "uint32"
     schema: dict[str, Any] = {
         "type": "object",
-        "properties": {secs: _scalar(sec_type), nsecs: _scalar("int32" if signed else "uint32")},
+        "properties": {secs: _scalar(sec_type), nsecs: _scalar(nsec_type)},
         "additionalProperties": False,
     }
     if complete:
