@@ -6,6 +6,7 @@
 set -euo pipefail
 
 SUDO="${SUDO-}"
+. "$(dirname "${BASH_SOURCE[0]}")/apt.sh"  # apt_install: waits for another apt's locks
 PACKAGES=(mosquitto mosquitto-clients openssl)  # openssl: the TLS tests make their own certificates
 
 if ! command -v apt-get >/dev/null; then
@@ -29,8 +30,7 @@ if [ "${#missing[@]}" -gt 0 ]; then
     policy_added=1
   fi
   log="$(mktemp)"
-  if ! { $SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq \
-      --no-install-recommends "${missing[@]}"; } >"$log" 2>&1; then
+  if ! { apt_install "${missing[@]}"; } >"$log" 2>&1; then
     cat "$log" >&2; rm -f "$log"
     if [ "$policy_added" = 1 ]; then $SUDO rm -f /usr/sbin/policy-rc.d; fi
     echo "setup-mqtt: installing ${missing[*]} failed" >&2

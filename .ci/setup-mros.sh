@@ -7,6 +7,7 @@
 #           (tests/backends/mros/real_tree.py; the tree itself is test material beside the repository)
 set -euo pipefail
 SUDO="${SUDO-}"
+. "$(dirname "${BASH_SOURCE[0]}")/apt.sh"  # apt_install: waits for another apt's locks
 
 want=(g++ make gcc-arm-none-eabi binutils-arm-none-eabi libnewlib-arm-none-eabi libstdc++-arm-none-eabi-dev
       libstdc++-arm-none-eabi-newlib
@@ -21,8 +22,7 @@ if [ "${#missing[@]}" -gt 0 ]; then
     echo "setup-mros: please install these packages yourself: ${missing[*]}" >&2; exit 1
   fi
   log="$(mktemp)"
-  if ! { $SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq \
-         --no-install-recommends "${missing[@]}"; } >"$log" 2>&1; then
+  if ! { apt_install "${missing[@]}"; } >"$log" 2>&1; then
     cat "$log" >&2; rm -f "$log"
     echo "setup-mros: installing ${missing[*]} failed" >&2; exit 1
   fi

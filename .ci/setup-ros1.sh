@@ -6,6 +6,7 @@
 set -euo pipefail
 
 SUDO="${SUDO-}"
+. "$(dirname "${BASH_SOURCE[0]}")/apt.sh"  # apt_install: waits for another apt's locks
 PACKAGES=(
   python3-rospy python3-rosmaster python3-std-srvs python3-std-msgs
   python3-genpy python3-genmsg python3-catkin-pkg
@@ -29,8 +30,7 @@ done
 if [ "${#missing[@]}" -gt 0 ]; then
   log="$(mktemp)"
   trap 'rm -f "$log"' EXIT
-  if ! { $SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq \
-         --no-install-recommends "${missing[@]}"; } >"$log" 2>&1; then
+  if ! { apt_install "${missing[@]}"; } >"$log" 2>&1; then
     cat "$log" >&2
     echo "setup-ros1: could not install ${missing[*]}" >&2
     exit 1

@@ -7,6 +7,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SUDO="${SUDO-}"
+. "$(dirname "${BASH_SOURCE[0]}")/apt.sh"  # apt_install: waits for another apt's locks
 
 if [ ! -x .venv/bin/python ]; then
   echo "setup-ros2: run .ci/setup.sh first (no .venv)" >&2
@@ -30,8 +31,7 @@ if [ "${#missing[@]}" -gt 0 ]; then
   if ! command -v apt-get >/dev/null; then
     echo "setup-ros2: please install these packages yourself: ${missing[*]}" >&2; exit 1
   fi
-  $SUDO apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+  apt_install "${missing[@]}" >/dev/null
 fi
 
 # Quiet, but show pip's output when it fails.

@@ -15,17 +15,17 @@ done
 
 SUDO=""
 if [ "$(id -u)" != 0 ] && command -v sudo >/dev/null; then SUDO="sudo"; fi
-apt_updated=0
-apt_install() {
+# apt_get/apt_install wait while another package manager holds the dpkg or package-list lock
+. .ci/apt.sh
+install_packages() {
   if ! command -v apt-get >/dev/null; then
     echo "setup: please install these packages yourself: $*" >&2; return 1
   fi
-  if [ "$apt_updated" = 0 ]; then $SUDO apt-get update -qq; apt_updated=1; fi
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "$@" >/dev/null
+  apt_install "$@" >/dev/null
 }
 
 PY="${PYTHON:-python3}"
-if ! command -v "$PY" >/dev/null; then apt_install python3 python3-venv; fi
+if ! command -v "$PY" >/dev/null; then install_packages python3 python3-venv; fi
 "$PY" - <<'PYCHECK' || { echo "setup: Python >= 3.10 is required" >&2; exit 1; }
 import sys
 raise SystemExit(sys.version_info < (3, 10))
@@ -34,7 +34,7 @@ PYCHECK
 if [ ! -x .venv/bin/python ]; then
   if ! "$PY" -m venv .venv 2>/dev/null; then
     rm -rf .venv
-    apt_install python3-venv
+    install_packages python3-venv
     "$PY" -m venv .venv
   fi
 fi

@@ -238,12 +238,15 @@ def report(
     """Print diagnostics (stderr for humans, stdout JSON); True when there is no error.
 
     `counted`: the diagnostics the verdict line counts, when only some of them are printed; `verdict`: what
-    to say instead of valid/invalid (when the input was fine and something else went wrong)."""
+    to say instead of valid/invalid (when the input was fine and something else went wrong: JSON then says
+    `valid` true, with the `verdict`)."""
     total = diagnostics if counted is None else counted
     errors = sum(d.severity.value == "error" for d in total)
     warnings = sum(d.severity.value == "warning" for d in total)
     if fmt == "json":
-        doc: dict[str, Any] = {"valid": errors == 0, "errors": errors, "warnings": warnings}
+        doc: dict[str, Any] = {"valid": errors == 0 or verdict is not None, "errors": errors, "warnings": warnings}
+        if verdict is not None:
+            doc["verdict"] = verdict
         doc.update(extra or {})
         doc["diagnostics"] = [d.to_json() for d in diagnostics]
         click.echo(json.dumps(doc, indent=2, ensure_ascii=False))

@@ -77,7 +77,7 @@ def types(
     max_affordances: int,
     fmt: str,
 ) -> None:
-    """Show components, their services and topics, and the resolved ROS types (one table per input).
+    """Show components, their services, ROS actions and topics, and the resolved ROS types (one table per input).
 
     Several arguments are grouped as gen groups them: each TD alone, all RosClasses config files as one input.
     With --format json, `types` is one input's object, or a list of them for several inputs.

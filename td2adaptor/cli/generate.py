@@ -21,12 +21,43 @@ from td2adaptor.cli.common import (
 )
 
 if TYPE_CHECKING:
-    from td2adaptor.diagnostics import Diagnostics
+    from td2adaptor.diagnostics import Diagnostic, Diagnostics
     from td2adaptor.generation.targets import Target
 
 
 #: errors about the output directory, not the input: refused overwrites, unsafe paths, failed writes
 _OUTPUT_CODES = frozenset({"GEN801", "GEN802", "GEN806"})
+
+
+def _backend_of(code: str) -> str | None:
+    """The backend whose own code `code` is (`rclpy backend: ...` in the catalogue, or the mROS stage)."""
+    from td2adaptor.diagnostics.catalogue import lookup
+
+    entry = lookup(code)
+    if entry.stage.prefix == "MROS9":
+        return "mros"
+    first, _, rest = entry.meaning.partition(" ")
+    return first if rest.startswith("backend") else None
+
+
+def verdict_of(found: Sequence[Diagnostic], *, writes: bool = True) -> str | None:
+    """What the verdict line says when the inputs are valid but nothing was generated: the output directory
+    refused (an edited file, a failed write), or a backend cannot represent a valid TD (`gen -b mros` on a TD
+    with services); None when there is no error or an input is invalid (the plain valid/invalid). `writes`:
+    for gen (check never writes)."""
+    refused = [d for d in found if d.severity.value == "error"]
+    if not refused:
+        return None
+    if all(d.code in _OUTPUT_CODES for d in refused):  # the TDs are fine; the output directory is not
+        return "valid, but nothing was written"
+    backends = [_backend_of(d.code) for d in refused if d.code not in _OUTPUT_CODES]
+    if None in backends:
+        return None
+    names = sorted(set(b for b in backends if b is not None))
+    listed = " and ".join(names)
+    return f"valid, but the {listed} backend{'s' * (len(names) > 1)} cannot generate it" + (
+        ": nothing was written" if writes else ""
+    )
 
 
 def _parse_backend_options(
@@ -67,7 +98,11 @@ def _gen_options(f: Any) -> Any:
         help="Output directory; each backend writes OUT/<backend>/ (default: generated).",
     )(f)
     f = click.option("--package-name", help="Override the ROS package name derived from the Thing title.")(f)
-    f = click.option("--partial", is_flag=True, help="Skip what a backend cannot express, with a warning each.")(f)
+    f = click.option(
+        "--partial",
+        is_flag=True,
+        help="Skip what a backend cannot express, and warn (mROS: one warning lists the skipped actions).",
+    )(f)
     f = click.option(
         "--option",
         "backend_options",
@@ -184,11 +219,7 @@ def gen(
     outcome = generate(targets, force=force, use_cache=not no_cache, parallel=True)
     label = _label(sources) or "configuration"
     found = [*diags, *outcome.diagnostics]
-    refused = [d for d in found if d.severity.value == "error"]
-    verdict = None
-    if refused and all(d.code in _OUTPUT_CODES for d in refused):  # the TDs are fine; the output directory is not
-        verdict = "valid, but nothing was written"
-    ok = report(found, fmt, label=label, verdict=verdict) and outcome.ok
+    ok = report(found, fmt, label=label, verdict=verdict_of(found)) and outcome.ok
     if fmt == "human":
         for root, rep in sorted(outcome.reports.items()):
             click.echo(
@@ -253,7 +284,7 @@ def check(
         report(problems, fmt, label="check", extra={"current": outcome.ok, "stale": outcome.stale})
     else:
         if problems:
-            report(problems, fmt, label=_label(sources) or "configuration")
+            report(problems, fmt, label=_label(sources) or "configuration", verdict=verdict_of(problems, writes=False))
         stale = outcome.stale
         for line in stale[:20]:
             click.echo(f"  {line}", err=True)

@@ -1,21 +1,27 @@
-"""The `td2adaptor types` view: components → services/topics → resolved types, as text or JSON."""
+"""The `td2adaptor types` view: components → services/ROS actions/topics → resolved types, as text or JSON."""
 
 from __future__ import annotations
 
 from typing import Any
 
-from td2adaptor.model import Model, ProcedureRole, ServiceEndpoint, TopicEndpoint
+from td2adaptor.model import ActionEndpoint, Model, ProcedureRole, ServiceEndpoint, TopicEndpoint
 
 
 def _rows(model: Model) -> list[dict[str, Any]]:
     rows = []
     for comp in model.components:
-        for ep in (*comp.services, *comp.topics):
+        endpoints: tuple[ServiceEndpoint | ActionEndpoint | TopicEndpoint, ...] = (
+            *comp.services,
+            *comp.actions,
+            *comp.topics,
+        )
+        for ep in endpoints:
             if isinstance(ep, ServiceEndpoint):
                 kind = "service"
                 role = ep.procedure_role.value if ep.procedure_role is not ProcedureRole.NONE else "client"
+            elif isinstance(ep, ActionEndpoint):
+                kind, role = "action", "client"  # the adaptor sends goals
             else:
-                assert isinstance(ep, TopicEndpoint)
                 kind, role = "topic", ep.role.value
             rows.append(
                 {
@@ -37,6 +43,7 @@ def types_json(model: Model) -> dict[str, Any]:
         "package": model.package_name,
         "endpoints": _rows(model),
         "messages": {d: [m.name for m in model.types_for(d).messages] for d in ("ros1", "ros2")},
+        "actions": {d: [a.name for a in model.types_for(d).actions] for d in ("ros1", "ros2")},
     }
 
 

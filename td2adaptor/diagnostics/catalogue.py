@@ -185,8 +185,14 @@ _ENTRIES: tuple[Entry, ...] = (
     Entry("ROS421", (_E,), "type kind does not fit the ROS interface (msg for topics, srv for services)"),
     Entry("ROS422", (_W,), "declared class name does not match the ROS type"),
     Entry("ROS423", (_E,), "unknown ROS type", "add its definition with --interfaces DIR"),
-    Entry("ROS424", (_W,), "ROS type not known for one ROS version: that version's backends cannot use it"),
-    Entry("ROS426", (_W,), "type used by the interface definitions not known for one ROS version"),
+    Entry(
+        "ROS424",
+        (_W, _E),
+        "ROS type usable with one ROS version only (the other does not define it, or a type it uses, or cannot "
+        "read its file): the other version's backends cannot use it",
+        None,
+        "error when neither version can use it",
+    ),
     Entry("ROS427", (_W,), "type written in a ROS 1 or rosjava spelling", "write pkg/msg/Name (srv, action)"),
     Entry(
         "ROS428",
@@ -203,6 +209,12 @@ _ENTRIES: tuple[Entry, ...] = (
     Entry("ROS430", (_E,), "component name unusable as a class name", "use a CamelCase name"),
     Entry("ROS431", (_E,), "affordance name unusable in generated method names"),
     Entry("ROS432", (_E,), "package name is not a valid ROS package name"),
+    Entry(
+        "ROS433",
+        (_E,),
+        "interface type name too long: no file system could hold its definition file (255 bytes per name)",
+        "give the type's real name",
+    ),
     Entry("ROS440", (_I,), "procedure linkage derived from names", "'td2adaptor migrate' writes rosv:procedure"),
     Entry("ROS441", (_E,), "malformed rosv:procedure"),
     Entry("ROS442", (_E,), "procedure link target is not an action of the component"),
@@ -226,6 +238,12 @@ _ENTRIES: tuple[Entry, ...] = (
         (_W,),
         "a procedure without a query: only its start can be reported",
         "link a query action whose response carries the state",
+    ),
+    Entry(
+        "ROS449",
+        (_E,),
+        "rosv:procedure on an action bound to a ROS action, which has its own goal states, feedback and cancel",
+        "remove rosv:procedure",
     ),
     # -- TY5: ROS interface types ------------------------------------------------------------------------
     Entry("TY500", (_E,), "interface folder not found"),
@@ -333,7 +351,12 @@ _ENTRIES: tuple[Entry, ...] = (
     Entry("GEN822", (_E,), "rclpy backend: generated method names clash", "rename one of the affordances"),
     Entry("GEN840", (_E,), "rospy backend cannot express a message field"),
     Entry("GEN841", (_E,), "rospy backend: a component would define a name twice"),
-    Entry("GEN842", (_E,), "rospy backend: ROS 1 types not found", "add their definitions with --interfaces"),
+    Entry(
+        "GEN842",
+        (_E,),
+        "rospy backend: a type ROS 1 cannot use (not found, or for ROS 2 only: the message says why)",
+        "add definitions ROS 1 can build with --interfaces, or use the rclpy backend",
+    ),
     Entry(
         "GEN860",
         (_E,),
@@ -392,7 +415,7 @@ _ENTRIES: tuple[Entry, ...] = (
         (_E, _W),
         "TD action: mROS 1 has no services",
         "pass --partial to skip the actions, or use the rospy backend",
-        "warning under --partial, which skips the action",
+        "warning under --partial, which skips the actions: one warning lists them",
     ),
     Entry("MROS901", (_W,), "node name longer than mROS allows; the td2a_pub/td2a_sub default is used"),
     Entry("MROS902", (_E,), "topic name longer than mROS's 48 characters"),
@@ -405,7 +428,7 @@ _ENTRIES: tuple[Entry, ...] = (
         (_E, _W),
         "TD action bound to a ROS action: mROS has no actions",
         "pass --partial to skip it, or use the rospy backend (ROS 1 actions on actionlib; rclpy for ROS 2)",
-        "warning under --partial, which skips the action",
+        "warning under --partial, which skips the actions: one warning lists them",
     ),
     Entry("MROS910", (_E,), "message larger than the largest allowed pool block", "raise mros.max_pool_block"),
     Entry("MROS911", (_I,), "unbounded strings/sequences: pool sized with the assumed capacities"),
@@ -451,7 +474,7 @@ _ENTRIES: tuple[Entry, ...] = (
         "error when the generated names collide",
     ),
     Entry("MROS930", (_W,), "no property bound to a topic: only a README is generated"),
-    Entry("MROS931", (_E,), "ROS 1 message types not found"),
+    Entry("MROS931", (_E,), "a topic's message type ROS 1 cannot use (not found, or for ROS 2 only)"),
     Entry("MROS932", (_E,), "field type ROS 1 lacks, e.g. wstring"),
     Entry("MROS933", (_W,), "constant C++ cannot hold (non-finite float) or of an unknown type: left out"),
 )

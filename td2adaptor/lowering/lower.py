@@ -12,8 +12,9 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from td2adaptor.diagnostics import Diagnostics, Severity, pointer_join
+from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity, pointer_join
 from td2adaptor.frontend.extract import BINDING, REFERENCE, RawEndpoint, obj
+from td2adaptor.lowering.distros import BACKENDS, DISTROS, LABELS, Loss, loss, other, split_problems, usable
 from td2adaptor.lowering.procstate import READING_KEYS, RoleInfo, check_reading, parse_reading
 from td2adaptor.lowering.rosnames import (
     BINDING_PLACEHOLDER,
@@ -44,8 +45,6 @@ from td2adaptor.model import (
 
 if TYPE_CHECKING:
     from td2adaptor.rostypes.registry import TypeRegistry
-
-DISTROS = ("ros1", "ros2")
 
 #: ROS name suffixes and affordance-name suffixes that identify procedure roles in the reference dialect.
 _RUN_SUFFIXES = ("/add",)
@@ -127,9 +126,13 @@ def lower(
     groups = _group(endpoints, diags)
     procedures = {g.name: _procedures(g, diags) for g in groups}
     found = Diagnostics()
-    regs = registries if registries is not None else _registries(interface_dirs, found)
-    tables = _resolve_types(endpoints, regs, diags)
-    _report_interface_problems(found, endpoints, tables, diags)
+    own: dict[str, list[Diagnostic]] = {d: [] for d in DISTROS}
+    if registries is not None:
+        regs = registries
+    else:
+        regs, own = _registries(interface_dirs, found)
+    tables, closures = _resolve_types(endpoints, regs, own, diags)
+    _report_interface_problems(found, endpoints, closures, diags)
     for g in groups:
         procedures[g.name] = tuple(_mission_ids(g, procedures[g.name], tables, diags))
         procedures[g.name] = tuple(check_reading(proc, _roles(g, proc), tables, diags) for proc in procedures[g.name])
@@ -180,7 +183,7 @@ def _check_unbound_actions(td: Mapping[str, Any], raws: Sequence[RawEndpoint], d
 
 
 def _endpoint(raw: RawEndpoint, diags: Diagnostics) -> _Endpoint | None:
-    from td2adaptor.rostypes.names import hidden_action_part, normalize_type_name
+    from td2adaptor.rostypes.names import file_name_problem, hidden_action_part, normalize_type_name
 
     what = f"{raw.kind} {raw.name!r}"
     ok = True
@@ -232,8 +235,18 @@ def _endpoint(raw: RawEndpoint, diags: Diagnostics) -> _Endpoint | None:
             "ROS421",
             f"{what}: a ROS {raw.interface.value} needs a {kind} type, not {type_name!r}",
             raw.type_name.pointer,
+            _interface_hint(raw, type_name.split("/")[1]),
         )
         ok = False
+    elif (too_long := file_name_problem(type_name)) is not None:
+        diags.error(
+            "ROS433",
+            f"{what}: type {type_name[:40] + '…'!r} ({len(type_name)} characters) cannot be an interface type: "
+            f"{too_long}",
+            raw.type_name.pointer,
+            "give the type's real name (pkg/msg/Name, pkg/srv/Name or pkg/action/Name)",
+        )
+        return None
     else:
         _check_declared(raw, type_name, diags)
         if raw.dialect == BINDING and raw.type_name.value.strip() != type_name:
@@ -248,6 +261,20 @@ def _endpoint(raw: RawEndpoint, diags: Diagnostics) -> _Endpoint | None:
         return None
     # other problems were reported; keep going so type resolution can report its own too
     return _Endpoint(raw, component, ros_name, type_name, errors=not ok)
+
+
+def _interface_hint(raw: RawEndpoint, kind: str) -> str:
+    """ROS421's way out: the binding that fits a `kind` type on this affordance."""
+    if raw.kind == "action" and kind == "action":
+        return (
+            'to bind a ROS action, add "rosv:interface": "action" to the form (the goal is the input, the '
+            "result the output)"
+        )
+    if raw.kind == "action" and kind == "srv":
+        return 'to bind a service, remove "rosv:interface": "action" from the form'
+    if raw.kind == "action":
+        return 'an action binds a service (pkg/srv/Name) or, with "rosv:interface": "action", a pkg/action/Name'
+    return f"a {raw.kind} binds a topic: pkg/msg/Name"
 
 
 def _check_relative_names(endpoints: Sequence[_Endpoint], diags: Diagnostics) -> None:
@@ -359,6 +386,16 @@ def _group(endpoints: Sequence[_Endpoint], diags: Diagnostics) -> list[_Group]:
 
 
 def _procedures(group: _Group, diags: Diagnostics) -> tuple[Procedure, ...]:
+    for ep in group.endpoints:
+        if ep.raw.interface is Interface.ACTION and ep.raw.procedure is not None:
+            diags.error(
+                "ROS449",
+                f"action {ep.raw.name!r} is bound to a ROS action: rosv:procedure links services into a procedure, "
+                "and a ROS action has its own goal states, feedback and cancel, so the procedure would be ignored",
+                ep.raw.procedure.pointer,
+                "remove rosv:procedure: the edge node follows the goal itself (its query and cancel events: "
+                "docs/binding.md)",
+            )
     services = {ep.raw.name: ep for ep in group.endpoints if ep.raw.interface is Interface.SERVICE}
     explicit = [ep for ep in services.values() if ep.raw.procedure is not None]
     derived_from_names = all(ep.raw.dialect == REFERENCE for ep in services.values())
@@ -411,9 +448,15 @@ def _explicit_procedure(
             continue
         tptr = pointer_join(loc.pointer, key)
         if not isinstance(target, str) or target not in services:
+            ros_action = any(e.raw.name == target and e.raw.interface is Interface.ACTION for e in group.endpoints)
             diags.error(
                 "ROS442",
-                f"action {ep.raw.name!r}: procedure {key} {target!r} is not an action of component {group.name!r}",
+                f"action {ep.raw.name!r}: procedure {key} {target!r} "
+                + (
+                    "is bound to a ROS action, not a service"
+                    if ros_action
+                    else f"is not an action of component {group.name!r}"
+                ),
                 tptr,
                 "name an action bound to a ROS service in the same rosv:component",
             )
@@ -563,13 +606,18 @@ def _mission_ids(
 # types
 
 
-def _registries(interface_dirs: Sequence[Path], diags: Diagnostics) -> dict[str, TypeRegistry]:
+def _registries(
+    interface_dirs: Sequence[Path], found: Diagnostics
+) -> tuple[dict[str, TypeRegistry], dict[str, list[Diagnostic]]]:
+    """Both versions' registries; the interface folders' problems both versions share (and ROS 1's warnings)
+    go to `found`, each version's own errors come back beside the registries (see `distros`)."""
     from td2adaptor.rostypes.registry import TypeRegistry
 
-    # user-file problems are the same for both distros: report them once
-    regs = {"ros1": TypeRegistry("ros1", interface_dirs, diags)}
-    regs["ros2"] = TypeRegistry("ros2", interface_dirs, Diagnostics())
-    return regs
+    per = {d: Diagnostics() for d in DISTROS}
+    regs = {d: TypeRegistry(d, interface_dirs, per[d]) for d in DISTROS}  # type: ignore[arg-type]
+    shared, own = split_problems(per)
+    found.extend(shared)
+    return regs, own
 
 
 def _report_interface_problems(
@@ -620,26 +668,35 @@ def _where_to_find(type_name: str) -> str:
     package, kind, name = parts
     for prefix in _prefixes():
         file = prefix / "share" / package / kind / f"{name}.{kind}"
-        if file.is_file():
-            return f"{file} defines it: add --interfaces {file.parent.parent}"
+        try:
+            if file.is_file():
+                return f"{file} defines it: add --interfaces {file.parent.parent}"
+        except OSError:  # a prefix we may not read: it defines nothing we could use
+            continue
     if kind == "action":
         return f"add its definition with --interfaces DIR, a folder holding {package}/action/{name}.action"
     return "add its definition with --interfaces DIR"
 
 
 def _resolve_types(
-    endpoints: Sequence[_Endpoint], regs: Mapping[str, TypeRegistry], diags: Diagnostics
-) -> dict[str, TypeTable]:
+    endpoints: Sequence[_Endpoint],
+    regs: Mapping[str, TypeRegistry],
+    own: Mapping[str, Sequence[Diagnostic]],
+    diags: Diagnostics,
+) -> tuple[dict[str, TypeTable], dict[str, TypeTable]]:
+    """Per version: the table of the types it can use (with every message they use; the others `missing`,
+    with the reason in `unavailable`), and the table of everything the TD names, usable or not (which
+    interface files the TD needs)."""
     names = list(dict.fromkeys(ep.type_name for ep in endpoints))
-    tables = {d: regs[d].table(names) for d in DISTROS}
-    tables["ros1"] = _with_digests(tables["ros1"], regs["ros1"])
+    fits = {d: {n: usable(regs[d], n) for n in names} for d in DISTROS}
+    losses: dict[str, dict[str, Loss]] = {d: {} for d in DISTROS}
     reported: set[str] = set()
     for ep in endpoints:
-        missing = [d for d in DISTROS if tables[d].get(ep.type_name) is None]
-        if not missing or ep.type_name in reported:
+        bad = [d for d in DISTROS if not fits[d][ep.type_name]]
+        if not bad or ep.type_name in reported:
             continue
         reported.add(ep.type_name)
-        if len(missing) == len(DISTROS):
+        if all(regs[d].resolve(ep.type_name) is None for d in DISTROS):
             close = regs["ros2"].closest(ep.type_name) or regs["ros1"].closest(ep.type_name)
             diags.error(
                 "ROS423",
@@ -649,21 +706,40 @@ def _resolve_types(
                 + "; "
                 + _where_to_find(ep.type_name),
             )
-        else:
-            backends = "rospy and mROS" if missing == ["ros1"] else "rclpy"
+            continue
+        lost = {d: loss(ep.type_name, d, regs, own[d]) for d in bad}
+        what = f"{ep.raw.kind} {ep.raw.name!r}: type {ep.type_name!r}"
+        if len(bad) == 1:
+            d = bad[0]
+            losses[d][ep.type_name] = lost[d]
             diags.warning(
                 "ROS424",
-                f"{ep.raw.kind} {ep.raw.name!r}: type {ep.type_name!r} is not known for "
-                f"{'ROS 1' if missing == ['ros1'] else 'ROS 2'}; the {backends} backends cannot use it",
+                f"{what} is for {LABELS[other(d)]} only: {lost[d].reason}; {BACKENDS[d]} cannot use it",
+                ep.raw.type_name.pointer,
+                lost[d].hint,
+            )
+        elif all(found.specific for found in lost.values()):
+            diags.error(
+                "ROS424",
+                f"{what} can be used with neither ROS version: "
+                + "; ".join(f"{LABELS[d]}: {lost[d].reason}" for d in DISTROS),
                 ep.raw.type_name.pointer,
             )
+        # otherwise a problem of the interface files both versions find says why, as an error of its own
     _name_standard_packages(endpoints, regs["ros2"], diags)
-    # message types referenced inside resolved definitions but missing for a distro
+    closures = {d: regs[d].table(names) for d in DISTROS}
+    tables = {}
     for d in DISTROS:
-        for name in tables[d].missing:
-            if name not in names:
-                diags.warning("ROS426", f"type {name!r} used by the interface definitions is not known for {d}")
-    return tables
+        table = regs[d].table([n for n in names if fits[d][n]])
+        rest = [n for n in names if not fits[d][n]]
+        missing = [*table.missing, *rest, *(regs[d].table(rest).missing if rest else ())]
+        tables[d] = replace(
+            table,
+            missing=tuple(dict.fromkeys(missing)),
+            unavailable=tuple((n, found.reason) for n, found in losses[d].items()),
+        )
+    tables["ros1"] = _with_digests(tables["ros1"], regs["ros1"])
+    return tables, closures
 
 
 def _standard_packages(tables: Mapping[str, TypeTable], regs: Mapping[str, TypeRegistry]) -> tuple[str, ...]:

@@ -155,9 +155,16 @@ class TypeTable:
     actions: tuple[ActionDef, ...] = ()
     missing: tuple[str, ...] = ()  # names that did not resolve for this distro
     ros1_digests: tuple[Ros1Digest, ...] = ()  # ros1 tables: every message and service above
+    #: (type the TD binds, why this distro cannot use it) for each such type that the other distro can use:
+    #: a backend of this distro names the reason instead of only the missing name
+    unavailable: tuple[tuple[str, str], ...] = ()
 
     def ros1_digest(self, name: str) -> Ros1Digest:
         return next(d for d in self.ros1_digests if d.name == name)
+
+    def why_unavailable(self, name: str) -> str | None:
+        """Why this distro cannot use `name`, a type the TD binds (None when it can, or nobody said why)."""
+        return next((why for type_name, why in self.unavailable if type_name == name), None)
 
     @cached_property
     def _by_name(self) -> dict[str, Any]:
@@ -405,3 +412,21 @@ class Model:
 
     def component(self, name: str) -> Component:
         return next(c for c in self.components if c.name == name)
+
+    def unusable(self, distro: str) -> list[tuple[str, ServiceEndpoint | TopicEndpoint | ActionEndpoint, str]]:
+        """Every affordance whose type `distro` cannot use although the other version can, in TD order:
+        (what the TD calls it, e.g. "action 'navigate'", the endpoint, why): a backend refusing them says why."""
+        table = self.types_for(distro)
+        found: list[tuple[str, ServiceEndpoint | TopicEndpoint | ActionEndpoint, str]] = []
+        for comp in self.components:
+            endpoints: tuple[ServiceEndpoint | TopicEndpoint | ActionEndpoint, ...] = (
+                *comp.services,
+                *comp.actions,
+                *comp.topics,
+            )
+            for ep in endpoints:
+                why = table.why_unavailable(ep.type_name)
+                if why is not None:
+                    kind = "property" if isinstance(ep, TopicEndpoint) else "action"
+                    found.append((f"{kind} {ep.name!r}", ep, why))
+        return found

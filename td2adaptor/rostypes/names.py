@@ -36,6 +36,24 @@ def is_valid_type_name(name: str) -> bool:
     return _TYPE_RE.fullmatch(name) is not None
 
 
+#: the longest file or folder name Linux, macOS and Windows file systems accept, in bytes
+NAME_MAX = 255
+
+
+def file_name_problem(type_name: str) -> str | None:
+    """Why canonical `pkg/kind/Name` cannot name an interface file (`pkg/kind/Name.kind`): a name longer than
+    file systems allow could never have a definition; None when it can."""
+    package, kind, name = type_name.split("/")
+    if len(package.encode()) > NAME_MAX:
+        return f"its package name has {len(package)} characters; a package is a folder, at most {NAME_MAX}"
+    if len(f"{name}.{kind}".encode()) > NAME_MAX:
+        return (
+            f"its file {name[:12]}….{kind} would have a name of {len(name) + len(kind) + 1} characters; "
+            f"file systems allow at most {NAME_MAX}"
+        )
+    return None
+
+
 @dataclass(frozen=True)
 class TypeName:
     """A parsed type name: `package/kind/name`, and which part of a service/action it named, if any."""

@@ -145,6 +145,21 @@ def prepare_sources(src: Path, dest: Path) -> list[str]:
     return names
 
 
+def missing_dependencies(src: Path, venv: Path = VENV) -> list[tuple[str, str]]:
+    """(package, interface package it uses that this environment lacks) for every package under `src`: CMake
+    would stop on each with a page of output; the wheels install a package's CMake config under share/."""
+    packages = packages_in(src)
+    own = {p.name for p in packages}
+    missing = []
+    for pkg_dir in packages:
+        used: set[str] = set()
+        for kind in ("msg", "srv", "action"):
+            for f in sorted((pkg_dir / kind).glob(f"*.{kind}")):
+                used |= referenced_packages(translate(f.read_text(encoding="utf-8")), pkg_dir.name)
+        missing += [(pkg_dir.name, dep) for dep in sorted(used - own) if not (venv / "share" / dep / "cmake").is_dir()]
+    return missing
+
+
 def definitions_hash(src: Path) -> str:
     digest = hashlib.sha256()
     for path in sorted(p for p in src.rglob("*") if p.is_file()):
@@ -263,6 +278,13 @@ def build_interfaces(
     command line passes it on a terminal only, so CI logs stay quiet.
     """
     packages = packages_in(src)  # refuse an empty or missing folder before hashing or locking anything
+    missing = missing_dependencies(src)
+    if missing:
+        from td2adaptor.rostypes.names import providers
+
+        said = "; ".join(f"{pkg} uses {dep}" for pkg, dep in missing)
+        wheels = " ".join(sorted({providers(dep)[0] for _, dep in missing}))
+        raise BuildError(f"interface packages this environment does not have: {said} (pip install {wheels})")
     src, cache = src.resolve(), cache.resolve()  # colcon runs in the build folder: relative paths would miss
     key = definitions_hash(src)
     root = cache / key

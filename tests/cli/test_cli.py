@@ -323,3 +323,37 @@ def test_a_robot_td_made_from_a_thing_model_links_it_and_does_not_repeat_its_des
     assert compiled.model is not None
     fleet = exposed_td(compiled.model)
     assert fleet["description"].startswith(said) and "links" not in fleet
+
+
+def test_types_lists_ros_actions_and_components_of_actions_only(runner: CliRunner) -> None:
+    """nav_base: NavigationComponent and DockingComponent have nothing but ROS actions."""
+    nav = REPO / "examples" / "nav_base"
+    args = ["types", str(nav / "td.json"), "-I", str(nav / "interfaces"), "--no-cache"]
+    result = runner.invoke(cli, args)
+    assert result.exit_code == 0, result.output
+    lines = result.stdout.splitlines()
+    assert lines[1] == "NavigationComponent" and lines[2].split()[:3] == ["navigateToPose", "action", "client"]
+    assert "DockingComponent" in lines
+    docking = [line.split() for line in lines[lines.index("DockingComponent") + 1 :][:2]]
+    assert [(row[0], row[1], row[4], row[5], row[6]) for row in docking] == [
+        ("dockRobot", "action", "nav_base_msgs/action/DockRobot", "ros1:yes", "ros2:yes"),
+        ("undockRobot", "action", "nav_base_msgs/action/UndockRobot", "ros1:yes", "ros2:yes"),
+    ]
+    result = runner.invoke(cli, [*args, "--format", "json"])
+    doc = json.loads(result.stdout)["types"]
+    rows = {r["name"]: r for r in doc["endpoints"]}
+    assert rows["navigateToPose"] == {
+        "component": "NavigationComponent",
+        "name": "navigateToPose",
+        "kind": "action",
+        "role": "client",
+        "ros_name": "/{{robotName}}/navigate_to_pose",
+        "type": "nav_base_msgs/action/NavigateToPose",
+        "ros1": True,
+        "ros2": True,
+    }
+    assert doc["actions"]["ros2"] == [
+        "nav_base_msgs/action/NavigateToPose",
+        "nav_base_msgs/action/DockRobot",
+        "nav_base_msgs/action/UndockRobot",
+    ]

@@ -17,7 +17,9 @@ def test_explain_prints_the_catalogue_entry() -> None:
     first, second = result.output.strip().split("\n\n")
     assert first.startswith(f"TD000 (error): {lookup('TD000').meaning}")
     assert "stage: TD0xx Reading the input" in first and "hint: check the path" in first
-    assert second.startswith("MROS900 (error; warning under --partial, which skips the action): ")
+    assert second.startswith(
+        "MROS900 (error; warning under --partial, which skips the actions: one warning lists them): "
+    )
 
 
 def test_explain_json() -> None:

@@ -164,7 +164,20 @@ def test_action_type_for_a_service_binding_is_refused(tmp_path: Path) -> None:
     del td["actions"]["fibonacci"]["forms"][0]["rosv:interface"]
     result = compile_td(tmp_path, td)
     assert result.model is None
-    assert "ROS421" in codes(result, Severity.ERROR)
+    (found,) = [d for d in result.diagnostics if d.code == "ROS421"]
+    assert found.severity is Severity.ERROR and found.pointer == "/actions/fibonacci/forms/0/rosv:type"
+    assert found.hint == (
+        'to bind a ROS action, add "rosv:interface": "action" to the form (the goal is the input, the result the '
+        "output)"
+    )
+
+
+def test_a_service_type_for_an_action_binding_says_how_to_bind_a_service(tmp_path: Path) -> None:
+    td = action_td()
+    td["actions"]["fibonacci"]["forms"][0]["rosv:type"] = "std_srvs/srv/Trigger"
+    result = compile_td(tmp_path, td)
+    (found,) = [d for d in result.diagnostics if d.code == "ROS421"]
+    assert found.hint == 'to bind a service, remove "rosv:interface": "action" from the form'
 
 
 def test_ros1_robot_gets_no_action_warning(tmp_path: Path) -> None:
@@ -245,3 +258,37 @@ def test_events_backend_gives_ros_actions_goal_events(tmp_path: Path) -> None:
     assert feedback["output"]["properties"]["sequence"]["items"]["type"] == "integer"  # the TD's output
     exposed = json.loads(tree.files[f"{model.package_name}/td.mqtt.json"])
     assert {"fibonacci", "fibonacciQuery", "fibonacciCancel"} <= set(exposed["actions"])
+
+
+def test_a_procedure_on_a_ros_action_is_refused(tmp_path: Path) -> None:
+    """rosv:procedure links services into a procedure; on an action bound to a ROS action it would be ignored
+    (it used to be, silently): ROS449 at the rosv:procedure member."""
+    td = action_td()
+    td["actions"]["fibonacci"]["rosv:procedure"] = {"query": "fibonacciQuery"}
+    result = compile_td(tmp_path, td)
+    assert result.model is None
+    (found,) = [d for d in result.diagnostics if d.severity is Severity.ERROR]
+    assert found.code == "ROS449" and found.pointer == "/actions/fibonacci/rosv:procedure"
+    assert "action 'fibonacci' is bound to a ROS action" in found.message
+    assert "remove rosv:procedure" in (found.hint or "")
+
+
+def test_a_service_procedure_linking_a_ros_action_says_so(tmp_path: Path) -> None:
+    td = action_td()
+    td["actions"]["reset"] = {
+        "rosv:component": "MathComponent",
+        "rosv:procedure": {"cancel": "fibonacci"},
+        "forms": [
+            {
+                "href": "ros:reset",
+                "op": "invokeaction",
+                "rosv:name": "/{{robotName}}/reset",
+                "rosv:type": "std_srvs/srv/Trigger",
+            }
+        ],
+    }
+    result = compile_td(tmp_path, td)
+    found = [d for d in result.diagnostics if d.code == "ROS442"]
+    assert [d.message for d in found] == [
+        "action 'reset': procedure cancel 'fibonacci' is bound to a ROS action, not a service"
+    ]

@@ -111,3 +111,21 @@ def test_relative_paths_as_the_readme_writes_them(tmp_path: Path) -> None:
     prefix = Path(proc.stdout.strip())
     assert prefix.is_absolute() and prefix.is_relative_to(tmp_path / "cache")
     assert (prefix / "share" / "tiny_msgs").is_dir()
+
+
+def test_an_interface_package_this_environment_lacks_is_named_before_building(tmp_path: Path) -> None:
+    """A robot's action using trajectory_msgs (an arm's, say) when the ros2 extra has no such wheel: one line
+    naming the package and the wheel, before any CMake run (which used to fail with a page of its output)."""
+    pytest.importorskip("rclpy", reason="needs the ROS 2 wheels (bash .ci/setup-ros2.sh)")
+    src = _tiny_package(tmp_path)
+    (src / "tiny_msgs" / "action").mkdir()
+    (src / "tiny_msgs" / "action" / "Move.action").write_text(
+        "trajectory_msgs/JointTrajectory trajectory\nduration tolerance\n---\nint32 error_code\n---\nstring state\n"
+    )
+    proc = _run(str(src), str(tmp_path / "cache"))
+    assert proc.returncode == 1, proc.stdout
+    assert proc.stderr == (
+        "ros2build: interface packages this environment does not have: tiny_msgs uses trajectory_msgs "
+        "(pip install ros-jazzy-trajectory-msgs)\n"
+    )
+    assert not (tmp_path / "cache").exists()

@@ -364,7 +364,11 @@ def _render(template: str, **context: object) -> str:
 
 
 def _skip_actions(model: Model, partial: bool, diags: Diagnostics) -> list[SkippedAction]:
+    """Every TD action (mROS has neither services nor actions): an error each, or with --partial skipped, with
+    one warning per kind that lists them (a configured partial target skips them on every run: the warnings
+    would bury the rest). The README lists each skipped action."""
     skipped = []
+    skips: dict[str, list[tuple[str, str]]] = {"MROS900": [], "MROS907": []}
     for component in model.components:
         for s in component.services:
             message = (
@@ -372,7 +376,7 @@ def _skip_actions(model: Model, partial: bool, diags: Diagnostics) -> list[Skipp
                 f"{s.type_name}) cannot be generated: mROS 1 has no services"
             )
             if partial:
-                diags.warning("MROS900", message + "; skipped (--partial)", s.pointer)
+                skips["MROS900"].append((s.pointer, message))
             else:
                 diags.error(
                     "MROS900",
@@ -387,7 +391,7 @@ def _skip_actions(model: Model, partial: bool, diags: Diagnostics) -> list[Skipp
                 f"{a.type_name}) cannot be generated: mROS has no actions"
             )
             if partial:
-                diags.warning("MROS907", message + "; skipped (--partial)", a.pointer)
+                skips["MROS907"].append((a.pointer, message))
             else:
                 diags.error(
                     "MROS907",
@@ -399,6 +403,18 @@ def _skip_actions(model: Model, partial: bool, diags: Diagnostics) -> list[Skipp
                     ),
                 )
             skipped.append(SkippedAction(a.name, a.ros_name.binding_form(), a.type_name, "ROS action"))
+    for code, found in skips.items():
+        if len(found) == 1:
+            diags.warning(code, found[0][1] + "; skipped (--partial)", found[0][0])
+        elif found:
+            kind, lacks = ("ROS action", "mROS has no actions") if code == "MROS907" else ("service", "mROS 1 has none")
+            names = ", ".join(s.name for s in skipped if s.kind == kind)
+            diags.warning(
+                code,
+                f"mros backend: skipped {len(found)} actions bound to {kind}s (--partial; {lacks}): {names} "
+                "(the package README lists them)",
+                found[0][0],
+            )
     return skipped
 
 
@@ -617,6 +633,16 @@ def plan(model: Model, options: GenOptions, diags: Diagnostics) -> Plan | None:
             "(only README.md is generated)",
         )
         return Plan(root, base, empty=True)
+    unusable = [(what, ep, why) for what, ep, why in model.unusable("ros1") if ep in topics]
+    for what, ep, why in unusable:
+        diags.error(
+            "MROS931",
+            f"mros backend: {what} cannot be generated: its type {ep.type_name} is for ROS 2 only ({why})",
+            ep.pointer,
+            hint="for ROS 1, give a definition ROS 1 can build with --interfaces",
+        )
+    if unusable:
+        return None
     table = model.ros1
     roots = list(dict.fromkeys(t.type_name for t in topics))
     names, missing = closure(table, roots)

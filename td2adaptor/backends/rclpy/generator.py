@@ -314,13 +314,19 @@ class Builder:
                 "GEN820", f"rclpy backend: {comp.name}.{member}: {problem}", pointer, hint="--partial skips it"
             )
 
+    def _unresolved(self, type_name: str) -> str:
+        why = self.types.why_unavailable(type_name)
+        if why is not None:
+            return f"its type {type_name} is for ROS 1 only ({why})"
+        return f"type {type_name} does not resolve for ROS 2 (Jazzy)"
+
     def usable_services(self, comp: Component) -> list[ServiceEndpoint]:
         out = []
         for svc in comp.services:
             if "/action/" in svc.type_name:
                 self._skip(comp, svc.name, svc.pointer, "ROS 2 actions are not generated yet")
             elif not isinstance(self.types.get(svc.type_name), ServiceDef):
-                self._skip(comp, svc.name, svc.pointer, f"type {svc.type_name} does not resolve for ROS 2 (Jazzy)")
+                self._skip(comp, svc.name, svc.pointer, self._unresolved(svc.type_name))
             else:
                 out.append(svc)
         return out
@@ -331,9 +337,7 @@ class Builder:
             if isinstance(self.types.get(action.type_name), ActionDef):
                 out.append(action)
             else:
-                self._skip(
-                    comp, action.name, action.pointer, f"type {action.type_name} does not resolve for ROS 2 (Jazzy)"
-                )
+                self._skip(comp, action.name, action.pointer, self._unresolved(action.type_name))
         return out
 
     def usable_topics(self, comp: Component) -> list[TopicEndpoint]:
@@ -342,9 +346,7 @@ class Builder:
             if isinstance(self.types.get(topic.type_name), MessageDef):
                 out.append(topic)
             else:
-                self._skip(
-                    comp, topic.name, topic.pointer, f"type {topic.type_name} does not resolve for ROS 2 (Jazzy)"
-                )
+                self._skip(comp, topic.name, topic.pointer, self._unresolved(topic.type_name))
         return out
 
     def check_names(

@@ -635,6 +635,16 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     """The catkin package for `model` (see the module docstring)."""
     tree = GeneratedTree()
     types = model.ros1
+    unusable = model.unusable("ros1")
+    for what, ep, why in unusable:
+        diags.error(
+            "GEN842",
+            f"rospy backend: {what} cannot be generated: its type {ep.type_name} is for ROS 2 only ({why})",
+            ep.pointer,
+            hint="the rclpy backend generates it for ROS 2; for ROS 1, give a definition ROS 1 can build with -I",
+        )
+    if unusable:
+        return tree
     if types.missing:
         diags.error(
             "GEN842",

@@ -25,6 +25,20 @@ def test_time_is_named_as_each_ros_version_names_it() -> None:
     assert time_schema("ros1", complete=True)["required"] == ["secs", "nsecs"]
     assert time_schema("ros1", signed=True)["properties"]["secs"]["minimum"] == -(2**31)
     assert time_schema("ros1")["properties"]["secs"]["minimum"] == 0  # a ROS 1 time is unsigned
+    assert time_schema("ros1", signed=True)["properties"]["nsecs"]["minimum"] == -(2**31)  # ROS 1 duration
+
+
+def test_a_ros2_duration_has_unsigned_nanoseconds() -> None:
+    """builtin_interfaces/Duration is `int32 sec` and `uint32 nanosec`: a schema allowing a negative nanosec
+    would let a client send what the robot cannot take, and a scaffolded TD would warn about itself (XC611)."""
+    from td2adaptor.model.msgschema import message_schema
+    from td2adaptor.rostypes.registry import TypeRegistry
+
+    table = TypeRegistry("ros2").table(["builtin_interfaces/msg/Duration", "builtin_interfaces/msg/Time"])
+    for name in ("builtin_interfaces/msg/Duration", "builtin_interfaces/msg/Time"):
+        props = message_schema(table.message(name), table)["properties"]
+        assert props["nanosec"] == {"type": "integer", "minimum": 0, "maximum": 2**32 - 1}, name
+        assert props["sec"] == {"type": "integer", "minimum": -(2**31), "maximum": 2**31 - 1}, name
     for distro, name in (("ros1", "secs"), ("ros2", "sec")):
         schema = payload_schema(rb1_model(), MARKERS, None, distro=distro, complete=True)
         stamp = schema["properties"]["header"]["properties"]["stamp"]
