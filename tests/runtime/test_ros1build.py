@@ -1,4 +1,4 @@
-"""`python -m td2adaptor.runtime.ros1build`: ROS 1 interface packages, services included, built with Debian's
+"""`python -m td2adaptor.support.ros1build`: ROS 1 interface packages, services included, built with Debian's
 genpy (msg, srv, and the seven genaction messages of each action) from td2adaptor's own interpreter, which has no
 genpy: it runs itself under ROS 1's. Checked for real: every built class's md5 sum is the one td2adaptor computes
 (tests/rostypes checks those against Debian's genmsg/genaction), and a rospy service server and client talk
@@ -54,7 +54,7 @@ def ros1() -> None:
 
 def _build(src: Path, cache: Path) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "td2adaptor.runtime.ros1build", str(src), str(cache)],
+        [sys.executable, "-m", "td2adaptor.support.ros1build", str(src), str(cache)],
         capture_output=True,
         text=True,
         timeout=300,
@@ -167,7 +167,7 @@ def test_what_it_cannot_build_is_one_line(ros1: None, tmp_path: Path, layout: st
 
 def test_usage() -> None:
     proc = subprocess.run(
-        [sys.executable, "-m", "td2adaptor.runtime.ros1build"], capture_output=True, text=True, timeout=60
+        [sys.executable, "-m", "td2adaptor.support.ros1build"], capture_output=True, text=True, timeout=60
     )
     assert proc.returncode == 2 and "usage:" in proc.stderr
 
@@ -180,6 +180,6 @@ def test_the_generated_readmes_name_both_builds() -> None:
         ("rclpy", "ros2build", "prints the install prefix to give `td2adaptor run --prefix`"),
     ):
         readme = " ".join((REPO / "generated" / backend / "robotnik_rb_1_adaptor" / "README.md").read_text().split())
-        assert f"`python -m td2adaptor.runtime.{module} DIR CACHE` (`DIR`: that folder; built once," in readme
+        assert f"`python -m td2adaptor.support.{module} DIR CACHE` (`DIR`: that folder; built once," in readme
         assert gives in readme and "msg, srv" in readme
         assert "(`PKG/msg`, `PKG/srv`, `PKG/action`)" in readme

@@ -1,6 +1,6 @@
 """Nav2's own NavigateToPose action as published (tests/data/nav2: builtin_interfaces/Duration in its feedback, a
 ROS 2 only type) through the whole ROS 2 path, on real ROS 2 Jazzy: the TD is valid for ROS 2, `gen` makes the
-rclpy adaptor, nav2_msgs is built with the project's interface build (td2adaptor.runtime.ros2build), and the
+rclpy adaptor, nav2_msgs is built with the project's interface build (td2adaptor.support.ros2build), and the
 adaptor sends a goal to a real rclpy ActionServer, follows its feedback (the Durations included) and reads the
 result. The server and the adaptor run in a child process that loads the built prefix (nothing of it is loaded
 into this process)."""
@@ -16,7 +16,7 @@ import td2adaptor
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GenOptions
 from td2adaptor.generation.registry import load as load_backend
-from td2adaptor.runtime import ros2build
+from td2adaptor.support import ros2build
 from tests.lowering.test_distros import NAV2, nav2_td
 from tests.ros2 import env
 from tests.ros2.build import CACHE, COLCON_HOME

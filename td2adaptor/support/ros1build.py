@@ -15,7 +15,7 @@ runs itself, as a script, under the ROS 1 interpreter ($TD2ADAPTOR_ROS1_PYTHON, 
 The modules are cached in `<cache>/<hash>` (hash of the definitions, this file and genpy's version), built once,
 under a file lock, however many processes ask at once:
 
-    python -m td2adaptor.runtime.ros1build INTERFACES CACHE   # build (or find) them; print the folder for PYTHONPATH
+    python -m td2adaptor.support.ros1build INTERFACES CACHE   # build (or find) them; print the folder for PYTHONPATH
 """
 
 from __future__ import annotations
@@ -220,9 +220,9 @@ def _in_ros1_python(argv: list[str]) -> int:
 
 
 def main(argv: list[str]) -> int:
-    """`python -m td2adaptor.runtime.ros1build INTERFACES CACHE`: print the modules' folder, or one line why not."""
+    """`python -m td2adaptor.support.ros1build INTERFACES CACHE`: print the modules' folder, or one line why not."""
     if len(argv) != 2:
-        print("usage: python -m td2adaptor.runtime.ros1build INTERFACES CACHE", file=sys.stderr)
+        print("usage: python -m td2adaptor.support.ros1build INTERFACES CACHE", file=sys.stderr)
         return 2
     if importlib.util.find_spec("genpy") is None:
         return _in_ros1_python(argv)
