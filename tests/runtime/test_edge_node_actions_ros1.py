@@ -195,6 +195,8 @@ def test_goal_feedback_result_rejected_aborted(
         assert [p["seq"] for p in payloads] == list(range(1, len(payloads) + 1))
         assert [p["terminal"] for p in payloads] == [False] * (len(payloads) - 1) + [True]
         assert payloads[0]["state"] == "queued" and len({p["goal"] for p in payloads}) == 1
+        # feedback trails the result (another topic): still `running` with a running word, the end only at the end
+        assert [(p["state"], p["result"]) for p in payloads[1:-1]] == [("running", "executing")] * 5, payloads
         assert [p["feedback"]["sequence"] for p in payloads[1:-1]] == sent_feedback(fibo_robot, ROBOT, 5)
         assert len(payloads) == 5 + 2
         last = payloads[-1]
