@@ -807,7 +807,8 @@ class Engine:
         self._state(procedure.run, status, correlation, mission)
 
     def _plain_call(self, spec: EventSpec, event: dict[str, Any], key: str | None = None) -> None:
-        """A non-procedure action: one call, one terminal feedback with its output."""
+        """A non-procedure action: one call, one terminal feedback with its output (also when it failed, if the
+        robot answered: its response says how)."""
         action = spec.affordance or ""
         m = Mission(
             spec.component or "",
@@ -824,7 +825,9 @@ class Engine:
         except Exception as exc:
             reason = exc.reason if isinstance(exc, PortError) else "call-failed"
             log.warning("%s: failed (%s): %s", action, reason, _describe(exc))
-            self._feedback(m, ProcedureStatus("failed", message=_describe(exc), reason=reason), terminal=True)
+            answer = exc.response if isinstance(exc, PortError) else None  # the robot answered, and said it failed
+            status = ProcedureStatus("failed", message=_describe(exc), reason=reason)
+            self._feedback(m, status, terminal=True, output=dict(answer) if answer is not None else None)
             return
         self._feedback(m, ProcedureStatus("finished"), terminal=True, output=output)
 
