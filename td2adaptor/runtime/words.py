@@ -26,3 +26,27 @@ def describe(exc: BaseException) -> str:
     else:
         return INTERNAL
     return f"{lead}: {text}" if text else lead
+
+
+def import_failure(package: str, exc: ImportError) -> str:
+    """Why the generated adaptor package `package` cannot be imported, and how to make it importable (the words
+    of `run` on ROS 2, and of the ROS 1 bridge's interpreter, which has its own path)."""
+    missing = getattr(exc, "name", None) or package
+    if isinstance(exc, ModuleNotFoundError) and (missing == package or package.startswith(missing + ".")):
+        hint = (
+            "build it and source the install space (colcon build; . install/setup.bash), or pass "
+            "--package-path DIR with the generated package's source directory"
+        )
+        return f"cannot import the adaptor package {package!r}: {hint}"
+    if isinstance(exc, ModuleNotFoundError):
+        return (
+            f"cannot import the adaptor package {package!r}: module {missing!r} is missing (build the interface "
+            "packages and source their install space, or pass --prefix DIR for ROS 2 / --package-path DIR)"
+        )
+    return f"cannot import the adaptor package {package!r}: {exc}"
+
+
+def setup_failure(exc: BaseException) -> str:
+    """What went wrong while setting a robot's port up, without class names: the error's own words (the
+    generated packages' errors say what and where), or that it said nothing."""
+    return str(exc).strip() or "it failed without saying why (the log above may tell)"

@@ -41,7 +41,7 @@ from tests.ros1.harness import Master
 from tests.ros2.common import Process
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient, Event
-from tests.runtime.edge import feedback
+from tests.runtime.edge import CLASS_NAME, feedback
 from tests.runtime.fibo_ros2 import ABORT, SLOW, sequence
 from tests.runtime.rb1 import terminal
 
@@ -261,6 +261,7 @@ def test_robot_killed_mid_goal(build: tuple[Model, Path, Path], master: Master, 
         events = edge.ended("k", timeout=30)
         last = events[-1]["payload"]
         assert last["state"] == "failed" and last["reason"] in ("unreachable", "timeout"), last
+        assert not CLASS_NAME.search(last["message"]), last  # was "ServiceUnavailable: service ... (went away ...)"
         assert time.monotonic() - killed < 20.0 + 5.0
         assert sum(1 for e in events if e["payload"]["terminal"]) == 1
     finally:
