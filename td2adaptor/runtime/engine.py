@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from td2adaptor.model import Model, Procedure
-from td2adaptor.model.events import ALL_ROBOTS, EventCatalog, EventSpec, Kind, build_catalog
+from td2adaptor.model.events import ALL_ROBOTS, EventCatalog, EventSpec, Kind, build_catalog, command_filters
 from td2adaptor.runtime.bus import Bus, BusError, Message
 from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope, excerpt, references, salvage
@@ -47,7 +47,7 @@ from td2adaptor.runtime.port import NoValue, PortError, RobotPort, StartResult
 from td2adaptor.runtime.procedures import ProcedureStatus, read
 from td2adaptor.runtime.replay import ReplayGuard, Verdict, digest, time_problem
 from td2adaptor.runtime.streams import PropertyStreams, streams
-from td2adaptor.runtime.thingbus import WOT_SOURCE
+from td2adaptor.runtime.thingbus import WOT_SOURCE, own_topics, wot_problem, wot_references
 from td2adaptor.runtime.words import INTERNAL, describe
 from td2adaptor.runtime.workers import Workers
 
@@ -67,6 +67,11 @@ _REFUSALS = {
     Verdict.REUSED: "not run: event id {id!r} was already used by another event (on another topic or with other "
     "content); give every event an id of its own",
 }
+#: `id-reused` of a WoT message: its id is the consumer's correlationId (require_id_and_time)
+_WOT_REUSED = (
+    "not run: correlationId {id!r} was already used by another command (to another affordance or with other "
+    "input); give every command a correlationId of its own"
+)
 
 
 def _guard(config: RuntimeConfig) -> ReplayGuard:
@@ -158,15 +163,19 @@ class Engine:
         self._pool = ThreadPoolExecutor(max_workers=CALL_WORKERS, thread_name_prefix=f"td2adaptor-{config.robot}-call")
         self._goals = GoalRunner(self)
         self._streams: PropertyStreams | None = None
+        self._own = own_topics(self.catalog, config.robot, config.topic_root)  # never taken as commands
 
     # -- life cycle ----------------------------------------------------------------------------------------
 
     def start(self) -> None:
-        """Subscribe, connect and start the worker threads."""
-        root = self.config.topic_root
+        """Subscribe, connect and start the worker threads: the robot's command filters (every command topic,
+        also of an affordance it does not have: answered `unknown-topic`), and the all-robots channel's own
+        command topics (where other robots' affordances are not unknown)."""
+        root, robot = self.config.topic_root, self.config.robot
+        for pattern in command_filters(self.catalog, robot, root):
+            self.bus.subscribe(pattern, self._take)
         for spec in self.catalog.inbound():
-            for robot in (self.config.robot, ALL_ROBOTS):
-                self.bus.subscribe(spec.topic(robot, root), self._inbox.put)
+            self.bus.subscribe(spec.topic(ALL_ROBOTS, root), self._inbox.put)
         self.bus.connect()
         self._recover()  # before any event is taken: a resent invoke finds what the last run left
         self._spawn(self._dispatch, "dispatch")
@@ -301,7 +310,7 @@ class Engine:
         self._error(
             code,
             message,
-            topic=msg.topic,
+            topic=msg.origin or msg.topic,  # where it arrived (a WoT topic: also answered on the WoT error topic)
             affordance=spec.affordance,
             correlation=corr,
             mission=mission,
@@ -377,6 +386,12 @@ class Engine:
 
     # -- inbound -------------------------------------------------------------------------------------------
 
+    def _take(self, msg: Message) -> None:
+        """A message on the robot's command filters (the bus's thread): queued, but what this node publishes
+        there itself (property values, envelope and WoT, and the WoT error topic) is dropped at once."""
+        if msg.topic not in self._own:
+            self._inbox.put(msg)
+
     def _dispatch(self) -> None:
         while True:
             msg = self._inbox.get()
@@ -386,13 +401,13 @@ class Engine:
                 self._handle(msg)
             except Exception:  # a bug here must cost one event, not the process
                 log.exception("internal error on %s", msg.topic)
-                self._error("internal", INTERNAL, topic=msg.topic, raw=msg.payload)
+                self._error("internal", INTERNAL, topic=msg.origin or msg.topic, raw=msg.payload)
 
     def _handle(self, msg: Message) -> None:
         self._count("in")
         routed = self.catalog.route(msg.topic, self.config.topic_root)
         if routed is None:
-            self._error("unknown-topic", "no event is defined for this topic", topic=msg.topic, raw=msg.payload)
+            self._unknown(msg)
             return
         spec, robot = routed
         if robot not in (self.config.robot, ALL_ROBOTS):
@@ -420,10 +435,12 @@ class Engine:
             assert problem is not None
             self._count("invalid")
             corr, mission = salvage(msg.payload) if problem.code != "too-large" else (None, None)
+            if msg.origin is not None:  # a WoT message: where its own data is at fault, as its consumer sent it
+                problem = wot_problem(spec, msg.payload, problem)
             self._error(
                 problem.code,
                 problem.message,
-                topic=msg.topic,
+                topic=msg.origin or msg.topic,
                 raw=msg.payload,
                 affordance=spec.affordance,
                 correlation=corr,
@@ -461,9 +478,10 @@ class Engine:
         if verdict is not Verdict.NEW:
             corr, mission = references(event)
             why = time_problem(sent) if verdict is Verdict.BAD_TIME and isinstance(sent, str) else None
+            words = _WOT_REUSED if verdict is Verdict.REUSED and msg.origin is not None else _REFUSALS[verdict]
             self._refuse(
                 verdict.value,
-                _REFUSALS[verdict].format(id=event_id, time=sent, window=self.config.freshness_window, why=why),
+                words.format(id=event_id, time=sent, window=self.config.freshness_window, why=why),
                 msg,
                 spec,
                 (corr or (event_id if isinstance(event_id, str) else None), mission),
@@ -490,6 +508,28 @@ class Engine:
             self._cancel(spec, procedure, event)
         elif spec.kind is Kind.WRITE:
             self._pool.submit(self._write, spec, event)
+
+    def _unknown(self, msg: Message) -> None:
+        """A message on a topic of the robot's command filters where no event is defined: answered
+        `unknown-topic` (on a WoT topic: on the WoT error topic too). A retained one is not: nobody sends a
+        command retained, it is someone's data (a value an earlier version of this robot's node published,
+        handed over again at every connection), and an answer would repeat at every reconnect."""
+        if msg.retain:
+            self._count("unknown-retained")
+            log.info("retained message on %s, where no event is defined: not answered", msg.topic)
+            return
+        message = "no event is defined on this topic: check it against the robot's Thing Description"
+        refs: tuple[str | None, int | None] = (None, None)
+        if len(msg.payload) <= self.config.max_event_bytes:  # its correlation, so that the sender knows its answer
+            refs = salvage(msg.payload) if msg.origin is None else wot_references(msg.payload)
+        self._error(
+            "unknown-topic",
+            message,
+            topic=msg.origin or msg.topic,
+            raw=msg.payload,
+            correlation=refs[0],
+            mission=refs[1],
+        )
 
     # -- missions ------------------------------------------------------------------------------------------
 

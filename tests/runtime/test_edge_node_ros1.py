@@ -184,8 +184,8 @@ def test_values_no_ros_type_holds_never_reach_the_ros1_robot(
     try:
         refused = [
             (f"td2adaptor/{ROBOT}/DoorComponent/door/write", b'{"payload":{"data":1e400}}', "/payload/data"),
-            (f"td2adaptor/{ROBOT}/wot-thing/DoorComponent/door", b'{"data":-1e999}', "/payload/data"),
-            (f"td2adaptor/{ROBOT}/wot-thing/DoorComponent/door", b'{"data":NaN}', "/payload/data"),
+            (f"td2adaptor/{ROBOT}/wot-thing/DoorComponent/door", b'{"data":-1e999}', "/data"),  # as the WoT
+            (f"td2adaptor/{ROBOT}/wot-thing/DoorComponent/door", b'{"data":NaN}', "/data"),  # consumer sent it
             (
                 f"td2adaptor/{ROBOT}/DoorComponent/door/write",
                 b'{"correlation":"\\ud800","payload":{"data":1}}',
