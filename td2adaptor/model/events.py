@@ -221,6 +221,22 @@ class EventCatalog:
         return None if spec is None else (spec, levels[1])
 
 
+#: the levels under `<Component>/<affordance>` where commands arrive (the others carry what the node sends)
+COMMAND_SUFFIXES = (Kind.WRITE.value, Kind.QUERY.value, Kind.CANCEL.value)
+
+
+def command_filters(catalog: EventCatalog, robot: str, root: str = TOPIC_ROOT) -> list[str]:
+    """The MQTT filters on which `robot`'s edge node takes its commands: every topic a command can come on, also
+    for an affordance (or component) the robot does not have, so that such a command is answered
+    (`unknown-topic`) rather than lost. `<Component>/<affordance>` (invokes, queries, cancels; also where the
+    node publishes property values, which it drops on arrival) and, per component, `<affordance>/write`,
+    `/query` and `/cancel`, not `+/+/write`: that filter would also match a WoT topic (`wot-thing/<C>/write`),
+    and a broker may deliver a message once per matching filter. Never the node's feedback and state topics."""
+    base = f"{root}/{robot}"
+    components = dict.fromkeys(s.component for s in catalog.specs if s.component)
+    return [f"{base}/+/+", *(f"{base}/{c}/+/{suffix}" for c in components for suffix in COMMAND_SUFFIXES)]
+
+
 def td_topic(robot: str, root: str = TOPIC_ROOT) -> str:
     """Where robot `robot`'s edge node keeps its Thing Description, retained, while it runs."""
     return f"{root}/{robot}/{TD_LEVEL}"

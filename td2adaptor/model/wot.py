@@ -60,6 +60,16 @@ def wot_topic(spec: EventSpec, robot: str, root: str = TOPIC_ROOT) -> str | None
     return topic
 
 
+def wot_command_filters(robot: str, root: str = TOPIC_ROOT) -> list[str]:
+    """The MQTT filters on which `robot`'s edge node takes WoT commands, also for affordances the Thing does not
+    have (answered `unknown-topic`): `<Component>/<affordance>` (action inputs, written values; also where the
+    node publishes property values, which it drops on arrival) and a ROS action goal's `.../query` and
+    `.../cancel`. None of them matches an envelope topic (the component level is `wot-thing`) or the node's
+    feedback, state and error topics."""
+    base = f"{root}/{robot}/{WOT_LEVEL}"
+    return [f"{base}/+/+", f"{base}/+/+/{Kind.QUERY.value}", f"{base}/+/+/{Kind.CANCEL.value}"]
+
+
 def takes_correlation(spec: EventSpec) -> bool:
     """Whether the action input of invoke event `spec` has room for `correlationId` (an object whose goal has
     no field of that name)."""

@@ -82,7 +82,7 @@ def excerpt(raw: bytes) -> str:
     return raw[:EXCERPT].decode("utf-8", errors="replace")[:EXCERPT]
 
 
-def _pointer(path: Any) -> str:
+def pointer(path: Any) -> str:
     text = "".join("/" + str(p).replace("~", "~0").replace("/", "~1") for p in path)
     if _SURROGATE.search(text):  # a member name that is no text: shown escaped, so the refusal can be sent
         text = text.encode("utf-8", "backslashreplace").decode("utf-8")
@@ -103,7 +103,7 @@ def value_problem(data: Any) -> tuple[str, str] | None:
     if found is None:
         return None
     path, message = found
-    return _pointer(reversed(path)), message
+    return pointer(reversed(path)), message
 
 
 def _problem(value: Any, depth: int) -> tuple[list[Any], str] | None:
@@ -174,7 +174,7 @@ class EventValidator:
         out: list[tuple[str, str]] = []
         for error in self._validators[spec.key].iter_errors(event):
             message = error.message if len(error.message) <= 300 else error.message[:297] + "..."
-            path = _pointer(error.absolute_path)
+            path = pointer(error.absolute_path)
             if error.validator is None and not path and isinstance(event, dict):
                 # jsonschema reports a `false` property schema without its name: say which member it is
                 banned = [k for k, s in spec.schema["properties"].items() if s is False and k in event]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -18,6 +19,11 @@ from td2adaptor.runtime.bus.bus import Bus
 from td2adaptor.runtime.bus.thingbus import ThingBus
 from td2adaptor.runtime.engine.engine import Engine
 from tests.conftest import REPO
+
+#: a Python class name followed by a colon, as `f"{type(exc).__name__}: {exc}"` writes it: never in a user's words
+CLASS_NAME = re.compile(
+    r"\b(?:[A-Z][a-z0-9]*)+(?:Error|Exception|Unavailable|Timeout|Failed|Rejected|Aborted|Canceled|Message|Name):"
+)
 
 Event = tuple[str, dict[str, Any]]
 

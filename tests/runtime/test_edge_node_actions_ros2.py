@@ -149,6 +149,8 @@ def check_goal(events: list[dict[str, Any]], messages: list[list[int]], end: str
     assert (payloads[0]["state"], payloads[0]["result"]) == ("queued", "accepted")
     assert [p["feedback"]["sequence"] for p in payloads[1:-1]] == messages
     assert all(p["state"] == "running" for p in payloads[1:-1])
+    # a running event says a running word, also when the result came first: the end only in the terminal event
+    assert all(p["result"] in ("executing", "canceling") for p in payloads[1:-1]), payloads
     assert len({p["goal"] for p in payloads}) == 1 and len(payloads[0]["goal"]) == 32
     assert payloads[-1]["state"] == end
     return payloads[-1]
@@ -226,6 +228,10 @@ def test_feedback_throttle(fibo_build: tuple[Model, Path], fibo_robot: Process, 
         assert len(messages) == 20 and 1 <= len(relayed) < len(messages)
         assert relayed[-1] == messages[-1] and relayed == sorted(relayed, key=len)
         assert events[-1]["payload"]["state"] == "finished"
+        # the last message is held until the result came, and still sent as a running one
+        assert [(e["payload"]["state"], e["payload"]["result"]) for e in events[1:-1]] == [
+            ("running", "executing")
+        ] * len(relayed), events
     finally:
         edge.close()
 

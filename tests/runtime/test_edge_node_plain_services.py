@@ -24,7 +24,9 @@ import pytest
 
 from td2adaptor.diagnostics import Severity
 from td2adaptor.model import Model
+from td2adaptor.model.events import Kind, build_catalog
 from td2adaptor.runtime import LocalBroker, RuntimeConfig, serve
+from td2adaptor.runtime.events import EventValidator
 from td2adaptor.runtime.node.roslink import RosLink, connect
 from td2adaptor.runtime.ros.genport import GeneratedPort, _takes_mission_id
 from tests.lowering.test_procedures import INTERFACES, STATES, procedure_td
@@ -174,7 +176,7 @@ def test_one_shot_invoke_of_a_plain_service(app: LocalApp, robot: PlainRobot) ->
 
 
 def test_one_shot_invoke_the_robot_refuses_fails_with_its_words(
-    app: LocalApp, robot: PlainRobot, caplog: pytest.LogCaptureFixture
+    plain_build: tuple[Model, Path], app: LocalApp, robot: PlainRobot, caplog: pytest.LogCaptureFixture
 ) -> None:
     with caplog.at_level("WARNING", logger="td2adaptor.runtime"):
         app.send(f"{TOPIC}/BaseComponent/enableMotors", {"correlation": "m0", "payload": {"data": False}})
@@ -183,6 +185,9 @@ def test_one_shot_invoke_the_robot_refuses_fails_with_its_words(
     payload = event["payload"]
     assert (payload["state"], payload["reason"], payload["terminal"]) == ("failed", "call-failed", True)
     assert "motors are locked" in payload["message"]
+    assert payload["output"] == {"success": False, "message": "motors are locked"}  # the robot's whole answer
+    catalog = build_catalog(plain_build[0])
+    assert EventValidator(catalog).errors(catalog.find(Kind.FEEDBACK, "enableMotors"), event) == []
     assert "enableMotors False" in robot.calls
     assert any("enableMotors: failed (call-failed)" in r.getMessage() for r in caplog.records)
 

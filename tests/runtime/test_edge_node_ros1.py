@@ -29,12 +29,13 @@ from td2adaptor.generation.backend import GenOptions
 from td2adaptor.runtime import LocalBroker, PortCallFailed, PortTimeout, PortUnavailable, RuntimeConfig, serve
 from td2adaptor.runtime.ros.bridge import Ros1Bridge
 from td2adaptor.runtime.ros.genport import Layout
+from td2adaptor.runtime.ros.port import RosSetupError
 from tests.conftest import EXAMPLE
 from tests.ros1 import harness
 from tests.ros1.harness import Master, Sim
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
-from tests.runtime.edge import RunProcess, check_mission, until
+from tests.runtime.edge import CLASS_NAME, RunProcess, check_mission, until
 from tests.runtime.rb1 import GOAL, LocalApp, check_outbound, rb1_model, terminal
 
 PKG = "robotnik_rb_1_adaptor"
@@ -183,8 +184,8 @@ def test_values_no_ros_type_holds_never_reach_the_ros1_robot(
     try:
         refused = [
             (f"td2adaptor/{ROBOT}/DoorComponent/door/write", b'{"payload":{"data":1e400}}', "/payload/data"),
-            (f"td2adaptor/{ROBOT}/wot-thing/DoorComponent/door", b'{"data":-1e999}', "/payload/data"),
-            (f"td2adaptor/{ROBOT}/wot-thing/DoorComponent/door", b'{"data":NaN}', "/payload/data"),
+            (f"td2adaptor/{ROBOT}/wot-thing/DoorComponent/door", b'{"data":-1e999}', "/data"),  # as the WoT
+            (f"td2adaptor/{ROBOT}/wot-thing/DoorComponent/door", b'{"data":NaN}', "/data"),  # consumer sent it
             (
                 f"td2adaptor/{ROBOT}/DoorComponent/door/write",
                 b'{"correlation":"\\ud800","payload":{"data":1}}',
@@ -204,6 +205,31 @@ def test_values_no_ros_type_holds_never_reach_the_ros1_robot(
     finally:
         engine.stop()
         bridge.close()
+
+
+def test_a_ros1_bridge_that_cannot_import_the_adaptor_says_how_to_fix_it_in_words(
+    master: Master, interfaces: Path
+) -> None:
+    """Issue 35: the ROS 1 interpreter's failure reached the user as `... did not start: ModuleNotFoundError: No
+    module named ...`; it now says what `run` says on ROS 2, without a class name."""
+    bridge = Ros1Bridge(
+        Layout.of(rb1_model()),
+        "no_such_adaptor",
+        [(ROBOT, ROBOT)],
+        python=harness.SYSTEM_PYTHON,
+        pythonpath=[interfaces],
+        master_uri=master.uri,
+        timeout=5.0,
+        environ=master.env(),
+    )
+    try:
+        with pytest.raises(RosSetupError) as failed:
+            bridge.start()
+    finally:
+        bridge.close()
+    message = str(failed.value)
+    assert "cannot import the adaptor package 'no_such_adaptor'" in message and "--package-path" in message
+    assert not CLASS_NAME.search(message), message
 
 
 def _group_members(pgid: int) -> list[int]:

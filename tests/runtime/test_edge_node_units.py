@@ -12,9 +12,9 @@ from typing import Any
 
 from td2adaptor.model.events import ERROR_CODES
 from td2adaptor.runtime import NoValue, PortCallFailed, PortTimeout, PortUnavailable
-from td2adaptor.runtime.engine.words import INTERNAL, describe
 from td2adaptor.runtime.ros.bridge import child_environment
 from td2adaptor.runtime.ros.genport import Layout, _port_error, to_plain
+from td2adaptor.runtime.ros.words import INTERNAL, describe
 from tests.conftest import REPO
 from tests.runtime.rb1 import rb1_model
 

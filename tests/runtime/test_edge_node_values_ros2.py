@@ -33,7 +33,7 @@ ROBOT = "values_edge"
 T = f"td2adaptor/{ROBOT}"
 W = f"{T}/{WOT_LEVEL}"
 FLT_MAX = 3.4028234663852886e38
-DEEP = "/payload/float32_value" + "/0" * 62  # the 64th level below the event
+DEEP = "/float32_value" + "/0" * 62  # the 64th level below the event (a WoT message: its own path)
 
 
 def _form(name: str, ros_type: str, op: Any) -> dict[str, Any]:
@@ -157,11 +157,12 @@ def test_values_no_ros_type_holds_are_refused_naming_the_path_and_never_reach_th
             (basic, b'{"correlation":"b1","payload":{"float32_value":3.5e38}}', "/payload/float32_value"),
             (basic, b'{"correlation":"b2","payload":{"float64_value":-1e400}}', "/payload/float64_value"),
             (f"{T}/LevelComponent/level/write", b'{"payload":{"data":-1e400}}', "/payload/data"),
-            (f"{W}/LevelComponent/level", b'{"data":3.5e38}', "/payload/data"),
+            # a WoT message: the path in the message its consumer sent (it has no payload member)
+            (f"{W}/LevelComponent/level", b'{"data":3.5e38}', "/data"),
             (
                 f"{W}/LevelComponent/setArrays",
                 b'{"correlationId":"a2","float32_values":[0,-3.5e38,0]}',
-                "/payload/float32_values/1",
+                "/float32_values/1",
             ),
             (basic, b'{"correlation":"\\ud800","payload":{"float64_value":1.5}}', "/correlation"),  # valid but for it
             (f"{W}/LevelComponent/setBasic", b'{"float32_value":' + b"[" * 100 + b"]" * 100 + b"}", DEEP),
@@ -174,8 +175,11 @@ def test_values_no_ros_type_holds_are_refused_naming_the_path_and_never_reach_th
         assert sorted(e["payload"]["errors"][0]["path"] for e in errors) == sorted(p for _, _, p in refused)
         assert all("Infinity" not in e["payload"]["message"] for e in errors)
         assert sorted(e["correlation"] for e in errors if "correlation" in e) == ["a1", "a2", "b1", "b2"]
-        # the WoT consumers got the same answers
-        app.wait(lambda ev: sum(1 for t, _ in ev if t == f"{W}/error") >= len(refused), timeout=10)
+        # the WoT consumers got the same answers to their own messages (not to the envelope events)
+        on_wot = [(topic, path) for topic, _, path in refused if topic.startswith(W)]
+        app.wait(lambda ev: sum(1 for t, _ in ev if t == f"{W}/error") >= len(on_wot), timeout=10)
+        wot = [e for t, e in app.events if t == f"{W}/error"]
+        assert sorted((e["topic"], e["errors"][0]["path"]) for e in wot) == sorted(on_wot)
         # nested deeper than the JSON parser follows (the WoT adapter's RecursionError went unanswered)
         app.send(f"{W}/LevelComponent/setArrays", b"[" * 3000 + b"]" * 3000)
         app.wait(lambda ev: sum(1 for t, _ in ev if t == f"{T}/error") > len(refused), timeout=30)

@@ -16,7 +16,7 @@ import pytest
 from td2adaptor.model import Procedure
 from td2adaptor.model.events import GOAL_WORDS, STATES
 from td2adaptor.runtime.config import ConfigError, RuntimeConfig, load_config
-from td2adaptor.runtime.engine.goals import goal_status
+from td2adaptor.runtime.engine.goals import _running_word, goal_status
 from td2adaptor.runtime.node.roslink import make_port
 from td2adaptor.runtime.ros.bridge import Ros1Bridge
 from td2adaptor.runtime.ros.genport import FEEDBACK_GRACE, GoalTrack, Layout
@@ -56,6 +56,14 @@ def test_goal_words(word: str, done: bool, state: str, reason: str | None) -> No
     assert status.result in GOAL_WORDS and status.state in STATES
     if done and word != "executing":
         assert status.message == "the server's words"
+
+
+@pytest.mark.parametrize("word", GOAL_STATES)
+def test_a_running_feedback_event_never_carries_an_end_word(word: str) -> None:
+    # feedback trailing the result (or held by feedback_period) is still sent as `running`: with a running word
+    running = _running_word(word)
+    assert goal_status(GoalProgress((), 1, running, False)).state == "running"
+    assert running == (word if word in ("executing", "canceling") else "executing")
 
 
 def test_every_goal_state_is_a_word_of_the_contract() -> None:

@@ -58,6 +58,21 @@ def mosquitto(tmp_path: Path) -> Iterator[Broker]:
     b.stop()
 
 
+def send_as_another_client(cfg: RuntimeConfig, model: Any, env: dict[str, str], topic: str, raw: bytes) -> None:
+    """Publish with the node's own broker settings (TLS, credentials) as another client: the broker sends the
+    node none of what it published itself (MQTT 5 no-local, docs/brokers.md)."""
+    from td2adaptor.runtime.node.app import bus_security
+
+    address, security = bus_security(cfg, model, env=env)
+    bus = MqttBus(address, security, client_id=f"{cfg.mqtt_client_id}-sender")
+    bus.connect()
+    try:
+        bus.publish(topic, raw)
+        assert bus.flush(10)
+    finally:
+        bus.close()
+
+
 def states(app: AppClient, correlation: str) -> list[tuple[int, str]]:
     return [
         (e["payload"]["seq"], e["payload"]["state"])
@@ -170,16 +185,15 @@ def test_tls_with_a_client_certificate(tmp_path: Path) -> None:
 
         with pytest.raises(BusError, match="closed the connection before accepting it|TLS handshake"):
             serve(model, SimPort(model, sim()), config(url, tls_ca_file=str(certs.ca)), env={})  # no client cert
-        engine = serve(
-            model, SimPort(model, sim(0.1)), config(url, tls_key_file=str(certs.client_key), **remote_ok), env={}
-        )
+        cfg = config(url, tls_key_file=str(certs.client_key), **remote_ok)
+        engine = serve(model, SimPort(model, sim(0.1)), cfg, env={})
         try:
             assert isinstance(bus_of(engine), MqttBus) and bus_of(engine).connected
-            bus_of(engine).publish(GOTO, b'{"correlation": "tls", "payload": {"procedure": {}}}')
+            send_as_another_client(cfg, model, {}, GOTO, b'{"correlation": "tls", "payload": {"procedure": {}}}')
             deadline = time.monotonic() + 10
             while engine.stats.get("out.feedback", 0) < 2 and time.monotonic() < deadline:
                 time.sleep(0.02)
-            assert engine.stats.get("out.feedback", 0) >= 2  # its own invoke came back through the broker
+            assert engine.stats.get("out.feedback", 0) >= 2  # an invoke through the broker, over TLS, ran
         finally:
             engine.stop()
     finally:
@@ -242,7 +256,8 @@ def test_a_broker_that_identifies_clients_by_certificate_is_not_taken_for_an_ano
         assert not accepts_anonymous(parse_broker_url(url), TlsOptions(ca_file=str(certs.ca)), timeout=5)
         engine = serve(model, SimPort(model, sim(0.1)), config(url, **node_tls), env=env)
         try:
-            bus_of(engine).publish(GOTO, b'{"correlation": "by-cert", "payload": {"procedure": {}}}')
+            invoke = b'{"correlation": "by-cert", "payload": {"procedure": {}}}'
+            send_as_another_client(config(url, **node_tls), model, env, GOTO, invoke)
             assert until(lambda: engine.stats.get("out.feedback", 0) >= 2, timeout=10)
         finally:
             engine.stop()
@@ -276,7 +291,9 @@ def test_basic_credentials_over_tls_with_only_the_ca(tmp_path: Path) -> None:
                 serve(model, SimPort(model, sim(0.1)), cfg, env={**env, "TD2ADAPTOR_MQTT_PASSWORD": "wrong"})
             engine = serve(model, SimPort(model, sim(0.1)), cfg, env=env)
             try:
-                bus_of(engine).publish(GOTO, b'{"correlation": "tls-basic", "payload": {"procedure": {}}}')
+                send_as_another_client(
+                    cfg, model, env, GOTO, b'{"correlation": "tls-basic", "payload": {"procedure": {}}}'
+                )
                 assert until(lambda e=engine: e.stats.get("out.feedback", 0) >= 2, timeout=10)
             finally:
                 engine.stop()

@@ -269,6 +269,11 @@ def test_require_id_and_time_refuses_what_the_guard_cannot_protect(tmp_path: Pat
         app.send(wot_goto, {**other, CORRELATION: "wot-1"})  # another goal under the same id
         app.wait(lambda ev: bool(app.of("error", "wot-1")))
         assert app.of("error", "wot-1")[0]["payload"]["code"] == "id-reused"
+        # a WoT consumer's command: told on the WoT error topic, in its terms (its id is its correlationId)
+        wot_error = f"td2adaptor/{ROBOT}/{WOT_LEVEL}/error"
+        app.wait(lambda ev: any(t == wot_error and e.get("code") == "id-reused" for t, e in ev))
+        (reused,) = [e for t, e in app.events if t == wot_error and e.get("code") == "id-reused"]
+        assert reused["topic"] == wot_goto and "correlationId 'wot-1' was already used" in reused["message"]
         time.sleep(0.2)
         feedback = app.of("feedback", "wot-1")  # the replay: not run, answered with the terminal event again
         assert len(feedback) == runs + 1 and feedback[-1] == feedback[runs - 1]

@@ -84,7 +84,7 @@ def test_properties_are_the_messages_themselves_and_writes_take_the_value(rig: A
         ("DoorComponent/door", {"linear": {"x": "fast"}}, "invalid-event", "'linear' was unexpected"),
         ("DoorComponent/door", {"data": "fast"}, "invalid-event", "is not of type 'number'"),
         ("GoToComponent/gotoQuery", {"mission": "seven", CORRELATION: "bad"}, "invalid-event", "integer"),
-        ("GoToComponent/gotoQuery", {"which": 1, CORRELATION: "bad"}, "invalid-event", "payload"),
+        ("GoToComponent/gotoQuery", {"which": 1, CORRELATION: "bad"}, "invalid-event", "'which' was unexpected"),
         ("GoToComponent/gotoRun", {**GOAL, CORRELATION: 5}, "invalid-event", "correlation"),
         ("GoToComponent/gotoRun", b"{not json", "invalid-json", "not a JSON document"),
     ],

@@ -257,8 +257,9 @@ def rig() -> Iterator[Rig]:
     [
         (f"{T}/DoorComponent/door/write", b'{"correlation":"w1","payload":{"data":1e400}}', "/payload/data"),
         (f"{T}/GoToComponent/gotoRun", b'{"payload":' + goal_at("-1e400") + b"}", "/payload/procedure/goals/0/pose/x"),
-        (f"{W}/DoorComponent/door", b'{"data":1e400}', "/payload/data"),
-        (f"{W}/GoToComponent/gotoRun", goal_at("1e999", correlationId="g2"), "/payload/procedure/goals/0/pose/x"),
+        # a WoT message: the path in the message its consumer sent (it has no payload member)
+        (f"{W}/DoorComponent/door", b'{"data":1e400}', "/data"),
+        (f"{W}/GoToComponent/gotoRun", goal_at("1e999", correlationId="g2"), "/procedure/goals/0/pose/x"),
     ],
 )
 def test_a_number_no_double_holds_is_refused_naming_the_path_and_never_reaches_the_robot(
@@ -268,13 +269,16 @@ def test_a_number_no_double_holds_is_refused_naming_the_path_and_never_reaches_t
     (error,) = rig.answered(1)
     assert error["payload"]["code"] == "invalid-event", error
     assert error["payload"]["errors"][0]["path"] == pointer and pointer in error["payload"]["message"]
-    assert "Infinity" not in error["payload"]["message"]
-    (wot,) = rig.answered(1, f"{W}/error")  # the WoT consumers' form of the same answer
-    assert wot["code"] == "invalid-event" and wot["errors"][0]["path"] == pointer
+    assert "Infinity" not in error["payload"]["message"] and error["payload"]["topic"] == topic
+    if topic.startswith(W):
+        (wot,) = rig.answered(1, f"{W}/error")  # the WoT consumers' form of the same answer
+        assert wot["code"] == "invalid-event" and wot["errors"][0]["path"] == pointer and wot["topic"] == topic
     # the robot was never called: a valid event afterwards is the first it sees
     rig.app.send(f"{T}/GoToComponent/gotoRun", json.dumps({"correlation": "fine", "payload": GOAL}).encode())
     rig.app.wait(terminal("feedback", "fine"))
     assert rig.sim.next_id == 1 and rig.sim.door_command is None
+    if not topic.startswith(W):  # an envelope event's refusal: no WoT consumer sent it, none is told
+        assert rig.errors(f"{W}/error") == []
 
 
 def test_a_lone_surrogate_anywhere_is_refused_before_anything_runs_and_answered(rig: Rig) -> None:
@@ -294,12 +298,15 @@ def test_a_lone_surrogate_anywhere_is_refused_before_anything_runs_and_answered(
     assert [e["payload"]["code"] for e in errors] == ["invalid-event"] * len(sent), errors
     paths = sorted(e["payload"]["errors"][0]["path"] for e in errors)
     assert paths == sorted(
-        ["/correlation", "/id", "/correlation", "/payload/procedure/goals\\udbff", "/correlation", "/payload/data"]
+        ["/correlation", "/id", "/correlation", "/payload/procedure/goals\\udbff", "/correlationId", "/data"]
     )
     # nothing that cannot be encoded is echoed; what can be is
     assert [e.get("correlation") for e in errors if "correlation" in e] == ["c4"]
     assert rig.untouched()
-    assert len(rig.answered(len(sent), f"{W}/error")) == len(sent)
+    # the WoT consumers are told about the two WoT messages, in their own terms; not about the envelope events
+    wot = rig.answered(2, f"{W}/error")
+    assert sorted(e["errors"][0]["path"] for e in wot) == ["/correlationId", "/data"]
+    assert {e["topic"] for e in wot} == {topic for topic, _ in sent if topic.startswith(W)}
 
 
 def test_nesting_deeper_than_the_parser_follows_is_answered_on_both_topics(rig: Rig) -> None:

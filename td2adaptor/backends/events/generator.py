@@ -44,6 +44,7 @@ from td2adaptor.model.events import (
     EventCatalog,
     Kind,
     build_catalog,
+    command_filters,
     td_topic,
 )
 from td2adaptor.model.exposed import (  # noqa: F401 - the exposed TD's pieces, named here as before
@@ -59,7 +60,7 @@ from td2adaptor.model.exposed import (  # noqa: F401 - the exposed TD's pieces, 
     thing_id,
     topic_href,
 )
-from td2adaptor.model.wot import wot_topic
+from td2adaptor.model.wot import wot_command_filters, wot_topic
 from td2adaptor.support.jsondump import dump
 
 TEMPLATES = Path(__file__).parent / "templates"
@@ -302,7 +303,13 @@ def _acl(model: Model, catalog: EventCatalog, robots: list[str]) -> str:
     outbound = [s for s in catalog.specs if not s.kind.inbound]
 
     def node(robot: str) -> dict[str, Any]:
-        reads = [t for s in inbound for t in (s.topic(robot), s.topic(ALL_ROBOTS), wot_topic(s, robot)) if t]
+        # the filters the node subscribes (runtime/engine.py): its commands, also on topics no event is defined
+        # on (answered unknown-topic), and the all-robots channel's own command topics
+        reads = [
+            *command_filters(catalog, robot),
+            *wot_command_filters(robot),
+            *(s.topic(ALL_ROBOTS) for s in inbound),
+        ]
         writes = [
             *(s.topic(robot) for s in outbound),
             *(t for s in outbound if (t := wot_topic(s, robot))),

@@ -27,6 +27,9 @@ class Message:
     topic: str
     payload: bytes
     retain: bool = False
+    #: the topic it arrived on, when an adapter hands it on under another (a WoT message, wrapped into the
+    #: envelope event of `topic` by thingbus.py): what an answer names as where the message came from
+    origin: str | None = None
 
 
 Handler = Callable[[Message], None]

@@ -141,6 +141,7 @@ class MqttBus:
         connect_timeout: float = 10.0,
         reconnect_delay: tuple[int, int] = (1, 4),
         retain_as_published: bool = True,
+        no_local: bool = False,
         verify: Callable[[], str | None] | None = None,
     ) -> None:
         self.address = address
@@ -158,6 +159,7 @@ class MqttBus:
         self.connect_timeout = connect_timeout
         self.reconnect_delay = reconnect_delay
         self.retain_as_published = retain_as_published  # MQTT 5; off: only a new subscription's retained are flagged
+        self.no_local = no_local  # MQTT 5: the broker sends this client none of what it published itself
         self.connects = 0  # successful CONNACKs, for tests and logs
         self.probe = False  # a connection made only to learn what the broker allows: its refusal is no error
         self.verify = verify  # run on every connection before anything of it is handled: why not to serve, or None
@@ -451,10 +453,16 @@ class MqttBus:
         """Subscribe to (filter, QoS) pairs; in MQTT 5 with retain-as-published, so that a message published
         retained keeps its flag also when it reaches this client already subscribed (a broker clears it
         otherwise, and a command published retained while the node is online looks live). MQTT 3.1.1 has no
-        such option: there only the retained messages a new subscription finds are flagged."""
-        if self.mqtt_version != "5" or not self.retain_as_published:
+        such option: there only the retained messages a new subscription finds are flagged. With `no_local`, also
+        MQTT 5's no-local option: an edge node's command filters match the topics of its own property values."""
+        if self.mqtt_version != "5" or not (self.retain_as_published or self.no_local):
             return client.subscribe(patterns)
-        return client.subscribe([(p, SubscribeOptions(qos=q, retainAsPublished=True)) for p, q in patterns])
+        return client.subscribe(
+            [
+                (p, SubscribeOptions(qos=q, noLocal=self.no_local, retainAsPublished=self.retain_as_published))
+                for p, q in patterns
+            ]
+        )
 
     def publish(self, topic: str, payload: bytes, *, retain: bool = False, qos: int = 1) -> None:
         if not valid_topic(topic):

@@ -36,9 +36,9 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 from td2adaptor.model import Model, Procedure
-from td2adaptor.model.events import ALL_ROBOTS, EventCatalog, EventSpec, Kind, build_catalog
+from td2adaptor.model.events import ALL_ROBOTS, EventCatalog, EventSpec, Kind, build_catalog, command_filters
 from td2adaptor.runtime.bus.bus import Bus, BusError, Message
-from td2adaptor.runtime.bus.thingbus import WOT_SOURCE
+from td2adaptor.runtime.bus.thingbus import WOT_SOURCE, own_topics, wot_problem, wot_references
 from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.engine.goals import GoalRunner
 from td2adaptor.runtime.engine.ledger import Ledger, Record
@@ -46,10 +46,10 @@ from td2adaptor.runtime.engine.missions import Mission, MissionTable
 from td2adaptor.runtime.engine.outbox import Outbox
 from td2adaptor.runtime.engine.replay import ReplayGuard, Verdict, digest, time_problem
 from td2adaptor.runtime.engine.streams import PropertyStreams, streams
-from td2adaptor.runtime.engine.words import INTERNAL, describe
 from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope, references, salvage
 from td2adaptor.runtime.ros.port import NoValue, PortError, RobotPort, StartResult
 from td2adaptor.runtime.ros.procedures import ProcedureStatus, read
+from td2adaptor.runtime.ros.words import INTERNAL, describe
 from td2adaptor.runtime.workers import Workers
 
 log = logging.getLogger("td2adaptor.runtime")
@@ -68,6 +68,11 @@ _REFUSALS = {
     Verdict.REUSED: "not run: event id {id!r} was already used by another event (on another topic or with other "
     "content); give every event an id of its own",
 }
+#: `id-reused` of a WoT message: its id is the consumer's correlationId (require_id_and_time)
+_WOT_REUSED = (
+    "not run: correlationId {id!r} was already used by another command (to another affordance or with other "
+    "input); give every command a correlationId of its own"
+)
 
 
 def _guard(config: RuntimeConfig) -> ReplayGuard:
@@ -138,15 +143,19 @@ class Engine:
         self._pool = ThreadPoolExecutor(max_workers=CALL_WORKERS, thread_name_prefix=f"td2adaptor-{config.robot}-call")
         self._goals = GoalRunner(port, config, self.missions, self.outbox, self._pool, self._stopping, clock)
         self._streams: PropertyStreams | None = None
+        self._own = own_topics(self.catalog, config.robot, config.topic_root)  # never taken as commands
 
     # -- life cycle ----------------------------------------------------------------------------------------
 
     def start(self) -> None:
-        """Subscribe, connect and start the worker threads."""
-        root = self.config.topic_root
+        """Subscribe, connect and start the worker threads: the robot's command filters (every command topic,
+        also of an affordance it does not have: answered `unknown-topic`), and the all-robots channel's own
+        command topics (where other robots' affordances are not unknown)."""
+        root, robot = self.config.topic_root, self.config.robot
+        for pattern in command_filters(self.catalog, robot, root):
+            self.bus.subscribe(pattern, self._take)
         for spec in self.catalog.inbound():
-            for robot in (self.config.robot, ALL_ROBOTS):
-                self.bus.subscribe(spec.topic(robot, root), self._inbox.put)
+            self.bus.subscribe(spec.topic(ALL_ROBOTS, root), self._inbox.put)
         self.bus.connect()
         self._recover()  # before any event is taken: a resent invoke finds what the last run left
         self._spawn(self._dispatch, "dispatch")
@@ -232,7 +241,7 @@ class Engine:
         self.outbox.error(
             code,
             message,
-            topic=msg.topic,
+            topic=msg.origin or msg.topic,  # where it arrived (a WoT topic: also answered on the WoT error topic)
             affordance=spec.affordance,
             correlation=corr,
             mission=mission,
@@ -240,6 +249,12 @@ class Engine:
         )
 
     # -- inbound -------------------------------------------------------------------------------------------
+
+    def _take(self, msg: Message) -> None:
+        """A message on the robot's command filters (the bus's thread): queued, but what this node publishes
+        there itself (property values, envelope and WoT, and the WoT error topic) is dropped at once."""
+        if msg.topic not in self._own:
+            self._inbox.put(msg)
 
     def _dispatch(self) -> None:
         while True:
@@ -250,13 +265,13 @@ class Engine:
                 self._handle(msg)
             except Exception:  # a bug here must cost one event, not the process
                 log.exception("internal error on %s", msg.topic)
-                self.outbox.error("internal", INTERNAL, topic=msg.topic, raw=msg.payload)
+                self.outbox.error("internal", INTERNAL, topic=msg.origin or msg.topic, raw=msg.payload)
 
     def _handle(self, msg: Message) -> None:
         self.outbox.count("in")
         routed = self.catalog.route(msg.topic, self.config.topic_root)
         if routed is None:
-            self.outbox.error("unknown-topic", "no event is defined for this topic", topic=msg.topic, raw=msg.payload)
+            self._unknown(msg)
             return
         spec, robot = routed
         if robot not in (self.config.robot, ALL_ROBOTS):
@@ -284,10 +299,12 @@ class Engine:
             assert problem is not None
             self.outbox.count("invalid")
             corr, mission = salvage(msg.payload) if problem.code != "too-large" else (None, None)
+            if msg.origin is not None:  # a WoT message: where its own data is at fault, as its consumer sent it
+                problem = wot_problem(spec, msg.payload, problem)
             self.outbox.error(
                 problem.code,
                 problem.message,
-                topic=msg.topic,
+                topic=msg.origin or msg.topic,
                 raw=msg.payload,
                 affordance=spec.affordance,
                 correlation=corr,
@@ -325,9 +342,10 @@ class Engine:
         if verdict is not Verdict.NEW:
             corr, mission = references(event)
             why = time_problem(sent) if verdict is Verdict.BAD_TIME and isinstance(sent, str) else None
+            words = _WOT_REUSED if verdict is Verdict.REUSED and msg.origin is not None else _REFUSALS[verdict]
             self._refuse(
                 verdict.value,
-                _REFUSALS[verdict].format(id=event_id, time=sent, window=self.config.freshness_window, why=why),
+                words.format(id=event_id, time=sent, window=self.config.freshness_window, why=why),
                 msg,
                 spec,
                 (corr or (event_id if isinstance(event_id, str) else None), mission),
@@ -354,6 +372,28 @@ class Engine:
             self._cancel(spec, procedure, event)
         elif spec.kind is Kind.WRITE:
             self._pool.submit(self._write, spec, event)
+
+    def _unknown(self, msg: Message) -> None:
+        """A message on a topic of the robot's command filters where no event is defined: answered
+        `unknown-topic` (on a WoT topic: on the WoT error topic too). A retained one is not: nobody sends a
+        command retained, it is someone's data (a value an earlier version of this robot's node published,
+        handed over again at every connection), and an answer would repeat at every reconnect."""
+        if msg.retain:
+            self.outbox.count("unknown-retained")
+            log.info("retained message on %s, where no event is defined: not answered", msg.topic)
+            return
+        message = "no event is defined on this topic: check it against the robot's Thing Description"
+        refs: tuple[str | None, int | None] = (None, None)
+        if len(msg.payload) <= self.config.max_event_bytes:  # its correlation, so that the sender knows its answer
+            refs = salvage(msg.payload) if msg.origin is None else wot_references(msg.payload)
+        self.outbox.error(
+            "unknown-topic",
+            message,
+            topic=msg.origin or msg.topic,
+            raw=msg.payload,
+            correlation=refs[0],
+            mission=refs[1],
+        )
 
     # -- missions ------------------------------------------------------------------------------------------
 
@@ -647,7 +687,8 @@ class Engine:
         self.outbox.state(procedure.run, status, correlation, mission)
 
     def _plain_call(self, spec: EventSpec, event: dict[str, Any], key: str | None = None) -> None:
-        """A non-procedure action: one call, one terminal feedback with its output."""
+        """A non-procedure action: one call, one terminal feedback with its output (also when it failed, if the
+        robot answered: its response says how)."""
         action = spec.affordance or ""
         m = Mission(
             spec.component or "",
@@ -664,7 +705,9 @@ class Engine:
         except Exception as exc:
             reason = exc.reason if isinstance(exc, PortError) else "call-failed"
             log.warning("%s: failed (%s): %s", action, reason, _describe(exc))
-            self.outbox.feedback(m, ProcedureStatus("failed", message=_describe(exc), reason=reason), terminal=True)
+            answer = exc.response if isinstance(exc, PortError) else None  # the robot answered, and said it failed
+            status = ProcedureStatus("failed", message=_describe(exc), reason=reason)
+            self.outbox.feedback(m, status, terminal=True, output=dict(answer) if answer is not None else None)
             return
         self.outbox.feedback(m, ProcedureStatus("finished"), terminal=True, output=output)
 

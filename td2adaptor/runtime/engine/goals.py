@@ -2,8 +2,9 @@
 
 An invoke sends the goal (one mission per component at a time, as for procedures). Once the server accepts,
 a feedback event says so (`queued`, `result: accepted`, with the goal id); then every ROS feedback message
-becomes one feedback event (`running`, the message in `feedback`), in order, or, with `feedback_period`
-> 0, at most one per period carrying the latest message; then exactly one terminal event: `finished`
+becomes one feedback event (`running`, `result` `executing` or `canceling`, the message in `feedback`), in
+order, or, with `feedback_period` > 0, at most one per period carrying the latest message; then exactly one
+terminal event: `finished`
 (succeeded), `cancelled` (canceled) or `failed` (aborted: reason `aborted`; refused: `rejected`; no end within
 `mission_timeout`: `timeout`; the action server gone (the port says the goal is `lost`: on ROS 2 after
 `action_server_timeout` of silence) or the port failing `max_query_failures` times in a row: `unreachable`), with the
@@ -26,9 +27,9 @@ from td2adaptor.model.events import GOAL_WORDS, EventSpec, Kind
 from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.engine.missions import Mission, MissionTable
 from td2adaptor.runtime.engine.outbox import Outbox
-from td2adaptor.runtime.engine.words import describe
 from td2adaptor.runtime.ros.port import GoalPort, GoalProgress, PortError, PortRejected, RobotPort
 from td2adaptor.runtime.ros.procedures import ProcedureStatus
+from td2adaptor.runtime.ros.words import describe
 
 log = logging.getLogger("td2adaptor.runtime")
 
@@ -66,6 +67,14 @@ def goal_status(progress: GoalProgress) -> ProcedureStatus:
     reason = _REASONS.get(word, "robot-error") if state == "failed" else None
     message = progress.message or (_ENDS.get(word, "") if progress.done else "")
     return ProcedureStatus(state, word if word in GOAL_WORDS else "unknown", message, reason=reason)
+
+
+def _running_word(word: str) -> str:
+    """The status word a `running` feedback event carries: the goal's own while it runs (`canceling`), else
+    `executing`. A server sends feedback only while it executes the goal, but the goal's status may already say
+    how it ended (the result came first, the feedback trails it, or is held back by `feedback_period`): that word
+    belongs to the terminal event alone."""
+    return word if _STATES.get(word) == "running" else "executing"
 
 
 @dataclass(frozen=True)
@@ -160,7 +169,7 @@ class GoalRunner:
                 continue
             failures = 0
             since = progress.received
-            running = ProcedureStatus("running", progress.status if not progress.done else "executing")
+            running = ProcedureStatus("running", _running_word(progress.status))
             for message in progress.feedback:
                 if cfg.feedback_period <= 0:
                     out.feedback(m, running, terminal=False, extra={"feedback": message})

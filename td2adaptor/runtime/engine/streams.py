@@ -45,11 +45,11 @@ from td2adaptor.model.wot import wot_topic
 from td2adaptor.runtime.bus.bus import Bus, BusError
 from td2adaptor.runtime.bus.thingbus import ThingBus
 from td2adaptor.runtime.engine.outbox import Outbox
-from td2adaptor.runtime.engine.words import describe
 from td2adaptor.runtime.events import new_id, now_rfc3339
 from td2adaptor.runtime.ros.cdr import message_class, plain_reader
 from td2adaptor.runtime.ros.genport import to_plain
 from td2adaptor.runtime.ros.port import RobotPort
+from td2adaptor.runtime.ros.words import describe
 
 if TYPE_CHECKING:
     from td2adaptor.runtime.bus.drivenbus import DrivenBus

@@ -122,6 +122,7 @@ def open_bus(
         will=will,
         birth=birth,
         announce=announce,
+        no_local=True,  # its command filters match its own property values' topics (engine.py drops them)
         session_expiry=config.session_expiry,
         mqtt_version=config.mqtt_version,
         keepalive=config.keepalive,

@@ -33,6 +33,7 @@ from td2adaptor.model import Model
 from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.ros.genport import GeneratedPort, Layout
 from td2adaptor.runtime.ros.port import PortError, RobotPort, RosSetupError
+from td2adaptor.runtime.ros.words import import_failure
 
 PY_DIR = f"python{sys.version_info.major}.{sys.version_info.minor}"
 _loaded_prefixes: set[Path] = set()
@@ -96,20 +97,8 @@ def import_package(name: str) -> ModuleType:
     """The generated adaptor package, or a `RosSetupError` that says how to make it importable."""
     try:
         return importlib.import_module(name)
-    except ModuleNotFoundError as exc:
-        missing = exc.name or name
-        if missing == name or name.startswith(missing + "."):
-            hint = (
-                "build it and source the install space (colcon build; . install/setup.bash), or pass "
-                "--package-path DIR with the generated package's source directory"
-            )
-            raise RosSetupError(f"cannot import the adaptor package {name!r}: {hint}") from None
-        raise RosSetupError(
-            f"cannot import the adaptor package {name!r}: module {missing!r} is missing (build the interface "
-            "packages and source their install space, or pass --prefix DIR for ROS 2 / --package-path DIR)"
-        ) from None
     except ImportError as exc:
-        raise RosSetupError(f"cannot import the adaptor package {name!r}: {exc}") from None
+        raise RosSetupError(import_failure(name, exc)) from None
 
 
 def make_port(

@@ -13,7 +13,7 @@ one JSON object per line, requests handled concurrently:
 
 `BridgePort` is the `RobotPort` of one robot on a bridge. A bridge that dies fails its calls as
 `PortUnavailable` and is restarted by the next call (at most every `restart_period` seconds).
-The child side imports only the standard library, `td2adaptor.runtime.ros.genport` and `.port`.
+The child side imports only the standard library, `td2adaptor.runtime.ros.genport`, `.port` and `.words`.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ import sys
 import tempfile
 import threading
 import time
+import traceback
 from collections import deque
 from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -46,6 +47,7 @@ from td2adaptor.runtime.ros.port import (
     RosSetupError,
     StartResult,
 )
+from td2adaptor.runtime.ros.words import import_failure, setup_failure
 
 ENV_PYTHON = "TD2ADAPTOR_ROS1_PYTHON"
 _ERRORS: dict[str, type[PortError]] = {
@@ -404,7 +406,8 @@ def _serve(requests: IO[str], replies: IO[str]) -> int:
     def error(rid: Any, exc: BaseException) -> None:
         kind = type(exc).__name__ if isinstance(exc, PortError) else "PortCallFailed"
         response = exc.response if isinstance(exc, PortError) else None
-        reply({"id": rid, "error": {"kind": kind, "message": str(exc) or type(exc).__name__, "response": response}})
+        # the message as the error says it, maybe empty: the parent's words then say what failed (words.py)
+        reply({"id": rid, "error": {"kind": kind, "message": str(exc), "response": response}})
 
     first = requests.readline()
     if not first:
@@ -416,20 +419,27 @@ def _serve(requests: IO[str], replies: IO[str]) -> int:
         rospy: Any = importlib.import_module("rospy")
         rospy.init_node(init["node"], anonymous=True, disable_signals=True)
         layout = Layout.from_json(init["layout"])
+        try:
+            package = importlib.import_module(init["package"])
+        except ImportError as exc:
+            raise PortCallFailed(import_failure(init["package"], exc)) from None
         for robot, namespace in init["robots"]:
-            ports[robot] = GeneratedPort(
-                layout,
-                init["package"],
-                namespace,
-                distro="ros1",
-                timeout=float(init["timeout"]),
-                wait_timeout=float(init["wait_timeout"]),
-                feedback_grace=(init.get("feedback_grace") or {}).get(robot),
-            )
-    except Exception as exc:  # noqa: BLE001 - reported to the parent, which explains it
-        error(
-            request.get("id", 0), exc if isinstance(exc, PortError) else PortCallFailed(f"{type(exc).__name__}: {exc}")
-        )
+            try:
+                ports[robot] = GeneratedPort(
+                    layout,
+                    package,
+                    namespace,
+                    distro="ros1",
+                    timeout=float(init["timeout"]),
+                    wait_timeout=float(init["wait_timeout"]),
+                    feedback_grace=(init.get("feedback_grace") or {}).get(robot),
+                )
+            except ValueError as exc:  # InvalidRobotName of the generated package
+                raise PortCallFailed(f"robot {robot}: {setup_failure(exc)}") from None
+    except Exception as exc:  # noqa: BLE001 - reported to the parent, which explains it (the details: stderr)
+        if not isinstance(exc, PortError):
+            traceback.print_exc()  # relayed to the parent's stderr: the class and where, for a developer
+        error(request.get("id", 0), exc if isinstance(exc, PortError) else PortCallFailed(setup_failure(exc)))
         return 1
     reply({"id": request.get("id", 0), "ok": {"pid": os.getpid(), "python": sys.version.split()[0]}})
 

@@ -1,0 +1,52 @@
+"""Failures in words a robot's user understands: what error and failure events say instead of class names.
+
+An error event is read by an operator or an application, not by the edge node's developer: `PortCallFailed:
+...` names a class of this project, `the robot call failed: ...` says what happened. The stable part for
+programs is the event's `code` (or the feedback's `reason`); the message is for people.
+"""
+
+from __future__ import annotations
+
+from td2adaptor.runtime.ros.port import NoValue, PortError, PortTimeout, PortUnavailable
+
+INTERNAL = "internal error in the edge node (its log has the details)"
+
+
+def describe(exc: BaseException) -> str:
+    """What went wrong with a robot call, without internal class names."""
+    text = str(exc).strip()
+    if isinstance(exc, PortUnavailable):
+        lead = "the robot is not reachable"
+    elif isinstance(exc, PortTimeout):
+        lead = "the robot did not answer in time"
+    elif isinstance(exc, NoValue):
+        lead = "the robot has published no value yet"
+    elif isinstance(exc, (PortError, TypeError, ValueError, KeyError)):
+        lead = "the robot call failed"
+    else:
+        return INTERNAL
+    return f"{lead}: {text}" if text else lead
+
+
+def import_failure(package: str, exc: ImportError) -> str:
+    """Why the generated adaptor package `package` cannot be imported, and how to make it importable (the words
+    of `run` on ROS 2, and of the ROS 1 bridge's interpreter, which has its own path)."""
+    missing = getattr(exc, "name", None) or package
+    if isinstance(exc, ModuleNotFoundError) and (missing == package or package.startswith(missing + ".")):
+        hint = (
+            "build it and source the install space (colcon build; . install/setup.bash), or pass "
+            "--package-path DIR with the generated package's source directory"
+        )
+        return f"cannot import the adaptor package {package!r}: {hint}"
+    if isinstance(exc, ModuleNotFoundError):
+        return (
+            f"cannot import the adaptor package {package!r}: module {missing!r} is missing (build the interface "
+            "packages and source their install space, or pass --prefix DIR for ROS 2 / --package-path DIR)"
+        )
+    return f"cannot import the adaptor package {package!r}: {exc}"
+
+
+def setup_failure(exc: BaseException) -> str:
+    """What went wrong while setting a robot's port up, without class names: the error's own words (the
+    generated packages' errors say what and where), or that it said nothing."""
+    return str(exc).strip() or "it failed without saying why (the log above may tell)"
