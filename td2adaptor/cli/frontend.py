@@ -170,7 +170,8 @@ def migrate(sources: tuple[str, ...], output: str, interfaces: tuple[Path, ...],
         report(result.diagnostics, fmt, label=_label(sources))
         sys.exit(EXIT_INVALID)
     notes = Diagnostics()
-    td = do_migrate(result.input, result.model, notes)
+    assert result.input.td is not None  # a model was made from it
+    td = do_migrate(result.input.td, result.model, notes, legacy=result.input.kind == "legacy")
     report([*result.diagnostics, *(result.input.doc.locate(d) for d in notes)], fmt, label=_label(sources))
     write_json(td, output)
     sys.exit(EXIT_OK)
