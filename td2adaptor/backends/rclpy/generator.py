@@ -40,7 +40,7 @@ from td2adaptor.model import (
     TopicEndpoint,
     TypeTable,
 )
-from td2adaptor.rostypes.names import providers
+from td2adaptor.support.providers import providers
 
 TEMPLATES = Path(__file__).parent / "templates"
 
