@@ -83,7 +83,7 @@ class _BackendOption(click.Option):
     found only when the help is printed, since finding them imports every backend."""
 
     def get_help_record(self, ctx: click.Context) -> tuple[str, str] | None:
-        from td2adaptor.generation.registry import modules
+        from td2adaptor.backends.registry import modules
 
         self.help = f"{', '.join(modules())} or all (repeatable; default all)."
         return super().get_help_record(ctx)
@@ -192,8 +192,8 @@ def gen(
     Nothing is written when any input is invalid; unchanged files keep their mtime; files edited by hand
     are never overwritten without --force.
     """
+    from td2adaptor.compiler.build import generate, resolve_backends
     from td2adaptor.diagnostics import Diagnostics
-    from td2adaptor.generation.build import generate, resolve_backends
 
     _, problem = resolve_backends(backends)
     if problem:
@@ -256,8 +256,8 @@ def check(
     fmt: str,
 ) -> None:
     """Regenerate in memory and compare with disk; never writes. Exit 1 when something is stale."""
+    from td2adaptor.compiler.build import check as do_check
     from td2adaptor.diagnostics import Diagnostics
-    from td2adaptor.generation.build import check as do_check
 
     diags = Diagnostics()
     targets = _targets(

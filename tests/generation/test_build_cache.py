@@ -11,13 +11,12 @@ from pathlib import Path
 
 import pytest
 
-from td2adaptor.compiler import resultcache
-from td2adaptor.generation import build
+from td2adaptor.compiler import build, resultcache
 from tests.conftest import EXAMPLE
 
 _PROBE = """
 import json, sys
-from td2adaptor.generation import build
+from td2adaptor.compiler import build
 target = build.target("td.json", interfaces=["interfaces"], backends=["rclpy", "events"], output="out")
 outcome = build.check([target])
 loaded = sorted(m for m in sys.modules if m.startswith("td2adaptor.backends."))

@@ -49,9 +49,9 @@ def _sequence(order: int) -> list[int]:
 def fibo_adaptor(ros2_domain: int, tmp_path_factory: pytest.TempPathFactory) -> ModuleType:
     require_ros2()
     import td2adaptor
+    from td2adaptor.backends.registry import load as load_backend
     from td2adaptor.diagnostics import Diagnostics, Severity
     from td2adaptor.generation.backend import GenOptions
-    from td2adaptor.generation.registry import load as load_backend
 
     base = tmp_path_factory.mktemp("fibo")
     td = base / "td.json"

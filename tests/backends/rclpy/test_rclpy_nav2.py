@@ -13,9 +13,9 @@ import sys
 from pathlib import Path
 
 import td2adaptor
+from td2adaptor.backends.registry import load as load_backend
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GenOptions
-from td2adaptor.generation.registry import load as load_backend
 from td2adaptor.support import ros2build
 from tests.lowering.test_distros import NAV2, nav2_td
 from tests.ros2 import env

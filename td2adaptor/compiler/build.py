@@ -1,5 +1,6 @@
-"""Generation as a library: TDs → models → in-memory trees per backend → disk (via `emit`), or a comparison
-with disk (`check`). The CLI's `gen`/`check` and build scripts use the same functions.
+"""The build, the compiler's drive through the whole pipeline: TDs → models (`pipeline`) → in-memory trees per
+backend → disk (via `generation.emit`), or a comparison with disk (`check`). The CLI's `gen`/`check` and build
+scripts use the same functions.
 """
 
 from __future__ import annotations
@@ -9,8 +10,9 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from td2adaptor.backends import registry as backend_registry
+from td2adaptor.compiler.units import compile_units, is_rosclasses
 from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity, escalate
-from td2adaptor.generation import registry as backend_registry
 from td2adaptor.generation.backend import GeneratedTree, GenOptions
 from td2adaptor.generation.emit import EmitReport, discard, plan, stage, swap
 from td2adaptor.generation.targets import Target
@@ -229,43 +231,12 @@ def _build(
     return merged
 
 
-def compile_units(tds: Sequence[Path]) -> list[list[Path]]:
-    """The inputs a target's TDs make: each TD or Thing Model alone, and all its RosClasses config files together.
-
-    A RosClasses configuration is split over several files (service.json, topic.json) that only make one
-    adaptor together, as `validate` and `migrate` read them; every RosClasses file of a target therefore goes
-    into one input, placed where the first of them is. Each TD is its own input beside it (the compiler
-    refuses several TDs at once). `validate` and `types` group their arguments the same way.
-    """
-    if len(tds) < 2:
-        return [[td] for td in tds]
-    units: list[list[Path]] = []
-    config: list[Path] | None = None
-    for td in tds:
-        if _is_rosclasses(td):
-            if config is None:
-                config = []
-                units.append(config)
-            config.append(td)
-        else:
-            units.append([td])
-    return units
-
-
-def _is_rosclasses(path: Path) -> bool:
-    from td2adaptor.frontend.jsonsrc import load_path
-    from td2adaptor.frontend.legacy import is_legacy
-
-    doc = load_path(str(path), Diagnostics())
-    return doc is not None and is_legacy(doc.data)
-
-
 def _locate(diags: Diagnostics, unit: Sequence[Path]) -> list[Diagnostic]:
     """Backends point into the TD; give their diagnostics the TD's file:line:col (for RosClasses files: the
     line of the config file the affordance came from)."""
     if all(d.file for d in diags):
         return list(diags)
-    if _is_rosclasses(unit[0]):  # a unit of several files is all RosClasses files
+    if is_rosclasses(unit[0]):  # a unit of several files is all RosClasses files
         from td2adaptor.compiler.pipeline import load
 
         inp = load([str(td) for td in unit], Diagnostics())
