@@ -406,7 +406,7 @@ def test_generated_action_api_passes_ruff_and_mypy_strict(fibo_adaptor: ModuleTy
 
 
 class ResponseRace:
-    """Holds the caller's thread inside rclpy's own window: after `ActionClient` sent a request, before it
+    """Holds the thread that sends a request inside rclpy's own window: after `ActionClient` sent a request, before it
     recorded the request's sequence number (rclpy 7.1 of Jazzy, ros2/rclpy#1123), until the executor's thread
     has dealt with the response: handled it (rclpy drops a response of no recorded request: "Ignoring unexpected
     goal response", and the request's future never completes) or looked at it ready twice without taking it.
@@ -474,10 +474,34 @@ def _rclpy_client(fibo: Any) -> Any:
     return fibo._fibonacci.client
 
 
+@pytest.fixture
+def threaded_fibo(fibo_adaptor: ModuleType, ros_node: Any, fibo_server: FiboServer) -> Iterator[Any]:
+    """A component on a node of its own, spun by a multi-threaded executor (two threads)."""
+    import rclpy
+    from rclpy.executors import MultiThreadedExecutor
+
+    node: Any = rclpy.create_node("adaptor_test_threaded", context=ros_node.context)
+    executor = MultiThreadedExecutor(num_threads=2, context=ros_node.context)
+    executor.add_node(node)
+    thread = threading.Thread(target=executor.spin, daemon=True)
+    thread.start()
+    try:
+        yield fibo_adaptor.MathComponent(node, ROBOT, timeout=10.0, wait_timeout=15.0)
+    finally:
+        executor.shutdown(timeout_sec=5)
+        thread.join(5)
+        node.destroy_node()
+
+
 @pytest.mark.parametrize("kind", ["goal", "result", "cancel"])
 def test_a_response_that_beats_rclpys_bookkeeping_is_not_lost(
-    kind: str, fibo_adaptor: ModuleType, fibo: Any, monkeypatch: pytest.MonkeyPatch
+    kind: str, fibo_adaptor: ModuleType, fibo: Any, request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    """A goal request is sent in the caller's thread, a cancel request too; a result request is sent in the
+    executor's thread that takes the acceptance, which a response can beat only when another thread of a
+    multi-threaded executor takes it: the result case runs there."""
+    if kind == "result":
+        fibo = request.getfixturevalue("threaded_fibo")
     fibo.send_fibonacci(fibo.construct_fibonacci_Goal(order=1)).result(timeout=10.0)  # the server is known
     race = ResponseRace(_rclpy_client(fibo), kind, monkeypatch)
     if kind == "goal":
