@@ -807,6 +807,13 @@ LIVENESS_PERIOD = 0.1
 #: of the executor that takes a result first takes every feedback message already received, so only a message
 #: still on its way can trail, and none did in (measured) bursts of 1,000
 FEEDBACK_GRACE = 0.0
+#: goal requests of one action client sent and not answered yet, at most (later ones wait their turn in their
+#: handles): an action server keeps 10 requests of its goal service by default (rmw's services QoS, KEEP_LAST
+#: 10, counting every client's), and drops the ones beyond (50 goals started at once: 37 never answered)
+GOAL_REQUESTS = 4
+#: seconds after the server's status list showed a goal ended without its result coming, before the result is
+#: asked for again (the result request may have been dropped as a goal request can)
+RESULT_AGAIN = 1.0
 #: feedback messages one turn of the executor takes of an action client at most (all there are in a turn that
 #: takes a result): rclpy takes one per turn, a whole wait-set rebuild each
 FEEDBACK_DRAIN = 64
@@ -874,7 +881,8 @@ class _RequestingActionClient(ActionClient):
     comes: right after discovery a Fast DDS server may answer before it has matched the client's reply reader,
     and the response is lost (a resent request would be refused as a duplicate goal id). Such a request is
     completed from the status (accepted, the status's time stamp), as its response would have; a response
-    that still arrives later is ignored (rclpy logs "Ignoring unexpected goal response").
+    that still arrives later is dropped (rclpy would log "Ignoring unexpected goal response"). Goals started
+    in a burst often show in the status list before their responses are taken.
     """
 
     _sending = 0  # this client's requests between being sent and being recorded (under _SENDING_LOCK)
@@ -886,6 +894,10 @@ class _RequestingActionClient(ActionClient):
         # the goals followed, by goal id (the executor's thread reads it while callers add and remove goals:
         # single dict operations, atomic in CPython)
         self._following: dict[bytes, GoalHandle[Any, Any]] = {}
+        self._window = threading.Lock()
+        self._requests = 0  # goal requests sent and not answered (nor given up) yet
+        self._queue: list[GoalHandle[Any, Any]] = []  # goals waiting for their turn to be sent, oldest first
+        self._recovered: set[int] = set()  # goal requests completed from the status list (executor's thread)
 
     def follow(self, goal: GoalHandle[Any, Any]) -> None:
         """Hand `goal` its feedback and status from now on, until `forget`."""
@@ -893,6 +905,31 @@ class _RequestingActionClient(ActionClient):
 
     def forget(self, goal: GoalHandle[Any, Any]) -> None:
         self._following.pop(goal.uuid, None)
+
+    def admit(self, goal: GoalHandle[Any, Any]) -> bool:
+        """Whether `goal`'s request may be sent now (GOAL_REQUESTS); else it waits in line for `release`."""
+        with self._window:
+            if self._requests < GOAL_REQUESTS and not self._queue:
+                self._requests += 1
+                return True
+            if goal not in self._queue:
+                self._queue.append(goal)
+            return False
+
+    def release(self) -> GoalHandle[Any, Any] | None:
+        """A goal request was answered or given up: the goal whose turn it is now (admitted), if one waits."""
+        with self._window:
+            self._requests -= 1
+            if not self._queue or self._requests >= GOAL_REQUESTS:
+                return None
+            self._requests += 1
+            return self._queue.pop(0)
+
+    def withdraw(self, goal: GoalHandle[Any, Any]) -> None:
+        """`goal` no longer waits in line (given up)."""
+        with self._window:
+            if goal in self._queue:
+                self._queue.remove(goal)
 
     def request(self, send: Callable[[], ReturnT]) -> ReturnT:
         """Call `send` (which sends a request through rclpy and returns its future) with no response taken
@@ -952,6 +989,9 @@ class _RequestingActionClient(ActionClient):
         responses and the status, the feedback to the goals, then the when_done callbacks of the futures rclpy
         completed (a goal's result among them: after the feedback taken with it)."""
         messages: list[Any] = taken_data.pop("feedback", [])  # a list: see take_data
+        if "goal" in taken_data and taken_data["goal"][0] in self._recovered:
+            self._recovered.discard(taken_data["goal"][0])  # completed from the status list already
+            del taken_data["goal"]
         base: Any = super()
         await base.execute(taken_data)
         if "status" in taken_data:
@@ -999,6 +1039,7 @@ class _RequestingActionClient(ActionClient):
             raw: Any = cast(Any, ClientGoalHandle)(self, ids[seq], response)
             raw._status = status.status
             handles[uuid] = weakref.ref(raw)
+            self._recovered.add(seq)
             future.set_result(raw)
 
 
@@ -1165,7 +1206,11 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         self._wait_timeout = 0.0
         self._server_deadline = 0.0
         self._request: _Future | None = None  # the goal request until it is answered
+        self._admitted = False  # holds one of the client's GOAL_REQUESTS until answered or given up
+        self._queued = False  # waits in line for its turn to send
         self._accept_deadline = 0.0
+        self._ended_at = 0.0  # when the server's status list showed the goal ended (no result yet)
+        self._result_asked = 0.0  # when its result was asked for
         self.server_timeout = SERVER_TIMEOUT
         self._heard = time.monotonic()  # the server's last sign of life: accepted, feedback, status, an answer
         self._probed = self._heard  # when the last probe was sent
@@ -1231,25 +1276,52 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
             self._send()
 
     def _send(self) -> None:
+        """The server is there: send the goal request when it is the goal's turn (GOAL_REQUESTS)."""
         with self._cond:
-            goal, self._goal = self._goal, None
-            if goal is None or self._outcome is not None:
+            if self._goal is None or self._outcome is not None or self._queued:
                 return
             self._accept_deadline = time.monotonic() + self.timeout
+            self._queued = True
+        if self._client.admit(self):
+            self.transmit()
+
+    def transmit(self) -> None:
+        """Send the goal request (admitted: it holds one of the client's GOAL_REQUESTS)."""
+        with self._cond:
+            goal, self._goal = self._goal, None
+            self._queued = False
+            self._admitted = goal is not None and self._outcome is None
+        if not self._admitted:
+            self._release()
+            return
         api = cast(_ActionClientApi, self._client)
         try:
             future = cast(_Future, self._client.request(lambda: api.send_goal_async(goal, goal_uuid=self._goal_id)))
         except Exception as exc:  # noqa: BLE001 - rclpy's words, for whoever follows the goal
+            self._release()
             self._lose(CallFailed(self.action, f"{type(exc).__name__}: {exc}"))
             return
         with self._cond:
             self._request = future
         self._client.when_done(future, self._answered)
 
+    def _release(self) -> None:
+        """Give back the goal's turn (once): the next goal in line is sent."""
+        with self._cond:
+            self._admitted = False
+        following = self._client.release()
+        if following is not None:
+            following.transmit()
+
     def _answered(self, future: _Future) -> None:
         """The goal request's answer (executor's thread)."""
         with self._cond:
             self._request = None
+            admitted, self._admitted = self._admitted, False
+        if admitted:
+            following = self._client.release()
+            if following is not None:
+                following.transmit()
         error = future.exception()
         if error is not None:
             self._lose(CallFailed(self.action, f"{type(error).__name__}: {error}"))
@@ -1264,12 +1336,17 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         if not self._accept():  # given up meanwhile (not accepted in time): nobody follows it, so cancel it
             self._client.request(raw.cancel_goal_async)
             return
-        result = cast(_Future, self._client.request(raw.get_result_async))
-        self._client.when_done(result, self._finished)
+        self._ask_result(raw)
         with self._cond:
             unsent = [request for request in self._cancels if not request.sent]
         for request in unsent:
             self._send_cancel(request)
+
+    def _ask_result(self, raw: _ClientGoalHandle) -> None:
+        with self._cond:
+            self._result_asked = time.monotonic()
+        result = cast(_Future, self._client.request(raw.get_result_async))
+        self._client.when_done(result, self._finished)
 
     def _finished(self, future: _Future) -> None:
         """The result request's answer (executor's thread)."""
@@ -1302,6 +1379,9 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         self._heard = time.monotonic()
         if code in (1, 2, 3):
             self._set_status(GOAL_STATUS[code])
+        elif code in (4, 5, 6):
+            with self._cond:
+                self._ended_at = self._ended_at or self._heard
 
     def tick(self, now: float) -> bool:
         """Look after the goal (the ticker, every LIVENESS_PERIOD); whether it still needs to be."""
@@ -1309,16 +1389,21 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         with self._cond:
             if self._outcome is not None:
                 return bool(self._cancels)
-            waiting, request, raw = self._goal is not None, self._request, self._raw
+            waiting, queued, request, raw = self._goal is not None, self._queued, self._request, self._raw
+            again = (
+                raw is not None and self._ended_at > 0 and now - max(self._ended_at, self._result_asked) >= RESULT_AGAIN
+            )
         ready = cast(_ActionClientApi, self._client).server_is_ready
-        if waiting:
+        if waiting and not queued:
             if ready():
                 self._send()
             elif now >= self._server_deadline:
                 self._lose(ServiceUnavailable(self.action, f"no action server within {self._wait_timeout:g} s"))
-        elif request is not None and now >= self._accept_deadline:
+        elif (queued or request is not None) and now >= self._accept_deadline:
             self.give_up()
         elif raw is not None:
+            if again:  # ended, says the status list, and no result came: its request may have been dropped
+                self._ask_result(raw)
             with self._cond:
                 gone = self._check_server(now)
             if gone:
@@ -1334,6 +1419,14 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         if self._lose(error, unless_accepted=True):
             with self._cond:
                 self._goal = None
+                queued, admitted = self._queued, self._admitted
+                self._queued = self._admitted = False
+            if queued:
+                self._client.withdraw(self)
+            if admitted:  # its answer may never come: the next goal in line goes now
+                following = self._client.release()
+                if following is not None:
+                    following.transmit()
 
     def _check_server(self, now: float) -> str:
         """Why the server counts as gone (see the class docstring), "" while it does not; probes it when it

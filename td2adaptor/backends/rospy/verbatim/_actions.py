@@ -47,6 +47,9 @@ FeedbackT = TypeVar("FeedbackT")
 POLL_PERIOD = 0.02
 #: how long a wait for an action server gives the server's XML-RPC API to answer getBusInfo
 BUS_INFO_TIMEOUT = 2.0
+#: goals of one action client sent and not reported by the server yet, at most (later ones wait their turn in
+#: their handles): actionlib's goal publisher queues 10 messages, and rospy drops the oldest beyond that
+GOAL_REQUESTS = 4
 #: how often the goals' thread checks that the action server of each goal in flight is still connected
 LIVENESS_PERIOD = 0.1
 #: seconds a goal's end waits for feedback that trails its result (`feedback_grace`, see GoalRecord): rospy
@@ -98,6 +101,7 @@ class _Clock:
                 self._next_tick = time.monotonic() + LIVENESS_PERIOD
             self._goals.append(goal)
             self._start()
+            self._cond.notify()  # it may sleep without a deadline (no goal was in flight)
 
     def later(self, delay: float, action: Callable[[], None]) -> None:
         """Run `action` in this thread after `delay` seconds."""
@@ -193,6 +197,8 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         self._wait_timeout = 0.0
         self._server_deadline = 0.0
         self._accept_deadline = 0.0
+        self._queued = False  # waits its turn to be sent (GOAL_REQUESTS)
+        self._admitted = False  # sent and not reported yet: holds one of the client's GOAL_REQUESTS
         self._reason = ""  # the server's words with the latest status
         self._missing = 0  # liveness checks in a row that found no server connected
 
@@ -222,11 +228,27 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
             self._server_deadline = time.monotonic() + wait_timeout
         _CLOCK.watch(self)
 
+    def queue(self) -> None:
+        """The goal waits its turn to be sent (ActionGoalClient)."""
+        with self._cond:
+            self._queued = True
+
     def take_goal(self) -> Any:
-        """The goal to send now (None: sent already, or the goal is over)."""
+        """The goal to send now, which then holds one of the client's turns (None: sent already, or the goal is
+        over; the turn is the caller's to give back)."""
         with self._cond:
             goal, self._goal = self._goal, None
-            return goal if self._outcome is None else None
+            self._queued = False
+            self._admitted = goal is not None and self._outcome is None
+            return goal if self._admitted else None
+
+    def _give_back(self) -> None:
+        """The server reported the goal (or it is over): its turn goes to the next goal in line."""
+        with self._cond:
+            if not self._admitted or not (self._accepted or self._outcome is not None):
+                return
+            self._admitted = False
+        self._client.turn_over()
 
     def attach(self, raw: actionlib.ClientGoalHandle) -> None:
         """The goal was sent as `raw` (by ActionGoalClient)."""
@@ -257,6 +279,7 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
                 self._answer(request, CancelOutcome(code in _CANCELING))
         if comm == _DONE:
             self._finish(code, text, raw.get_result())
+        self._give_back()
 
     def _finish(self, code: int, text: str, result: Any) -> None:
         if code == _REJECTED:
@@ -279,6 +302,8 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         executes the goal, so it took it up."""
         self._accept("executing")
         self._feedback_in(feedback)
+        if self._admitted:
+            self._give_back()
 
     def tick(self, now: float) -> bool:
         """Look after the goal (the goals thread, every LIVENESS_PERIOD); whether it still needs to be."""
@@ -286,15 +311,15 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         with self._cond:
             if self._outcome is not None:
                 return bool(self._cancels)
-            waiting, accepted = self._goal is not None, self._accepted
-        if waiting:
+            waiting, queued, accepted = self._goal is not None, self._queued, self._accepted
+        if waiting and not queued:
             if self._client.server_ready():
                 self._client.send_now(self)
             elif now >= self._server_deadline:
                 self._lose(ServiceUnavailable(self.action, f"no action server within {self._wait_timeout:g} s"))
-        elif not accepted and now >= self._accept_deadline:
+        elif not waiting and not accepted and now >= self._accept_deadline:
             self.give_up()
-        else:
+        else:  # running, or waiting its turn: its server must stay
             self._missing = 0 if self._client.server_connected() else self._missing + 1
             if self._missing >= 2:  # twice in a row: once could be a connection being remade
                 self._lose(ServiceUnavailable(self.action, "the action server went away during the goal"))
@@ -302,7 +327,14 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
 
     def _lose(self, error: AdaptorError, unless_accepted: bool = False) -> bool:
         reason = str(getattr(error, "reason", "") or getattr(error, "message", "") or error)
-        return self._end(GoalOutcome("lost", None, error, reason), by_server=False, unless_accepted=unless_accepted)
+        lost = self._end(GoalOutcome("lost", None, error, reason), by_server=False, unless_accepted=unless_accepted)
+        if lost:
+            with self._cond:
+                queued, self._queued = self._queued, False
+            if queued:
+                self._client.withdraw(self)
+            self._give_back()
+        return lost
 
     def fail(self, error: AdaptorError) -> None:
         """The goal could not be sent (ActionGoalClient): it is lost."""
@@ -416,6 +448,9 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
         self._goals: dict[str, GoalHandle[ResultT, FeedbackT]] = {}  # the goals followed, by id
         self._goals_lock = threading.Lock()  # held while a goal is sent (its id is handed to actionlib)
         self._next_id = ""  # the id actionlib gives the goal being sent
+        self._window = threading.Lock()
+        self._unreported = 0  # goals sent and not reported by the server yet (GOAL_REQUESTS)
+        self._line: list[GoalHandle[ResultT, FeedbackT]] = []  # goals waiting for their turn, oldest first
         self._servers_seen: set[str] = set()  # XML-RPC URIs of servers known to publish to this node
 
     def register(self) -> None:
@@ -535,9 +570,40 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
         return handle
 
     def send_now(self, handle: GoalHandle[ResultT, FeedbackT]) -> None:
-        """Send `handle`'s goal to the server (there now)."""
+        """Send `handle`'s goal to the server (there now) when it is its turn (GOAL_REQUESTS), else put it in
+        line."""
+        with self._window:
+            admitted = self._unreported < GOAL_REQUESTS and not self._line
+            if admitted:
+                self._unreported += 1
+            elif handle not in self._line:
+                self._line.append(handle)
+                handle.queue()
+        if admitted:
+            self._transmit(handle)
+
+    def turn_over(self) -> None:
+        """A goal sent was reported (or is over): the next goal in line is sent, in the goals thread (never in
+        actionlib's callback, which holds its goal's lock)."""
+        with self._window:
+            self._unreported -= 1
+            following = self._line.pop(0) if self._line and self._unreported < GOAL_REQUESTS else None
+            if following is not None:
+                self._unreported += 1
+        if following is not None:
+            _CLOCK.later(0.0, lambda: self._transmit(following))
+
+    def withdraw(self, handle: GoalHandle[ResultT, FeedbackT]) -> None:
+        """`handle` no longer waits in line (it is over)."""
+        with self._window:
+            if handle in self._line:
+                self._line.remove(handle)
+
+    def _transmit(self, handle: GoalHandle[ResultT, FeedbackT]) -> None:
+        """Send `handle`'s goal (it has its turn)."""
         goal = handle.take_goal()
         if goal is None:
+            self.turn_over()  # over meanwhile: the turn goes on
             return
         client = self._client
         if client is None:  # closed by another thread meanwhile
