@@ -88,7 +88,7 @@ class _Clock:
 
     def __init__(self) -> None:
         self._cond = threading.Condition()
-        self._due: list[tuple[float, int, Callable[[], None]]] = []  # a heap
+        self._due: list[tuple[float, int, Callable[[], object]]] = []  # a heap
         self._order = itertools.count()
         self._goals: list[GoalHandle[Any, Any]] = []
         self._next_tick = 0.0
@@ -103,7 +103,7 @@ class _Clock:
             self._start()
             self._cond.notify()  # it may sleep without a deadline (no goal was in flight)
 
-    def later(self, delay: float, action: Callable[[], None]) -> None:
+    def later(self, delay: float, action: Callable[[], object]) -> None:
         """Run `action` in this thread after `delay` seconds."""
         with self._cond:
             heapq.heappush(self._due, (time.monotonic() + delay, next(self._order), action))
@@ -135,11 +135,11 @@ class _Clock:
                 with self._cond:
                     self._goals = [goal for goal in self._goals if id(goal) not in over]
 
-    def _wait(self) -> tuple[float, list[Callable[[], None]], list[GoalHandle[Any, Any]]]:
+    def _wait(self) -> tuple[float, list[Callable[[], object]], list[GoalHandle[Any, Any]]]:
         """Wait until something is due (lock held): the time, what is due, the goals to look after."""
         while True:
             now = time.monotonic()
-            due: list[Callable[[], None]] = []
+            due: list[Callable[[], object]] = []
             while self._due and self._due[0][0] <= now:
                 due.append(heapq.heappop(self._due)[2])
             tick = bool(self._goals) and now >= self._next_tick
@@ -213,7 +213,7 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
     def _log(self, text: str) -> None:
         rospy.logerr(text)
 
-    def _later(self, delay: float, action: Callable[[], None]) -> None:
+    def _later(self, delay: float, action: Callable[[], object]) -> None:
         _CLOCK.later(delay, action)
 
     def _closing(self) -> None:
@@ -240,6 +240,7 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
             goal, self._goal = self._goal, None
             self._queued = False
             self._admitted = goal is not None and self._outcome is None
+            self._accept_deadline = time.monotonic() + self.timeout
             return goal if self._admitted else None
 
     def _give_back(self) -> None:
@@ -254,7 +255,6 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         """The goal was sent as `raw` (by ActionGoalClient)."""
         with self._cond:
             self._raw = raw
-            self._accept_deadline = time.monotonic() + self.timeout
             unsent = [request for request in self._cancels if not request.sent]
         for request in unsent:
             self._send_cancel(request)
@@ -337,8 +337,9 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         return lost
 
     def fail(self, error: AdaptorError) -> None:
-        """The goal could not be sent (ActionGoalClient): it is lost."""
-        self._lose(error)
+        """The goal could not be sent (ActionGoalClient): it is lost, as told in the goals thread (never inside
+        the caller's start_X)."""
+        _CLOCK.later(0.0, lambda: self._lose(error))
 
     def give_up(self) -> None:
         """The server did not report the goal in time: it is lost, and cancelled (the server may still take it

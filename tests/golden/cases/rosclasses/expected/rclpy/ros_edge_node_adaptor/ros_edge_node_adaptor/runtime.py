@@ -1235,7 +1235,7 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         finally:
             _this_thread.executor = outer
 
-    def _later(self, delay: float, action: Callable[[], None]) -> None:
+    def _later(self, delay: float, action: Callable[[], object]) -> None:
         executor = self.node.executor
         if delay <= 0 and executor is not None:
             scheduler: Any = executor  # rclpy's create_task is partly unannotated
@@ -1299,7 +1299,8 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
             future = cast(_Future, self._client.request(lambda: api.send_goal_async(goal, goal_uuid=self._goal_id)))
         except Exception as exc:  # noqa: BLE001 - rclpy's words, for whoever follows the goal
             self._release()
-            self._lose(CallFailed(self.action, f"{type(exc).__name__}: {exc}"))
+            failed = CallFailed(self.action, f"{type(exc).__name__}: {exc}")
+            self._later(0.0, lambda: self._lose(failed))  # told in the executor's thread, not inside start_X
             return
         with self._cond:
             self._request = future

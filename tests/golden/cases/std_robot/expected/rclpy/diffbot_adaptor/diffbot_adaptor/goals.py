@@ -165,7 +165,7 @@ class GoalRecord(Generic[ResultT, FeedbackT]):
         except Exception as exc:  # noqa: BLE001 - one failing callback must not starve the others
             self._log(f"{self.action}: callback {callback!r} raised {type(exc).__name__}: {exc}")
 
-    def _later(self, delay: float, action: Callable[[], None]) -> None:
+    def _later(self, delay: float, action: Callable[[], object]) -> None:
         """Run `action` in a thread of the ROS side after `delay` seconds (0: soon), never in this call."""
         raise NotImplementedError
 
