@@ -202,6 +202,7 @@ def test_hostile_titles_and_descriptions_stay_text(tmp_path: Path) -> None:
         "common",
         "convert",
         "errors",
+        "goals",
         "runtime",
         "launch",  # launch/edge_node.launch.py and the stubs of what it uses
         "launch.actions",
