@@ -46,18 +46,21 @@ def validate(
 
     Several arguments are grouped as gen groups them: each TD alone, all RosClasses config files as one input.
     """
-    results = _compile_units(
-        sources,
-        interfaces,
-        sets,
-        values_file,
-        strict,
-        max_bytes,
-        package_name,
-        no_cache,
-        max_affordances,
-        need_model=False,  # only the diagnostics are reported
-    )
+    from td2adaptor.support.gcpause import collector_paused
+
+    with collector_paused():
+        results = _compile_units(
+            sources,
+            interfaces,
+            sets,
+            values_file,
+            strict,
+            max_bytes,
+            package_name,
+            no_cache,
+            max_affordances,
+            need_model=False,  # only the diagnostics are reported
+        )
     ok = report([d for result in results for d in result.diagnostics], fmt, label=_label(sources))
     sys.exit(EXIT_OK if ok else EXIT_INVALID)
 

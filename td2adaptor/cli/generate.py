@@ -216,7 +216,10 @@ def gen(
     if targets is None:
         report(list(diags), fmt, label=_label(sources) or "configuration")
         sys.exit(EXIT_INVALID)
-    outcome = generate(targets, force=force, use_cache=not no_cache, parallel=True)
+    from td2adaptor.support.gcpause import collector_paused
+
+    with collector_paused():
+        outcome = generate(targets, force=force, use_cache=not no_cache, parallel=True)
     label = _label(sources) or "configuration"
     found = [*diags, *outcome.diagnostics]
     ok = report(found, fmt, label=label, verdict=verdict_of(found)) and outcome.ok
@@ -277,7 +280,10 @@ def check(
     if targets is None:
         report(list(diags), fmt, label=_label(sources) or "configuration")
         sys.exit(EXIT_INVALID)
-    outcome = do_check(targets, use_cache=not no_cache, parallel=True)
+    from td2adaptor.support.gcpause import collector_paused
+
+    with collector_paused():
+        outcome = do_check(targets, use_cache=not no_cache, parallel=True)
     # warnings belong to validate and gen; check reports only what makes it fail
     problems = [d for d in [*diags, *outcome.diagnostics] if d.severity.value == "error"]
     if fmt == "json":

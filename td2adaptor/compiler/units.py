@@ -5,6 +5,7 @@ build.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -34,10 +35,22 @@ def compile_units(tds: Sequence[Path]) -> list[list[Path]]:
     return units
 
 
+#: The text of a JSON string that may decode to "RosClasses" (each letter as it is or as a \u escape).
+_ROSCLASSES_STRING = re.compile(rb'"(?:[RosClae]|\\u00[0-9A-Fa-f]{2}){10}"')
+
+
 def is_rosclasses(path: Path) -> bool:
-    """Whether `path` is a RosClasses config file (the build also locates its backends' diagnostics so)."""
-    from td2adaptor.frontend.jsonsrc import load_path
+    """Whether `path` is a RosClasses config file. A file whose bytes hold no string that can read
+    "RosClasses" is not one: answered without parsing it (the compile that follows parses it, once)."""
+    from td2adaptor.frontend.jsonsrc import DEFAULT_MAX_BYTES, load_path
     from td2adaptor.frontend.legacy import is_legacy
 
-    doc = load_path(str(path), Diagnostics())
+    try:
+        with path.open("rb") as fh:
+            raw = fh.read(DEFAULT_MAX_BYTES + 1)
+    except OSError:
+        return False
+    if len(raw) > DEFAULT_MAX_BYTES or not _ROSCLASSES_STRING.search(raw):
+        return False
+    doc = load_path(str(path), Diagnostics(), keep=True)  # the compile that follows takes this parse
     return doc is not None and is_legacy(doc.data)
