@@ -9,10 +9,12 @@
 * `stuck`: an actionlib ActionServer that never answers a goal (it stays pending).
 * `hasty`: an actionlib ActionServer that publishes `order` feedback messages and the result right after the
   last one, with no pause: feedback and result travel on two connections, so the result often arrives first.
+* `tardy`: `picky`, but its results go out 0.5 s late, so that a rejection's status comes before its result
+  (they travel on two connections: on a loaded machine the status often comes first).
 * `burst`: an actionlib ActionServer that publishes `order` feedback messages `[i]` (i = 1 ... order) back to
   back, then the result `[order]`; its publishers queue 5,000 messages (actionlib's default of 50 would drop
   most of a burst before it is sent).
-Prints `ready` once all five serve.
+Prints `ready` once all six serve.
 
 `fibonacci_server.py NAMESPACE STEP SLOW`: the same, but `fibonacci`'s feedback and result publishers take a
 new subscriber up only SLOW seconds after answering its handshake (rospy does it right after; on a loaded
@@ -22,6 +24,7 @@ machine that is late too): a fault injected into this real server, which load ca
 from __future__ import annotations
 
 import sys
+import threading
 import time
 
 import actionlib
@@ -76,6 +79,10 @@ def main() -> None:
 
     hasty = actionlib.ActionServer(f"/{namespace}/hasty", FibonacciAction, hasty_goal, auto_start=False)
     hasty.start()
+    tardy = actionlib.ActionServer(f"/{namespace}/tardy", FibonacciAction, picky_goal, auto_start=False)
+    tardy.start()
+    publish_result = tardy.result_pub.publish
+    tardy.result_pub.publish = lambda *args: threading.Timer(0.5, publish_result, args).start()
 
     def burst_goal(handle: actionlib.ServerGoalHandle) -> None:
         handle.set_accepted("bursting")

@@ -135,7 +135,7 @@ def test_a_service_whose_server_is_gone_is_left_out_with_a_warning(master: Maste
 
 
 def test_actionlib_servers_scaffold_to_td_actions(master: Master, tmp_path: Path) -> None:
-    """Real actionlib servers (tests/ros1/fibonacci_server.py: burst, fibonacci, hasty, picky, stuck) show as
+    """Real actionlib servers (tests/ros1/fibonacci_server.py: burst, fibonacci, hasty, picky, stuck, tardy) show as
     five topics each on the master; the scaffold folds them into ROS 1 actions."""
     actions = REPO / "tests" / "data" / "actions"
     modules = tmp_path / "genpy"
@@ -150,7 +150,7 @@ def test_actionlib_servers_scaffold_to_td_actions(master: Master, tmp_path: Path
     assert done.code == 0, done.stderr
     doc = done.doc
     assert doc is not None and "properties" not in doc, doc  # no goal/cancel/status/feedback/result topics
-    assert sorted(doc["actions"]) == ["burst", "fibonacci", "hasty", "picky", "stuck"]
+    assert sorted(doc["actions"]) == ["burst", "fibonacci", "hasty", "picky", "stuck", "tardy"]
     for name, action in doc["actions"].items():
         form = action["forms"][0]
         assert form["rosv:name"] == f"/{{{{robotName}}}}/{name}" and form["rosv:interface"] == "action"

@@ -263,6 +263,26 @@ def test_first_goal_waits_until_the_server_publishes_to_us(master: Master, inter
     assert out == {"iterated": [[0], [0, 1], [0, 1, 1], [0, 1, 1, 2]], "result": [0, 1, 1, 2]}
 
 
+def test_a_rejection_whose_status_comes_before_its_result_is_a_rejection(
+    master: Master, path: list[Path], server: None
+) -> None:
+    """The tardy server rejects like picky but sends its results 0.5 s late: the status REJECTED arrives while
+    the result is still on its way. send must still raise GoalRejected with the server's words (it took the
+    terminal status as the goal being taken up and returned a handle: the clean-clone CI's 'client printed
+    nothing' under load)."""
+    out = client(
+        master,
+        path,
+        f"{RAW_CLIENT}tardy = raw_client('tardy')\n"
+        "try:\n"
+        "    tardy.send(G(order=-1), 10.0, 10.0)\n"
+        "    emit({'raised': None})\n"
+        "except GoalRejected as e:\n"
+        "    emit({'raised': type(e).__name__, 'reason': e.reason})\n",
+    )
+    assert out == {"raised": "GoalRejected", "reason": "order must not be negative"}
+
+
 def test_aborted_goal(master: Master, path: list[Path], server: None) -> None:
     out = client(
         master,

@@ -269,7 +269,9 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         with self._cond:
             self._reason = text
             sent = [request for request in self._cancels if request.sent]
-        if comm != _DONE:
+        # a rejection reported before its result (status and result travel on two connections, and on a loaded
+        # machine the status often comes first) was never taken up: the result, with the server's words, ends it
+        if comm != _DONE and code != _REJECTED:
             # a terminal code here: the result is on its way (WAITING_FOR_RESULT)
             self._accept(GOAL_STATUS[code] if code in _RUNNING else "executing")
             if code in _RUNNING:
