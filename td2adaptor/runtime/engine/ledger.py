@@ -31,6 +31,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from td2adaptor.runtime.engine.replay import open_store
+
 log = logging.getLogger("td2adaptor.runtime")
 
 #: feedback numbers reserved ahead for feedback that is not written one by one (ROS action feedback)
@@ -90,15 +92,7 @@ class Ledger:
         self.clock = clock
         self.durable = path is not None
         self._lock = threading.Lock()
-        target = ":memory:"
-        if path is not None:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            target = str(path)
-        self._db: sqlite3.Connection | None = sqlite3.connect(
-            target, check_same_thread=False, isolation_level=None, timeout=5.0
-        )
-        self._db.execute("PRAGMA journal_mode=WAL")
-        self._db.execute("PRAGMA synchronous=NORMAL")
+        self._db: sqlite3.Connection | None = open_store(path, timeout=5.0)
         self._db.executescript(_SCHEMA)
         self._next_prune = 0.0
 

@@ -102,6 +102,20 @@ def _instant(text: str) -> float | str:
         return "outside the times this node can handle"
 
 
+def open_store(path: Path | None, *, timeout: float) -> sqlite3.Connection:
+    """The robot's SQLite file (in memory without a path), shared by the replay guard and the mission ledger:
+    one connection each, any thread, autocommit; WAL with synchronous NORMAL, so a write costs no fsync of its
+    own and a crash of the process loses nothing committed. `timeout`: how long a write waits for the other's."""
+    target = ":memory:"
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        target = str(path)
+    db = sqlite3.connect(target, check_same_thread=False, isolation_level=None, timeout=timeout)
+    db.execute("PRAGMA journal_mode=WAL")
+    db.execute("PRAGMA synchronous=NORMAL")
+    return db
+
+
 class ReplayGuard:
     """Decides whether an inbound event may run: fresh, and its id not seen (see the module docstring)."""
 
@@ -118,13 +132,7 @@ class ReplayGuard:
         self.clock = clock
         self.durable = path is not None
         self._lock = threading.Lock()
-        target = ":memory:"
-        if path is not None:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            target = str(path)
-        self._db = sqlite3.connect(target, check_same_thread=False, isolation_level=None)
-        self._db.execute("PRAGMA journal_mode=WAL")
-        self._db.execute("PRAGMA synchronous=NORMAL")
+        self._db = open_store(path, timeout=5.0)
         self._db.execute(
             "CREATE TABLE IF NOT EXISTS seen (id TEXT PRIMARY KEY, topic TEXT NOT NULL, until REAL, digest TEXT)"
         )
