@@ -171,11 +171,16 @@ class Engine:
         self._procedures = ProcedureRunner(
             self.port, self.config, self.missions, self.outbox, shared.loop, self._lane, self._stopping, self.clock
         )
-        for pattern in command_filters(self.catalog, robot, root):
-            self.bus.subscribe(pattern, self._take)
-        for spec in self.catalog.inbound():
-            self.bus.subscribe(spec.topic(ALL_ROBOTS, root), self._enter)
-        self.bus.connect()
+        try:
+            for pattern in command_filters(self.catalog, robot, root):
+                self.bus.subscribe(pattern, self._take)
+            for spec in self.catalog.inbound():
+                self.bus.subscribe(spec.topic(ALL_ROBOTS, root), self._enter)
+            self.bus.connect()
+        except BaseException:  # not serving: the loop and pool are not this engine's to keep
+            self._shared, self._threads = None, []
+            release(shared)
+            raise
         shared.loop.call(self._recover)  # before any event is handled: a resent invoke finds what the last run left
         with self._counting:  # what came meanwhile, in order, then each as it comes
             early, self._early = self._early or [], None
