@@ -38,9 +38,9 @@ sys.path.insert(0, str(REPO / "bench"))
 from runtime_bus import Replies, latency, mosquitto  # noqa: E402
 
 import td2adaptor  # noqa: E402
+from td2adaptor.backends.registry import load as load_backend  # noqa: E402
 from td2adaptor.diagnostics import Diagnostics  # noqa: E402
 from td2adaptor.generation.backend import GenOptions  # noqa: E402
-from td2adaptor.generation.registry import load as load_backend  # noqa: E402
 from td2adaptor.runtime import RuntimeConfig, serve  # noqa: E402
 from td2adaptor.runtime.bus.mqttbus import MqttBus  # noqa: E402
 from td2adaptor.runtime.bus.security import parse_broker_url  # noqa: E402

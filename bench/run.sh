@@ -16,6 +16,7 @@ run() {
 }
 run "front end (issue 2)" "$PY" bench/frontend.py
 [ -f bench/workflow.py ] && run "workflow: check and gen (issue 6)" "$PY" bench/workflow.py
+[ -f bench/startup_scale.py ] && run "a first validate, and gen as the TD grows (issue 34)" "$PY" bench/startup_scale.py
 [ -f bench/backend_rclpy.py ] && run "rclpy backend (issue 3)" "$PY" bench/backend_rclpy.py
 [ -f bench/backend_rospy.py ] && run "rospy backend (issue 3)" "$PY" bench/backend_rospy.py
 run "gen next to a peer generator (issue 3)" "$PY" bench/peer.py

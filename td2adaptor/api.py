@@ -10,10 +10,10 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from td2adaptor.compiler.build import Outcome
+from td2adaptor.compiler.build import check as _check
+from td2adaptor.compiler.build import generate as _generate
 from td2adaptor.diagnostics import Diagnostics
-from td2adaptor.generation.build import Outcome
-from td2adaptor.generation.build import check as _check
-from td2adaptor.generation.build import generate as _generate
 from td2adaptor.generation.targets import Options, Target, targets
 
 PathLike = str | Path

@@ -137,9 +137,9 @@ def compile_td(td: Path, interfaces: Sequence[Path]) -> Model:
 
 def generate_rclpy(model: Model, out: Path) -> Path:
     """The model's rclpy adaptor written under `out`; the package's source directory (to import from)."""
+    from td2adaptor.backends.registry import load as load_backend
     from td2adaptor.diagnostics import Diagnostics, Severity
     from td2adaptor.generation.backend import GenOptions
-    from td2adaptor.generation.registry import load as load_backend
 
     diags = Diagnostics()
     tree = load_backend("rclpy").generate(model, GenOptions(), diags)

@@ -214,12 +214,12 @@ def _compile_units(
 
 
 def _units(sources: Sequence[str]) -> list[list[str]]:
-    """The inputs `sources` make, as `generation.build.compile_units` groups a target's files: every RosClasses
+    """The inputs `sources` make, as `compiler.units.compile_units` groups a target's files: every RosClasses
     config file together, each TD alone. Spelled as given; stdin ('-') can be read only once, so arguments
     with it stay one input."""
     if len(sources) < 2 or "-" in sources:
         return [list(sources)]
-    from td2adaptor.generation.build import compile_units
+    from td2adaptor.compiler.units import compile_units
 
     paths = [Path(s) for s in sources]
     spelled = {id(p): s for p, s in zip(paths, sources, strict=True)}

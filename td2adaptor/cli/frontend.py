@@ -46,18 +46,21 @@ def validate(
 
     Several arguments are grouped as gen groups them: each TD alone, all RosClasses config files as one input.
     """
-    results = _compile_units(
-        sources,
-        interfaces,
-        sets,
-        values_file,
-        strict,
-        max_bytes,
-        package_name,
-        no_cache,
-        max_affordances,
-        need_model=False,  # only the diagnostics are reported
-    )
+    from td2adaptor.support.gcpause import collector_paused
+
+    with collector_paused():
+        results = _compile_units(
+            sources,
+            interfaces,
+            sets,
+            values_file,
+            strict,
+            max_bytes,
+            package_name,
+            no_cache,
+            max_affordances,
+            need_model=False,  # only the diagnostics are reported
+        )
     ok = report([d for result in results for d in result.diagnostics], fmt, label=_label(sources))
     sys.exit(EXIT_OK if ok else EXIT_INVALID)
 
@@ -170,7 +173,8 @@ def migrate(sources: tuple[str, ...], output: str, interfaces: tuple[Path, ...],
         report(result.diagnostics, fmt, label=_label(sources))
         sys.exit(EXIT_INVALID)
     notes = Diagnostics()
-    td = do_migrate(result.input, result.model, notes)
+    assert result.input.td is not None  # a model was made from it
+    td = do_migrate(result.input.td, result.model, notes, legacy=result.input.kind == "legacy")
     report([*result.diagnostics, *(result.input.doc.locate(d) for d in notes)], fmt, label=_label(sources))
     write_json(td, output)
     sys.exit(EXIT_OK)

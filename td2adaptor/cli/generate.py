@@ -83,7 +83,7 @@ class _BackendOption(click.Option):
     found only when the help is printed, since finding them imports every backend."""
 
     def get_help_record(self, ctx: click.Context) -> tuple[str, str] | None:
-        from td2adaptor.generation.registry import modules
+        from td2adaptor.backends.registry import modules
 
         self.help = f"{', '.join(modules())} or all (repeatable; default all)."
         return super().get_help_record(ctx)
@@ -192,8 +192,8 @@ def gen(
     Nothing is written when any input is invalid; unchanged files keep their mtime; files edited by hand
     are never overwritten without --force.
     """
+    from td2adaptor.compiler.build import generate, resolve_backends
     from td2adaptor.diagnostics import Diagnostics
-    from td2adaptor.generation.build import generate, resolve_backends
 
     _, problem = resolve_backends(backends)
     if problem:
@@ -216,7 +216,10 @@ def gen(
     if targets is None:
         report(list(diags), fmt, label=_label(sources) or "configuration")
         sys.exit(EXIT_INVALID)
-    outcome = generate(targets, force=force, use_cache=not no_cache, parallel=True)
+    from td2adaptor.support.gcpause import collector_paused
+
+    with collector_paused():
+        outcome = generate(targets, force=force, use_cache=not no_cache, parallel=True)
     label = _label(sources) or "configuration"
     found = [*diags, *outcome.diagnostics]
     ok = report(found, fmt, label=label, verdict=verdict_of(found)) and outcome.ok
@@ -256,8 +259,8 @@ def check(
     fmt: str,
 ) -> None:
     """Regenerate in memory and compare with disk; never writes. Exit 1 when something is stale."""
+    from td2adaptor.compiler.build import check as do_check
     from td2adaptor.diagnostics import Diagnostics
-    from td2adaptor.generation.build import check as do_check
 
     diags = Diagnostics()
     targets = _targets(
@@ -277,7 +280,10 @@ def check(
     if targets is None:
         report(list(diags), fmt, label=_label(sources) or "configuration")
         sys.exit(EXIT_INVALID)
-    outcome = do_check(targets, use_cache=not no_cache, parallel=True)
+    from td2adaptor.support.gcpause import collector_paused
+
+    with collector_paused():
+        outcome = do_check(targets, use_cache=not no_cache, parallel=True)
     # warnings belong to validate and gen; check reports only what makes it fail
     problems = [d for d in [*diags, *outcome.diagnostics] if d.severity.value == "error"]
     if fmt == "json":

@@ -1,7 +1,9 @@
-"""The compiler: drives the front end, ROS type resolution and lowering into one canonical model.
+"""The compiler: drives the front end, ROS type resolution and lowering into one canonical model, and the
+build from there through the backends.
 
 `compile()` (pipeline.py) is the library's entry point; the result cache answers unchanged inputs without
 recompiling, and the JSON-LD stage may run in a forked child while the rest goes on (background.py).
+`build.py` compiles a target's inputs (grouped by units.py) and runs its backends: `gen` and `check`.
 """
 
 from __future__ import annotations

@@ -64,7 +64,7 @@ STAGES: tuple[Stage, ...] = (
     Stage("XC6", "Data schemas against ROS messages", "lowering/crosscheck"),
     Stage("MIG7", "Legacy input and migration", "frontend/legacy, frontend/migrate"),
     Stage("SCF1", "Scaffolding a TD from a robot", "scaffold, cli/scaffold"),
-    Stage("GEN8", "Generation", "generation, backends/rclpy, backends/rospy, backends/events"),
+    Stage("GEN8", "Generation", "compiler/build, generation, backends/rclpy, backends/rospy, backends/events"),
     Stage("CFG9", "Project configuration", "generation/targets, api"),
     Stage("MROS9", "mROS backend", "backends/mros"),
 )

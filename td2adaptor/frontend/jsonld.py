@@ -6,8 +6,8 @@ TD 1.1 context (`schemas/td-context-1.1.jsonld`, for both W3C URLs) and the ROS 
 context URL is never fetched: it is reported (TD251) and treated as an empty context, so expansion goes on
 and terms it would have defined are simply dropped, as the Thingweb Playground does.
 
-pyld is imported inside the functions: it is only needed when JSON-LD is asked for, and importing it costs
-CLI start-up time.
+pyld is imported inside the functions (`_pyld`): it is only needed when JSON-LD is asked for, and importing
+it costs CLI start-up time.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from __future__ import annotations
 import functools
 import json
 import re
+import sys
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -69,6 +70,49 @@ _CONTEXT_ERRORS = frozenset(
 _TD_LIKE = re.compile(r"^https?://(www\.)?w3\.org/(ns/td|20\d\d/wot/td)", re.I)
 
 
+#: pyld modules that only serve documents from the network or the file system (this module serves its own)
+_PYLD_LOADERS = ("pyld.documentloader.requests", "pyld.documentloader.aiohttp")
+
+
+def _pyld() -> Any:
+    """pyld's `jsonld` module, imported without the document loaders td2adaptor never uses.
+
+    `import pyld` imports every loader pyld has (asyncio, urllib.request: half of pyld's ~70 ms import, and
+    `requests` wherever it is installed), and `pyld.jsonld` makes one of them its default. Every call here
+    passes its own `documentLoader`, so the package's `__init__` is skipped (its submodules import as usual)
+    and the network loaders are hidden while `jsonld` picks its default: it falls back to its dummy loader,
+    as on a machine without requests and aiohttp. Whatever goes wrong, pyld is imported the ordinary way.
+    """
+    loaded = sys.modules.get("pyld.jsonld")
+    if loaded is not None:
+        return loaded
+    if "pyld" not in sys.modules:
+        try:
+            import importlib.util
+
+            spec = importlib.util.find_spec("pyld")
+            if spec is not None and spec.submodule_search_locations is not None:
+                sys.modules["pyld"] = importlib.util.module_from_spec(spec)
+                hidden = {name: sys.modules.pop(name, None) for name in _PYLD_LOADERS}
+                for name in _PYLD_LOADERS:
+                    sys.modules[name] = None  # type: ignore[assignment]  # None: "cannot be imported"
+                try:
+                    from pyld import jsonld
+
+                    return jsonld
+                finally:
+                    for name, module in hidden.items():
+                        del sys.modules[name]
+                        if module is not None:
+                            sys.modules[name] = module
+        except Exception:  # noqa: BLE001 - any surprise: forget the partial import, import as pyld expects
+            for name in [n for n in sys.modules if n == "pyld" or n.startswith("pyld.")]:
+                del sys.modules[name]
+    from pyld import jsonld
+
+    return jsonld
+
+
 class OfflineLoader:
     """A pyld document loader that never touches the network.
 
@@ -106,6 +150,7 @@ def _resolver(loader: OfflineLoader) -> Any:
     """
     import json
 
+    _pyld()  # pyld's package, imported lightly, before its submodules
     from pyld.context_resolver import ContextResolver
     from pyld.resolved_context import ResolvedContext
 
@@ -150,7 +195,7 @@ def base_iri(data: Any) -> str:
 
 def expand(doc: JsonDocument, diags: Diagnostics, *, loader: OfflineLoader | None = None) -> list[Any] | None:
     """Expanded JSON-LD of `doc`, or None after reporting why it cannot be processed."""
-    from pyld import jsonld
+    jsonld = _pyld()
 
     if not isinstance(doc.data, (dict, list)):
         # pyld would take a string for the URL of a document to fetch
@@ -278,8 +323,7 @@ def to_rdf(
 
     Canonical output is what two documents must share to say the same thing in RDF.
     """
-    from pyld import jsonld
-
+    jsonld = _pyld()
     loader = loader if loader is not None else OfflineLoader()
     expanded = expand(doc, diags, loader=loader)
     if expanded is None:
@@ -317,8 +361,7 @@ def _report_refused(doc: JsonDocument, loader: OfflineLoader, diags: Diagnostics
 
 
 def _report_failure(doc: JsonDocument, exc: Exception, diags: Diagnostics) -> None:
-    from pyld import jsonld
-
+    jsonld = _pyld()
     error = _innermost_jsonld_error(exc, jsonld.JsonLdError)
     if error is None:
         if isinstance(exc, RecursionError):

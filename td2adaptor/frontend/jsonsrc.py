@@ -466,10 +466,18 @@ def _find_constant(text: str) -> int | None:
     return m.start() if m else None
 
 
+#: Documents parsed only to see what they are (`load_path(keep=True)`), each taken by the next load of the same
+#: bytes under the same name and limit instead of parsing them again: (name, limit) → (bytes, document, its
+#: parse diagnostics). A few at most, each taken once.
+_KEPT: dict[tuple[str, int], tuple[bytes, JsonDocument | None, list[Diagnostic]]] = {}
+_KEEP_AT_MOST = 8
+
+
 def load_path(
-    source: str, diags: Diagnostics, *, stdin: Any = None, max_bytes: int = DEFAULT_MAX_BYTES
+    source: str, diags: Diagnostics, *, stdin: Any = None, max_bytes: int = DEFAULT_MAX_BYTES, keep: bool = False
 ) -> JsonDocument | None:
-    """Read a path or `-` (stdin) and parse it."""
+    """Read a path or `-` (stdin) and parse it. With `keep`, the next load of the file takes this parse (when
+    its bytes are still the same): a file read to decide how to compile it is parsed once."""
     import sys
 
     if source == "-":
@@ -483,4 +491,20 @@ def load_path(
     except OSError as exc:
         diags.add("TD000", Severity.ERROR, f"cannot read {source}: {exc.strerror or exc}", file=source)
         return None
-    return parse_json(raw, source, diags, path=p.resolve(), max_bytes=max_bytes)
+    kept = _KEPT.pop((source, max_bytes), None)
+    if kept is not None and kept[0] == raw:
+        if READ_LOG is not None:
+            import hashlib
+
+            READ_LOG.append((str(p.resolve()), hashlib.sha256(raw).hexdigest()))
+        diags.extend(kept[2])
+        return kept[1]
+    if not keep:
+        return parse_json(raw, source, diags, path=p.resolve(), max_bytes=max_bytes)
+    found = Diagnostics()
+    doc = parse_json(raw, source, found, path=p.resolve(), max_bytes=max_bytes)
+    diags.extend(found)
+    _KEPT[(source, max_bytes)] = (raw, doc, list(found))
+    while len(_KEPT) > _KEEP_AT_MOST:
+        del _KEPT[next(iter(_KEPT))]
+    return doc

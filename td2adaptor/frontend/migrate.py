@@ -10,9 +10,9 @@ touched, since only the user can know the intended schema.
 from __future__ import annotations
 
 import datetime
+from collections.abc import Mapping
 from typing import Any
 
-from td2adaptor.compiler.pipeline import Input
 from td2adaptor.diagnostics import Diagnostics, pointer_join
 from td2adaptor.frontend.extract import AFFORDANCE_KINDS, REFERENCE_CLASS_KEY, form_dialect
 from td2adaptor.model import Model, QoS, Role, ServiceEndpoint, TopicEndpoint
@@ -23,10 +23,9 @@ ROSV_CONTEXT = "https://td2adaptor.dev/ns/rosv/v1"
 _PRE_REC_CONTEXTS = {"http://www.w3.org/ns/td", "https://www.w3.org/ns/td"}
 
 
-def migrate(inp: Input, model: Model, diags: Diagnostics) -> dict[str, Any]:
-    """The binding TD for `inp`, whose compiled model is `model`."""
-    assert inp.td is not None
-    src = inp.td
+def migrate(src: Mapping[str, Any], model: Model, diags: Diagnostics, *, legacy: bool) -> dict[str, Any]:
+    """The binding TD for the TD `src` (made from RosClasses files when `legacy`), whose compiled model is
+    `model`. It takes the TD, not the compiler's input: the front end stands below the compiler."""
     endpoints: dict[str, ServiceEndpoint | TopicEndpoint] = {}
     component_of: dict[str, str] = {}
     for comp in model.components:
@@ -36,7 +35,7 @@ def migrate(inp: Input, model: Model, diags: Diagnostics) -> dict[str, Any]:
             component_of[ep.pointer] = comp.name
     procedures = {p.run: p for c in model.components for p in c.procedures}
     out: dict[str, Any] = {"@context": _context(src.get("@context"), diags)}
-    if inp.kind == "legacy":
+    if legacy:
         out["@type"] = "Thing"
     for key, value in src.items():
         if key == "@context":
@@ -54,7 +53,7 @@ def migrate(inp: Input, model: Model, diags: Diagnostics) -> dict[str, Any]:
                 out["links"] = kept
         elif key in AFFORDANCE_KINDS and isinstance(value, dict):
             out[key] = {
-                name: _affordance(aff, pointer_join("", key, name), endpoints, component_of, procedures, inp)
+                name: _affordance(aff, pointer_join("", key, name), endpoints, component_of, procedures, legacy)
                 for name, aff in value.items()
             }
         else:
@@ -102,7 +101,7 @@ def _affordance(
     endpoints: dict[str, ServiceEndpoint | TopicEndpoint],
     component_of: dict[str, str],
     procedures: dict[str, Any],
-    inp: Input,
+    legacy: bool,
 ) -> Any:
     ep = endpoints.get(ptr)
     if ep is None or not isinstance(aff, dict):
@@ -132,7 +131,7 @@ def _affordance(
             out["rosv:procedure"] = link
         wrote_component = True
 
-    if isinstance(ep, TopicEndpoint) and inp.kind == "legacy":
+    if isinstance(ep, TopicEndpoint) and legacy:
         if ep.role is Role.SUBSCRIBER:
             out.update({"observable": True, "readOnly": True})
         else:

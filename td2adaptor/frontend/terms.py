@@ -23,6 +23,23 @@ from td2adaptor.diagnostics import Diagnostics, pointer_join
 from td2adaptor.diagnostics.catalogue import meanings
 from td2adaptor.frontend.bundled import load_schema
 from td2adaptor.frontend.jsonsrc import JsonDocument
+from td2adaptor.model.vocabulary import (
+    ACTION,
+    ADDITIONAL_RESPONSE,
+    ALL_TERMS,
+    ANY_SECURITY,
+    DATA_SCHEMA,
+    EVENT,
+    EXPECTED_RESPONSE,
+    FORM,
+    JSON_SCHEMA_ONLY,
+    LINK,
+    PROPERTY,
+    SECURITY,
+    SECURITY_COMMON,
+    THING,
+    VERSION,
+)
 
 CODES: dict[str, str] = meanings("TD20")  # the codes this module reports (see the catalogue)
 
@@ -38,121 +55,6 @@ _TD_CONTEXTS = (
     "http://www.w3.org/ns/td",
 )
 
-_COMMON = frozenset({"@type", "title", "titles", "description", "descriptions"})
-THING = _COMMON | {
-    "@context",
-    "id",
-    "version",
-    "created",
-    "modified",
-    "support",
-    "base",
-    "properties",
-    "actions",
-    "events",
-    "links",
-    "forms",
-    "security",
-    "securityDefinitions",
-    "schemaDefinitions",
-    "profile",
-    "uriVariables",
-}
-DATA_SCHEMA = _COMMON | {
-    "const",
-    "default",
-    "unit",
-    "oneOf",
-    "allOf",
-    "anyOf",
-    "enum",
-    "readOnly",
-    "writeOnly",
-    "format",
-    "type",
-    "contentEncoding",
-    "contentMediaType",
-    "pattern",
-    "minLength",
-    "maxLength",
-    "minimum",
-    "maximum",
-    "exclusiveMinimum",
-    "exclusiveMaximum",
-    "multipleOf",
-    "items",
-    "minItems",
-    "maxItems",
-    "properties",
-    "required",
-}
-_AFFORDANCE = _COMMON | {"forms", "uriVariables"}
-PROPERTY = _AFFORDANCE | DATA_SCHEMA | {"observable"}
-ACTION = _AFFORDANCE | {"input", "output", "safe", "idempotent", "synchronous"}
-EVENT = _AFFORDANCE | {"subscription", "data", "dataResponse", "cancellation"}
-FORM = frozenset(
-    {
-        "href",
-        "contentType",
-        "contentCoding",
-        "security",
-        "scopes",
-        "response",
-        "additionalResponses",
-        "subprotocol",
-        "op",
-    }
-)
-EXPECTED_RESPONSE = frozenset({"contentType"})
-ADDITIONAL_RESPONSE = frozenset({"contentType", "schema", "success"})
-LINK = frozenset({"href", "type", "rel", "anchor", "sizes", "hreflang", "instanceName"})
-VERSION = frozenset({"instance", "model"})
-_SECURITY_COMMON = frozenset({"@type", "description", "descriptions", "proxy", "scheme"})
-SECURITY: dict[str, frozenset[str]] = {
-    "nosec": _SECURITY_COMMON,
-    "auto": _SECURITY_COMMON,
-    "combo": _SECURITY_COMMON | {"oneOf", "allOf"},
-    "basic": _SECURITY_COMMON | {"in", "name"},
-    "digest": _SECURITY_COMMON | {"qop", "in", "name"},
-    "apikey": _SECURITY_COMMON | {"in", "name"},
-    "bearer": _SECURITY_COMMON | {"authorization", "alg", "format", "in", "name"},
-    "psk": _SECURITY_COMMON | {"identity"},
-    "oauth2": _SECURITY_COMMON | {"authorization", "token", "refresh", "scopes", "flow"},
-}
-_ANY_SECURITY = frozenset().union(*SECURITY.values())
-ALL_TERMS = THING | PROPERTY | ACTION | EVENT | FORM | ADDITIONAL_RESPONSE | LINK | VERSION | _ANY_SECURITY
-
-# JSON Schema keywords a TD data schema does not have (a common source of "unknown" members)
-JSON_SCHEMA_ONLY = frozenset(
-    {
-        "$schema",
-        "$id",
-        "$ref",
-        "$defs",
-        "definitions",
-        "additionalItems",
-        "additionalProperties",
-        "patternProperties",
-        "propertyNames",
-        "minProperties",
-        "maxProperties",
-        "dependencies",
-        "dependentRequired",
-        "dependentSchemas",
-        "prefixItems",
-        "contains",
-        "minContains",
-        "maxContains",
-        "uniqueItems",
-        "not",
-        "if",
-        "then",
-        "else",
-        "examples",
-        "deprecated",
-    }
-)
-
 _POSITIONS: tuple[tuple[str, frozenset[str]], ...] = (
     ("Thing", THING),
     ("property affordances", PROPERTY),
@@ -163,8 +65,8 @@ _POSITIONS: tuple[tuple[str, frozenset[str]], ...] = (
     ("additional responses", ADDITIONAL_RESPONSE),
     ("links", LINK),
     ("version", VERSION),
-    *((f"{name} security schemes", terms - _SECURITY_COMMON) for name, terms in SECURITY.items()),
-    ("security schemes", _SECURITY_COMMON),
+    *((f"{name} security schemes", terms - SECURITY_COMMON) for name, terms in SECURITY.items()),
+    ("security schemes", SECURITY_COMMON),
 )
 
 
@@ -381,7 +283,7 @@ class _Walk:
 
     def security(self, obj: Any, ptr: str) -> None:
         scheme = obj.get("scheme") if isinstance(obj, dict) else None
-        allowed = SECURITY.get(scheme, _ANY_SECURITY) if isinstance(scheme, str) else _ANY_SECURITY
+        allowed = SECURITY.get(scheme, ANY_SECURITY) if isinstance(scheme, str) else ANY_SECURITY
         where = f"{scheme} security scheme" if isinstance(scheme, str) and scheme in SECURITY else "security scheme"
         self.walk(obj, ptr, allowed, where, {})
 

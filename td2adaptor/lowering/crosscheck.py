@@ -41,7 +41,7 @@ from typing import Any, TypeGuard
 from td2adaptor.diagnostics import Diagnostics, pointer_join
 from td2adaptor.diagnostics.catalogue import meanings
 from td2adaptor.model import ArrayKind, FieldType, MessageDef, MessageField, TypeTable
-from td2adaptor.rostypes.primitives import INT_RANGES as _INT_RANGES
+from td2adaptor.model.primitives import INT_RANGES as _INT_RANGES
 
 CODES: dict[str, str] = meanings("XC")  # the codes this module reports (see the catalogue)
 

@@ -755,7 +755,7 @@ def _standard_packages(tables: Mapping[str, TypeTable], regs: Mapping[str, TypeR
 def _name_standard_packages(endpoints: Sequence[_Endpoint], reg: TypeRegistry, diags: Diagnostics) -> None:
     """Once per standard interface package the TD binds to: where the robot's software gets it (td2adaptor
     knows its definitions, but the generated adaptor imports it at run time)."""
-    from td2adaptor.rostypes.names import providers
+    from td2adaptor.support.providers import providers
 
     first: dict[str, _Endpoint] = {}
     for ep in endpoints:

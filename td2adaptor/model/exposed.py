@@ -11,9 +11,9 @@ from collections.abc import Mapping
 from typing import Any
 from urllib.parse import quote
 
-from td2adaptor.frontend.terms import DATA_SCHEMA
 from td2adaptor.model import Model, thaw
 from td2adaptor.model.events import TOPIC_ROOT, EventCatalog, EventSpec, Kind, build_catalog
+from td2adaptor.model.vocabulary import DATA_SCHEMA
 from td2adaptor.model.wot import wot_data, wot_topic
 
 TD_CONTEXT = "https://www.w3.org/2022/wot/td/v1.1"

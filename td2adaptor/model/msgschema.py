@@ -18,7 +18,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from td2adaptor.model import ArrayKind, FieldType, MessageDef, TypeTable
-from td2adaptor.rostypes.primitives import FLOAT32_MAX, int_range
+from td2adaptor.model.primitives import FLOAT32_MAX, int_range
 
 _TIME_TYPES = {"time", "duration", "builtin_interfaces/msg/Time", "builtin_interfaces/msg/Duration"}
 #: a time member's name in the other distro (a TD may be written for either)

@@ -219,9 +219,3 @@ def hidden_action_part(raw: str) -> tuple[str, str] | None:
     if match is None:
         return None
     return f"{match['package']}/action/{match['name']}", match["part"]
-
-
-def providers(package: str) -> tuple[str, str]:
-    """What installs a standard interface package: the ROS 2 Jazzy wheel (PyPI) and Debian's ROS 1 package."""
-    dashed = package.replace("_", "-")
-    return f"ros-jazzy-{dashed}", f"python3-{dashed}"

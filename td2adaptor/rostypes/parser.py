@@ -16,10 +16,10 @@ from typing import Any
 from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity
 from td2adaptor.diagnostics.catalogue import meaning
 from td2adaptor.model import ArrayKind, Constant, FieldType, MessageDef, MessageField
+from td2adaptor.model.primitives import FLOATS as _FLOATS
+from td2adaptor.model.primitives import INT_RANGES as _INT_RANGES
+from td2adaptor.model.primitives import STRINGS as _STRINGS
 from td2adaptor.rostypes.names import ACTION_PARTS, SERVICE_PARTS, Kind, is_valid_package_name, is_valid_type_name
-from td2adaptor.rostypes.primitives import FLOATS as _FLOATS
-from td2adaptor.rostypes.primitives import INT_RANGES as _INT_RANGES
-from td2adaptor.rostypes.primitives import STRINGS as _STRINGS
 from td2adaptor.rostypes.typestore import TIME_TYPES, Distro
 
 PRIMITIVES = frozenset({"bool", "byte", *_INT_RANGES, *_FLOATS, *_STRINGS})

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 from td2adaptor.model import ArrayKind, Constant, FieldType, MessageDef, MessageField
-from td2adaptor.rostypes.primitives import STRINGS
+from td2adaptor.model.primitives import STRINGS
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore

@@ -14,7 +14,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from td2adaptor.rostypes.primitives import INT_RANGES
+from td2adaptor.model.primitives import INT_RANGES
 
 _NUMBERS = ("integer", "number")
 #: constraint member -> the JSON types it applies to (None: any)

@@ -15,7 +15,7 @@ from typing import Any
 from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.model import ActionDef, ArrayKind, Constant, MessageDef, ServiceDef, TypeTable
 from td2adaptor.model.msgschema import message_schema
-from td2adaptor.rostypes.primitives import FLOAT32_MAX
+from td2adaptor.model.primitives import FLOAT32_MAX
 from td2adaptor.rostypes.registry import TypeRegistry
 from td2adaptor.scaffold.layout import Layout, Plan
 

@@ -280,7 +280,7 @@ def build_interfaces(
     packages = packages_in(src)  # refuse an empty or missing folder before hashing or locking anything
     missing = missing_dependencies(src)
     if missing:
-        from td2adaptor.rostypes.names import providers
+        from td2adaptor.support.providers import providers
 
         said = "; ".join(f"{pkg} uses {dep}" for pkg, dep in missing)
         wheels = " ".join(sorted({providers(dep)[0] for _, dep in missing}))

@@ -16,9 +16,9 @@ from typing import Any
 import pytest
 
 import td2adaptor
+from td2adaptor.backends.registry import load as load_backend
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GenOptions
-from td2adaptor.generation.registry import load as load_backend
 
 PACKAGE = "twins_adaptor"
 #: request and message fields that clash with builtins (id, type, list) and with call_X's own `timeout`

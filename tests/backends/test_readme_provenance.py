@@ -4,9 +4,9 @@ ROS 2 wheel or the Debian ROS 1 package that provides them, the robot's own from
 from __future__ import annotations
 
 import td2adaptor
+from td2adaptor.backends.registry import load
 from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.generation.backend import GenOptions
-from td2adaptor.generation.registry import load
 from td2adaptor.model import Model
 from tests.conftest import EXAMPLE, REPO
 

@@ -1,5 +1,5 @@
 """validate and types take the inputs gen and check take: several TDs, each compiled alone, and RosClasses config
-files merged into one input (`generation.build.compile_units`). They used to refuse two TDs with TD008 while gen
+files merged into one input (`compiler.units.compile_units`). They used to refuse two TDs with TD008 while gen
 generated them, so validate and gen disagreed on what is an error.
 """
 

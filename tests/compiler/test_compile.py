@@ -159,7 +159,7 @@ def _migrated(sources: Any, tmp_path: Path) -> tuple[Model, Model]:
     before = compile_(sources)
     assert before.model is not None and before.input is not None
     notes = Diagnostics()
-    td = migrate(before.input, before.model, notes)
+    td = migrate(before.input.td, before.model, notes, legacy=before.input.kind == "legacy")
     out = tmp_path / "migrated.json"
     out.write_text(json.dumps(td, indent=2))
     after = compile_(out)
@@ -186,7 +186,7 @@ def test_migrated_td_passes_the_official_schema(tmp_path: Path) -> None:
 
     before = compile_(EXAMPLE / "td.reference-dialect.json")
     assert before.model is not None and before.input is not None
-    td = migrate(before.input, before.model, Diagnostics())
+    td = migrate(before.input.td, before.model, Diagnostics(), legacy=False)
     schema = wot_corpus.official_json("td-schema-v1.1.json")
     validator = jsonschema.Draft7Validator(schema, format_checker=jsonschema.FormatChecker())
     assert [e.message for e in validator.iter_errors(td)] == []

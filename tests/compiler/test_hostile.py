@@ -21,10 +21,10 @@ import pytest
 import yaml
 
 import td2adaptor
+from td2adaptor.backends.registry import available
+from td2adaptor.compiler.build import generate_trees
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GeneratedTree
-from td2adaptor.generation.build import generate_trees
-from td2adaptor.generation.registry import available
 from tests.compiler.hostile_corpus import MARK, name_variants, variants
 from tests.conftest import EXAMPLE
 

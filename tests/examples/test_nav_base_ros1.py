@@ -18,9 +18,9 @@ from typing import Any
 import pytest
 
 import td2adaptor
+from td2adaptor.backends.registry import load as load_backend
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GenOptions
-from td2adaptor.generation.registry import load as load_backend
 from tests.examples.nav_base import EXAMPLE, INTERFACES, PACKAGE
 from tests.ros1 import harness
 from tests.ros1.harness import Master, Sim

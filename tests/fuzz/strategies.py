@@ -15,9 +15,9 @@ from typing import Any
 from hypothesis import strategies as st
 
 import td2adaptor
+from td2adaptor.backends.registry import available
+from td2adaptor.compiler.build import generate_trees
 from td2adaptor.diagnostics import Diagnostics, Severity
-from td2adaptor.generation.build import generate_trees
-from td2adaptor.generation.registry import available
 from td2adaptor.lowering.rosnames import identifier_problem
 
 SERVICES = ["std_srvs/srv/Trigger", "std_srvs/srv/SetBool", "std_srvs/srv/Empty"]

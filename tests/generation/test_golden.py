@@ -11,10 +11,10 @@ from dataclasses import replace
 
 import pytest
 
+from td2adaptor.backends.registry import available
+from td2adaptor.compiler.build import check
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation import targets as config
-from td2adaptor.generation.build import check
-from td2adaptor.generation.registry import available
 from tests.conftest import REPO
 from tests.golden.goldens import ADVICE
 

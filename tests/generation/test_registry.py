@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 import td2adaptor.backends
-from td2adaptor.generation import registry
-from td2adaptor.generation.build import resolve_backends
+from td2adaptor.backends import registry
+from td2adaptor.compiler.build import resolve_backends
 
 
 @pytest.fixture

@@ -1,6 +1,6 @@
 """A target of several RosClasses config files (service.json + topic.json) is ONE input, as in validate/migrate.
 
-`generation.build` used to compile each file of a target separately, so the two halves of one configuration
+`compiler.build` used to compile each file of a target separately, so the two halves of one configuration
 generated two different packages of the same name (GEN805) instead of one adaptor with every class.
 """
 
@@ -13,8 +13,8 @@ import pytest
 from click.testing import CliRunner
 
 from td2adaptor.cli.main import cli
+from td2adaptor.compiler.build import check, generate, target
 from td2adaptor.diagnostics import Severity
-from td2adaptor.generation.build import check, generate, target
 from tests.conftest import EXAMPLE, REPO
 
 LEGACY = REPO / "tests" / "data" / "legacy"

@@ -10,9 +10,9 @@ import pytest
 from click.testing import CliRunner
 
 import td2adaptor
+from td2adaptor.backends import registry
 from td2adaptor.cli.main import cli
 from td2adaptor.diagnostics import Diagnostics
-from td2adaptor.generation import registry
 from td2adaptor.generation.targets import Options, Target, targets
 from tests.conftest import EXAMPLE
 

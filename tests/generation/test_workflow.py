@@ -11,9 +11,9 @@ import pytest
 from click.testing import CliRunner
 
 import td2adaptor
+from td2adaptor.backends import registry as backends
 from td2adaptor.cli.main import cli
 from td2adaptor.diagnostics import Diagnostics
-from td2adaptor.generation import registry as backends
 from td2adaptor.generation.backend import GeneratedTree
 from td2adaptor.generation.emit import MANIFEST, path_problem, plan, write
 from tests.conftest import EXAMPLE
@@ -235,7 +235,7 @@ def test_no_config_is_a_usage_error(tmp_path: Path) -> None:
 
 
 def test_a_failing_backend_leaves_every_output_as_it_was(tmp_path: Path) -> None:
-    from td2adaptor.generation.build import _write_all
+    from td2adaptor.compiler.build import _write_all
 
     first, second = tmp_path / "out" / "a", tmp_path / "out" / "b"
     old = GeneratedTree()

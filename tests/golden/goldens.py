@@ -3,7 +3,7 @@
 Two kinds of golden:
 
 * a *configuration* (pyproject.toml's `[tool.td2adaptor]`, or a case's `td2adaptor.toml`): its targets are
-  built in memory with `td2adaptor.generation.build.build` and each output directory must hold exactly the
+  built in memory with `td2adaptor.compiler.build.build` and each output directory must hold exactly the
   generated files and the manifest, byte for byte and with the same executable bits — nothing more;
 * a *diagnostics snapshot*: the td2adaptor command of `snapshot.toml`, run in a scratch copy of the snapshot's
   folder (so it can never write into the repository), its normalised transcript against `expected.txt`.
@@ -25,10 +25,10 @@ from pathlib import Path
 from click.testing import CliRunner
 
 from td2adaptor.cli.main import EXIT_INTERNAL, cli
+from td2adaptor.compiler.build import build
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation import targets as config
 from td2adaptor.generation.backend import GeneratedTree
-from td2adaptor.generation.build import build
 from td2adaptor.generation.emit import MANIFEST, _manifest_bytes, plan, write
 
 if sys.version_info >= (3, 11):

@@ -13,9 +13,9 @@ from typing import Any
 import pytest
 
 import td2adaptor
+from td2adaptor.backends.registry import load as load_backend
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GenOptions
-from td2adaptor.generation.registry import load as load_backend
 from td2adaptor.model import ActionEndpoint, Model
 from td2adaptor.rostypes.registry import TypeRegistry
 

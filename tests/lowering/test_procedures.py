@@ -166,9 +166,9 @@ def test_procedure_api_only_where_true(tmp_path: Path, backend: str) -> None:
     """`Started` and `mission_id=` exactly where the id can travel, in both Python backends alike."""
     import ast
 
+    from td2adaptor.backends.registry import load as load_backend
     from td2adaptor.diagnostics import Diagnostics
     from td2adaptor.generation.backend import GenOptions
-    from td2adaptor.generation.registry import load as load_backend
 
     def methods(td: dict[str, Any]) -> dict[str, ast.FunctionDef]:
         model, diags = compile_td(tmp_path, td)

@@ -9,7 +9,10 @@
 * `stuck`: an actionlib ActionServer that never answers a goal (it stays pending).
 * `hasty`: an actionlib ActionServer that publishes `order` feedback messages and the result right after the
   last one, with no pause: feedback and result travel on two connections, so the result often arrives first.
-Prints `ready` once all four serve.
+* `burst`: an actionlib ActionServer that publishes `order` feedback messages `[i]` (i = 1 ... order) back to
+  back, then the result `[order]`; its publishers queue 5,000 messages (actionlib's default of 50 would drop
+  most of a burst before it is sent).
+Prints `ready` once all five serve.
 
 `fibonacci_server.py NAMESPACE STEP SLOW`: the same, but `fibonacci`'s feedback and result publishers take a
 new subscriber up only SLOW seconds after answering its handshake (rospy does it right after; on a loaded
@@ -73,6 +76,20 @@ def main() -> None:
 
     hasty = actionlib.ActionServer(f"/{namespace}/hasty", FibonacciAction, hasty_goal, auto_start=False)
     hasty.start()
+
+    def burst_goal(handle: actionlib.ServerGoalHandle) -> None:
+        handle.set_accepted("bursting")
+        order = handle.get_goal().order
+        for i in range(1, order + 1):
+            handle.publish_feedback(FibonacciFeedback(sequence=[i]))
+        handle.set_succeeded(FibonacciResult(sequence=[order]), "done")
+
+    # actionlib reads the queue size when a server is made, as a name relative to the node's namespace (here
+    # the root): set for the burst server, taken away again for servers made later on this master
+    rospy.set_param("actionlib_server_pub_queue_size", 5000)
+    burst = actionlib.ActionServer(f"/{namespace}/burst", FibonacciAction, burst_goal, auto_start=False)
+    rospy.delete_param("actionlib_server_pub_queue_size")
+    burst.start()
     print("ready", flush=True)
     rospy.spin()
 

@@ -16,10 +16,10 @@ from typing import Any
 import pytest
 
 import td2adaptor
+from td2adaptor.backends.registry import load as load_backend
 from td2adaptor.compiler.pipeline import Result
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GenOptions
-from td2adaptor.generation.registry import load as load_backend
 from tests.ros2 import env
 
 EXAMPLE = env.REPO / "examples" / "robotnik_rb1"

@@ -18,7 +18,7 @@ pytest.importorskip("rclpy", reason="needs the ROS 2 wheels (bash .ci/setup-ros2
 
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 
-from td2adaptor.rostypes.primitives import INT_RANGES  # noqa: E402
+from td2adaptor.model.primitives import INT_RANGES  # noqa: E402
 from td2adaptor.runtime.engine.streams import plain  # noqa: E402
 from td2adaptor.runtime.ros.cdr import CdrError, decoder  # noqa: E402
 from td2adaptor.runtime.ros.genport import to_plain  # noqa: E402

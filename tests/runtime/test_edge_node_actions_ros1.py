@@ -24,9 +24,9 @@ import pytest
 from jsonschema import Draft202012Validator  # type: ignore[import-untyped, unused-ignore]
 
 import td2adaptor
+from td2adaptor.backends.registry import load as load_backend
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GenOptions
-from td2adaptor.generation.registry import load as load_backend
 from td2adaptor.model import Model
 from td2adaptor.model.events import Kind, build_catalog
 from td2adaptor.model.wot import WOT_LEVEL, wot_data, wot_specs, wot_topic

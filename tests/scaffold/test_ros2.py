@@ -252,9 +252,9 @@ def _fibonacci(td: Path, out: Path, order: int) -> list[int]:
     import rclpy
     from rclpy.context import Context
 
+    from td2adaptor.backends.registry import load as load_backend
     from td2adaptor.diagnostics import Diagnostics, Severity
     from td2adaptor.generation.backend import GenOptions
-    from td2adaptor.generation.registry import load as load_backend
 
     result = td2adaptor.compile(td, interfaces=[ACTIONS])
     assert result.model is not None

@@ -8,7 +8,14 @@ from __future__ import annotations
 
 from td2adaptor.backends._python.imports import import_block, import_line, member_key
 from td2adaptor.backends._python.names import METHOD_NAMES, defined_names, param_name, reserved_names
-from td2adaptor.backends._python.runtime import SHARED, common_names, constant, error_classes, shared_source
+from td2adaptor.backends._python.runtime import (
+    SHARED,
+    common_names,
+    constant,
+    error_classes,
+    goals_names,
+    shared_source,
+)
 from td2adaptor.backends._python.stubs import StubClass, StubField, StubModule
 from td2adaptor.backends._python.text import LINE, call_lines, docstring, wrap
 
@@ -26,6 +33,7 @@ __all__ = [
     "call_lines",
     "docstring",
     "error_classes",
+    "goals_names",
     "import_block",
     "import_line",
     "member_key",

@@ -1,5 +1,6 @@
 """The run-time modules both Python backends copy into their packages unchanged (`verbatim/`): `errors.py`
-(what an adaptor raises) and `common.py` (defaults, name and timeout checks, `Started`).
+(what an adaptor raises), `common.py` (defaults, name and timeout checks, `Started`) and `goals.py` (the record
+of an action goal that both adaptors' goal handles build on).
 
 The generators read facts from these files instead of repeating them: the error classes a package exports,
 the names a generated module must leave alone, the default timeouts its README states.
@@ -15,7 +16,7 @@ from td2adaptor.backends._python.names import defined_names
 from td2adaptor.generation.templating import verbatim
 
 VERBATIM = Path(__file__).parent / "verbatim"
-SHARED = ("common.py", "errors.py")  # copied into every Python adaptor package, next to its runtime module
+SHARED = ("common.py", "errors.py", "goals.py")  # copied into every Python adaptor package, next to its runtime module
 
 
 def shared_source(name: str) -> bytes:
@@ -34,6 +35,12 @@ def error_classes() -> tuple[str, ...]:
 def common_names() -> frozenset[str]:
     """The public names common.py defines (what generated modules import from `.common`)."""
     return frozenset(n for n in defined_names(shared_source("common.py")) if not n.startswith("_"))
+
+
+@cache
+def goals_names() -> frozenset[str]:
+    """The public names goals.py defines (what generated modules import from `.goals`)."""
+    return frozenset(n for n in defined_names(shared_source("goals.py")) if not n.startswith("_"))
 
 
 @cache

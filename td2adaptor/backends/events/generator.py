@@ -202,6 +202,8 @@ def portable(schema: Any) -> Any:
     `additionalProperties: false` beside them, leaving them out means the same, and AsyncAPI Modelina
     (`asyncapi generate models`) refuses boolean subschemas where `{"not": {}}` would give every model a field
     that must stay empty."""
+    if isinstance(schema, (str, bool, int, float)) or schema is None:  # most values: no ABC check (half the time)
+        return schema
     if isinstance(schema, list):
         return [portable(s) for s in schema]
     if not isinstance(schema, Mapping):

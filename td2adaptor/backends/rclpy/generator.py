@@ -40,7 +40,7 @@ from td2adaptor.model import (
     TopicEndpoint,
     TypeTable,
 )
-from td2adaptor.rostypes.names import providers
+from td2adaptor.support.providers import providers
 
 TEMPLATES = Path(__file__).parent / "templates"
 
@@ -190,6 +190,7 @@ class ActionView:
     construct: ConstructView
     doc: str
     async_doc: str
+    start_doc: str
 
 
 @dataclass
@@ -254,7 +255,8 @@ class PackageView:
     has_actions: bool = False
 
 
-_EXPORTS = ("GoalHandle", "LAST_MISSION", "Spinner", "Started", "spin_in_background")  # besides components and errors
+#: besides components and errors
+_EXPORTS = ("CancelOutcome", "GoalHandle", "GoalOutcome", "LAST_MISSION", "Spinner", "Started", "spin_in_background")
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -262,8 +264,11 @@ _EXPORTS = ("GoalHandle", "LAST_MISSION", "Spinner", "Started", "spin_in_backgro
 
 
 def _runtime_module(name: str) -> str:
-    """Where components and __init__ import a run-time name from: the shared `.common` or rclpy's `.runtime`."""
-    return ".common" if name in py.common_names() else ".runtime"
+    """Where components and __init__ import a run-time name from: the shared `.common` or `.goals`, or rclpy's
+    `.runtime`."""
+    if name in py.common_names():
+        return ".common"
+    return ".goals" if name in py.goals_names() else ".runtime"
 
 
 def _is(ftype: FieldType | None, base: str) -> bool:
@@ -364,7 +369,8 @@ class Builder:
         for s in services:
             wanted += [(m, s.name) for m in (f"construct_{s.name}_Msg", f"call_{s.name}", f"call_{s.name}_async")]
         for a in actions:
-            wanted += [(m, a.name) for m in (f"construct_{a.name}_Goal", f"send_{a.name}", f"send_{a.name}_async")]
+            sends = (f"send_{a.name}", f"send_{a.name}_async", f"start_{a.name}")
+            wanted += [(m, a.name) for m in (f"construct_{a.name}_Goal", *sends)]
         subscribers = 0
         for t in topics:
             if t.role is Role.SUBSCRIBER:
@@ -570,7 +576,8 @@ class Builder:
     def action_view(self, action: ActionEndpoint, namer: Namer) -> ActionView:
         adef = self.types.action(action.type_name)
         self.msg_used.add(action.type_name)
-        self.runtime_used |= {"ActionGoalClient", "GoalHandle"}
+        self.runtime_used |= {"ActionGoalClient", "GoalHandle", "GoalOutcome"}
+        self.std_used.add(("collections.abc", "Callable"))
         local = namer[action.type_name]
         goal, result, feedback = f"{local}.Goal", f"{local}.Result", f"{local}.Feedback"
         body = [
@@ -602,6 +609,24 @@ class Builder:
                 [
                     f"send_{action.name}, awaitable: await it in a coroutine callback of the node's executor (or in "
                     "any coroutine while an executor spins the node). No thread blocks; the errors are the same."
+                ],
+                "        ",
+            ),
+            start_doc=docstring(
+                [
+                    f"send_{action.name} without waiting: returns the goal's GoalHandle at once (its goal_id is "
+                    "known) and tells what happens to the callbacks: on_accepted() once the server accepted the "
+                    "goal, on_status(status) at each change of status while it runs, on_feedback(message) with "
+                    "each feedback message (also those that came before the acceptance), in order, then exactly "
+                    "one on_done(outcome), a GoalOutcome: status succeeded, canceled, aborted, rejected or lost "
+                    "(no server within wait_timeout, no answer within timeout, the server went away), result, "
+                    "error. on_done waits feedback_grace seconds (default: the runtime's FEEDBACK_GRACE) after the "
+                    "result for feedback still on its way.",
+                    "The callbacks run in the thread of the executor that spins the node, never two at once for "
+                    "one goal: they must return quickly (hand the event on to your own loop). The handle's "
+                    "feedback(), result() and cancel() read the same record; request_cancel(on_done) cancels "
+                    "without waiting. Raises only TypeError (a goal of another type) and ValueError (a bad "
+                    "timeout).",
                 ],
                 "        ",
             ),

@@ -44,7 +44,7 @@ from td2adaptor.model import (
     TopicEndpoint,
     TypeTable,
 )
-from td2adaptor.rostypes.names import providers
+from td2adaptor.support.providers import providers
 
 TEMPLATES = Path(__file__).parent / "templates"
 
@@ -139,6 +139,7 @@ class ActionView:
     params: list[FieldView]
     construct_doc: str
     send_doc: str
+    start_doc: str
 
 
 @dataclass(frozen=True)
@@ -198,7 +199,7 @@ def module_imports(views: list[ComponentView], imports: _Imports) -> list[str]:
             text += [p.annotation + " " + p.value for p in pub.params] + pub.ros_name + ["TopicPublisher"]
         for act in v.actions:
             text += [p.annotation + " " + p.value for p in act.params] + act.ros_name
-            text += ["ActionGoalClient GoalHandle"]
+            text += ["ActionGoalClient Callable GoalHandle GoalOutcome"]
         if v.services:
             text.append("ServiceClient")
         if v.mission_attrs:
@@ -233,6 +234,7 @@ def module_imports(views: list[ComponentView], imports: _Imports) -> list[str]:
     )
     members += [(".common" if n in py.common_names() else "._runtime", n) for n in runtime]
     members += [("._actions", n) for n in used("ActionGoalClient", "GoalHandle")]
+    members += [(".goals", n) for n in used("GoalOutcome")]
     members += [(".errors", n) for n in used("CallFailed")]
     return import_block(members, used("genpy"))
 
@@ -453,6 +455,23 @@ def _action_view(action: ActionEndpoint, types: TypeTable, imports: _Imports, di
         ],
         " " * 8,
     )
+    start_doc = docstring(
+        [],
+        [
+            f"send_{action.name} without waiting: returns the goal's GoalHandle at once (its goal_id is known) and "
+            "tells what happens to the callbacks: on_accepted() once the server reported the goal, "
+            "on_status(status) at each change of status while it runs, on_feedback(message) with each feedback "
+            "message, in order, then exactly one on_done(outcome), a GoalOutcome: status succeeded, canceled, "
+            "aborted, rejected or lost (no server within wait_timeout, no report within timeout, the server went "
+            "away), result, error. on_done waits feedback_grace seconds (default: _actions.FEEDBACK_GRACE) after "
+            "the result for feedback still on its way.",
+            "The callbacks run in rospy's receive threads or in the adaptor's goals thread, never two at once for "
+            "one goal: they must return quickly (hand the event on to your own loop). The handle's feedback(), "
+            "result() and cancel() read the same record; request_cancel(on_done) cancels without waiting. Raises "
+            "only InvalidMessage (a goal of another type), ValueError (a bad timeout) and NotInitialized.",
+        ],
+        " " * 8,
+    )
     construct_doc = docstring(
         [f"The goal of {action.name}."],
         ["Keyword arguments are the goal's fields; nested messages may also be mappings of their fields."],
@@ -469,6 +488,7 @@ def _action_view(action: ActionEndpoint, types: TypeTable, imports: _Imports, di
         params=params,
         construct_doc=construct_doc,
         send_doc=send_doc,
+        start_doc=start_doc,
     )
 
 
@@ -481,7 +501,7 @@ def _method_names(view: ComponentView) -> list[str]:
     for p in view.publishers:
         names += [f"construct_{p.name}_Msg", f"publish_{p.name}_Msg"]
     for a in view.actions:
-        names += [f"construct_{a.name}_Goal", f"send_{a.name}"]
+        names += [f"construct_{a.name}_Goal", f"send_{a.name}", f"start_{a.name}"]
     if view.single is not None:
         names.append("get_value")
     return names
@@ -679,7 +699,7 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
             [v.name for v in views]
             + list(py.error_classes())
             + ["LAST_MISSION", "Started"]
-            + (["GoalHandle"] if types.actions else [])
+            + (["CancelOutcome", "GoalHandle", "GoalOutcome"] if types.actions else [])
         ),
         "interface_packages": packages,
         "has_actions": bool(types.actions),

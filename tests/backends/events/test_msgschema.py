@@ -107,7 +107,7 @@ def test_time_and_duration_ranges_are_the_type_sets_own() -> None:
     conversion then failed with Python's internal words); ROS 1's `duration` is two int32s."""
     from rosbags.typesys import Stores, get_typestore
 
-    from td2adaptor.rostypes.primitives import int_range
+    from td2adaptor.model.primitives import int_range
 
     store = get_typestore(Stores.ROS2_JAZZY)
     for name, signed in (("builtin_interfaces/msg/Time", False), ("builtin_interfaces/msg/Duration", True)):

@@ -17,9 +17,9 @@ from jsonschema import Draft202012Validator  # type: ignore[import-untyped, unus
 import td2adaptor
 from td2adaptor.backends.events import generator as backend
 from td2adaptor.cli.main import cli
+from td2adaptor.compiler.build import generate, target
 from td2adaptor.diagnostics import Severity
 from td2adaptor.generation.backend import GeneratedTree
-from td2adaptor.generation.build import generate, target
 from td2adaptor.generation.emit import MANIFEST
 from td2adaptor.model.events import SCHEMA_BASE
 from tests.backends.events.test_events import ENVELOPE, FEEDBACK, _refs, _resolve, tree_of

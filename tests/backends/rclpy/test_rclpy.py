@@ -16,9 +16,9 @@ from pathlib import Path
 from typing import Any
 
 import td2adaptor
+from td2adaptor.backends.registry import load as load_backend
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GenOptions
-from td2adaptor.generation.registry import load as load_backend
 from tests.ros2 import env
 from tests.ros2.build import translate, translate_line
 from tests.ros2.common import EXAMPLE, PACKAGE, generate_rclpy, require_ros2, std_td
@@ -202,6 +202,7 @@ def test_hostile_titles_and_descriptions_stay_text(tmp_path: Path) -> None:
         "common",
         "convert",
         "errors",
+        "goals",
         "runtime",
         "launch",  # launch/edge_node.launch.py and the stubs of what it uses
         "launch.actions",

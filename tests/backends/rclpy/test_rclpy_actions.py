@@ -5,7 +5,8 @@ types come from the `ros-jazzy-test-msgs` wheel) and imported from its source. T
 `rclpy.action.ActionServer` on a node of this process, spun by its own multi-threaded executor, so that it
 executes goals while it answers cancel requests. What the server does depends on the goal's `order`:
 negative → rejected; 77 → aborted after two feedback messages; 55 → no feedback for `SILENT_FOR` seconds, then
-succeeded; otherwise one feedback message per step (`STEP` seconds apart) and the sequence as the result,
+succeeded; `BURST + n` → n feedback messages `[i]` back to back (its feedback publisher keeps 2,000), then `[n]`
+as the result; otherwise one feedback message per step (`STEP` seconds apart) and the sequence as the result,
 ending canceled when a cancel was requested. A server killed mid-goal is tests.runtime.fibo_ros2 in a process
 of its own.
 """
@@ -25,6 +26,7 @@ from typing import Any
 
 import pytest
 
+from tests.backends import goal_scenarios
 from tests.backends.rclpy.test_rclpy_ros2 import run_in_executor
 from tests.lowering.test_actions import INTERFACES, action_td
 from tests.ros2 import env
@@ -36,6 +38,7 @@ ROBOT = "fibo_robot"
 STEP = 0.05
 ABORT = 77
 SILENT, SILENT_FOR = 55, 2.0
+BURST = 20000
 
 
 def _sequence(order: int) -> list[int]:
@@ -49,9 +52,9 @@ def _sequence(order: int) -> list[int]:
 def fibo_adaptor(ros2_domain: int, tmp_path_factory: pytest.TempPathFactory) -> ModuleType:
     require_ros2()
     import td2adaptor
+    from td2adaptor.backends.registry import load as load_backend
     from td2adaptor.diagnostics import Diagnostics, Severity
     from td2adaptor.generation.backend import GenOptions
-    from td2adaptor.generation.registry import load as load_backend
 
     base = tmp_path_factory.mktemp("fibo")
     td = base / "td.json"
@@ -78,6 +81,7 @@ class FiboServer:
         from rclpy.action import ActionServer, CancelResponse, GoalResponse
         from rclpy.callback_groups import ReentrantCallbackGroup
         from rclpy.executors import MultiThreadedExecutor
+        from rclpy.qos import QoSProfile
         from test_msgs.action import Fibonacci
 
         self.node: Any = rclpy.create_node("fibo_server", context=context)
@@ -92,6 +96,14 @@ class FiboServer:
             self.goals += 1
             order = handle.request.order
             result = Fibonacci.Result()
+            if order >= BURST:
+                for i in range(1, order - BURST + 1):
+                    feedback = Fibonacci.Feedback()
+                    feedback.sequence = [i]
+                    handle.publish_feedback(feedback)
+                handle.succeed()
+                result.sequence = [order - BURST]
+                return result
             if order == SILENT:
                 self.stopping.wait(SILENT_FOR)
                 handle.succeed()
@@ -126,6 +138,7 @@ class FiboServer:
             goal_callback=on_goal,
             cancel_callback=lambda _handle: CancelResponse.ACCEPT,
             callback_group=ReentrantCallbackGroup(),
+            feedback_pub_qos_profile=QoSProfile(depth=2000),  # a burst is not overwritten before it is sent
         )
         self.executor = MultiThreadedExecutor(num_threads=4, context=context)
         self.executor.add_node(self.node)
@@ -408,7 +421,7 @@ def test_generated_action_api_passes_ruff_and_mypy_strict(fibo_adaptor: ModuleTy
 
 
 class ResponseRace:
-    """Holds the caller's thread inside rclpy's own window: after `ActionClient` sent a request, before it
+    """Holds the thread that sends a request inside rclpy's own window: after `ActionClient` sent a request, before it
     recorded the request's sequence number (rclpy 7.1 of Jazzy, ros2/rclpy#1123), until the executor's thread
     has dealt with the response: handled it (rclpy drops a response of no recorded request: "Ignoring unexpected
     goal response", and the request's future never completes) or looked at it ready twice without taking it.
@@ -476,10 +489,34 @@ def _rclpy_client(fibo: Any) -> Any:
     return fibo._fibonacci.client
 
 
+@pytest.fixture
+def threaded_fibo(fibo_adaptor: ModuleType, ros_node: Any, fibo_server: FiboServer) -> Iterator[Any]:
+    """A component on a node of its own, spun by a multi-threaded executor (two threads)."""
+    import rclpy
+    from rclpy.executors import MultiThreadedExecutor
+
+    node: Any = rclpy.create_node("adaptor_test_threaded", context=ros_node.context)
+    executor = MultiThreadedExecutor(num_threads=2, context=ros_node.context)
+    executor.add_node(node)
+    thread = threading.Thread(target=executor.spin, daemon=True)
+    thread.start()
+    try:
+        yield fibo_adaptor.MathComponent(node, ROBOT, timeout=10.0, wait_timeout=15.0)
+    finally:
+        executor.shutdown(timeout_sec=5)
+        thread.join(5)
+        node.destroy_node()
+
+
 @pytest.mark.parametrize("kind", ["goal", "result", "cancel"])
 def test_a_response_that_beats_rclpys_bookkeeping_is_not_lost(
-    kind: str, fibo_adaptor: ModuleType, fibo: Any, monkeypatch: pytest.MonkeyPatch
+    kind: str, fibo_adaptor: ModuleType, fibo: Any, request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    """A goal request is sent in the caller's thread, a cancel request too; a result request is sent in the
+    executor's thread that takes the acceptance, which a response can beat only when another thread of a
+    multi-threaded executor takes it: the result case runs there."""
+    if kind == "result":
+        fibo = request.getfixturevalue("threaded_fibo")
     fibo.send_fibonacci(fibo.construct_fibonacci_Goal(order=1)).result(timeout=10.0)  # the server is known
     race = ResponseRace(_rclpy_client(fibo), kind, monkeypatch)
     if kind == "goal":
@@ -566,3 +603,63 @@ def test_a_lost_goal_response_is_recovered_from_the_servers_status(
     assert list(handle.result(timeout=10.0).sequence) == _sequence(4)
     assert handle.status == "succeeded"
     assert time.monotonic() - started < 5.0
+
+
+# -- the callback API (start_X): the scenarios of tests.backends.goal_scenarios, the same as on ROS 1
+
+
+def test_a_burst_of_1000_feedback_messages_is_told_once_each_in_order_then_one_end(fibo: Any) -> None:
+    """The server publishes 1,000 feedback messages back to back and succeeds: on_feedback gets each once, in
+    order, between on_accepted and exactly one on_done, all in the executor's thread; the blocking iterator
+    reads the same buffer. A lost or repeated message fails check_burst (goal_scenarios)."""
+    goal = fibo.construct_fibonacci_Goal(order=BURST + 1000)
+    out = goal_scenarios.burst(lambda **callbacks: fibo.start_fibonacci(goal, **callbacks))
+    goal_scenarios.check_burst(out, 1000)
+    assert out["threads"] == ["adaptor-spinner"]  # the thread of the executor that spins the node
+
+
+def test_cancel_through_the_callback_api(fibo: Any) -> None:
+    goal = fibo.construct_fibonacci_Goal(order=200)
+    goal_scenarios.check_cancel(goal_scenarios.cancel(lambda **callbacks: fibo.start_fibonacci(goal, **callbacks)))
+
+
+def test_a_killed_server_ends_the_goal_through_on_done_with_no_thread_waiting_on_it(
+    fibo_adaptor: ModuleType, ros_node: Any
+) -> None:
+    """SIGKILL to the action server's process mid-goal: the node's goal timer (no thread of the goal's own)
+    finds it gone within the handle's server_timeout and ends the goal lost through on_done."""
+    server = Process([sys.executable, "-m", "tests.runtime.fibo_ros2", "fibo_doomed_cb"], env.child_env([]))
+    try:
+        server.wait_for(lambda e: e.get("event") == "ready", timeout=30)
+        component = fibo_adaptor.MathComponent(ros_node, "fibo_doomed_cb", timeout=10.0, wait_timeout=15.0)
+
+        def start(**callbacks: Any) -> Any:
+            handle = component.start_fibonacci(component.construct_fibonacci_Goal(order=1000), **callbacks)
+            handle.server_timeout = 1.0
+            return handle
+
+        def warm(**callbacks: Any) -> Any:
+            return component.start_fibonacci(component.construct_fibonacci_Goal(order=1), **callbacks)
+
+        def kill() -> None:
+            server.proc.send_signal(signal.SIGKILL)
+            server.proc.wait(10)
+
+        out = goal_scenarios.killed(start, kill, warm)
+    finally:
+        server.stop()
+    goal_scenarios.check_killed(out, bound=1.0 + 2.0)
+
+
+def test_50_concurrent_goals_start_no_thread(fibo_adaptor: ModuleType, ros_node: Any) -> None:
+    from tests.runtime.fibo_ros2 import FAST, sequence
+
+    server = Process([sys.executable, "-m", "tests.runtime.fibo_ros2", "fibo_many"], env.child_env([]))
+    try:
+        server.wait_for(lambda e: e.get("event") == "ready", timeout=30)
+        component = fibo_adaptor.MathComponent(ros_node, "fibo_many", timeout=20.0, wait_timeout=15.0)
+        goal = component.construct_fibonacci_Goal(order=FAST + 5)
+        out = goal_scenarios.concurrent(lambda **callbacks: component.start_fibonacci(goal, **callbacks), 50)
+    finally:
+        server.stop()
+    goal_scenarios.check_concurrent(out, [sequence(i) for i in range(1, 6)], sequence(40))

@@ -13,9 +13,9 @@ import sys
 from pathlib import Path
 
 import td2adaptor
+from td2adaptor.backends.registry import load as load_backend
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GenOptions
-from td2adaptor.generation.registry import load as load_backend
 from td2adaptor.support import ros2build
 from tests.lowering.test_distros import NAV2, nav2_td
 from tests.ros2 import env
@@ -60,7 +60,8 @@ server = ActionServer(
 )
 executor = MultiThreadedExecutor(num_threads=2, context=context)
 executor.add_node(server_node)
-threading.Thread(target=executor.spin, daemon=True).start()
+serving = threading.Thread(target=executor.spin, daemon=True)
+serving.start()
 
 client_node = rclpy.create_node("nav2_client", context=context)
 spinner = spin_in_background(client_node)
@@ -77,6 +78,9 @@ print(json.dumps({"feedback": feedback, "error_code": result.error_code, "error_
                   "status": goal.status}), flush=True)
 spinner.stop()
 executor.shutdown(timeout_sec=5)
+serving.join(10)  # a spin thread still running when the interpreter exits aborts it ("terminate called ...")
+client_node.destroy_node()
+server_node.destroy_node()
 rclpy.shutdown(context=context)
 """.replace("ROBOT", ROBOT)
 

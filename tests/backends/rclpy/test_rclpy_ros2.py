@@ -31,6 +31,20 @@ def until(predicate: Callable[[], bool], timeout: float, period: float = 0.05) -
     return predicate()
 
 
+def answering(adaptor: ModuleType, component: Any, query: str) -> bool:
+    """Whether the robot answers a (side-effect free) query of `component` yet. A ROS 2 service can be
+    discovered before its server has discovered the client's response reader: the first request's answer is
+    then lost (more likely on a loaded machine), so a test that needs its first call answered waits for one
+    answered query first."""
+    try:
+        getattr(component, query)(mission_id=-1)
+    except adaptor.CallFailed:
+        return True  # an answer: the robot has no such mission yet
+    except (adaptor.ServiceUnavailable, adaptor.CallTimeout):
+        return False
+    return True
+
+
 def query_until_finished(component: Any, query: str, mission_id: int, timeout: float = 10.0) -> Any:
     """Poll a procedure by its mission id until the robot reports it finished (never longer than `timeout`)."""
     deadline = time.monotonic() + timeout
@@ -85,6 +99,7 @@ def test_goto_query_by_mission_id_until_finished_then_status_and_markers(
     goto.register()
     goto.register()  # idempotent: no second set of clients
     assert len(list(ros_node.clients)) == before + 3
+    assert until(lambda: answering(adaptor, goto, "call_gotoQuery"), 30.0, 0.1)
     request = goto.construct_gotoRun_Msg(
         procedure={"goals": [{"header": {"frame_id": "map"}, "pose": {"x": 1.5, "y": 3, "theta": 0}}]}
     )

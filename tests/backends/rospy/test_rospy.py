@@ -82,7 +82,7 @@ def rb1_tree() -> GeneratedTree:
 
 
 def test_backend_metadata() -> None:
-    from td2adaptor.generation.registry import load
+    from td2adaptor.backends.registry import load
 
     plugin = load("rospy")
     assert (plugin.NAME, plugin.DISTRO) == ("rospy", "ros1")

@@ -20,6 +20,7 @@ import td2adaptor
 from td2adaptor.backends.rospy import generator as backend
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GenOptions
+from tests.backends import goal_scenarios
 from tests.conftest import REPO
 from tests.ros1 import harness
 from tests.ros1.harness import Master
@@ -93,6 +94,14 @@ RAW_CLIENT = (
     "def raw_client(name):\n"
     f"    return ActionGoalClient('/{NS}/' + name, A, G, R, F)\n"
 )
+
+
+def scenario(master: Master, path: list[Path], body: str, robot: str = NS) -> Any:
+    """Run `body` with the scenarios of tests.backends.goal_scenarios as `s`, `c` (a MathComponent of `robot`),
+    `raw_client` and the package's names; it emits the scenario's data."""
+    prelude = f"from {PKG} import *\n{RAW_CLIENT}from tests.backends import goal_scenarios as s\n"
+    prelude += f"c = MathComponent({robot!r})\n"
+    return harness.run_client(master, [*path, REPO], prelude + body, timeout=240)
 
 
 def client(master: Master, path: list[Path], body: str) -> Any:
@@ -394,3 +403,57 @@ def test_invalid_goal_and_uninitialised_node(master: Master, path: list[Path]) -
     code = f"from {PKG} import *\ntry:\n    MathComponent().send_fibonacci()\nexcept NotInitialized:\n    print('ok')\n"
     done = subprocess.run([harness.SYSTEM_PYTHON, "-c", code], env=env, capture_output=True, text=True, timeout=60)
     assert done.stdout.strip() == "ok", done.stderr
+
+
+# -- the callback API (start_X): the scenarios of tests.backends.goal_scenarios, the same as on ROS 2
+
+
+def test_a_burst_of_1000_feedback_messages_is_told_once_each_in_order_then_one_end(
+    master: Master, path: list[Path], server: None
+) -> None:
+    """The burst server publishes 1,000 feedback messages back to back, then the result (on another
+    connection: it often arrives first). on_feedback gets each once, in order, between on_accepted and
+    exactly one on_done; the blocking iterator reads the same buffer. A lost or repeated message fails
+    check_burst (goal_scenarios)."""
+    out = scenario(
+        master,
+        path,
+        "burst = raw_client('burst')\nemit(s.burst(lambda **cb: burst.start(G(order=1000), 10.0, 10.0, **cb)))\n",
+    )
+    goal_scenarios.check_burst(out, 1000)
+
+
+def test_cancel_through_the_callback_api(master: Master, path: list[Path], server: None) -> None:
+    out = scenario(
+        master, path, "emit(s.cancel(lambda **cb: c.start_fibonacci(c.construct_fibonacci_Goal(order=1000), **cb)))\n"
+    )
+    goal_scenarios.check_cancel(out)
+
+
+def test_a_killed_server_ends_the_goal_through_on_done_with_no_thread_waiting_on_it(
+    master: Master, interfaces: Path, path: list[Path]
+) -> None:
+    """SIGKILL to the action server mid-goal: the adaptor's goals thread (one per process, not one per goal)
+    sees its connections drop and ends the goal lost through on_done."""
+    with harness.run_server(master, interfaces, "fibonacci_server.py", "fibo_doomed_cb", str(STEP)) as doomed:
+        out = scenario(
+            master,
+            path,
+            "import os, signal\n"
+            f"kill = lambda: os.kill({doomed.pid}, signal.SIGKILL)\n"
+            "long = lambda **cb: c.start_fibonacci(c.construct_fibonacci_Goal(order=1000), **cb)\n"
+            "short = lambda **cb: c.start_fibonacci(c.construct_fibonacci_Goal(order=1), **cb)\n"
+            "emit(s.killed(long, kill, short))\n",
+            robot="fibo_doomed_cb",
+        )
+    goal_scenarios.check_killed(out, bound=10.0)
+
+
+def test_50_concurrent_goals_start_no_thread(master: Master, path: list[Path], server: None) -> None:
+    out = scenario(
+        master,
+        path,
+        "hasty = raw_client('hasty')\nemit(s.concurrent(lambda **cb: hasty.start(G(order=5), 10.0, 10.0, **cb), 50))\n",
+    )
+    sequence = [0, 1, 1, 2, 3]
+    goal_scenarios.check_concurrent(out, [sequence[: i + 1] for i in range(5)], sequence)

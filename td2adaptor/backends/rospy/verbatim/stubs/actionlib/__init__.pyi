@@ -15,7 +15,10 @@ class ClientGoalHandle:
     def get_goal_status_text(self) -> str: ...
     def get_result(self) -> Any: ...
 
+class GoalManager: ...
+
 class ActionClient:
+    manager: GoalManager
     last_status_msg: Any
     pub_goal: rospy.Publisher
     pub_cancel: rospy.Publisher

@@ -12,6 +12,7 @@ from std_msgs.msg import String
 from test_msgs.action import Fibonacci
 
 from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, check_int32, check_robot_name, check_timeout, in_namespace
+from .goals import GoalOutcome
 from .runtime import ActionGoalClient, GoalHandle, TopicSubscriber, qos_profile
 
 
@@ -125,6 +126,43 @@ class MathComponent:
             self.construct_fibonacci_Goal() if goal is None else goal,
             self.timeout if timeout is None else timeout,
             self.wait_timeout,
+        )
+
+    def start_fibonacci(
+        self,
+        goal: Fibonacci.Goal | None = None,
+        *,
+        on_accepted: Callable[[], None] | None = None,
+        on_status: Callable[[str], None] | None = None,
+        on_feedback: Callable[[Fibonacci.Feedback], None] | None = None,
+        on_done: Callable[[GoalOutcome[Fibonacci.Result]], None] | None = None,
+        timeout: float | None = None,
+        feedback_grace: float | None = None,
+    ) -> GoalHandle[Fibonacci.Result, Fibonacci.Feedback]:
+        """send_fibonacci without waiting: returns the goal's GoalHandle at once (its goal_id is known) and tells
+        what happens to the callbacks: on_accepted() once the server accepted the goal, on_status(status) at
+        each change of status while it runs, on_feedback(message) with each feedback message (also those that
+        came before the acceptance), in order, then exactly one on_done(outcome), a GoalOutcome: status
+        succeeded, canceled, aborted, rejected or lost (no server within wait_timeout, no answer within timeout,
+        the server went away), result, error. on_done waits feedback_grace seconds (default: the runtime's
+        FEEDBACK_GRACE) after the result for feedback still on its way.
+
+        The callbacks run in the thread of the executor that spins the node, never two at once for one goal:
+        they must return quickly (hand the event on to your own loop). The handle's feedback(), result() and
+        cancel() read the same record; request_cancel(on_done) cancels without waiting. Raises only TypeError (a
+        goal of another type) and ValueError (a bad timeout).
+        """
+        if not self._registered:
+            self.register()
+        return self._fibonacci.start(
+            self.construct_fibonacci_Goal() if goal is None else goal,
+            self.timeout if timeout is None else timeout,
+            self.wait_timeout,
+            on_accepted=on_accepted,
+            on_status=on_status,
+            on_feedback=on_feedback,
+            on_done=on_done,
+            feedback_grace=feedback_grace,
         )
 
     def get_chatter_value(

@@ -22,6 +22,7 @@ from .errors import (
     NotInitialized,
     ServiceUnavailable,
 )
+from .goals import CancelOutcome, GoalOutcome
 from .runtime import GoalHandle, Spinner, spin_in_background
 
 __all__ = [
@@ -41,7 +42,9 @@ __all__ = [
     "NoMessage",
     "NotInitialized",
     "ServiceUnavailable",
+    "CancelOutcome",
     "GoalHandle",
+    "GoalOutcome",
     "LAST_MISSION",
     "Spinner",
     "Started",

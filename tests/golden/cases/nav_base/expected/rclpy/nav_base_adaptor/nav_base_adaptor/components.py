@@ -17,6 +17,7 @@ from std_srvs.srv import SetBool, SetBool_Request, SetBool_Response, Trigger, Tr
 
 from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, check_float32, check_robot_name, check_timeout, in_namespace
 from .convert import to_geometry_msgs_PoseStamped, to_geometry_msgs_Vector3
+from .goals import GoalOutcome
 from .runtime import (
     ActionGoalClient,
     GoalHandle,
@@ -139,6 +140,43 @@ class NavigationComponent:
             self.construct_navigateToPose_Goal() if goal is None else goal,
             self.timeout if timeout is None else timeout,
             self.wait_timeout,
+        )
+
+    def start_navigateToPose(
+        self,
+        goal: NavigateToPose.Goal | None = None,
+        *,
+        on_accepted: Callable[[], None] | None = None,
+        on_status: Callable[[str], None] | None = None,
+        on_feedback: Callable[[NavigateToPose.Feedback], None] | None = None,
+        on_done: Callable[[GoalOutcome[NavigateToPose.Result]], None] | None = None,
+        timeout: float | None = None,
+        feedback_grace: float | None = None,
+    ) -> GoalHandle[NavigateToPose.Result, NavigateToPose.Feedback]:
+        """send_navigateToPose without waiting: returns the goal's GoalHandle at once (its goal_id is known) and
+        tells what happens to the callbacks: on_accepted() once the server accepted the goal, on_status(status)
+        at each change of status while it runs, on_feedback(message) with each feedback message (also those that
+        came before the acceptance), in order, then exactly one on_done(outcome), a GoalOutcome: status
+        succeeded, canceled, aborted, rejected or lost (no server within wait_timeout, no answer within timeout,
+        the server went away), result, error. on_done waits feedback_grace seconds (default: the runtime's
+        FEEDBACK_GRACE) after the result for feedback still on its way.
+
+        The callbacks run in the thread of the executor that spins the node, never two at once for one goal:
+        they must return quickly (hand the event on to your own loop). The handle's feedback(), result() and
+        cancel() read the same record; request_cancel(on_done) cancels without waiting. Raises only TypeError (a
+        goal of another type) and ValueError (a bad timeout).
+        """
+        if not self._registered:
+            self.register()
+        return self._navigateToPose.start(
+            self.construct_navigateToPose_Goal() if goal is None else goal,
+            self.timeout if timeout is None else timeout,
+            self.wait_timeout,
+            on_accepted=on_accepted,
+            on_status=on_status,
+            on_feedback=on_feedback,
+            on_done=on_done,
+            feedback_grace=feedback_grace,
         )
 
 
@@ -271,6 +309,43 @@ class DockingComponent:
             self.wait_timeout,
         )
 
+    def start_dockRobot(
+        self,
+        goal: DockRobot.Goal | None = None,
+        *,
+        on_accepted: Callable[[], None] | None = None,
+        on_status: Callable[[str], None] | None = None,
+        on_feedback: Callable[[DockRobot.Feedback], None] | None = None,
+        on_done: Callable[[GoalOutcome[DockRobot.Result]], None] | None = None,
+        timeout: float | None = None,
+        feedback_grace: float | None = None,
+    ) -> GoalHandle[DockRobot.Result, DockRobot.Feedback]:
+        """send_dockRobot without waiting: returns the goal's GoalHandle at once (its goal_id is known) and tells
+        what happens to the callbacks: on_accepted() once the server accepted the goal, on_status(status) at
+        each change of status while it runs, on_feedback(message) with each feedback message (also those that
+        came before the acceptance), in order, then exactly one on_done(outcome), a GoalOutcome: status
+        succeeded, canceled, aborted, rejected or lost (no server within wait_timeout, no answer within timeout,
+        the server went away), result, error. on_done waits feedback_grace seconds (default: the runtime's
+        FEEDBACK_GRACE) after the result for feedback still on its way.
+
+        The callbacks run in the thread of the executor that spins the node, never two at once for one goal:
+        they must return quickly (hand the event on to your own loop). The handle's feedback(), result() and
+        cancel() read the same record; request_cancel(on_done) cancels without waiting. Raises only TypeError (a
+        goal of another type) and ValueError (a bad timeout).
+        """
+        if not self._registered:
+            self.register()
+        return self._dockRobot.start(
+            self.construct_dockRobot_Goal() if goal is None else goal,
+            self.timeout if timeout is None else timeout,
+            self.wait_timeout,
+            on_accepted=on_accepted,
+            on_status=on_status,
+            on_feedback=on_feedback,
+            on_done=on_done,
+            feedback_grace=feedback_grace,
+        )
+
     def construct_undockRobot_Goal(
         self,
         *,
@@ -331,6 +406,43 @@ class DockingComponent:
             self.construct_undockRobot_Goal() if goal is None else goal,
             self.timeout if timeout is None else timeout,
             self.wait_timeout,
+        )
+
+    def start_undockRobot(
+        self,
+        goal: UndockRobot.Goal | None = None,
+        *,
+        on_accepted: Callable[[], None] | None = None,
+        on_status: Callable[[str], None] | None = None,
+        on_feedback: Callable[[UndockRobot.Feedback], None] | None = None,
+        on_done: Callable[[GoalOutcome[UndockRobot.Result]], None] | None = None,
+        timeout: float | None = None,
+        feedback_grace: float | None = None,
+    ) -> GoalHandle[UndockRobot.Result, UndockRobot.Feedback]:
+        """send_undockRobot without waiting: returns the goal's GoalHandle at once (its goal_id is known) and tells
+        what happens to the callbacks: on_accepted() once the server accepted the goal, on_status(status) at
+        each change of status while it runs, on_feedback(message) with each feedback message (also those that
+        came before the acceptance), in order, then exactly one on_done(outcome), a GoalOutcome: status
+        succeeded, canceled, aborted, rejected or lost (no server within wait_timeout, no answer within timeout,
+        the server went away), result, error. on_done waits feedback_grace seconds (default: the runtime's
+        FEEDBACK_GRACE) after the result for feedback still on its way.
+
+        The callbacks run in the thread of the executor that spins the node, never two at once for one goal:
+        they must return quickly (hand the event on to your own loop). The handle's feedback(), result() and
+        cancel() read the same record; request_cancel(on_done) cancels without waiting. Raises only TypeError (a
+        goal of another type) and ValueError (a bad timeout).
+        """
+        if not self._registered:
+            self.register()
+        return self._undockRobot.start(
+            self.construct_undockRobot_Goal() if goal is None else goal,
+            self.timeout if timeout is None else timeout,
+            self.wait_timeout,
+            on_accepted=on_accepted,
+            on_status=on_status,
+            on_feedback=on_feedback,
+            on_done=on_done,
+            feedback_grace=feedback_grace,
         )
 
 

@@ -18,11 +18,11 @@ import threading
 import time
 import uuid
 import weakref
-from collections import deque
-from collections.abc import AsyncIterator, Callable, Generator, Iterator
+from collections.abc import AsyncIterator, Callable, Generator
 from types import TracebackType
 from typing import Any, Generic, Protocol, TypeVar, cast
 
+import rclpy.action.client
 import rclpy.serialization
 from rclpy.action.client import ActionClient, ClientGoalHandle
 from rclpy.callback_groups import CallbackGroup, MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
@@ -36,6 +36,7 @@ from rclpy.task import Future
 
 from .common import ERROR_WITHOUT_MESSAGE, FAILURE_WITHOUT_MESSAGE, Callbacks, check_timeout
 from .errors import (
+    AdaptorError,
     CallFailed,
     CallTimeout,
     ExecutorError,
@@ -45,6 +46,7 @@ from .errors import (
     NoMessage,
     ServiceUnavailable,
 )
+from .goals import FEEDBACK_END, CancelOutcome, CancelRequest, GoalOutcome, GoalRecord
 
 #: how often a wait for a service re-checks whether a server appeared (rclpy's own wait uses 0.25 s)
 POLL_PERIOD = 0.02
@@ -83,6 +85,8 @@ class _Future(Protocol):
 
 class _Timer(Protocol):
     def cancel(self) -> None: ...
+
+    def reset(self) -> None: ...
 
 
 class _ThreadState(threading.local):
@@ -793,14 +797,33 @@ GOAL_STATUS = {
     6: "aborted",
 }
 
-#: how many feedback messages a goal handle keeps for iterators that fall behind (older ones are dropped)
-FEEDBACK_BUFFER = 1000
-#: seconds a goal's action server may give no sign of life (no feedback, no answer to a probe) before the
-#: goal's waits take it as gone (`GoalHandle.server_timeout`): a server killed mid-goal sends nothing, and the
+#: seconds a goal's action server may give no sign of life (no feedback, no status, no answer to a probe)
+#: before the goal counts as lost (`GoalHandle.server_timeout`): a server killed mid-goal sends nothing, and the
 #: middleware's discovery notices its absence only after the participant's lease (Fast DDS: 20 s)
 SERVER_TIMEOUT = 2.5
-#: how often a wait on a goal checks that its server is still there
+#: how often the timer of a node's goals looks after them (server liveness, deadlines)
 LIVENESS_PERIOD = 0.1
+#: seconds a goal's end waits for feedback that trails its result (`feedback_grace`, see GoalRecord): the turn
+#: of the executor that takes a result first takes every feedback message already received, so only a message
+#: still on its way can trail, and none did in (measured) bursts of 1,000
+FEEDBACK_GRACE = 0.0
+#: goal requests of one action client sent and not answered yet, at most (later ones wait their turn in their
+#: handles): an action server keeps 10 requests of its goal service by default (rmw's services QoS, KEEP_LAST
+#: 10, counting every client's), and drops the ones beyond (50 goals started at once: 37 never answered)
+GOAL_REQUESTS = 4
+#: seconds after the server's status list showed a goal ended without its result coming, before the result is
+#: asked for again (the result request may have been dropped as a goal request can)
+RESULT_AGAIN = 1.0
+#: feedback messages one turn of the executor takes of an action client at most (all there are in a turn that
+#: takes a result): rclpy takes one per turn, a whole wait-set rebuild each
+FEEDBACK_DRAIN = 64
+#: feedback of a goal: rclpy's default keeps only the last 10 received messages, so a burst the callbacks have
+#: not taken yet overwrites itself; every feedback message counts here (the edge node relays each one)
+FEEDBACK_DEPTH = 1000
+FEEDBACK_QOS = _new_qos(depth=FEEDBACK_DEPTH, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
+
+#: rclpy's goal id message (unique_identifier_msgs/UUID), as rclpy's action client imports it
+_new_uuid = cast("Callable[..., Any]", vars(rclpy.action.client)["UUID"])
 
 
 class _ClientGoalHandle(Protocol):
@@ -825,7 +848,7 @@ class _ActionClientApi(Protocol):
 
     def server_is_ready(self) -> bool: ...
 
-    def send_goal_async(self, goal: Any, feedback_callback: Callable[[Any], None] | None = None) -> Any: ...
+    def send_goal_async(self, goal: Any, feedback_callback: Any = None, goal_uuid: Any = None) -> Any: ...
 
 
 #: guards the counts of requests being sent (`_RequestingActionClient._sending`)
@@ -833,8 +856,9 @@ _SENDING_LOCK = threading.Lock()
 
 
 class _RequestingActionClient(ActionClient):
-    """rclpy's ActionClient, which takes no response while one of its requests is being sent, and which runs
-    the callbacks of a completed request's future in the same turn of the executor.
+    """rclpy's ActionClient, which takes no response while one of its requests is being sent, runs the
+    callbacks of a completed request's future in the same turn of the executor, and hands feedback and status
+    to the adaptor's goals itself, all the feedback waiting before a result.
 
     rclpy (7.1, Jazzy; ros2/rclpy#1123) sends a goal, cancel or result request first and records its sequence
     number after. A response the executor's thread takes in between answers no request it knows: rclpy logs
@@ -847,15 +871,65 @@ class _RequestingActionClient(ActionClient):
     response completed it; a callback registered with `when_done(...)` runs right after the response is
     handled, in the executor's thread (once: rclpy's own scheduling of it finds it already run).
 
+    rclpy takes one feedback message per turn, and in a turn that takes a goal's result it handles the result
+    first: a burst of feedback would cost a turn per message and its tail would come after the result (rclpy
+    then drops it: it forgets a goal's feedback callback with its result). Here a turn takes up to
+    FEEDBACK_DRAIN messages, every waiting one when it also took a result, and hands them to the goals being
+    followed (`follow`) before the goals learn of the result; status messages reach them too.
+
     A goal request whose goal shows up in the server's status list was accepted, even when its response never
     comes: right after discovery a Fast DDS server may answer before it has matched the client's reply reader,
     and the response is lost (a resent request would be refused as a duplicate goal id). Such a request is
     completed from the status (accepted, the status's time stamp), as its response would have; a response
-    that still arrives later is ignored (rclpy logs "Ignoring unexpected goal response").
+    that still arrives later is dropped (rclpy would log "Ignoring unexpected goal response"). Goals started
+    in a burst often show in the status list before their responses are taken.
     """
 
     _sending = 0  # this client's requests between being sent and being recorded (under _SENDING_LOCK)
     _waiting: tuple[tuple[_Future, _Once], ...] = ()  # when_done callbacks not run yet (under _SENDING_LOCK)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        base: Any = super()  # rclpy's ActionClient is unannotated
+        base.__init__(*args, **kwargs)
+        # the goals followed, by goal id (the executor's thread reads it while callers add and remove goals:
+        # single dict operations, atomic in CPython)
+        self._following: dict[bytes, GoalHandle[Any, Any]] = {}
+        self._window = threading.Lock()
+        self._requests = 0  # goal requests sent and not answered (nor given up) yet
+        self._queue: list[GoalHandle[Any, Any]] = []  # goals waiting for their turn to be sent, oldest first
+        self._recovered: set[int] = set()  # goal requests completed from the status list (executor's thread)
+
+    def follow(self, goal: GoalHandle[Any, Any]) -> None:
+        """Hand `goal` its feedback and status from now on, until `forget`."""
+        self._following[goal.uuid] = goal
+
+    def forget(self, goal: GoalHandle[Any, Any]) -> None:
+        self._following.pop(goal.uuid, None)
+
+    def admit(self, goal: GoalHandle[Any, Any]) -> bool:
+        """Whether `goal`'s request may be sent now (GOAL_REQUESTS); else it waits in line for `release`."""
+        with self._window:
+            if self._requests < GOAL_REQUESTS and not self._queue:
+                self._requests += 1
+                return True
+            if goal not in self._queue:
+                self._queue.append(goal)
+            return False
+
+    def release(self) -> GoalHandle[Any, Any] | None:
+        """A goal request was answered or given up: the goal whose turn it is now (admitted), if one waits."""
+        with self._window:
+            self._requests -= 1
+            if not self._queue or self._requests >= GOAL_REQUESTS:
+                return None
+            self._requests += 1
+            return self._queue.pop(0)
+
+    def withdraw(self, goal: GoalHandle[Any, Any]) -> None:
+        """`goal` no longer waits in line (given up)."""
+        with self._window:
+            if goal in self._queue:
+                self._queue.remove(goal)
 
     def request(self, send: Callable[[], ReturnT]) -> ReturnT:
         """Call `send` (which sends a request through rclpy and returns its future) with no response taken
@@ -882,13 +956,51 @@ class _RequestingActionClient(ActionClient):
             self._waiting = (*self._waiting, (future, once))
         future.add_done_callback(once)  # also rclpy's way: for a future done already, or done elsewhere
 
+    def take_data(self) -> Any:
+        """The executor's call (rclpy's Waitable API): rclpy's takes, with the feedback as a list of every
+        message waiting (see the class docstring)."""
+        base: Any = super()
+        data: dict[str, Any] = base.take_data()
+        first = data.pop("feedback", None)
+        feedback = [] if first is None else [first]
+        if feedback or "result" in data:
+            feedback += self._take_feedback(FEEDBACK_DEPTH if "result" in data else FEEDBACK_DRAIN - len(feedback))
+        if feedback:
+            data["feedback"] = feedback
+        return data
+
+    def _take_feedback(self, most: int) -> list[Any]:
+        """At most `most` more feedback messages waiting in the middleware (none with another rclpy, whose
+        take_data has other parts: the executor's next turns take them)."""
+        handle: Any = getattr(self, "_client_handle", None)
+        action_type: Any = getattr(self, "_action_type", None)
+        if handle is None or action_type is None:
+            return []
+        taken: list[Any] = []
+        while len(taken) < most:
+            message = handle.take_feedback(action_type.Impl.FeedbackMessage)
+            if message is None:
+                break
+            taken.append(message)
+        return taken
+
     async def execute(self, taken_data: Any) -> None:
-        """The executor's call (rclpy's Waitable API) with the responses and feedback taken: rclpy's own
-        handling, then the when_done callbacks of the futures it completed."""
+        """The executor's call (rclpy's Waitable API) with the data taken: rclpy's own handling of the
+        responses and the status, the feedback to the goals, then the when_done callbacks of the futures rclpy
+        completed (a goal's result among them: after the feedback taken with it)."""
+        messages: list[Any] = taken_data.pop("feedback", [])  # a list: see take_data
+        if "goal" in taken_data and taken_data["goal"][0] in self._recovered:
+            self._recovered.discard(taken_data["goal"][0])  # completed from the status list already
+            del taken_data["goal"]
         base: Any = super()
         await base.execute(taken_data)
         if "status" in taken_data:
             self._accepted_by_status(taken_data["status"])
+            self._statuses(taken_data["status"])
+        for message in messages:
+            goal = self._following.get(bytes(message.goal_id.uuid))
+            if goal is not None:
+                goal.feedback_message(message.feedback)
         with _SENDING_LOCK:
             if not self._waiting:
                 return
@@ -898,6 +1010,13 @@ class _RequestingActionClient(ActionClient):
             )
         for future, once in done:
             once(future)
+
+    def _statuses(self, statuses: Any) -> None:
+        """A GoalStatusArray: each followed goal it lists learns its status."""
+        for status in statuses.status_list:
+            goal = self._following.get(bytes(status.goal_info.goal_id.uuid))
+            if goal is not None:
+                goal.status_message(int(status.status))
 
     def _accepted_by_status(self, statuses: Any) -> None:
         """Complete the goal requests still waiting for a response whose goal `statuses` (a GoalStatusArray)
@@ -920,6 +1039,7 @@ class _RequestingActionClient(ActionClient):
             raw: Any = cast(Any, ClientGoalHandle)(self, ids[seq], response)
             raw._status = status.status
             handles[uuid] = weakref.ref(raw)
+            self._recovered.add(seq)
             future.set_result(raw)
 
 
@@ -973,105 +1093,374 @@ async def _within(node: Node, future: _Future, timeout: float, group: CallbackGr
     return future.done()
 
 
-def _wait(future: _Future, timeout: float, client: _RequestingActionClient) -> bool:
-    """Wait at most `timeout` seconds for `future`, a request of `client` (completed by the executor's
-    thread); whether it is done."""
-    done = threading.Event()
-    client.when_done(future, lambda _future: _wake(done))
-    return future.done() or done.wait(timeout)
+class _Ticker:
+    """One timer of a node's executor that looks after the node's goals in flight every LIVENESS_PERIOD: their
+    servers' liveness, the deadlines of their requests, a server a goal waits for. It is cancelled while no
+    goal is in flight (an idle node's executor never wakes for it), and no goal has a thread or timer of its
+    own: a fleet's node has one such timer."""
+
+    def __init__(self, node: Node) -> None:
+        self.node = node
+        self._lock = threading.Lock()
+        self._goals: list[GoalHandle[Any, Any]] = []
+        self._timer: _Timer | None = None
+        self._idle = True
+        self._group = ReentrantCallbackGroup()
+
+    def watch(self, goal: GoalHandle[Any, Any]) -> None:
+        """Look after `goal` from now on, until its `tick` says it is over."""
+        with self._lock:
+            self._goals.append(goal)
+            if not self._idle:
+                return
+            self._idle = False
+            timer = self._timer
+            if timer is None:
+                self._timer = _api(self.node).create_timer(LIVENESS_PERIOD, self._tick, callback_group=self._group)
+                return
+        timer.reset()  # the executor computes its next wake-up anew only when woken
+        executor = self.node.executor
+        if executor is not None:
+            executor.wake()
+
+    def _tick(self) -> None:
+        now = time.monotonic()
+        with self._lock:
+            goals = list(self._goals)
+        over: set[int] = set()
+        for goal in goals:
+            try:
+                if not goal.tick(now):
+                    over.add(id(goal))
+            except Exception as exc:  # noqa: BLE001 - one goal must not stop the others' care
+                goal.report(f"{goal.action}: looking after the goal raised {type(exc).__name__}: {exc}")
+        with self._lock:
+            if over:
+                self._goals = [goal for goal in self._goals if id(goal) not in over]
+            if self._goals or self._timer is None:
+                return
+            self._idle = True
+            self._timer.cancel()
 
 
-#: what GoalHandle._next returns at the end of a goal's feedback
-_END = object()
+#: the ticker of each node with goals (by the node's id)
+_TICKERS: dict[int, _Ticker] = {}
 
 
-class GoalHandle(Generic[ResultT, FeedbackT]):
-    """One goal sent to a ROS 2 action server and accepted by it.
+def _ticker(node: Node) -> _Ticker:
+    with _REGISTER_LOCK:
+        ticker = _TICKERS.get(id(node))
+        if ticker is None or ticker.node is not node:
+            ticker = _TICKERS[id(node)] = _Ticker(node)
+        return ticker
 
-    `goal_id` is the goal's UUID (hex), `status` its latest status ("accepted", "executing", "canceling",
-    "succeeded", "canceled", "aborted"; "executing" once feedback came, even before the server's status
-    message says so). Feedback arrives in the
-    executor's thread: `on_feedback(callback)` calls a callback with each message, `feedback(timeout=...)`
-    iterates over them in the caller's thread until the goal ends. `result(timeout=...)` waits for the end;
-    `cancel(timeout=...)` asks the server to cancel the goal. No method waits longer than its timeout, and a
-    wait ends early with ServiceUnavailable when the action server went away: discovery says it is gone, or
-    it gave no sign of life for `server_timeout` seconds (default SERVER_TIMEOUT). While a wait finds the
-    server silent for a third of that, it probes it: it asks for the result of a goal the server does not
-    have (a random id), which any server that is there answers at once, changing nothing. A server whose
-    only executor thread is busy executing the goal cannot answer; it stays alive by sending feedback more
-    often than `server_timeout`. `server_timeout` 0: only discovery tells (after the lease of the server's
-    participant: 20 s with Fast DDS's defaults).
+
+class GoalHandle(GoalRecord[ResultT, FeedbackT]):
+    """One goal sent to a ROS 2 action server (`send_X` returns it accepted, `start_X` at once).
+
+    `goal_id` is the goal's UUID (hex), known at once; `status` its latest status ("unknown" until the server
+    answered, "accepted", "executing" (once feedback came, even before the server's status message says so),
+    "canceling", then "succeeded", "canceled" or "aborted"; "rejected" when the server refused it); `done`
+    whether the server ended it; `outcome` how it ended (a GoalOutcome), once it did.
+
+    What happens to the goal is told to the callbacks given to `start_X` (see GoalRecord: on_accepted,
+    on_status, on_feedback, then exactly one on_done), and to `on_feedback(callback)` callbacks added later.
+    They run in the thread of the executor that spins the node, never two at once for one goal: they must
+    return quickly, and a blocking call from one raises ExecutorError. `feedback(timeout=...)` iterates over the
+    feedback in the caller's thread until the goal's end is told, `result(timeout=...)` waits for the end,
+    `cancel(timeout=...)` asks the server to cancel the goal and waits for its answer, `request_cancel(on_done)`
+    asks without waiting; for coroutine callbacks `feedback_async`, `result_async` and `cancel_async`. No
+    method waits longer than its timeout.
+
+    A timer of the node's executor (one per node, whatever the number of goals) looks after the goals in
+    flight: a goal ends lost with ServiceUnavailable when its action server went away: discovery says it is
+    gone, or it gave no sign of life (feedback, status, answers) for `server_timeout` seconds (default
+    SERVER_TIMEOUT). A goal whose server was silent for a third of that probes it: it asks for the result of a
+    goal the server does not have (a random id), which any server that is there answers at once, changing
+    nothing. A server whose only executor thread is busy executing the goal cannot answer; it stays alive by
+    sending feedback more often than `server_timeout`. `server_timeout` 0: only discovery tells (after the
+    lease of the server's participant: 20 s with Fast DDS's defaults).
     """
 
     def __init__(
-        self, action: str, handle: _ClientGoalHandle, node: Node, timeout: float, client: _RequestingActionClient
+        self,
+        action: str,
+        node: Node,
+        client: _RequestingActionClient,
+        timeout: float,
+        on_accepted: Callable[[], None] | None = None,
+        on_status: Callable[[str], None] | None = None,
+        on_feedback: Callable[[FeedbackT], None] | None = None,
+        on_done: Callable[[GoalOutcome[ResultT]], None] | None = None,
+        feedback_grace: float = FEEDBACK_GRACE,
     ) -> None:
-        self.action = action
+        super().__init__(action, timeout, on_accepted, on_status, on_feedback, on_done, feedback_grace)
         self.node = node
-        self.timeout = timeout
-        self._handle = handle
         self._client = client
-        self.goal_id: str = bytes(handle.goal_id.uuid).hex()
-        self._cond = threading.Condition()
-        self._feedback: deque[FeedbackT] = deque(maxlen=FEEDBACK_BUFFER)
-        self._received = 0  # feedback messages received so far (also those dropped from the buffer)
-        self._callbacks: Callbacks[FeedbackT] = Callbacks()
-        self._final: int | None = None  # the GoalStatus code the goal ended with
-        self._result: Any = None
-        self._error: BaseException | None = None
-        self._wakers: list[Callable[[], None]] = []  # coroutines waiting for feedback or the end (feedback_async)
+        self._goal_id: Any = _new_uuid(uuid=list(uuid.uuid4().bytes))
+        self.uuid = bytes(self._goal_id.uuid)
+        self.goal_id = self.uuid.hex()
+        self._raw: _ClientGoalHandle | None = None  # rclpy's handle, once accepted
         self._group = cast(CallbackGroup, client.callback_group)  # for the timers of the *_async waits
+        self._goal: Any = None  # the goal while it waits for a server
+        self._wait_timeout = 0.0
+        self._server_deadline = 0.0
+        self._request: _Future | None = None  # the goal request until it is answered
+        self._admitted = False  # holds one of the client's GOAL_REQUESTS until answered or given up
+        self._queued = False  # waits in line for its turn to send
+        self._accept_deadline = 0.0
+        self._ended_at = 0.0  # when the server's status list showed the goal ended (no result yet)
+        self._result_asked = 0.0  # when its result was asked for
         self.server_timeout = SERVER_TIMEOUT
-        self._heard = time.monotonic()  # the server's last sign of life: accepted, feedback, a probe answered
+        self._heard = time.monotonic()  # the server's last sign of life: accepted, feedback, status, an answer
         self._probed = self._heard  # when the last probe was sent
         self._probes: list[_Future] = []  # probes not answered yet
         self._missing = 0  # checks in a row that found no server in the graph
-        self._gone = ""  # why the server is taken as gone (once set, every wait raises ServiceUnavailable)
-        self._result_future = cast(_Future, client.request(handle.get_result_async))
-        client.when_done(self._result_future, self._finished)
 
-    # called in the executor's thread
+    # hooks of GoalRecord
 
-    def deliver(self, feedback: FeedbackT) -> None:
-        """Take one feedback message (called by ActionGoalClient in the executor's thread)."""
-        with self._cond:
-            self._feedback.append(feedback)
-            self._received += 1
-            self._heard = time.monotonic()
-            self._cond.notify_all()
-            wakers = list(self._wakers)
-        for wake in wakers:
-            wake()
+    def report(self, text: str) -> None:
+        """Log a problem with the goal (a callback that raised) through the node's logger."""
+        get_logger: Callable[[], Any] = self.node.get_logger  # unannotated in rclpy
+        get_logger().error(text)
+
+    def _log(self, text: str) -> None:
+        self.report(text)
+
+    def _call(self, callback: Callable[..., None], *args: object) -> None:
         outer = _this_thread.executor
-        _this_thread.executor = self.node.executor
+        _this_thread.executor = self.node.executor  # a blocking call from the callback would deadlock
         try:
-            for callback in self._callbacks.current():
-                callback(feedback)
+            super()._call(callback, *args)
         finally:
             _this_thread.executor = outer
 
-    def _finished(self, future: Any) -> None:
-        done = cast(_Future, future)
-        with self._cond:
-            error = done.exception()
-            if error is not None:
-                self._error = error
-                self._final = 0
-            else:
-                response = done.result()
-                self._final = int(response.status)
-                self._result = response.result
-            self._cond.notify_all()
-            wakers = list(self._wakers)
-        for wake in wakers:
-            wake()
+    def _later(self, delay: float, action: Callable[[], object]) -> None:
+        executor = self.node.executor
+        if delay <= 0 and executor is not None:
+            scheduler: Any = executor  # rclpy's create_task is partly unannotated
+            scheduler.create_task(action)
+            return
+        api = _api(self.node)
+        lock = threading.Lock()
+        timers: list[_Timer] = []
 
-    def _poke(self, _future: _Future) -> None:
-        """Wake the waits (a request of this goal was answered)."""
+        def fire() -> None:
+            with lock:  # held while the timer is made: it is in `timers` by now
+                if not timers:
+                    return
+                timer = timers.pop()
+            timer.cancel()
+            api.destroy_timer(timer)
+            action()
+
+        with lock:
+            timers.append(api.create_timer(max(delay, 1e-3), fire, callback_group=self._group))
+
+    def _may_block(self) -> None:
+        ensure_can_block(self.node, self.action)
+
+    def _closing(self) -> None:
+        self._client.forget(self)
+
+    # the goal's way (ActionGoalClient, the executor's thread, the ticker; not for callers)
+
+    def begin(self, goal: Any, wait_timeout: float) -> None:
+        """Send `goal`, now or once its server is there (at most `wait_timeout` seconds from now)."""
+        self._client.follow(self)
         with self._cond:
-            self._cond.notify_all()
+            self._goal, self._wait_timeout = goal, wait_timeout
+            self._server_deadline = time.monotonic() + wait_timeout
+        _ticker(self.node).watch(self)
+        if cast(_ActionClientApi, self._client).server_is_ready():
+            self._send()
+
+    def _send(self) -> None:
+        """The server is there: send the goal request when it is the goal's turn (GOAL_REQUESTS)."""
+        with self._cond:
+            if self._goal is None or self._outcome is not None or self._queued:
+                return
+            self._accept_deadline = time.monotonic() + self.timeout
+            self._queued = True
+        if self._client.admit(self):
+            self.transmit()
+
+    def transmit(self) -> None:
+        """Send the goal request (admitted: it holds one of the client's GOAL_REQUESTS)."""
+        with self._cond:
+            goal, self._goal = self._goal, None
+            self._queued = False
+            self._admitted = goal is not None and self._outcome is None
+        if not self._admitted:
+            self._release()
+            return
+        api = cast(_ActionClientApi, self._client)
+        try:
+            future = cast(_Future, self._client.request(lambda: api.send_goal_async(goal, goal_uuid=self._goal_id)))
+        except Exception as exc:  # noqa: BLE001 - rclpy's words, for whoever follows the goal
+            self._release()
+            failed = CallFailed(self.action, f"{type(exc).__name__}: {exc}")
+            self._later(0.0, lambda: self._lose(failed))  # told in the executor's thread, not inside start_X
+            return
+        with self._cond:
+            self._request = future
+        self._client.when_done(future, self._answered)
+
+    def _release(self) -> None:
+        """Give back the goal's turn (once): the next goal in line is sent."""
+        with self._cond:
+            self._admitted = False
+        following = self._client.release()
+        if following is not None:
+            following.transmit()
 
     def _answered(self, future: _Future) -> None:
+        """The goal request's answer (executor's thread)."""
+        with self._cond:
+            self._request = None
+            admitted, self._admitted = self._admitted, False
+        if admitted:
+            following = self._client.release()
+            if following is not None:
+                following.transmit()
+        error = future.exception()
+        if error is not None:
+            self._lose(CallFailed(self.action, f"{type(error).__name__}: {error}"))
+            return
+        raw = cast(_ClientGoalHandle, future.result())
+        if not raw.accepted:
+            self._end(GoalOutcome("rejected", error=GoalRejected(self.action)), by_server=True)
+            return
+        with self._cond:
+            self._raw = raw
+            self._heard = time.monotonic()
+        if not self._accept():  # given up meanwhile (not accepted in time): nobody follows it, so cancel it
+            self._client.request(raw.cancel_goal_async)
+            return
+        self._ask_result(raw)
+        with self._cond:
+            unsent = [request for request in self._cancels if not request.sent]
+        for request in unsent:
+            self._send_cancel(request)
+
+    def _ask_result(self, raw: _ClientGoalHandle) -> None:
+        with self._cond:
+            self._result_asked = time.monotonic()
+        result = cast(_Future, self._client.request(raw.get_result_async))
+        self._client.when_done(result, self._finished)
+
+    def _finished(self, future: _Future) -> None:
+        """The result request's answer (executor's thread)."""
+        error = future.exception()
+        if error is not None:
+            self._lose(CallFailed(self.action, f"{type(error).__name__}: {error}"))
+            return
+        response = future.result()
+        code, result = int(response.status), response.result
+        if code == 4:
+            self._end(GoalOutcome("succeeded", result), by_server=True)
+        elif code == 5:
+            self._end(GoalOutcome("canceled", result, GoalCanceled(self.action, result)), by_server=True)
+        elif code == 6:
+            self._end(GoalOutcome("aborted", result, GoalAborted(self.action, result)), by_server=True)
+        else:  # the server does not know the goal (any more)
+            self._lose(CallFailed(self.action, f"the goal ended with status {code}", result), result)
+
+    def _lose(self, error: AdaptorError, result: Any = None, unless_accepted: bool = False) -> bool:
+        reason = str(getattr(error, "reason", "") or getattr(error, "message", "") or error)
+        return self._end(GoalOutcome("lost", result, error, reason), by_server=False, unless_accepted=unless_accepted)
+
+    def feedback_message(self, feedback: FeedbackT) -> None:
+        """One feedback message of the goal (the client's, in the executor's thread)."""
+        self._heard = time.monotonic()
+        self._feedback_in(feedback)
+
+    def status_message(self, code: int) -> None:
+        """The goal's status in a status message of the server (executor's thread)."""
+        self._heard = time.monotonic()
+        if code in (1, 2, 3):
+            self._set_status(GOAL_STATUS[code])
+        elif code in (4, 5, 6):
+            with self._cond:
+                self._ended_at = self._ended_at or self._heard
+
+    def tick(self, now: float) -> bool:
+        """Look after the goal (the ticker, every LIVENESS_PERIOD); whether it still needs to be."""
+        self._expire(now)
+        with self._cond:
+            if self._outcome is not None:
+                return bool(self._cancels)
+            waiting, queued, request, raw = self._goal is not None, self._queued, self._request, self._raw
+            again = (
+                raw is not None and self._ended_at > 0 and now - max(self._ended_at, self._result_asked) >= RESULT_AGAIN
+            )
+        ready = cast(_ActionClientApi, self._client).server_is_ready
+        if waiting and not queued:
+            if ready():
+                self._send()
+            elif now >= self._server_deadline:
+                self._lose(
+                    ServiceUnavailable(self.action, f"no action server within {self._wait_timeout:g} s", kind="action")
+                )
+        elif (queued or request is not None) and now >= self._accept_deadline:
+            self.give_up()
+        elif raw is not None:
+            if again:  # ended, says the status list, and no result came: its request may have been dropped
+                self._ask_result(raw)
+            with self._cond:
+                gone = self._check_server(now)
+            if gone:
+                self._lose(ServiceUnavailable(self.action, gone, kind="action"))
+        return True
+
+    def give_up(self) -> None:
+        """No answer to the goal request in time: the goal is lost (an acceptance that still comes cancels it)."""
+        if cast(_ActionClientApi, self._client).server_is_ready():
+            error: AdaptorError = CallTimeout(self.action, self.timeout)
+        else:
+            error = ServiceUnavailable(self.action, f"the server went away within {self.timeout:g} s", kind="action")
+        if self._lose(error, unless_accepted=True):
+            with self._cond:
+                self._goal = None
+                queued, admitted = self._queued, self._admitted
+                self._queued = self._admitted = False
+            if queued:
+                self._client.withdraw(self)
+            if admitted:  # its answer may never come: the next goal in line goes now
+                following = self._client.release()
+                if following is not None:
+                    following.transmit()
+
+    def _check_server(self, now: float) -> str:
+        """Why the server counts as gone (see the class docstring), "" while it does not; probes it when it
+        has been silent for a third of `server_timeout` (lock held)."""
+        ready = cast(_ActionClientApi, self._client).server_is_ready()
+        self._missing = 0 if ready else self._missing + 1
+        silent, limit = now - self._heard, self.server_timeout
+        gone = ""
+        if self._missing >= 2:  # twice in a row: once could be the graph being updated
+            gone = "the action server went away during the goal"
+        elif limit > 0 and silent >= limit:
+            gone = f"the action server went away during the goal: no sign of it for {silent:.1f} s"
+        elif limit > 0 and min(silent, now - self._probed) >= limit / 3:
+            self._probe(now)
+        if gone:
+            for probe in self._probes:
+                probe.cancel()  # an answer will not come: leave no request pending in rclpy
+            self._probes = []
+        return gone
+
+    def _probe(self, now: float) -> None:
+        """Ask the server for the result of a goal it does not have (a random id): it answers at once, with
+        status unknown, when it is there (lock held)."""
+        self._probed = now
+        stranger = _new_uuid(uuid=list(uuid.uuid4().bytes))
+        handle = cast(_ClientGoalHandle, cast(Any, ClientGoalHandle)(self._client, stranger, None))
+        future = cast(_Future, self._client.request(handle.get_result_async))
+        self._probes.append(future)
+        self._client.when_done(future, self._answered_probe)
+
+    def _answered_probe(self, future: _Future) -> None:
         """A probe's answer (executor's thread): the server is there."""
         with self._cond:
             if future in self._probes:
@@ -1079,117 +1468,49 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
             if not future.cancelled():
                 self._heard = time.monotonic()
 
-    # the server's liveness, checked by every wait (lock held)
+    def _send_cancel(self, request: CancelRequest) -> None:
+        with self._cond:
+            raw = self._raw
+            if raw is None or request.sent:
+                return  # sent once the goal is accepted
+            request.sent = True
+        future = cast(_Future, self._client.request(raw.cancel_goal_async))
+        self._client.when_done(future, lambda done: self._cancel_answered(request, done))
 
-    def _check_server(self) -> None:
-        """Raise ServiceUnavailable when the server is gone (see the class docstring); probe it when it has
-        been silent for a third of `server_timeout`."""
-        if self._final is not None:
+    def _cancel_answered(self, request: CancelRequest, future: _Future) -> None:
+        """The server's answer to a cancel request (executor's thread)."""
+        error = future.exception()
+        if error is not None:
+            failed = CallFailed(self.action, f"cancel: {type(error).__name__}: {error}")
+            self._answer(request, CancelOutcome(False, failed))
             return
-        if not self._gone:
-            ready = cast(_ActionClientApi, self._client).server_is_ready()
-            self._missing = 0 if ready else self._missing + 1
-            now = time.monotonic()
-            silent, limit = now - self._heard, self.server_timeout
-            if self._missing >= 2:  # twice in a row: once could be the graph being updated
-                self._gone = "the action server went away during the goal"
-            elif limit > 0 and silent >= limit:
-                self._gone = f"the action server went away during the goal: no sign of it for {silent:.1f} s"
-            elif limit > 0 and min(silent, now - self._probed) >= limit / 3:
-                self._probe(now)
-            if self._gone:
-                for probe in self._probes:
-                    probe.cancel()  # an answer will not come: leave no request pending in rclpy
-                self._probes = []
-        if self._gone:
-            raise ServiceUnavailable(self.action, self._gone, kind="action")
+        self._heard = time.monotonic()
+        self._answer(request, CancelOutcome(len(future.result().goals_canceling) > 0))
 
-    def _probe(self, now: float) -> None:
-        """Ask the server for the result of a goal it does not have (a random id): it answers at once, with
-        status unknown, when it is there."""
-        self._probed = now
-        stranger = cast(_ClientGoalHandle, cast(Any, ClientGoalHandle)(self._client, self._stranger_id(), None))
-        future = cast(_Future, self._client.request(stranger.get_result_async))
-        self._probes.append(future)
-        self._client.when_done(future, self._answered)
+    # waiting, for callers
 
-    def _stranger_id(self) -> Any:
-        """A goal id (unique_identifier_msgs/UUID, the type of this goal's) that no server has: a random one."""
-        return type(self._handle.goal_id)(uuid=list(uuid.uuid4().bytes))
-
-    def _wait_alive(self, predicate: Callable[[], bool], wait: float) -> None:
-        """Wait (lock held) at most `wait` seconds for `predicate`, checking the server meanwhile."""
-        deadline = time.monotonic() + wait
-        while not predicate():
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                return
-            self._cond.wait(min(remaining, LIVENESS_PERIOD))
-            if not predicate():
-                self._check_server()
-
-    async def _await_alive(self, future: _Future, wait: float) -> bool:
-        """Await `future` for at most `wait` seconds, checking the server meanwhile; whether it is done."""
-        deadline = time.monotonic() + wait
-        while not future.done():
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                return False
-            await _within(self.node, future, min(remaining, LIVENESS_PERIOD), self._group)
-            if not future.done():
-                with self._cond:
-                    self._check_server()
-        return True
-
-    # the caller's side
-
-    @property
-    def status(self) -> str:
-        """The goal's latest status (see the class docstring)."""
+    def wait_accepted(self, timeout: float) -> None:
+        """Wait at most `timeout` seconds for the server to accept the goal; raises why it did not (the goal's
+        error: GoalRejected, ServiceUnavailable, CallFailed; CallTimeout without an answer in time, and the
+        goal is then given up)."""
         with self._cond:
-            code = self._final if self._final is not None else int(self._handle.status)
-            if self._final is None and code in (0, 1):  # no status message yet, or an older one than we know
-                # the server accepted the goal (this handle exists), and sends feedback only while executing
-                # it; its status messages come on another topic and may be taken later
-                code = 2 if self._received else 1
-        return GOAL_STATUS.get(code, "unknown")
+            self._cond.wait_for(lambda: self._accepted or self._outcome is not None, timeout)
+        self._accepted_or_raise()
 
-    @property
-    def done(self) -> bool:
-        """Whether the goal has ended (succeeded, canceled or aborted)."""
+    def _accepted_or_raise(self) -> None:
         with self._cond:
-            return self._final is not None
-
-    @property
-    def feedback_received(self) -> int:
-        """How many feedback messages the goal has received so far (also those no longer buffered): as many
-        as `feedback()` yields at once, without waiting, when nothing was dropped."""
+            answered = self._accepted or self._outcome is not None
+        if not answered:
+            self.give_up()
         with self._cond:
-            return self._received
+            accepted, outcome = self._accepted, self._outcome
+        if not accepted and outcome is not None:
+            outcome.get()
 
-    def on_feedback(self, callback: Callable[[FeedbackT], None]) -> Callable[[], None]:
-        """Call `callback` with every feedback message from now on, in the executor's thread; returns a
-        function that removes it again."""
-        return self._callbacks.add(callback)
-
-    def feedback(self, timeout: float | None = None) -> Iterator[FeedbackT]:
-        """The goal's feedback messages, from the first one received, until the goal ends.
-
-        Waits at most `timeout` seconds (default: the component's timeout) for each next message or for the
-        end; raises CallTimeout when neither came by then. Messages arrived while the loop body ran are not
-        lost (up to FEEDBACK_BUFFER of them).
-        """
-        wait = check_timeout(self.timeout if timeout is None else timeout, "timeout")
-        position = 0
-        while True:
-            with self._cond:
-                if not self._beyond(position):
-                    ensure_can_block(self.node, self.action)
-                    self._wait_alive(self._past(position), wait)
-                position, item = self._next(position, wait)
-            if item is _END:
-                return
-            yield cast(FeedbackT, item)
+    async def accepted_async(self, timeout: float) -> None:
+        """`wait_accepted`, awaitable in a coroutine callback of the node's executor."""
+        await self._until(lambda: self._accepted or self._outcome is not None, timeout)
+        self._accepted_or_raise()
 
     async def feedback_async(self, timeout: float | None = None) -> AsyncIterator[FeedbackT]:
         """`feedback`, for `async for` in a coroutine callback of the node's executor: no thread blocks."""
@@ -1198,33 +1519,14 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
         while True:
             await self._until(self._past(position), wait)
             with self._cond:
-                position, item = self._next(position, wait)
-            if item is _END:
+                position, item = self._take(position, wait)
+            if item is FEEDBACK_END:
                 return
             yield cast(FeedbackT, item)
 
-    def _past(self, position: int) -> Callable[[], bool]:
-        """`_beyond(position)` as a condition to wait for."""
-        return lambda: self._beyond(position)
-
-    def _beyond(self, position: int) -> bool:
-        """Whether a feedback message after `position` or the end is there (lock held)."""
-        return position < self._received or self._final is not None
-
-    def _next(self, position: int, wait: float) -> tuple[int, object]:
-        """The position after the next message and the message (`_END` at the end), or CallTimeout when
-        neither is there (lock held)."""
-        if position < self._received:
-            oldest = self._received - len(self._feedback)
-            position = max(position, oldest)
-            return position + 1, self._feedback[position - oldest]
-        if self._final is not None:
-            return position, _END
-        raise CallTimeout(self.action, wait)
-
     async def _until(self, predicate: Callable[[], bool], wait: float) -> None:
         """Await, at most `wait` seconds, `predicate()` (read with the lock held) becoming true; woken by the
-        executor's thread as feedback or the result arrives."""
+        executor's thread as the goal's record changes."""
         woken = _new_future()
 
         def wake() -> None:
@@ -1237,146 +1539,45 @@ class GoalHandle(Generic[ResultT, FeedbackT]):
             self._wakers.append(wake)
         try:
             wake()
-            await self._await_alive(woken, wait)
+            if not woken.done():
+                await _within(self.node, woken, wait, self._group)
         finally:
             with self._cond:
                 self._wakers.remove(wake)
 
-    def result(self, timeout: float | None = None) -> ResultT:
-        """Wait at most `timeout` seconds (default: the component's timeout) for the goal to end; its result.
-
-        Raises GoalAborted or GoalCanceled when it did not succeed (the result the server sent is the error's
-        `response`), CallTimeout when it did not end in time (the goal goes on: wait again or cancel()),
-        ServiceUnavailable when the action server went away (see the class docstring).
-        """
-        wait = check_timeout(self.timeout if timeout is None else timeout, "timeout")
-        with self._cond:
-            if self._final is None:
-                ensure_can_block(self.node, self.action)
-                self._wait_alive(lambda: self._final is not None, wait)
-            return self._outcome(wait)
-
     async def result_async(self, timeout: float | None = None) -> ResultT:
         """`result`, awaitable in a coroutine callback of the node's executor: no thread blocks."""
         wait = check_timeout(self.timeout if timeout is None else timeout, "timeout")
-        await self._until(lambda: self._final is not None, wait)
+        await self._until(lambda: self._outcome is not None, wait)
         with self._cond:
-            return self._outcome(wait)
-
-    def _outcome(self, wait: float) -> ResultT:
-        """The result of the ended goal, or the error that says how it ended (lock held)."""
-        if self._final is None:
+            outcome = self._outcome
+        if outcome is None:
             raise CallTimeout(self.action, wait)
-        if self._error is not None:
-            raise CallFailed(self.action, f"{type(self._error).__name__}: {self._error}") from self._error
-        if self._final == 6:
-            raise GoalAborted(self.action, self._result)
-        if self._final == 5:
-            raise GoalCanceled(self.action, self._result)
-        if self._final != 4:
-            raise CallFailed(self.action, f"the goal ended with status {self._final}", self._result)
-        return cast(ResultT, self._result)
-
-    def cancel(self, timeout: float | None = None) -> bool:
-        """Ask the server to cancel the goal and wait at most `timeout` seconds (default: the component's) for
-        its answer; whether it accepted to cancel (False: the goal had already ended, or the server refuses).
-        The goal then ends canceled (result() raises GoalCanceled) unless it ended otherwise first."""
-        wait = check_timeout(self.timeout if timeout is None else timeout, "timeout")
-        if self.done:
-            return False
-        ensure_can_block(self.node, self.action)
-        with self._cond:
-            self._check_server()
-        future = cast(_Future, self._client.request(self._handle.cancel_goal_async))
-        self._client.when_done(future, self._poke)
-        with self._cond:
-            self._wait_alive(future.done, wait)
-        return self._canceling(future, wait, future.done())
+        return outcome.get()
 
     async def cancel_async(self, timeout: float | None = None) -> bool:
         """`cancel`, awaitable in a coroutine callback of the node's executor: no thread blocks."""
         wait = check_timeout(self.timeout if timeout is None else timeout, "timeout")
-        if self.done:
-            return False
         with self._cond:
-            self._check_server()
-        future = cast(_Future, self._client.request(self._handle.cancel_goal_async))
-        return self._canceling(future, wait, await self._await_alive(future, wait))
-
-    def _canceling(self, future: _Future, wait: float, answered: bool) -> bool:
-        """Whether the server's answer to a cancel request says it cancels the goal."""
-        if not answered:
-            raise CallTimeout(self.action + " (cancel)", wait)
-        error = future.exception()
-        if error is not None:
-            raise CallFailed(self.action, f"cancel: {type(error).__name__}: {error}") from error
-        return len(future.result().goals_canceling) > 0
-
-
-#: feedback of a goal: rclpy's default keeps only the last 10 received messages, so a burst the callbacks have
-#: not taken yet overwrites itself; every feedback message counts here (the edge node relays each one)
-FEEDBACK_QOS = _new_qos(depth=1000, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
-
-
-class _SentGoal(Generic[ResultT, FeedbackT]):
-    """A goal request on its way: its future, and the feedback that arrives before the goal's handle exists."""
-
-    def __init__(self, sender: ActionGoalClient[Any, ResultT, FeedbackT], client: _RequestingActionClient, goal: Any):
-        self.sender = sender
-        self.client = client
-        self._early: list[FeedbackT] = []
-        self._handle: GoalHandle[ResultT, FeedbackT] | None = None
-        self._lock = threading.Lock()
-        api = cast(_ActionClientApi, client)
-        self.future = cast(
-            _Future, client.request(lambda: api.send_goal_async(goal, feedback_callback=self._on_feedback))
-        )
-
-    def _on_feedback(self, message: Any) -> None:
-        feedback = cast(FeedbackT, message.feedback)
-        with self._lock:
-            handle = self._handle
-            if handle is None:
-                self._early.append(feedback)
-                return
-        handle.deliver(feedback)
-
-    def handle(self, timeout: float, answered: bool) -> GoalHandle[ResultT, FeedbackT]:
-        """The accepted goal's handle once the server `answered` within `timeout`, or the error that says why
-        there is none."""
-        name = self.sender.name
-        if not answered:
-            self.future.add_done_callback(self._cancel_late)
-            if not cast(_ActionClientApi, self.client).server_is_ready():
-                raise ServiceUnavailable(name, f"the server went away within {timeout:g} s", kind="action")
-            raise CallTimeout(name, timeout)
-        error = self.future.exception()
-        if error is not None:
-            raise CallFailed(name, f"{type(error).__name__}: {error}") from error
-        raw = cast(_ClientGoalHandle, self.future.result())
-        if not raw.accepted:
-            raise GoalRejected(name)
-        handle: GoalHandle[ResultT, FeedbackT] = GoalHandle(name, raw, self.sender.node, timeout, self.client)
-        with self._lock:
-            for feedback in self._early:
-                handle.deliver(feedback)
-            self._handle = handle
-        return handle
-
-    def _cancel_late(self, future: Any) -> None:
-        """A goal accepted after send() gave up waiting: nobody follows it, so cancel it."""
-        done = cast(_Future, future)
-        if done.exception() is None:
-            raw = cast(_ClientGoalHandle, done.result())
-            if raw.accepted:
-                self.client.request(raw.cancel_goal_async)
+            outcome, done = self._outcome, self._done
+            request = CancelRequest(None, wait)
+            if outcome is None:
+                self._cancels.append(request)
+        if outcome is not None:
+            return CancelOutcome(False, None if done else outcome.error).get()
+        self._send_cancel(request)
+        await self._until(lambda: request.answer is not None, wait)
+        self._answer(request, CancelOutcome(False, CallTimeout(self.action + " (cancel)", wait)))  # unless answered
+        return cast(CancelOutcome, request.answer).get()
 
 
 class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
     """One ROS 2 action client (`rclpy.action.ActionClient`) that never waits forever.
 
-    `send` waits at most `wait_timeout` for a server (ServiceUnavailable), then at most `timeout` for the
-    server to accept the goal (CallTimeout; GoalRejected when it refuses), and returns a GoalHandle.
+    `start` sends a goal without waiting and returns its GoalHandle at once: what happens is told to its
+    callbacks (see GoalHandle). `send` waits at most `wait_timeout` for a server (ServiceUnavailable), then at
+    most `timeout` for the server to accept the goal (CallTimeout; GoalRejected when it refuses), and returns
+    the accepted goal's GoalHandle. Both follow the goal the same way.
     """
 
     def __init__(self, node: Node, action_type: Any, name: str) -> None:
@@ -1403,8 +1604,36 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
             self.register()
         return cast(_RequestingActionClient, self.client)
 
+    def start(
+        self,
+        goal: GoalT,
+        timeout: float,
+        wait_timeout: float,
+        *,
+        on_accepted: Callable[[], None] | None = None,
+        on_status: Callable[[str], None] | None = None,
+        on_feedback: Callable[[FeedbackT], None] | None = None,
+        on_done: Callable[[GoalOutcome[ResultT]], None] | None = None,
+        feedback_grace: float | None = None,
+    ) -> GoalHandle[ResultT, FeedbackT]:
+        """Send `goal` without waiting (see the class docstring): to the server now, or once one is there
+        within `wait_timeout` (else the goal ends lost with ServiceUnavailable). The server must accept it
+        within `timeout` (else it ends lost with CallTimeout). Raises only TypeError (a goal of another type)
+        and ValueError (a bad timeout); everything else comes through the callbacks."""
+        timeout, wait_timeout = check_timeout(timeout, "timeout"), check_timeout(wait_timeout, "wait_timeout")
+        goal_type: Any = self.action_type.Goal
+        if not isinstance(goal, goal_type):
+            raise TypeError(f"{self.name}: the goal must be a {goal_type.__name__}, not {type(goal).__name__}")
+        grace = FEEDBACK_GRACE if feedback_grace is None else feedback_grace
+        handle = GoalHandle[ResultT, FeedbackT](
+            self.name, self.node, self._client(), timeout, on_accepted, on_status, on_feedback, on_done, grace
+        )
+        handle.begin(goal, wait_timeout)
+        return handle
+
     def send(self, goal: GoalT, timeout: float, wait_timeout: float) -> GoalHandle[ResultT, FeedbackT]:
-        """Send `goal` (see the class docstring); feedback is collected from the first message on."""
+        """Send `goal` and wait for the server to accept it (see the class docstring); feedback is collected
+        from the first message on."""
         timeout, wait_timeout = check_timeout(timeout, "timeout"), check_timeout(wait_timeout, "wait_timeout")
         client = self._client()
         ensure_can_block(self.node, self.name)
@@ -1415,8 +1644,9 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
             if remaining <= 0:
                 raise ServiceUnavailable(self.name, f"no action server within {wait_timeout:g} s", kind="action")
             time.sleep(min(POLL_PERIOD, remaining))
-        sent = _SentGoal[ResultT, FeedbackT](self, client, goal)
-        return sent.handle(timeout, _wait(sent.future, timeout, client))
+        handle = self.start(goal, timeout, wait_timeout)
+        handle.wait_accepted(timeout)
+        return handle
 
     async def send_async(self, goal: GoalT, timeout: float, wait_timeout: float) -> GoalHandle[ResultT, FeedbackT]:
         """`send`, awaitable in a coroutine callback of the node's executor: no thread blocks."""
@@ -1425,5 +1655,6 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
         server_is_ready = cast(_ActionClientApi, client).server_is_ready
         if not server_is_ready() and not await _ready_within(self.node, server_is_ready, wait_timeout, self._group):
             raise ServiceUnavailable(self.name, f"no action server within {wait_timeout:g} s", kind="action")
-        sent = _SentGoal[ResultT, FeedbackT](self, client, goal)
-        return sent.handle(timeout, await _within(self.node, sent.future, timeout, self._group))
+        handle = self.start(goal, timeout, wait_timeout)
+        await handle.accepted_async(timeout)
+        return handle

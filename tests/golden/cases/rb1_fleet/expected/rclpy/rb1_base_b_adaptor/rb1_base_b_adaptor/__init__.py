@@ -28,6 +28,7 @@ from .errors import (
     NotInitialized,
     ServiceUnavailable,
 )
+from .goals import CancelOutcome, GoalOutcome
 from .runtime import GoalHandle, Spinner, spin_in_background
 
 __all__ = [
@@ -49,7 +50,9 @@ __all__ = [
     "NoMessage",
     "NotInitialized",
     "ServiceUnavailable",
+    "CancelOutcome",
     "GoalHandle",
+    "GoalOutcome",
     "LAST_MISSION",
     "Spinner",
     "Started",

@@ -19,6 +19,7 @@ from .errors import (
     NotInitialized,
     ServiceUnavailable,
 )
+from .goals import CancelOutcome, GoalOutcome
 from .runtime import GoalHandle, Spinner, spin_in_background
 
 __all__ = [
@@ -39,7 +40,9 @@ __all__ = [
     "NoMessage",
     "NotInitialized",
     "ServiceUnavailable",
+    "CancelOutcome",
     "GoalHandle",
+    "GoalOutcome",
     "LAST_MISSION",
     "Spinner",
     "Started",

@@ -22,15 +22,18 @@ from .errors import (
     NotInitialized,
     ServiceUnavailable,
 )
+from .goals import CancelOutcome, GoalOutcome
 
 __all__ = [
     "AdaptorError",
     "CallFailed",
     "CallTimeout",
+    "CancelOutcome",
     "ExecutorError",
     "GoalAborted",
     "GoalCanceled",
     "GoalHandle",
+    "GoalOutcome",
     "GoalRejected",
     "InvalidMessage",
     "InvalidRobotName",

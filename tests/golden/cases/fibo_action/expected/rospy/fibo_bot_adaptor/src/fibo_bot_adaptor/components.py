@@ -15,6 +15,7 @@ from test_msgs.msg import FibonacciAction, FibonacciFeedback, FibonacciGoal, Fib
 from ._actions import ActionGoalClient, GoalHandle
 from ._runtime import TopicSubscriber, require_node
 from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, check_robot_name, check_timeout, in_namespace
+from .goals import GoalOutcome
 
 __all__ = [
     "MathComponent",
@@ -102,6 +103,40 @@ class MathComponent:
             self.construct_fibonacci_Goal() if goal is None else goal,
             self._timeout(timeout),
             self.wait_timeout,
+        )
+
+    def start_fibonacci(
+        self,
+        goal: FibonacciGoal | None = None,
+        *,
+        on_accepted: Callable[[], None] | None = None,
+        on_status: Callable[[str], None] | None = None,
+        on_feedback: Callable[[FibonacciFeedback], None] | None = None,
+        on_done: Callable[[GoalOutcome[FibonacciResult]], None] | None = None,
+        timeout: float | None = None,
+        feedback_grace: float | None = None,
+    ) -> GoalHandle[FibonacciResult, FibonacciFeedback]:
+        """send_fibonacci without waiting: returns the goal's GoalHandle at once (its goal_id is known) and tells what
+        happens to the callbacks: on_accepted() once the server reported the goal, on_status(status) at each change
+        of status while it runs, on_feedback(message) with each feedback message, in order, then exactly one
+        on_done(outcome), a GoalOutcome: status succeeded, canceled, aborted, rejected or lost (no server within
+        wait_timeout, no report within timeout, the server went away), result, error. on_done waits feedback_grace
+        seconds (default: _actions.FEEDBACK_GRACE) after the result for feedback still on its way.
+
+        The callbacks run in rospy's receive threads or in the adaptor's goals thread, never two at once for one
+        goal: they must return quickly (hand the event on to your own loop). The handle's feedback(), result() and
+        cancel() read the same record; request_cancel(on_done) cancels without waiting. Raises only InvalidMessage
+        (a goal of another type), ValueError (a bad timeout) and NotInitialized.
+        """
+        return self._act_fibonacci.start(
+            self.construct_fibonacci_Goal() if goal is None else goal,
+            self._timeout(timeout),
+            self.wait_timeout,
+            on_accepted=on_accepted,
+            on_status=on_status,
+            on_feedback=on_feedback,
+            on_done=on_done,
+            feedback_grace=feedback_grace,
         )
 
     def get_chatter_value(self, *, timeout: float | None = None) -> String:

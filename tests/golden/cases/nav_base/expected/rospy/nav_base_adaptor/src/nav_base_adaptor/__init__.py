@@ -25,17 +25,20 @@ from .errors import (
     NotInitialized,
     ServiceUnavailable,
 )
+from .goals import CancelOutcome, GoalOutcome
 
 __all__ = [
     "AdaptorError",
     "BaseComponent",
     "CallFailed",
     "CallTimeout",
+    "CancelOutcome",
     "DockingComponent",
     "ExecutorError",
     "GoalAborted",
     "GoalCanceled",
     "GoalHandle",
+    "GoalOutcome",
     "GoalRejected",
     "InvalidMessage",
     "InvalidRobotName",

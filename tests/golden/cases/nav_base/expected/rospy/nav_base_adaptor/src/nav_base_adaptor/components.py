@@ -42,6 +42,7 @@ from .common import (
     in_namespace,
 )
 from .errors import CallFailed
+from .goals import GoalOutcome
 
 __all__ = [
     "NavigationComponent",
@@ -131,6 +132,40 @@ class NavigationComponent:
             self.construct_navigateToPose_Goal() if goal is None else goal,
             self._timeout(timeout),
             self.wait_timeout,
+        )
+
+    def start_navigateToPose(
+        self,
+        goal: NavigateToPoseGoal | None = None,
+        *,
+        on_accepted: Callable[[], None] | None = None,
+        on_status: Callable[[str], None] | None = None,
+        on_feedback: Callable[[NavigateToPoseFeedback], None] | None = None,
+        on_done: Callable[[GoalOutcome[NavigateToPoseResult]], None] | None = None,
+        timeout: float | None = None,
+        feedback_grace: float | None = None,
+    ) -> GoalHandle[NavigateToPoseResult, NavigateToPoseFeedback]:
+        """send_navigateToPose without waiting: returns the goal's GoalHandle at once (its goal_id is known) and tells
+        what happens to the callbacks: on_accepted() once the server reported the goal, on_status(status) at each
+        change of status while it runs, on_feedback(message) with each feedback message, in order, then exactly one
+        on_done(outcome), a GoalOutcome: status succeeded, canceled, aborted, rejected or lost (no server within
+        wait_timeout, no report within timeout, the server went away), result, error. on_done waits feedback_grace
+        seconds (default: _actions.FEEDBACK_GRACE) after the result for feedback still on its way.
+
+        The callbacks run in rospy's receive threads or in the adaptor's goals thread, never two at once for one
+        goal: they must return quickly (hand the event on to your own loop). The handle's feedback(), result() and
+        cancel() read the same record; request_cancel(on_done) cancels without waiting. Raises only InvalidMessage
+        (a goal of another type), ValueError (a bad timeout) and NotInitialized.
+        """
+        return self._act_navigateToPose.start(
+            self.construct_navigateToPose_Goal() if goal is None else goal,
+            self._timeout(timeout),
+            self.wait_timeout,
+            on_accepted=on_accepted,
+            on_status=on_status,
+            on_feedback=on_feedback,
+            on_done=on_done,
+            feedback_grace=feedback_grace,
         )
 
     def _timeout(self, timeout: float | None) -> float:
@@ -235,6 +270,40 @@ class DockingComponent:
             self.wait_timeout,
         )
 
+    def start_dockRobot(
+        self,
+        goal: DockRobotGoal | None = None,
+        *,
+        on_accepted: Callable[[], None] | None = None,
+        on_status: Callable[[str], None] | None = None,
+        on_feedback: Callable[[DockRobotFeedback], None] | None = None,
+        on_done: Callable[[GoalOutcome[DockRobotResult]], None] | None = None,
+        timeout: float | None = None,
+        feedback_grace: float | None = None,
+    ) -> GoalHandle[DockRobotResult, DockRobotFeedback]:
+        """send_dockRobot without waiting: returns the goal's GoalHandle at once (its goal_id is known) and tells what
+        happens to the callbacks: on_accepted() once the server reported the goal, on_status(status) at each change
+        of status while it runs, on_feedback(message) with each feedback message, in order, then exactly one
+        on_done(outcome), a GoalOutcome: status succeeded, canceled, aborted, rejected or lost (no server within
+        wait_timeout, no report within timeout, the server went away), result, error. on_done waits feedback_grace
+        seconds (default: _actions.FEEDBACK_GRACE) after the result for feedback still on its way.
+
+        The callbacks run in rospy's receive threads or in the adaptor's goals thread, never two at once for one
+        goal: they must return quickly (hand the event on to your own loop). The handle's feedback(), result() and
+        cancel() read the same record; request_cancel(on_done) cancels without waiting. Raises only InvalidMessage
+        (a goal of another type), ValueError (a bad timeout) and NotInitialized.
+        """
+        return self._act_dockRobot.start(
+            self.construct_dockRobot_Goal() if goal is None else goal,
+            self._timeout(timeout),
+            self.wait_timeout,
+            on_accepted=on_accepted,
+            on_status=on_status,
+            on_feedback=on_feedback,
+            on_done=on_done,
+            feedback_grace=feedback_grace,
+        )
+
     def construct_undockRobot_Goal(
         self,
         *,
@@ -273,6 +342,40 @@ class DockingComponent:
             self.construct_undockRobot_Goal() if goal is None else goal,
             self._timeout(timeout),
             self.wait_timeout,
+        )
+
+    def start_undockRobot(
+        self,
+        goal: UndockRobotGoal | None = None,
+        *,
+        on_accepted: Callable[[], None] | None = None,
+        on_status: Callable[[str], None] | None = None,
+        on_feedback: Callable[[UndockRobotFeedback], None] | None = None,
+        on_done: Callable[[GoalOutcome[UndockRobotResult]], None] | None = None,
+        timeout: float | None = None,
+        feedback_grace: float | None = None,
+    ) -> GoalHandle[UndockRobotResult, UndockRobotFeedback]:
+        """send_undockRobot without waiting: returns the goal's GoalHandle at once (its goal_id is known) and tells
+        what happens to the callbacks: on_accepted() once the server reported the goal, on_status(status) at each
+        change of status while it runs, on_feedback(message) with each feedback message, in order, then exactly one
+        on_done(outcome), a GoalOutcome: status succeeded, canceled, aborted, rejected or lost (no server within
+        wait_timeout, no report within timeout, the server went away), result, error. on_done waits feedback_grace
+        seconds (default: _actions.FEEDBACK_GRACE) after the result for feedback still on its way.
+
+        The callbacks run in rospy's receive threads or in the adaptor's goals thread, never two at once for one
+        goal: they must return quickly (hand the event on to your own loop). The handle's feedback(), result() and
+        cancel() read the same record; request_cancel(on_done) cancels without waiting. Raises only InvalidMessage
+        (a goal of another type), ValueError (a bad timeout) and NotInitialized.
+        """
+        return self._act_undockRobot.start(
+            self.construct_undockRobot_Goal() if goal is None else goal,
+            self._timeout(timeout),
+            self.wait_timeout,
+            on_accepted=on_accepted,
+            on_status=on_status,
+            on_feedback=on_feedback,
+            on_done=on_done,
+            feedback_grace=feedback_grace,
         )
 
     def _timeout(self, timeout: float | None) -> float:

@@ -1,5 +1,6 @@
-"""Generation as a library: TDs → models → in-memory trees per backend → disk (via `emit`), or a comparison
-with disk (`check`). The CLI's `gen`/`check` and build scripts use the same functions.
+"""The build, the compiler's drive through the whole pipeline: TDs → models (`pipeline`) → in-memory trees per
+backend → disk (via `generation.emit`), or a comparison with disk (`check`). The CLI's `gen`/`check` and build
+scripts use the same functions.
 """
 
 from __future__ import annotations
@@ -9,13 +10,16 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from td2adaptor.backends import registry as backend_registry
+from td2adaptor.compiler.units import compile_units
 from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity, escalate
-from td2adaptor.generation import registry as backend_registry
 from td2adaptor.generation.backend import GeneratedTree, GenOptions
 from td2adaptor.generation.emit import EmitReport, discard, plan, stage, swap
 from td2adaptor.generation.targets import Target
 
 if TYPE_CHECKING:  # the model loads when something is compiled: a result-cache hit needs none of it
+    from td2adaptor.compiler.pipeline import Input
+    from td2adaptor.frontend.legacy import LegacyInput
     from td2adaptor.model import Model
 
 
@@ -52,7 +56,7 @@ def generate_trees(
     is skipped with a warning (GEN807) while another backend generates, so `gen td.json` makes what it can
     and says what it left out. A backend named explicitly, or --strict, keeps its errors.
     """
-    if package_name:
+    if package_name and package_name != model.package_name:  # else lowering has checked and applied it
         from td2adaptor.lowering.rosnames import package_name_problem
 
         problem = package_name_problem(package_name)
@@ -70,7 +74,8 @@ def generate_trees(
         )
     if problems:
         return None
-    options = GenOptions(package_name=package_name, partial=partial, extra=tuple(backend_options))
+    # the model carries the package name: backends are not told it a second time
+    options = GenOptions(partial=partial, extra=tuple(backend_options))
     results: list[tuple[str, GeneratedTree, list[Diagnostic]]] = []
     for name in names:
         local = Diagnostics()
@@ -199,7 +204,7 @@ def _build(
                 else frozenset(),
                 backend_options=target.options,
             )
-            diags.extend(_locate(local, unit))
+            diags.extend(_locate(local, unit, result.input))
             if trees is None:
                 ok = False
                 continue
@@ -229,59 +234,37 @@ def _build(
     return merged
 
 
-def compile_units(tds: Sequence[Path]) -> list[list[Path]]:
-    """The inputs a target's TDs make: each TD or Thing Model alone, and all its RosClasses config files together.
-
-    A RosClasses configuration is split over several files (service.json, topic.json) that only make one
-    adaptor together, as `validate` and `migrate` read them; every RosClasses file of a target therefore goes
-    into one input, placed where the first of them is. Each TD is its own input beside it (the compiler
-    refuses several TDs at once). `validate` and `types` group their arguments the same way.
-    """
-    if len(tds) < 2:
-        return [[td] for td in tds]
-    units: list[list[Path]] = []
-    config: list[Path] | None = None
-    for td in tds:
-        if _is_rosclasses(td):
-            if config is None:
-                config = []
-                units.append(config)
-            config.append(td)
-        else:
-            units.append([td])
-    return units
-
-
-def _is_rosclasses(path: Path) -> bool:
-    from td2adaptor.frontend.jsonsrc import load_path
-    from td2adaptor.frontend.legacy import is_legacy
-
-    doc = load_path(str(path), Diagnostics())
-    return doc is not None and is_legacy(doc.data)
-
-
-def _locate(diags: Diagnostics, unit: Sequence[Path]) -> list[Diagnostic]:
+def _locate(diags: Diagnostics, unit: Sequence[Path], inp: Input | None = None) -> list[Diagnostic]:
     """Backends point into the TD; give their diagnostics the TD's file:line:col (for RosClasses files: the
-    line of the config file the affordance came from)."""
+    line of the config file the affordance came from). `inp` is what the compile read; without it (the
+    model came from the result cache), each file of the unit is read here, once."""
     if all(d.file for d in diags):
         return list(diags)
-    if _is_rosclasses(unit[0]):  # a unit of several files is all RosClasses files
-        from td2adaptor.compiler.pipeline import load
+    if inp is None:
+        from td2adaptor.frontend.jsonsrc import load_path
+        from td2adaptor.frontend.legacy import is_legacy, to_reference_td
 
-        inp = load([str(td) for td in unit], Diagnostics())
-        if inp is None or inp.legacy is None:
-            return list(diags)
-        out = []
-        for d in diags:
-            if not d.file:
-                d, doc = inp.legacy.remap(d)
-                d = d if doc is None else doc.locate(d)
-            out.append(d)
-        return out
-    from td2adaptor.frontend.jsonsrc import load_path
+        docs = [load_path(str(td), Diagnostics()) for td in unit]
+        if docs[0] is not None and is_legacy(docs[0].data):  # a unit of several files is all RosClasses files
+            read = [doc for doc in docs if doc is not None]
+            if len(read) < len(docs) or not all(is_legacy(doc.data) for doc in read):
+                return list(diags)
+            return _remap(diags, to_reference_td(read, Diagnostics()))
+        doc = docs[0]
+        return [d if d.file or doc is None else doc.locate(d) for d in diags]
+    if inp.legacy is not None:
+        return _remap(diags, inp.legacy)
+    return [d if d.file else inp.doc.locate(d) for d in diags]
 
-    doc = load_path(str(unit[0]), Diagnostics())
-    return [d if d.file or doc is None else doc.locate(d) for d in diags]
+
+def _remap(diags: Diagnostics, legacy: LegacyInput) -> list[Diagnostic]:
+    out = []
+    for d in diags:
+        if not d.file:
+            d, doc = legacy.remap(d)
+            d = d if doc is None else doc.locate(d)
+        out.append(d)
+    return out
 
 
 def generate(
