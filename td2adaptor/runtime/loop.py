@@ -82,9 +82,9 @@ class Loop:
             self._inbox.put((_nothing, ()))
         return timer
 
-    def call(self, fn: Callable[[], Any], timeout: float = 30.0) -> Any:
+    def call(self, fn: Callable[[], Any], timeout: float | None = None) -> Any:
         """Run `fn()` on the loop's thread and return its result (inline when already there); waits at most
-        `timeout` seconds (then raises TimeoutError)."""
+        `timeout` seconds when given (then raises TimeoutError)."""
         if self.on_loop():
             return fn()
         done = threading.Event()

@@ -209,7 +209,10 @@ class Engine:
                 log.exception("while stopping robot %s", self.config.robot)
         shared = self._shared
         if shared is not None:
-            shared.loop.call(self._close)  # after the events queued so far
+            try:
+                shared.loop.call(self._close, timeout)  # after the events queued so far
+            except TimeoutError:  # the robot still goes offline cleanly
+                log.warning("robot %s: the engine's loop did not take the stop in %g s", self.config.robot, timeout)
         if self._streams is not None:
             self._streams.stop()
         if self._lane is not None:
