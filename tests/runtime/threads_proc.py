@@ -70,11 +70,11 @@ def main() -> None:
     broker = LocalBroker() if local else None
     robots = [f"fleet_{i:03d}" for i in range(count)]
     path = {r: PATHS[i % len(PATHS)] for i, r in enumerate(robots)}
-    sims = {r: sim(3.0 if path[r] == "finished" else 60.0, robot_id=r) for r in robots}
+    sims = {r: sim(5.0 if path[r] == "finished" else 60.0, robot_id=r) for r in robots}
     ports = {r: SimPort(model, sims[r]) for r in robots}
 
     def config(robot: str) -> RuntimeConfig:
-        timeout = 3.0 if path[robot] == "timeout" else 60.0
+        timeout = 5.0 if path[robot] == "timeout" else 60.0
         return RuntimeConfig(
             robot=robot,
             bus=bus_url,
