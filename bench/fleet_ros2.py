@@ -15,7 +15,8 @@ Figures per deployment:
 * start-up: from launching the process(es) until every robot's retained status says online (its TD is retained
   before that), and until every robot finished a first goto mission (ROS discovery included);
 * memory per robot: RSS of the edge-node process(es) / N, and PSS (shared libraries split between the
-  processes that map them: the fair figure for N processes);
+  processes that map them: the fair figure for N processes); the threads of the edge node(s) at idle and the
+  most seen under load;
 * CPU of the edge node(s) at idle (no events; each robot's properties at most once a second: `property_mode:
   message` with `property_interval: 1`, as docs/fleet.md recommends for a fleet; `--property-mode sample` for
   the default sampling every second) and
@@ -96,6 +97,17 @@ def machine_cpu(before: tuple[float, float]) -> float:
     """% of the machine's cores busy since `before` (machine_busy())."""
     busy, total = machine_busy()
     return 100 * (busy - before[0]) / max(total - before[1], 1e-9)
+
+
+def threads(pids: Sequence[int]) -> int:
+    """Threads of `pids` now, summed (a process that is gone counts 0)."""
+    total = 0
+    for pid in pids:
+        try:
+            total += len(os.listdir(f"/proc/{pid}/task"))
+        except OSError:
+            continue
+    return total
 
 
 def memory_kib(pids: Sequence[int]) -> tuple[int, int]:
@@ -199,6 +211,8 @@ class Figures:
     first_missions: float = 0.0
     rss_kib: int = 0
     pss_kib: int = 0
+    threads_idle: int = 0  # threads of the edge node(s) once every robot finished a first mission
+    threads_load: int = 0  # the most seen under load (sampled every half second)
     idle_cpu: float = 0.0  # % of one core
     load_cpu: float = 0.0
     sim_idle_cpu: float = 0.0
@@ -319,6 +333,7 @@ def measure(ctx: Context, robots: list[str], size: int, tag: str, idle_s: float,
         fig.first_missions = time.perf_counter() - t0
         time.sleep(1.0)
         fig.rss_kib, fig.pss_kib = memory_kib(dep.pids)
+        fig.threads_idle = threads(dep.pids)
         c0, s0, m0, t1 = cpu_seconds(dep.pids), cpu_seconds(sim_pid), machine_busy(), time.perf_counter()
         time.sleep(idle_s)
         dt = time.perf_counter() - t1
@@ -329,11 +344,15 @@ def measure(ctx: Context, robots: list[str], size: int, tag: str, idle_s: float,
         sent: list[str] = []
         n = len(robots)
         c0, s0, m0, t1 = cpu_seconds(dep.pids), cpu_seconds(sim_pid), machine_busy(), time.perf_counter()
+        counted = t1
         for k in range(int(load_s * n)):
             due = t1 + k / n
             delay = due - time.perf_counter()
             if delay > 0:
                 time.sleep(delay)
+            if due - counted >= 0.5:
+                counted = due
+                fig.threads_load = max(fig.threads_load, threads(dep.pids))
             corr = f"{tag}-{k}"
             w.invoke(robots[k % n], corr)
             sent.append(corr)
@@ -383,6 +402,7 @@ def report(base: Figures, runs: list[tuple[str, Figures]]) -> None:
     row("start-up: CPU of the edge node(s) per robot", "{:.2f} s", lambda f: f.startup_cpu / f.robots)
     row("RSS per robot", "{:.1f} MiB", lambda f: f.rss_kib / 1024 / f.robots)
     row("PSS per robot", "{:.1f} MiB", lambda f: f.pss_kib / 1024 / f.robots)
+    row("threads of the edge node(s), idle / load", "{}", lambda f: f"{f.threads_idle} / {f.threads_load}")
     row("CPU at idle, edge node(s)", "{:.1f} %", lambda f: f.idle_cpu, "% of one core")
     row("CPU at idle per robot", "{:.2f} %", lambda f: f.idle_cpu / f.robots)
     row("CPU at 1 mission/s per robot, edge node(s)", "{:.1f} %", lambda f: f.load_cpu)

@@ -197,3 +197,39 @@ def test_local_will_only_on_crash_and_clean_start() -> None:
     fresh.connect()  # the old session (and its subscriptions) is gone
     fresh.close()
     watcher.close()
+
+
+def test_a_hundred_local_clients_share_one_delivery_thread_and_keep_their_order() -> None:
+    """One delivery thread per broker, not per client (a fleet of robots on the local bus); each client's
+    messages in publish order; a handler may close its own client."""
+    before = set(threading.enumerate())
+    broker = LocalBroker()
+    inboxes = [Inbox() for _ in range(100)]
+    buses = [LocalBus(broker, f"c{i}") for i in range(100)]
+    for i, (bus, inbox) in enumerate(zip(buses, inboxes, strict=True)):
+        bus.subscribe(f"t/{i}", inbox)
+        bus.connect()
+    (deliverer,) = [t for t in threading.enumerate() if t not in before]
+    assert deliverer.name == "td2adaptor-localbus"
+    publisher = LocalBus(broker, "publisher")
+    publisher.connect()
+    for n in range(20):
+        for i in range(100):
+            publisher.publish(f"t/{i}", str(n).encode())
+    for inbox in inboxes:
+        assert [m.payload for m in inbox.wait(20)] == [str(n).encode() for n in range(20)]
+    closer = LocalBus(broker, "closer")
+    closed = threading.Event()
+
+    def close_myself(msg: Message) -> None:
+        closer.close()
+        closed.set()
+
+    closer.subscribe("bye", close_myself)
+    closer.connect()
+    publisher.publish("bye", b"")
+    assert closed.wait(5)
+    for bus in [*buses, publisher]:
+        bus.close()
+    deliverer.join(5)  # it ends once the broker's last client left
+    assert [t for t in threading.enumerate() if t not in before] == []

@@ -3,7 +3,10 @@
 * sessions by client id survive a disconnect (like `clean_start=False`): their subscriptions stay and
   messages published meanwhile are queued and delivered on reconnect (not those only QoS 0 subscriptions
   match, as mosquitto by default);
-* each client has one delivery thread, so messages arrive in publish order (per topic and overall);
+* one delivery thread per broker (`td2adaptor-localbus`, while a client is connected) serves every client in
+  turn, one message each, so messages arrive in publish order (per topic and overall) and a process of a
+  hundred robots on the local bus has one such thread, not a hundred; a handler must return quickly (the
+  engine's only hands the message to its loop), as on the MQTT bus;
 * a handler that raises gets the message again (at least once, up to `attempts` times);
 * retained messages are delivered to new subscriptions; an empty retained payload deletes;
 * a message keeps the retain flag it was published with, also for the clients already subscribed (MQTT 5's
@@ -33,6 +36,9 @@ class _Session:
     queue: deque[Message] = field(default_factory=deque)
     attached: bool = False
     dropped: int = 0
+    consumer: LocalBus | None = None  # the connected client that handles its messages
+    scheduled: bool = False  # in the broker's turn (it has messages for its consumer)
+    busy: bool = False  # its consumer's handlers run on a message
 
     def matches(self, topic: str) -> bool:
         """Whether `topic` is for this session now: a QoS 0 subscription only while it is attached."""
@@ -51,6 +57,9 @@ class LocalBroker:
         self._sessions: dict[str, _Session] = {}
         self._retained: dict[str, Message] = {}
         self.published = 0
+        self._turn: deque[_Session] = deque()  # sessions with messages for their consumer, in turn
+        self._consumers = 0
+        self._deliverer: threading.Thread | None = None
 
     @classmethod
     def default(cls) -> LocalBroker:
@@ -94,6 +103,62 @@ class LocalBroker:
             if session.dropped in (1, 10, 100) or session.dropped % 1000 == 0:
                 log.warning("local bus: queue of %s is full, %d messages dropped", session.client_id, session.dropped)
         session.queue.append(msg)
+        self._schedule(session)
+
+    def _schedule(self, session: _Session) -> None:
+        """(under cond) Give `session` a turn if it has a message and a consumer and has no turn yet."""
+        if session.consumer is not None and session.queue and not session.scheduled:
+            session.scheduled = True
+            self._turn.append(session)
+
+    def serve(self, session: _Session, bus: LocalBus) -> None:
+        """`bus` handles the messages of `session` from now on (on the broker's delivery thread)."""
+        with self.cond:
+            session.consumer = bus
+            self._consumers += 1
+            if self._deliverer is None:
+                self._deliverer = threading.Thread(target=self._deliver, name="td2adaptor-localbus", daemon=True)
+                self._deliverer.start()
+            self._schedule(session)
+            self.cond.notify_all()
+
+    def unserve(self, session: _Session) -> None:
+        """No more messages for the consumer of `session`; returns once its handlers are done with the current
+        one (at once when called from a handler)."""
+        with self.cond:
+            session.consumer = None
+            self._consumers -= 1
+            self.cond.notify_all()
+            if threading.current_thread() is not self._deliverer:
+                self.cond.wait_for(lambda: not session.busy, 5.0)
+
+    def idle(self, session: _Session) -> bool:
+        """(under cond) Nothing queued for `session` and no handler running on one of its messages."""
+        return not session.queue and not session.busy
+
+    def _deliver(self) -> None:
+        """The delivery thread: one message to each session in turn, until no client is connected."""
+        cond = self.cond
+        while True:
+            with cond:
+                cond.wait_for(lambda: bool(self._turn) or self._consumers == 0)
+                if not self._turn:
+                    self._deliverer = None
+                    return
+                session = self._turn.popleft()
+                session.scheduled = False
+                bus = session.consumer
+                if bus is None or not session.queue:
+                    continue
+                msg = session.queue.popleft()
+                session.busy = True
+                handlers = bus.handlers(msg.topic)
+            for handler in handlers:
+                bus.handle(handler, msg)
+            with cond:
+                session.busy = False
+                self._schedule(session)
+                cond.notify_all()
 
     def publish(self, msg: Message) -> None:
         with self.cond:
@@ -133,17 +198,12 @@ class LocalBus:
         self._handlers: list[tuple[str, Handler]] = []
         self._qos: dict[str, int] = {}
         self._session: _Session | None = None
-        self._thread: threading.Thread | None = None
-        self._stop = False
-        self._busy = False
 
     def connect(self) -> None:
         if self._session is not None:
             return
         self._session = self.broker.attach(self.client_id, clean_start=self.clean_start)
-        self._stop = False
-        self._thread = threading.Thread(target=self._deliver, name=f"localbus-{self.client_id}", daemon=True)
-        self._thread.start()
+        self.broker.serve(self._session, self)
         for pattern, _ in self._handlers:
             self.broker.subscribe(self._session, pattern, self._qos[pattern])
         for message in self.announce:
@@ -172,42 +232,26 @@ class LocalBus:
     def drain(self, timeout: float) -> bool:
         """Wait until this client has handled everything queued for it (tests)."""
         with self.broker.cond:
-            return self.broker.cond.wait_for(
-                lambda: self._session is None or (not self._session.queue and not self._busy), timeout
-            )
+            return self.broker.cond.wait_for(lambda: self._session is None or self.broker.idle(self._session), timeout)
 
-    def _deliver(self) -> None:
-        session = self._session
-        assert session is not None
-        cond = self.broker.cond
-        while True:
-            with cond:
-                cond.wait_for(lambda: self._stop or bool(session.queue))
-                if self._stop:
-                    return
-                msg = session.queue.popleft()
-                self._busy = True
-                handlers = [h for p, h in self._handlers if topic_matches(p, msg.topic)]
-            for handler in handlers:
-                for attempt in range(1, self.attempts + 1):
-                    try:
-                        handler(msg)
-                        break
-                    except Exception:  # noqa: BLE001 - a handler bug must not stop delivery
-                        log.exception("local bus: handler failed on %s (attempt %d)", msg.topic, attempt)
-            with cond:
-                self._busy = False
-                cond.notify_all()
+    def handlers(self, topic: str) -> list[Handler]:
+        """(under the broker's cond) The handlers of the subscriptions `topic` matches."""
+        return [h for p, h in self._handlers if topic_matches(p, topic)]
+
+    def handle(self, handler: Handler, msg: Message) -> None:
+        """(the broker's delivery thread) Run `handler` on `msg`: again when it raises, up to `attempts` times."""
+        for attempt in range(1, self.attempts + 1):
+            try:
+                handler(msg)
+                return
+            except Exception:  # noqa: BLE001 - a handler bug must not stop delivery
+                log.exception("local bus: handler failed on %s (attempt %d)", msg.topic, attempt)
 
     def _detach(self, will: Message | None) -> None:
         session, self._session = self._session, None
         if session is None:
             return
-        with self.broker.cond:
-            self._stop = True
-            self.broker.cond.notify_all()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout=5)
+        self.broker.unserve(session)
         self.broker.detach(session, will)
 
     def close(self) -> None:

@@ -1,11 +1,13 @@
 """The edge-node engine: events from the bus → robot calls → feedback on the bus.
 
-Threads: the bus's own thread only queues messages; one dispatcher thread validates and routes them in
-arrival order; each procedure mission runs in its own thread (start, then poll the linked query every
-`poll_period`, a feedback event on every state change, exactly one terminal event, an overall
-`mission_timeout`); queries, cancels of missions we do not follow, writes and plain calls run on a pool
-of `CALL_WORKERS` threads (calls in flight at once); a property thread publishes subscribed values, at most
-one per property and `property_period`.
+Threads (loop.py; the same few for every robot of the process): the bus's thread only hands messages to the
+process's engine loop; the loop validates and routes each robot's events one at a time, in arrival order, and
+runs every procedure mission as a state machine (procedure.py: start, then a query each `poll_period` on a
+timer, a feedback event on every state change, exactly one terminal event, an overall `mission_timeout`);
+robot calls (a mission's start, queries and cancels; queries, cancels of missions we do not follow, writes,
+plain calls and property samples) run on the process's call pool, at most `ROBOT_CALLS` of one robot at a
+time; a sampled robot's properties are read each `property_period` (a timer) and published when changed.
+ROS action goals are still followed by a thread each (goals.py), from a pool kept for the next goal.
 
 Policies (documented in README of the generated events):
 * one mission per component at a time: a second invoke is refused with an error event (`busy`) and a
@@ -27,12 +29,11 @@ from __future__ import annotations
 
 import json
 import logging
-import queue
 import sqlite3
 import threading
 import time
 from collections.abc import Callable, Mapping
-from concurrent.futures import ThreadPoolExecutor
+from functools import partial
 from typing import Any
 
 from td2adaptor.model import Model, Procedure
@@ -44,21 +45,24 @@ from td2adaptor.runtime.engine.goals import GoalRunner
 from td2adaptor.runtime.engine.ledger import Ledger, Record
 from td2adaptor.runtime.engine.missions import Mission, MissionTable
 from td2adaptor.runtime.engine.outbox import Outbox
+from td2adaptor.runtime.engine.procedure import DEFAULT_MISSION_PATH, ProcedureRunner, answer, requested
 from td2adaptor.runtime.engine.replay import ReplayGuard, Verdict, digest, time_problem
 from td2adaptor.runtime.engine.streams import PropertyStreams, streams
 from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope, references, salvage
-from td2adaptor.runtime.ros.port import NoValue, PortError, RobotPort, StartResult
+from td2adaptor.runtime.loop import Lane, Shared, Timer, acquire, release
+from td2adaptor.runtime.ros.port import NoValue, PortError, RobotPort
 from td2adaptor.runtime.ros.procedures import ProcedureStatus, read
 from td2adaptor.runtime.ros.words import INTERNAL, describe
 from td2adaptor.runtime.workers import Workers
 
 log = logging.getLogger("td2adaptor.runtime")
 
-#: threads of the pool that runs queries, cancels, writes and plain calls: each waits for its robot call, so
-#: as many calls can be in flight at once (to different components and robots; the robot answers in parallel)
-CALL_WORKERS = 16
-
-_DEFAULT_MISSION_PATH = ("state", "header", "id")
+#: the threads that follow ROS action goals, one per goal in flight, kept for the next goal (goals.py), for
+#: every robot of the process
+GOAL_FOLLOWERS = Workers("td2adaptor-goal")
+#: seconds a `busy` refusal waits for the robot to answer the start of the mission it names, so that it can
+#: name it by its mission id (the robot answers in milliseconds; one that takes longer is named by its action)
+BUSY_WAIT = 0.25
 
 
 _REFUSALS = {
@@ -131,48 +135,66 @@ class Engine:
         self.on_stop: list[Callable[[], None]] = []  # run first by stop() (e.g. leaving a TD directory)
         self.on_halt: list[Callable[[str], None]] = []  # told why, when the bus stops serving the broker (halt)
         self.failure: str | None = None  # why the bus stopped serving the broker, if it did
-        self._inbox: queue.Queue[Message | None] = queue.Queue()
         self.guard = _guard(config)
         self.ledger = _ledger(config)
         self.missions = MissionTable()  # which mission each component runs (missions.py)
         self.outbox = Outbox(bus, config, self.catalog, self.ledger, self.missions)  # what we publish (outbox.py)
         self.stats = self.outbox.stats
         self._stopping = threading.Event()
-        self._threads: list[threading.Thread] = []
-        self._runners = Workers(f"td2adaptor-{config.robot}-mission")  # no thread start per invoke
-        self._pool = ThreadPoolExecutor(max_workers=CALL_WORKERS, thread_name_prefix=f"td2adaptor-{config.robot}-call")
-        self._goals = GoalRunner(port, config, self.missions, self.outbox, self._pool, self._stopping, clock)
+        self._closed = False  # (the loop's) no more inbound events are handled: the engine stops
+        self._threads: list[threading.Thread] = []  # the process's engine loop, while this engine uses it
+        self._shared: Shared | None = None  # the process's loop and call pool (loop.py), from start to stop
+        self._lane: Lane | None = None  # this robot's share of the call pool
+        self._procedures: ProcedureRunner | None = None  # the procedure missions, on the loop (procedure.py)
+        self._goals = GoalRunner(port, config, self.missions, self.outbox, self._submit, self._stopping, clock)
         self._streams: PropertyStreams | None = None
+        self._sampler: Timer | None = None  # the next sampling of the properties (the loop's)
+        self._sampling = False  # a sampling is under way on the pool (the next tick skips its turn)
+        self._sampled = [s for s in self.catalog.specs if s.kind is Kind.PROPERTY]
+        self._last_values: dict[str, str] = {}  # the sampling's (one at a time): each property's last value
+        self._complained: dict[str, float] = {}  # the sampling's: when a property's read failure was logged
+        self._counting = threading.Lock()
+        self._queued = 0  # inbound messages handed to the loop, not handled yet (under _counting)
+        self._early: list[Message] | None = []  # messages that came while the last run's missions were recovered
         self._own = own_topics(self.catalog, config.robot, config.topic_root)  # never taken as commands
 
     # -- life cycle ----------------------------------------------------------------------------------------
 
     def start(self) -> None:
-        """Subscribe, connect and start the worker threads: the robot's command filters (every command topic,
-        also of an affordance it does not have: answered `unknown-topic`), and the all-robots channel's own
-        command topics (where other robots' affordances are not unknown)."""
+        """Subscribe, connect and start serving on the process's engine loop: the robot's command filters (every
+        command topic, also of an affordance it does not have: answered `unknown-topic`), and the all-robots
+        channel's own command topics (where other robots' affordances are not unknown)."""
         root, robot = self.config.topic_root, self.config.robot
-        for pattern in command_filters(self.catalog, robot, root):
-            self.bus.subscribe(pattern, self._take)
-        for spec in self.catalog.inbound():
-            self.bus.subscribe(spec.topic(ALL_ROBOTS, root), self._inbox.put)
-        self.bus.connect()
-        self._recover()  # before any event is taken: a resent invoke finds what the last run left
-        self._spawn(self._dispatch, "dispatch")
-        properties = [s for s in self.catalog.specs if s.kind is Kind.PROPERTY]
+        shared = self._shared = acquire()
+        self._threads = [shared.loop.thread]
+        self._lane = Lane(shared.pool)
+        self._procedures = ProcedureRunner(
+            self.port, self.config, self.missions, self.outbox, shared.loop, self._lane, self._stopping, self.clock
+        )
+        try:
+            for pattern in command_filters(self.catalog, robot, root):
+                self.bus.subscribe(pattern, self._take)
+            for spec in self.catalog.inbound():
+                self.bus.subscribe(spec.topic(ALL_ROBOTS, root), self._enter)
+            self.bus.connect()
+        except BaseException:  # not serving: the loop and pool are not this engine's to keep
+            self._shared, self._threads = None, []
+            release(shared)
+            raise
+        shared.loop.call(self._recover)  # before any event is handled: a resent invoke finds what the last run left
+        with self._counting:  # what came meanwhile, in order, then each as it comes
+            early, self._early = self._early or [], None
+            for msg in early:
+                shared.loop.post(self._dispatch, msg)
+        properties = self._sampled
         if self.config.property_period > 0 and properties:
             if self.config.property_mode == "message":  # one event per ROS message (runtime/engine/streams.py)
                 self._streams = streams(self.outbox, port=self.port, model=self.model, specs=properties)
             if self._streams is not None:
                 self._streams.start()
             else:
-                self._spawn(self._properties, "properties")
+                shared.loop.post(self._sample_tick)
         log.info("serving robot %s (namespace %s)", self.config.robot, self.config.ros_namespace)
-
-    def _spawn(self, target: Callable[[], None], name: str) -> None:
-        thread = threading.Thread(target=target, name=f"td2adaptor-{self.config.robot}-{name}", daemon=True)
-        thread.start()
-        self._threads.append(thread)
 
     def stop(self, timeout: float = 5.0) -> None:
         """Stop taking events, clear the TD, publish the offline status and disconnect. Missions go on on the
@@ -185,14 +207,16 @@ class Engine:
                 hook()
             except Exception:  # a hook must not keep the robot from going offline cleanly
                 log.exception("while stopping robot %s", self.config.robot)
-        self._inbox.put(None)
+        shared = self._shared
+        if shared is not None:
+            try:
+                shared.loop.call(self._close, timeout)  # after the events queued so far
+            except TimeoutError:  # the robot still goes offline cleanly
+                log.warning("robot %s: the engine's loop did not take the stop in %g s", self.config.robot, timeout)
         if self._streams is not None:
             self._streams.stop()
-        for m in self.missions.running():
-            m.wake.set()
-        for thread in self._threads:
-            thread.join(timeout)
-        self._pool.shutdown(wait=True, cancel_futures=True)
+        if self._lane is not None:
+            self._lane.wait_idle(timeout)  # calls not started yet are skipped (missions' are made)
         for ended in self.missions.held():
             ended.wait(timeout)
         try:
@@ -206,6 +230,17 @@ class Engine:
         self.bus.close()
         self.guard.close()
         self.ledger.close()
+        if shared is not None:
+            self._shared, self._threads = None, []
+            release(shared)
+
+    def _close(self) -> None:
+        """(the loop) Handle no more inbound events, sample no more, leave every procedure mission to the robot."""
+        self._closed = True
+        if self._sampler is not None:
+            self._sampler.cancel()
+        if self._procedures is not None:
+            self._procedures.stop()
 
     def halt(self, reason: str) -> None:
         """The bus stopped serving its broker for good (a reconnection failed the check every connection
@@ -221,7 +256,19 @@ class Engine:
 
     def idle(self) -> bool:
         """No queued event and no mission in progress (tests, benchmarks)."""
-        return self._inbox.empty() and self.missions.idle()
+        with self._counting:
+            queued = self._queued
+        return queued == 0 and self.missions.idle()
+
+    def _submit(self, fn: Callable[..., None], *args: Any) -> None:
+        """Run `fn(*args)` on this robot's lane of the call pool, unless the engine stops before its turn."""
+
+        def task() -> None:
+            if not self._stopping.is_set():
+                fn(*args)
+
+        assert self._lane is not None, "the engine is not started"
+        self._lane.submit(task)
 
     # -- publishing ----------------------------------------------------------------------------------------
 
@@ -251,21 +298,34 @@ class Engine:
     # -- inbound -------------------------------------------------------------------------------------------
 
     def _take(self, msg: Message) -> None:
-        """A message on the robot's command filters (the bus's thread): queued, but what this node publishes
-        there itself (property values, envelope and WoT, and the WoT error topic) is dropped at once."""
+        """A message on the robot's command filters (the bus's thread): handed to the loop, but what this node
+        publishes there itself (property values, envelope and WoT, and the WoT error topic) is dropped at once."""
         if msg.topic not in self._own:
-            self._inbox.put(msg)
+            self._enter(msg)
 
-    def _dispatch(self) -> None:
-        while True:
-            msg = self._inbox.get()
-            if msg is None:
+    def _enter(self, msg: Message) -> None:
+        """(the bus's thread) Hand a message to the loop, after those before it (kept back while the last run's
+        missions are recovered)."""
+        with self._counting:
+            self._queued += 1
+            if self._early is not None:
+                self._early.append(msg)
                 return
-            try:
-                self._handle(msg)
-            except Exception:  # a bug here must cost one event, not the process
-                log.exception("internal error on %s", msg.topic)
-                self.outbox.error("internal", INTERNAL, topic=msg.origin or msg.topic, raw=msg.payload)
+        shared = self._shared
+        if shared is not None:
+            shared.loop.post(self._dispatch, msg)
+
+    def _dispatch(self, msg: Message) -> None:
+        """(the loop) One inbound message: validated, guarded and routed."""
+        with self._counting:
+            self._queued -= 1
+        if self._closed:
+            return
+        try:
+            self._handle(msg)
+        except Exception:  # a bug here must cost one event, not the process
+            log.exception("internal error on %s", msg.topic)
+            self.outbox.error("internal", INTERNAL, topic=msg.origin or msg.topic, raw=msg.payload)
 
     def _handle(self, msg: Message) -> None:
         self.outbox.count("in")
@@ -361,17 +421,17 @@ class Engine:
             elif spec.kind is Kind.CANCEL:
                 self._goals.cancel(spec, event)
             elif spec.kind is Kind.QUERY:
-                self._pool.submit(self._goals.query, spec, event)
+                self._submit(self._goals.query, spec, event)
         elif spec.kind is Kind.INVOKE and procedure is not None and procedure.run == spec.affordance:
             self._invoke(spec, procedure, event, msg.topic)
         elif spec.kind is Kind.INVOKE:
-            self._pool.submit(self._plain_call, spec, event, self._open("call", spec, event, msg.topic))
+            self._submit(self._plain_call, spec, event, self._open("call", spec, event, msg.topic))
         elif spec.kind is Kind.QUERY and procedure is not None:
-            self._pool.submit(self._query, spec, procedure, event)
+            self._ask(spec, procedure, event, cancel=False)
         elif spec.kind is Kind.CANCEL and procedure is not None:
             self._cancel(spec, procedure, event)
         elif spec.kind is Kind.WRITE:
-            self._pool.submit(self._write, spec, event)
+            self._submit(self._write, spec, event)
 
     def _unknown(self, msg: Message) -> None:
         """A message on a topic of the robot's command filters where no event is defined: answered
@@ -456,7 +516,8 @@ class Engine:
         if follow:
             log.info("following %s mission %s again (the edge node restarted)", r.action, r.mission)
             self.outbox.count("resumed")
-            self._runners.submit(lambda: self._run_mission(m, ended, resume=True))
+            assert self._procedures is not None
+            self._procedures.resume(m, ended)
             return
         self.outbox.count("restart-failed")
         message = "the edge node restarted " + _restart_words(r, behind, self.config.mission_timeout)
@@ -477,166 +538,37 @@ class Engine:
             return
         mission.key = self._open("goal" if goal else "procedure", spec, event, topic)
         if busy is not None:
-            what = f"{busy.action} mission {busy.mission_id}" if busy.mission_id is not None else busy.action
-            message = f"{component} is busy with {what}; send a cancel event or wait for its terminal feedback"
-            self.outbox.error("busy", message, topic=topic, affordance=procedure.run, correlation=correlation)
             mission.done = True
-            status = ProcedureStatus("failed", message=message, reason="busy")
-            self.outbox.feedback(mission, status, terminal=True)
+            refuse = partial(self._busy, busy, mission, topic)
+            if self._procedures is None or not self._procedures.when_started(busy, refuse, BUSY_WAIT):
+                refuse()
             return
         self.outbox.count("missions")
-        self._runners.submit(lambda: self._run_mission(mission, ended, goal))
+        if goal:
+            GOAL_FOLLOWERS.submit(lambda: self._follow_goal(mission, ended))
+            return
+        assert self._procedures is not None
+        self._procedures.start(mission, ended)
 
-    def _path(self, procedure: Procedure) -> tuple[str, ...]:
-        return procedure.mission_id or _DEFAULT_MISSION_PATH
+    def _busy(self, busy: Mission, mission: Mission, topic: str) -> None:
+        """Refuse `mission`: its component runs `busy`, named by its mission id when the robot gave one (a refusal
+        that comes while `busy` is being started is made once the robot answered the start)."""
+        what = f"{busy.action} mission {busy.mission_id}" if busy.mission_id is not None else busy.action
+        message = f"{mission.component} is busy with {what}; send a cancel event or wait for its terminal feedback"
+        self.outbox.error("busy", message, topic=topic, affordance=mission.action, correlation=mission.correlation)
+        status = ProcedureStatus("failed", message=message, reason="busy")
+        self.outbox.feedback(mission, status, terminal=True)
 
-    def _run_mission(self, m: Mission, ended: threading.Event, goal: bool = False, resume: bool = False) -> None:
+    def _follow_goal(self, m: Mission, ended: threading.Event) -> None:
+        """(a goal follower's thread) A ROS action goal, followed until its end (goals.py)."""
         try:
-            if goal:
-                self._goals.follow(m)
-            elif resume:  # the robot runs it already (a restart of this node): follow it on
-                self._poll(m, m.started + self.config.mission_timeout)
-            else:
-                self._follow(m)
+            self._goals.follow(m)
         except Exception:  # the last line of defence: report, never crash
             log.exception("mission %s failed internally", m.action)
             self.outbox.finish(m, ProcedureStatus("failed", message=INTERNAL, reason="call-failed"))
         finally:
             self.missions.release(ended)
             ended.set()
-
-    def _follow(self, m: Mission) -> None:
-        cfg, port, proc = self.config, self.port, m.procedure
-        deadline = m.started + cfg.mission_timeout
-        refused = False
-        try:
-            started = port.start(m.component, m.action, m.payload, cfg.call_timeout)
-        except PortError as exc:
-            if exc.response is None:  # no answer: we cannot know whether it runs
-                log.warning("%s: failed (%s): %s", m.action, exc.reason, _describe(exc))
-                self.outbox.finish(m, ProcedureStatus("failed", message=_describe(exc), reason=exc.reason))
-                return
-            started, refused = StartResult(exc.response, None), True  # the robot answered, and refused
-        except Exception as exc:
-            log.warning("%s: failed: %s", m.action, _describe(exc))
-            self.outbox.finish(m, ProcedureStatus("failed", message=_describe(exc), reason="call-failed"))
-            return
-        reading = read(started.response, proc, "run", _DEFAULT_MISSION_PATH)
-        status = reading.status or ProcedureStatus("running", message="started")
-        if reading.unmapped is not None:
-            log.warning("%s: state value %r is not mapped: taken as started", m.action, reading.unmapped)
-        if status.state != "failed" and (refused or _says_error(started.response)):
-            status = ProcedureStatus("failed", status.result, status.message or _message(started.response))
-        if status.state == "failed":  # refused by the robot: the id in its answer is not ours
-            why = "answered with an error" if refused or _says_error(started.response) else "reported it failed"
-            log.warning("%s: rejected: the robot %s: %s", m.action, why, status.message or "(no message)")
-            self.outbox.finish(
-                m, ProcedureStatus("failed", status.result, status.message, status.last_event, "rejected")
-            )
-            return
-        m.mission_id = started.mission_id if started.mission_id is not None else status.mission_id
-        if m.mission_id is None:
-            log.warning("%s returned no mission id; following mission -1 (the robot's last one)", m.action)
-        if status.terminal:
-            self.outbox.finish(m, status)
-            return
-        self.outbox.feedback(m, status, terminal=False)
-        if proc.query is None:
-            self.outbox.finish(
-                m, ProcedureStatus("finished", message="started; no query action links to this procedure")
-            )
-            return
-        self._poll(m, deadline)
-
-    def _poll(self, m: Mission, deadline: float) -> None:
-        """Query a started mission every `poll_period` until its end (or the deadline, or a stop)."""
-        cfg, port, proc = self.config, self.port, m.procedure
-        assert proc.query is not None
-        failures = 0
-        while True:
-            remaining = deadline - self.clock()
-            m.wake.wait(max(0.0, min(cfg.poll_period, remaining)))
-            m.wake.clear()
-            if self._stopping.is_set():
-                log.info("stopping: no longer following %s mission %s", m.action, m.mission_id)
-                return
-            if self._pending_cancels(m):
-                return
-            if self.clock() >= deadline:
-                self._give_up(m)
-                return
-            mid = m.mission_id if m.mission_id is not None else -1
-            try:
-                response = _answer(port.query, m.component, proc.query, mid, cfg.call_timeout)
-                reading = read(response, proc, "query", _DEFAULT_MISSION_PATH)
-            except Exception as exc:
-                failures += 1
-                log.warning("query %d of %s mission %s failed: %s", failures, m.action, mid, _describe(exc))
-                if failures >= cfg.max_query_failures:
-                    message = f"the robot did not answer {failures} queries: {_describe(exc)}"
-                    self.outbox.finish(m, ProcedureStatus("failed", message=message, reason="unreachable"))
-                    return
-                continue
-            failures = 0
-            current = reading.status
-            if current is None:  # validate refuses such a query (ROS445); an unmapped value is no news
-                log.warning("query of %s mission %s: no state in the answer (%r)", m.action, mid, reading.unmapped)
-                continue
-            if current.terminal:
-                if current.state == "failed":
-                    log.warning("%s mission %s: the robot reports it failed: %s", m.action, mid, current.message)
-                self.outbox.finish(m, current)
-                return
-            if current.state != m.state:
-                self.outbox.feedback(m, current, terminal=False)
-
-    def _pending_cancels(self, m: Mission) -> bool:
-        """Carry out cancel events for this mission; True when the mission ended."""
-        requests = self.missions.take_cancels(m)
-        proc = m.procedure
-        for correlation in requests:
-            mid = m.mission_id if m.mission_id is not None else -1
-            if proc.cancel is None:
-                self.outbox.error(
-                    "unsupported",
-                    f"{m.action} has no cancel action",
-                    topic=self.catalog.find(Kind.INVOKE, m.action).topic(self.config.robot, self.config.topic_root),
-                    affordance=m.action,
-                    correlation=correlation,
-                    mission=m.mission_id,
-                )
-                continue
-            try:
-                response = _answer(self.port.cancel, m.component, proc.cancel, mid, self.config.call_timeout)
-                status = read(response, proc, "cancel", _DEFAULT_MISSION_PATH).status or _requested(m.state)
-            except Exception as exc:
-                self.outbox.error(
-                    "call-failed",
-                    f"cancelling {m.action} mission {mid} failed: {_describe(exc)}",
-                    topic=self.catalog.find(Kind.CANCEL, proc.cancel).topic(self.config.robot, self.config.topic_root),
-                    affordance=proc.cancel,
-                    correlation=correlation,
-                    mission=m.mission_id,
-                )
-                continue
-            self.outbox.state(m.action, status, correlation, m.mission_id)
-            if status.terminal:
-                self.outbox.finish(m, status)
-                return True
-            if status.state != m.state:
-                self.outbox.feedback(m, status, terminal=False)
-        return False
-
-    def _give_up(self, m: Mission) -> None:
-        proc = m.procedure
-        if proc.cancel is not None and m.mission_id is not None:
-            try:
-                self.port.cancel(m.component, proc.cancel, m.mission_id, self.config.call_timeout)
-            except Exception as exc:
-                log.warning("could not cancel timed-out %s mission %s: %s", m.action, m.mission_id, _describe(exc))
-        message = f"no terminal state within the mission timeout of {self.config.mission_timeout:g} s"
-        last = f" (last state: {m.state})" if m.state else ""
-        self.outbox.finish(m, ProcedureStatus("failed", message=message + last, reason="timeout"))
 
     def _cancel(self, spec: EventSpec, procedure: Procedure, event: dict[str, Any]) -> None:
         wanted = event.get("mission")
@@ -647,29 +579,28 @@ class Engine:
             lambda m: m.action == procedure.run and wanted in (None, m.mission_id) and not m.done,
         )
         if m is not None:
-            m.wake.set()
+            assert self._procedures is not None
+            self._procedures.poke(m)
             return
-        self._pool.submit(self._cancel_direct, spec, procedure, event)
+        self._ask(spec, procedure, event, cancel=True)
 
     def _mission_for(self, procedure: Procedure, wanted: Any) -> int:
         if isinstance(wanted, int):
             return wanted
         return self.missions.mission_id(procedure.run)
 
-    def _cancel_direct(self, spec: EventSpec, procedure: Procedure, event: dict[str, Any]) -> None:
-        self._ask(spec, procedure, event, cancel=True)
-
-    def _query(self, spec: EventSpec, procedure: Procedure, event: dict[str, Any]) -> None:
-        self._ask(spec, procedure, event, cancel=False)
-
     def _ask(self, spec: EventSpec, procedure: Procedure, event: dict[str, Any], *, cancel: bool) -> None:
-        """Answer a query (or a cancel of a mission we do not follow) with one state event."""
-        correlation = event.get("correlation") or event.get("id")
+        """(the loop) A query (or a cancel of a mission we do not follow): which mission it is about, then the
+        call on the pool, answered with one state event."""
         mid = self._mission_for(procedure, event.get("mission"))
+        self._submit(self._asked, spec, procedure, event, mid, cancel)
+
+    def _asked(self, spec: EventSpec, procedure: Procedure, event: dict[str, Any], mid: int, cancel: bool) -> None:
+        correlation = event.get("correlation") or event.get("id")
         action = spec.affordance or ""
         try:
             call = self.port.cancel if cancel else self.port.query
-            response = _answer(call, spec.component or "", action, mid, self.config.call_timeout)
+            response = answer(call, spec.component or "", action, mid, self.config.call_timeout)
         except Exception as exc:
             self.outbox.error(
                 "call-failed",
@@ -680,9 +611,9 @@ class Engine:
                 mission=mid if mid != -1 else None,
             )
             return
-        status = read(response, procedure, "cancel" if cancel else "query", _DEFAULT_MISSION_PATH).status
+        status = read(response, procedure, "cancel" if cancel else "query", DEFAULT_MISSION_PATH).status
         if status is None:
-            status = _requested(None) if cancel else ProcedureStatus("running", message="no state in the answer")
+            status = requested(None) if cancel else ProcedureStatus("running", message="no state in the answer")
         mission = status.mission_id if status.mission_id is not None else (mid if mid != -1 else None)
         self.outbox.state(procedure.run, status, correlation, mission)
 
@@ -726,13 +657,22 @@ class Engine:
 
     # -- properties ----------------------------------------------------------------------------------------
 
-    def _properties(self) -> None:
-        specs = [s for s in self.catalog.specs if s.kind is Kind.PROPERTY]
-        last: dict[str, str] = {}
-        complained: dict[str, float] = {}
+    def _sample_tick(self) -> None:
+        """(the loop) Every `property_period`: sample the properties on the pool, unless the last sampling is
+        still under way (a slow robot's reads take their turn, they are not queued up)."""
+        if self._closed:
+            return
+        if not self._sampling:
+            self._sampling = True
+            self._submit(self._sample)
+        assert self._shared is not None
+        self._sampler = self._shared.loop.call_later(self.config.property_period, self._sample_tick)
+
+    def _sample(self) -> None:
+        """(a pool thread) Read every property; publish those whose value changed, retained."""
         period = self.config.property_period
-        while not self._stopping.wait(period):
-            for spec in specs:
+        try:
+            for spec in self._sampled:
                 name = spec.affordance or ""
                 try:
                     value = self.port.read_property(spec.component or "", name, min(period, self.config.call_timeout))
@@ -740,27 +680,17 @@ class Engine:
                 except NoValue:
                     continue
                 except Exception as exc:
-                    if self.clock() - complained.get(name, -1e9) > 60:
-                        complained[name] = self.clock()
+                    if self.clock() - self._complained.get(name, -1e9) > 60:
+                        self._complained[name] = self.clock()
                         log.warning("reading property %s failed: %s", name, _describe(exc))
                     continue
-                if last.get(name) == text:
+                if self._last_values.get(name) == text:
                     continue
-                last[name] = text
+                self._last_values[name] = text
                 event = self.outbox.event(Kind.PROPERTY, value, affordance=name)
                 self.outbox.publish(spec, event, retain=True, qos=self.config.property_qos)
-
-
-def _answer(
-    call: Callable[[str, str, int, float], Mapping[str, Any]], component: str, action: str, mission: int, timeout: float
-) -> Mapping[str, Any]:
-    """The robot's response to a query or cancel, also when the port raised because it says `error`."""
-    try:
-        return call(component, action, mission, timeout)
-    except PortError as exc:
-        if exc.response is None:
-            raise
-        return exc.response
+        finally:
+            self._sampling = False
 
 
 def _restart_words(r: Record, behind: float, timeout: float) -> str:
@@ -777,22 +707,6 @@ def _restart_words(r: Record, behind: float, timeout: float) -> str:
     if behind >= timeout:  # it would have timed out meanwhile (and its id may name another mission by now)
         return f"after this mission's timeout of {timeout:g} s had passed: its outcome is unknown"
     return "while it followed this mission: its outcome is unknown"
-
-
-def _requested(state: str | None) -> ProcedureStatus:
-    """The answer to a cancel whose response carries no state: asked, the mission's end will tell."""
-    return ProcedureStatus(state or "running", message="cancel requested")
-
-
-def _message(response: Mapping[str, Any]) -> str:
-    """The robot's words in a response without a procedure state (std_srvs' `message`)."""
-    text = response.get("message")
-    return text if isinstance(text, str) else ""
-
-
-def _says_error(response: Mapping[str, Any]) -> bool:
-    result = response.get("result")
-    return isinstance(result, Mapping) and str(result.get("result", "")).lower() == "error"
 
 
 def _describe(exc: BaseException) -> str:

@@ -19,7 +19,6 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable, Mapping
-from concurrent.futures import Executor
 from dataclasses import dataclass
 from typing import Any
 
@@ -86,7 +85,8 @@ class _Ended:
 class GoalRunner:
     """Follows the ROS action goals of one robot (see the module docstring): its missions in the engine's
     `missions` table, its events through the engine's `outbox`; queries and cancels of goals nobody follows
-    are answered on `pool`; `stopping` set, the goals are left to the robot."""
+    are answered through `submit` (the robot's lane of the call pool); `stopping` set, the goals are left to
+    the robot."""
 
     def __init__(
         self,
@@ -94,7 +94,7 @@ class GoalRunner:
         config: RuntimeConfig,
         missions: MissionTable,
         outbox: Outbox,
-        pool: Executor,
+        submit: Callable[..., None],
         stopping: threading.Event,
         clock: Callable[[], float],
     ) -> None:
@@ -102,7 +102,7 @@ class GoalRunner:
         self.config = config
         self.missions = missions
         self.outbox = outbox
-        self.pool = pool
+        self.submit = submit
         self.stopping = stopping
         self.clock = clock
         self._lock = threading.Lock()
@@ -226,12 +226,12 @@ class GoalRunner:
         return lambda m: m.action == spec.affordance and not m.done and m.goal is not None and wanted in (None, m.goal)
 
     def cancel(self, spec: EventSpec, event: Mapping[str, Any]) -> None:
-        """A cancel event (dispatcher thread): hand it to the mission that follows the goal."""
+        """A cancel event (the engine's loop): hand it to the mission that follows the goal."""
         wanted = _wanted(event)
         correlation = event.get("correlation") or event.get("id")
         if self.missions.add_cancel(spec.component or "", correlation, self._followed(spec, wanted)) is not None:
             return
-        self.pool.submit(self._answer_ended, spec, wanted, correlation)
+        self.submit(self._answer_ended, spec, wanted, correlation)
 
     def query(self, spec: EventSpec, event: Mapping[str, Any]) -> None:
         """A query event (pool thread): the followed goal's state, else how the last one ended."""

@@ -1,11 +1,12 @@
-"""Which mission each component of a robot runs: the state the engine's threads share, behind one lock.
+"""Which mission each component of a robot runs, behind one lock.
 
-The dispatcher admits an invoke (one mission per component at a time: a second one is refused `busy`) and
-hands cancel events to the mission they are for; a mission's thread (a procedure's in engine.py, a goal's in
-goals.py) takes those cancels and ends the mission once; queries without a mission id ask about the action's
-current mission, else the last one the robot named; stopping wakes every mission and waits for their threads.
-All of that goes through a `MissionTable` the engine hands to the goal runner and its outbox, so no module
-reaches into another's dictionaries and lock.
+The engine's loop admits an invoke (one mission per component at a time: a second one is refused `busy`) and
+hands cancel events to the mission they are for; whoever follows the mission (a procedure's state machine on
+the loop, procedure.py; a goal's follower thread, goals.py) takes those cancels and ends the mission once;
+queries without a mission id ask about the action's current mission, else the last one the robot named;
+stopping waits until nobody follows a mission any more. All of that goes through a `MissionTable` the engine
+hands to its runners and its outbox, so no module reaches into another's dictionaries and lock. The loop's
+thread is the table's owner; the lock is there for the goal followers (and a query's look-up on the pool).
 """
 
 from __future__ import annotations
@@ -31,16 +32,15 @@ class Mission:
     seq: int = 0
     done: bool = False
     cancels: list[str | None] = field(default_factory=list)
-    wake: threading.Event = field(default_factory=threading.Event)
     goal: str | None = None  # a ROS action goal: its id, once the server accepted it
     key: str | None = None  # its row in the ledger (None: not recorded)
     reserved: int = 0  # the ledger's bound on the feedback numbers published
 
 
 class MissionTable:
-    """The mission of each busy component, the last mission id of each action and the threads still following
-    a mission (each holds an event it sets when it is done), under one lock. `done` and `cancels` of the
-    missions in it are written under that lock too; a mission's other fields belong to the thread following it."""
+    """The mission of each busy component, the last mission id of each action and who still follows a
+    mission (each holds an event it sets when it is done), under one lock. `done` and `cancels` of the
+    missions in it are written under that lock too; a mission's other fields belong to whoever follows it."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -49,7 +49,7 @@ class MissionTable:
         self._held: set[threading.Event] = set()  # set when its mission's thread is done with it
 
     def claim(self, m: Mission, held: threading.Event) -> Mission | None:
-        """Make `m` its component's mission, followed by a thread that sets `held` when done with it; when the
+        """Make `m` its component's mission, followed by someone who sets `held` when done with it; when the
         component is busy, the mission it runs instead (and nothing changes)."""
         with self._lock:
             busy = self._active.get(m.component)
@@ -59,7 +59,7 @@ class MissionTable:
             return busy
 
     def release(self, held: threading.Event) -> None:
-        """A mission's thread is done with it (it sets `held` next)."""
+        """A mission's follower is done with it (it sets `held` next)."""
         with self._lock:
             self._held.discard(held)
 
@@ -93,7 +93,7 @@ class MissionTable:
             return m
 
     def take_cancels(self, m: Mission) -> list[str | None]:
-        """The cancel events handed to `m` since the last call (its thread carries them out)."""
+        """The cancel events handed to `m` since the last call (its follower carries them out)."""
         with self._lock:
             requests, m.cancels = m.cancels, []
             return requests
@@ -111,7 +111,7 @@ class MissionTable:
             return list(self._active.values())
 
     def held(self) -> list[threading.Event]:
-        """The events of the threads still following a mission (stopping waits for them)."""
+        """The events of the followers still following a mission (stopping waits for them)."""
         with self._lock:
             return list(self._held)
 

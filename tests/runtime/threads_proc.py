@@ -1,0 +1,145 @@
+"""A fleet of simulated RB-1s in a process of its own, counting that process's threads while its missions run:
+`python -m tests.runtime.threads_proc BUS [ROBOTS]` (BUS: `local`, or a broker URL). Prints one JSON object.
+
+A quarter of the robots' missions each take one path of the procedure state machine to its end: `finished`
+(the robot ends it), `cancelled` (a cancel event once it runs), `timeout` (the mission timeout passes; the
+robot is asked to cancel it) and `unreachable` (the robot stops answering once it runs). Threads are counted
+before any engine, with 10 robots served, with all of them served, every 10 ms while the missions are in
+flight, after they all ended, and once every engine stopped. On MQTT, paho's network thread of each
+connection is left out of the count (one per robot until the connections are served from one thread).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import sys
+import threading
+import time
+from typing import Any
+
+from td2adaptor.runtime import Engine, RuntimeConfig, serve_fleet
+from td2adaptor.runtime.bus.bus import Bus, Message
+from td2adaptor.runtime.bus.localbus import LocalBroker, LocalBus
+from td2adaptor.runtime.ros.simport import SimPort
+from tests.runtime.rb1 import GOAL, rb1_model, sim
+
+PATHS = ("finished", "cancelled", "timeout", "unreachable")
+FIRST = 10  # robots served before the others
+
+
+def counted(local: bool) -> int:
+    """The process's threads: every one of the OS on the local bus; on MQTT the Python threads but paho's."""
+    if local:
+        return len(os.listdir("/proc/self/task"))
+    return sum(1 for t in threading.enumerate() if not t.name.startswith("paho-mqtt-client-"))
+
+
+class Recorder:
+    """Feedback events of every robot, by correlation."""
+
+    def __init__(self, bus: Bus) -> None:
+        self.bus = bus
+        self.cond = threading.Condition()
+        self.feedback: dict[str, list[dict[str, Any]]] = {}
+        bus.subscribe("td2adaptor/+/+/+/feedback", self._on)
+        bus.connect()
+
+    def _on(self, msg: Message) -> None:
+        event = json.loads(msg.payload)
+        with self.cond:
+            self.feedback.setdefault(str(event.get("correlation")), []).append(event["payload"])
+            self.cond.notify_all()
+
+    def states(self, correlation: str) -> list[str]:
+        with self.cond:
+            return [p["state"] for p in self.feedback.get(correlation, [])]
+
+    def ends(self, correlation: str) -> list[dict[str, Any]]:
+        with self.cond:
+            return [p for p in self.feedback.get(correlation, []) if p.get("terminal")]
+
+
+def main() -> None:
+    logging.getLogger("td2adaptor").setLevel(logging.ERROR)  # the unreachable robots' failed queries
+    bus_url = sys.argv[1]
+    count = int(sys.argv[2]) if len(sys.argv) > 2 else 100
+    local = bus_url == "local"
+    model = rb1_model()
+    broker = LocalBroker() if local else None
+    robots = [f"fleet_{i:03d}" for i in range(count)]
+    path = {r: PATHS[i % len(PATHS)] for i, r in enumerate(robots)}
+    sims = {r: sim(5.0 if path[r] == "finished" else 60.0, robot_id=r) for r in robots}
+    ports = {r: SimPort(model, sims[r]) for r in robots}
+
+    def config(robot: str) -> RuntimeConfig:
+        timeout = 5.0 if path[robot] == "timeout" else 60.0
+        return RuntimeConfig(
+            robot=robot,
+            bus=bus_url,
+            poll_period=0.05,
+            property_period=0.2,  # the sampled properties' timers run too
+            call_timeout=1.0,
+            mission_timeout=timeout,
+            max_query_failures=3,
+            state_dir="",
+        )
+
+    def port(c: RuntimeConfig) -> SimPort:
+        return ports[c.robot]
+
+    figures: dict[str, Any] = {"before": counted(local)}
+    engines: list[Engine] = serve_fleet(model, port, [config(r) for r in robots[:FIRST]], broker=broker)
+    figures["first"] = counted(local)
+    engines += serve_fleet(model, port, [config(r) for r in robots[FIRST:]], broker=broker)
+    figures["all"] = counted(local)
+    figures["names"] = sorted({t.name.rstrip("0123456789") for t in threading.enumerate()})
+    if local:
+        app_bus: Bus = LocalBus(broker, "threads-app")
+    else:
+        from td2adaptor.runtime.bus.mqttbus import MqttBus
+        from td2adaptor.runtime.bus.security import parse_broker_url
+
+        app_bus = MqttBus(parse_broker_url(bus_url), client_id="threads-app", clean_start=True)
+    app = Recorder(app_bus)
+    figures["app"] = counted(local)
+    run = {r: f"{r}-mission" for r in robots}
+    for r in robots:
+        invoke = {"correlation": run[r], "payload": GOAL}
+        app_bus.publish(f"td2adaptor/{r}/GoToComponent/gotoRun", json.dumps(invoke).encode())
+    during: list[int] = []
+    acted: set[str] = set()
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        during.append(counted(local))
+        for r in robots:
+            if r in acted or "running" not in app.states(run[r]):
+                continue
+            acted.add(r)
+            if path[r] == "cancelled":
+                cancel = {"correlation": run[r]}
+                app_bus.publish(f"td2adaptor/{r}/GoToComponent/gotoCancel", json.dumps(cancel).encode())
+            elif path[r] == "unreachable":
+                ports[r].down = True
+        if all(app.ends(run[r]) for r in robots):
+            break
+        time.sleep(0.01)
+    figures["during"] = during
+    figures["in_flight"] = len(acted)
+    figures["after"] = counted(local)
+    figures["ends"] = {r: app.ends(run[r]) for r in robots}
+    figures["states"] = {r: app.states(run[r]) for r in robots}
+    figures["path"] = path
+    for engine in engines:
+        engine.stop()
+    app_bus.close()
+    end = time.monotonic() + 10  # the local bus's delivery thread ends on its own once its last client left
+    while counted(local) > figures["before"] and time.monotonic() < end:
+        time.sleep(0.01)
+    figures["stopped"] = counted(local)
+    print(json.dumps(figures), flush=True)
+
+
+if __name__ == "__main__":
+    main()
