@@ -34,7 +34,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.subscription import Subscription
 from rclpy.task import Future
 
-from .common import ERROR_WITHOUT_MESSAGE, FAILURE_WITHOUT_MESSAGE, Callbacks, check_timeout
+from .common import ERROR_WITHOUT_MESSAGE, FAILURE_WITHOUT_MESSAGE, Callbacks, check_message, check_timeout
 from .errors import (
     AdaptorError,
     CallFailed,
@@ -778,9 +778,17 @@ class TopicPublisher(Generic[MessageT]):
                 self.publisher = _api(self.node).create_publisher(self.msg_type, self.topic, self.qos)
 
     def publish(self, msg: MessageT) -> None:
+        """Publish `msg` after checking its numbers (check_message): a ValueError sends nothing."""
+        check_message(msg, type(msg).__name__, _message_fields)
         if self.publisher is None:
             self.register()
         cast(Publisher, self.publisher).publish(msg)
+
+
+def _message_fields(msg: object) -> Any:
+    """A rosidl message's (field, type) pairs, None for any other value."""
+    listing = getattr(type(msg), "get_fields_and_field_types", None)
+    return None if listing is None else listing().items()
 
 
 # ---------------------------------------------------------------------------------------------------------
