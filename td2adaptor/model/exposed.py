@@ -213,7 +213,7 @@ def exposed_td(
     actions: dict[str, Any] = {}
     events: dict[str, Any] = {}
 
-    def form(topic: str, op: str | list[str], retain: bool = False, qos: str = MQTT_QOS) -> dict[str, Any]:
+    def form(topic: str, op: str | list[str], *, retain: bool = False, qos: str = MQTT_QOS) -> dict[str, Any]:
         return _form(broker, topic, op, model=is_model, retain=retain, qos=qos)
 
     runs = {s.run: s for s in catalog.specs if s.kind is Kind.QUERY and s.run}
