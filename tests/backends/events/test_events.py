@@ -20,6 +20,7 @@ from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GenOptions
 from td2adaptor.model import Model
 from td2adaptor.model.events import ALL_ROBOTS, Kind, build_catalog, data_schema
+from td2adaptor.model.exposed import DEFAULT_PACKET
 from td2adaptor.model.wot import wot_topic
 from td2adaptor.runtime.events import EventValidator
 from tests.backends.events.schemawalk import subschemas, untyped
@@ -349,17 +350,25 @@ def test_exposed_td_forms(files: dict[str, bytes]) -> None:
     topics = {wot_topic(s, ROBOT) or s.topic(ROBOT) for s in rb1_catalog().specs}
     seen = set()
     for form in _forms(td):
-        packet = form["mqv:controlPacket"]
-        assert packet in ("publish", "subscribe", "unsubscribe") and form["contentType"] == "application/json"
-        topic = form["mqv:topic"] if packet == "publish" else form["mqv:filter"]
-        assert ("mqv:topic" in form) == (packet == "publish") and ("mqv:filter" in form) == (packet != "publish")
+        ops = [form["op"]] if isinstance(form["op"], str) else form["op"]
+        # the W3C MQTT binding's default mapping gives each operation its control packet: stated only for the
+        # operations it maps to nothing; the content type is TD 1.1's default (application/json)
+        assert ("mqv:controlPacket" in form) == (
+            ops in (["queryaction"], ["cancelaction"])
+        ) and "contentType" not in form
+        packets = {form.get("mqv:controlPacket") or DEFAULT_PACKET[op] for op in ops}
+        assert packets in ({"publish"}, {"subscribe", "unsubscribe"})  # one form for a subscription and its end
+        publish = packets == {"publish"}
+        topic = form["mqv:topic"] if publish else form["mqv:filter"]
+        assert ("mqv:topic" in form) == publish and ("mqv:filter" in form) != publish
         assert form["href"] == f"{BROKER}/{topic}"  # node-wot 0.8 reads the topic from the href path
-        assert form.get("mqv:qos") == (None if packet == "unsubscribe" else "1")  # the runtime's QoS 1
+        assert form["mqv:qos"] == "1"  # the runtime's QoS 1
         seen.add(topic)
     assert seen == topics
     goto = td["actions"]["gotoRun"]
     assert [f["op"] for f in goto["forms"]] == ["invokeaction", "queryaction", "cancelaction"]
-    assert all(f["mqv:controlPacket"] == "publish" and "mqv:retain" not in f for f in goto["forms"])
+    assert [f.get("mqv:controlPacket") for f in goto["forms"]] == [None, "publish", "publish"]
+    assert all("mqv:retain" not in f for f in goto["forms"])
     assert [f["mqv:topic"] for f in goto["forms"]] == [
         f"td2adaptor/{ROBOT}/wot-thing/GoToComponent/{name}" for name in ("gotoRun", "gotoQuery", "gotoCancel")
     ]
@@ -369,16 +378,17 @@ def test_exposed_td_forms(files: dict[str, bytes]) -> None:
     query = td["actions"]["gotoQuery"]["input"]
     assert set(query["properties"]) == {"mission", "correlationId"}
     availability = td["properties"]["availability"]
-    assert availability["forms"][0]["op"] == ["readproperty", "observeproperty"] and availability["observable"]
+    assert availability["forms"][0]["op"] == ["readproperty", "observeproperty", "unobserveproperty"]
+    assert availability["observable"] and availability["readOnly"] and "writeOnly" not in availability
     assert availability["forms"][0]["mqv:retain"] is True  # property values are retained, as is the status
     assert td["events"]["status"]["forms"][0]["mqv:retain"] is True
     assert "mqv:retain" not in td["events"]["gotoRunFeedback"]["forms"][0]
-    assert td["properties"]["door"]["writeOnly"] is True
+    assert td["properties"]["door"]["writeOnly"] is True and "readOnly" not in td["properties"]["door"]
     assert td["properties"]["door"]["forms"][0]["mqv:topic"] == f"td2adaptor/{ROBOT}/wot-thing/DoorComponent/door"
     assert set(td["properties"]["door"]["properties"]) == {"data"}  # the value itself
     assert "payload" not in td["properties"]["poseMarker"]["properties"]
     feedback = td["events"]["gotoRunFeedback"]
-    assert feedback["forms"][0]["op"] == "subscribeevent"
+    assert [f["op"] for f in feedback["forms"]] == [["subscribeevent", "unsubscribeevent"]]
     assert feedback["data"]["properties"]["state"]["enum"][-1] == "cancelled"
     assert {"correlationId", "mission", "terminal", "seq"} <= set(feedback["data"]["properties"])
     assert set(td["events"]) == {
@@ -401,7 +411,7 @@ def test_property_qos_0_is_what_the_observe_forms_say() -> None:
     default = robot_td()
     for name, prop in td["properties"].items():
         for form, before in zip(prop["forms"], default["properties"][name]["forms"], strict=True):
-            observe = form["mqv:controlPacket"] == "subscribe"
+            observe = "mqv:filter" in form
             assert form.get("mqv:qos") == ("0" if observe else before.get("mqv:qos")), (name, form)
     assert any(f.get("mqv:qos") == "0" for p in td["properties"].values() for f in p["forms"])
     others = [f for s in ("actions", "events") for a in td[s].values() for f in a["forms"]]
