@@ -27,7 +27,8 @@ RUNTIME = PACKAGE / "runtime"
 RUNTIME_LAYERS: tuple[tuple[str, ...], ...] = (
     ("events", "workers", "loop"),  # shared bottom: envelopes, ids and parsing; threads kept for the next task;
     # the process's engine loop (events and timers) and call pool
-    ("ros", "bus"),  # the robot side (ports, ROS 1 bridge, CDR) and the event side (buses, WoT topics, security)
+    ("ros", "bus"),  # the robot side (ports, ROS 1 bridge, CDR) and the event side (buses, WoT topics, security;
+    # bus/mqttloop.py, the one thread that serves every MQTT connection of the process, under bus/mqttbus.py)
     ("config",),  # one robot's settings: read by the engine and the node
     ("engine",),  # admission, missions, goals, property streams, outbox, replay guard, ledger
     ("node",),  # putting a robot or a fleet together: bus, engine, ROS graph, discovery, `td2adaptor run`
