@@ -24,6 +24,8 @@ PACKAGE = "twins_adaptor"
 #: request and message fields that clash with builtins (id, type, list) and with call_X's own `timeout`
 _SRV = "int32 id\nstring type\nfloat64 timeout\nstring list\n---\nbool success\nstring message\n"
 _MSG = "int32 id\nstring type\nfloat64 timeout\n"
+#: a response that says failure with `success` alone, no message
+_FLAG = "int32 id\n---\nbool success\n"
 _PACKAGE_XML = (
     '<?xml version="1.0"?><package format="3"><name>kw_msgs</name><version>0.0.0</version><description>x'
     '</description><maintainer email="a@b.c">a</maintainer><license>MIT</license></package>'
@@ -55,7 +57,13 @@ def _td() -> dict[str, Any]:
                 "safe": False,
                 "idempotent": False,
                 "forms": form("/go", "kw_msgs/srv/Go", "invokeaction"),
-            }
+            },
+            "flag": {
+                "rosv:component": "GoComponent",
+                "safe": False,
+                "idempotent": False,
+                "forms": form("/flag", "kw_msgs/srv/Flag", "invokeaction"),
+            },
         },
     }
 
@@ -68,6 +76,7 @@ def trees(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict[str, bytes
     (pkg / "msg").mkdir()
     (pkg / "package.xml").write_text(_PACKAGE_XML, encoding="utf-8")
     (pkg / "srv" / "Go.srv").write_text(_SRV, encoding="utf-8")
+    (pkg / "srv" / "Flag.srv").write_text(_FLAG, encoding="utf-8")
     (pkg / "msg" / "State.msg").write_text(_MSG, encoding="utf-8")
     (tmp / "td.json").write_text(json.dumps(_td()), encoding="utf-8")
     result = td2adaptor.compile(tmp / "td.json", interfaces=[tmp / "ifaces"])
@@ -173,3 +182,17 @@ def test_an_empty_robot_message_gives_the_same_call_failed_text(
     # and rclpy's checks the response with success_failure
     assert "success_failure" in _components(trees["rclpy"])
     assert trees["rospy"][f"{PACKAGE}/src/{PACKAGE}/common.py"] == trees["rclpy"][f"{PACKAGE}/{PACKAGE}/common.py"]
+
+
+def test_a_response_with_success_alone_fails_alike(
+    trees: dict[str, dict[str, bytes]], rclpy_runtime: ModuleType
+) -> None:
+    """`success` false without a message field: both packages raise CallFailed with the shared text (the rule is
+    the model's, `Failure.SUCCESS_ONLY`; rclpy used to return such a response as a success)."""
+    common = importlib.import_module(f"{PACKAGE}.common")
+    assert rclpy_runtime.success_only_failure(SimpleNamespace(success=False)) == common.FAILURE_WITHOUT_MESSAGE
+    assert rclpy_runtime.success_only_failure(SimpleNamespace(success=True)) is None
+    ros2 = _components(trees["rclpy"])
+    assert "success_only_failure" in ros2.split("self._flag: ServiceClient", 1)[1].split(")\n", 1)[0]
+    ros1 = _components(trees["rospy"])
+    assert "if not response.success:\n            raise CallFailed(self._svc_flag.name, FAILURE_WITHOUT_MESSAGE" in ros1

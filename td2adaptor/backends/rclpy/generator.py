@@ -28,6 +28,7 @@ from td2adaptor.model import (
     ActionEndpoint,
     ArrayKind,
     Component,
+    Failure,
     FieldType,
     MessageDef,
     Model,
@@ -271,8 +272,13 @@ def _runtime_module(name: str) -> str:
     return ".goals" if name in py.goals_names() else ".runtime"
 
 
-def _is(ftype: FieldType | None, base: str) -> bool:
-    return ftype is not None and ftype.base == base and ftype.array is ArrayKind.NONE and not ftype.is_message
+#: the runtime function that finds a failure in a response, by how the response says it (`Failure`)
+_FAILURE = {
+    Failure.NONE: "None",
+    Failure.RESULT: "procedure_failure",
+    Failure.SUCCESS: "success_failure",
+    Failure.SUCCESS_ONLY: "success_only_failure",
+}
 
 
 def _parts(d: MessageDef | ServiceDef | ActionDef) -> list[MessageDef]:
@@ -416,36 +422,6 @@ class Builder:
                 return name[: -len(suffix)]
         return name
 
-    def failure(self, response: MessageDef) -> str:
-        """How a response reports failure: procedures_msgs-style result, std_srvs-style success, or not at all."""
-        fields = {f.name: f.type for f in response.fields}
-        result = fields.get("result")
-        if result is not None and result.is_message and result.array is ArrayKind.NONE:
-            inner = {f.name: f.type for f in self.message(result.base).fields}
-            if _is(inner.get("result"), "string") and _is(inner.get("message"), "string"):
-                return "procedure_failure"
-        if _is(fields.get("success"), "bool") and _is(fields.get("message"), "string"):
-            return "success_failure"
-        return "None"
-
-    def mission_path(self, svc: ServiceDef, response_path: Sequence[str]) -> str | None:
-        """Where a query/cancel request carries the mission id: the longest suffix of the run response's
-        mission-id path that is an integer field of the request (`header/id` for `state/header/id`), else
-        header/id, id or mission_id (the rule validate checks, ROS447)."""
-        candidates = [tuple(response_path[i:]) for i in range(len(response_path))]
-        for path in (*candidates, ("header", "id"), ("id",), ("mission_id",)):
-            msg: MessageDef | None = svc.request
-            for i, part in enumerate(path):
-                found = next((x for x in msg.fields if x.name == part), None) if msg is not None else None
-                if found is None or found.type.array is not ArrayKind.NONE:
-                    break
-                if i == len(path) - 1:
-                    if found.type.base in rt.INTS:
-                        return ".".join(path)
-                    break
-                msg = self.message(found.type.base) if found.type.is_message else None
-        return None
-
     # -- names in the generated code
 
     def ros_name_expr(self, name: RosName) -> str:
@@ -528,9 +504,9 @@ class Builder:
                 f"Returns Started(mission_id, response); the mission id is {'/'.join(proc.mission_id)} of the "
                 "response, and the procedure's query and cancel methods use it when given no mission_id."
             )
-        elif proc is not None and proc.mission_id and svc.procedure_role in (ProcedureRole.QUERY, ProcedureRole.CANCEL):
-            path = self.mission_path(sdef, proc.mission_id)
-            if path is not None:
+        elif proc is not None and svc.procedure_role in (ProcedureRole.QUERY, ProcedureRole.CANCEL):
+            path = ".".join(proc.slot(svc.procedure_role.value))
+            if path:
                 mission_field = "request." + path
                 last_attr = f"self._last_{proc.run}_id"
                 self.runtime_used.add("LAST_MISSION")
@@ -540,7 +516,7 @@ class Builder:
                     "-1 (LAST_MISSION: the robot's last procedure) only when it made none yet."
                 )
         body.append(f"request: None sends construct_{svc.name}_Msg() (all ROS defaults).")
-        failure = self.failure(sdef.response)
+        failure = _FAILURE[svc.failure]
         if failure != "None":
             self.runtime_used.add(failure)
         body.append(

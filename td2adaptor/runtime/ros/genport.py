@@ -19,7 +19,6 @@ ROS 1 interpreter.
 from __future__ import annotations
 
 import importlib
-import inspect
 import itertools
 import math
 import threading
@@ -119,32 +118,38 @@ def _port_error(exc: BaseException) -> PortError:
     return PortCallFailed(message, response=plain if isinstance(plain, Mapping) else None)
 
 
-def _takes_mission_id(method: Callable[..., Any]) -> bool:
-    try:
-        return "mission_id" in inspect.signature(method).parameters
-    except (TypeError, ValueError):
-        return False
-
-
 @dataclass(frozen=True)
 class Layout:
-    """What the port needs to know of a model: its component classes and its procedure run actions."""
+    """What the port needs to know of a model: its component classes, its procedure run actions and the
+    queries and cancels whose requests carry a mission id (`Procedure.slot`: their methods take `mission_id=`)."""
 
     components: tuple[str, ...]
     runs: frozenset[tuple[str, str]] = frozenset()
+    ids: frozenset[tuple[str, str]] = frozenset()
 
     @classmethod
     def of(cls, model: Model) -> Layout:
         runs = {(c.name, s.name) for c in model.components for s in c.services if s.procedure_role is ProcedureRole.RUN}
-        return cls(tuple(c.name for c in model.components), frozenset(runs))
+        ids = {
+            (c.name, action)
+            for c in model.components
+            for p in c.procedures
+            for role, action in (("query", p.query), ("cancel", p.cancel))
+            if action is not None and p.slot(role)
+        }
+        return cls(tuple(c.name for c in model.components), frozenset(runs), frozenset(ids))
 
     def to_json(self) -> dict[str, Any]:
-        return {"components": list(self.components), "runs": sorted([c, a] for c, a in self.runs)}
+        pairs = {"runs": self.runs, "ids": self.ids}
+        return {"components": list(self.components), **{k: sorted([c, a] for c, a in v) for k, v in pairs.items()}}
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Layout:
-        runs: Iterable[Any] = data.get("runs") or ()
-        return cls(tuple(str(c) for c in data["components"]), frozenset((str(c), str(a)) for c, a in runs))
+        def pairs(key: str) -> frozenset[tuple[str, str]]:
+            found: Iterable[Any] = data.get(key) or ()
+            return frozenset((str(c), str(a)) for c, a in found)
+
+        return cls(tuple(str(c) for c in data["components"]), pairs("runs"), pairs("ids"))
 
 
 class GoalTrack:
@@ -318,7 +323,6 @@ class GeneratedPort:
         self._locks: dict[str, threading.BoundedSemaphore] = {}
         self._goals: dict[tuple[str, str, str], GoalTrack] = {}
         self._goals_lock = threading.Lock()
-        self._takes: dict[tuple[str, str], bool] = {}  # whether call_<action> takes mission_id= (inspect is slow)
         for name in self.layout.components:
             cls = getattr(module, name, None)
             if cls is None:
@@ -363,13 +367,10 @@ class GeneratedPort:
         return self._guarded(component, run)  # type: ignore[no-any-return]
 
     def query(self, component: str, action: str, mission_id: int, timeout: float) -> Mapping[str, Any]:
-        """Call a query or cancel; the mission id goes where the generated method takes one (`mission_id=`),
-        else the robot is asked about its current procedure (a request that cannot name it: ROS447)."""
+        """Call a query or cancel; the mission id goes where its request carries one (`mission_id=`, see
+        `Layout.ids`), else the robot is asked about its current procedure (a request that cannot name it: ROS447)."""
         call = self._method(component, f"call_{action}")
-        takes = self._takes.get((component, action))
-        if takes is None:
-            takes = self._takes[(component, action)] = _takes_mission_id(call)
-        if takes:
+        if (component, action) in self.layout.ids:
             return self._guarded(component, lambda: to_plain(call(mission_id=mission_id, timeout=timeout)))  # type: ignore[no-any-return]
         return self._guarded(component, lambda: to_plain(call(timeout=timeout)))  # type: ignore[no-any-return]
 
