@@ -45,6 +45,7 @@ from td2adaptor.model import (
     TopicEndpoint,
     TypeTable,
 )
+from td2adaptor.model import genapi as api
 from td2adaptor.support.providers import providers
 
 TEMPLATES = Path(__file__).parent / "templates"
@@ -299,7 +300,7 @@ def _service_view(
             mission_attr = f"_mission_{proc.run}"
             notes.append(
                 f"Without a request, asks about mission_id: by default the mission this object last started "
-                f"with call_{proc.run}, or -1 (the robot's last procedure) when it has started none. Pass "
+                f"with {api.CALL(proc.run)}, or -1 (the robot's last procedure) when it has started none. Pass "
                 f"mission_id explicitly when several callers share the robot."
             )
     raises = "Raises ServiceUnavailable (not reachable), CallTimeout (no answer within timeout, default self.timeout)"
@@ -411,7 +412,7 @@ def _action_view(action: ActionEndpoint, types: TypeTable, imports: _Imports, di
         [
             f"Send a goal to ROS action {display} ({ros_type}, actionlib: {display}/goal, cancel, status, feedback, "
             "result).",
-            f"goal=None sends construct_{action.name}_Goal() (all fields zero). Returns the goal's GoalHandle: "
+            f"goal=None sends {api.CONSTRUCT_GOAL(action.name)}() (all fields zero). Returns the goal's GoalHandle: "
             "goal_id, status, on_feedback(callback), feedback(timeout=...) to iterate over the feedback until the "
             "goal ends, result(timeout=...) and cancel(timeout=...). Its waits default to timeout (default: "
             "self.timeout).",
@@ -424,7 +425,8 @@ def _action_view(action: ActionEndpoint, types: TypeTable, imports: _Imports, di
     start_doc = docstring(
         [],
         [
-            f"send_{action.name} without waiting: returns the goal's GoalHandle at once (its goal_id is known) and "
+            f"{api.SEND(action.name)} without waiting: returns the goal's GoalHandle at once (its goal_id is known) "
+            "and "
             "tells what happens to the callbacks: on_accepted() once the server reported the goal, "
             "on_status(status) at each change of status while it runs, on_feedback(message) with each feedback "
             "message, in order, then exactly one on_done(outcome), a GoalOutcome: status succeeded, canceled, "
@@ -456,21 +458,6 @@ def _action_view(action: ActionEndpoint, types: TypeTable, imports: _Imports, di
         send_doc=send_doc,
         start_doc=start_doc,
     )
-
-
-def _method_names(view: ComponentView) -> list[str]:
-    names = ["register", "close"]
-    for s in view.services:
-        names += [f"construct_{s.name}_Msg", f"call_{s.name}"]
-    for sub in view.subscribers:
-        names += [f"get_{sub.name}_value", f"on_{sub.name}", f"on_{sub.name}_serialized"]
-    for p in view.publishers:
-        names += [f"construct_{p.name}_Msg", f"publish_{p.name}_Msg"]
-    for a in view.actions:
-        names += [f"construct_{a.name}_Goal", f"send_{a.name}", f"start_{a.name}"]
-    if view.single is not None:
-        names.append("get_value")
-    return names
 
 
 def component_views(model: Model, imports: _Imports, diags: Diagnostics) -> list[ComponentView]:
@@ -513,13 +500,13 @@ def component_views(model: Model, imports: _Imports, diags: Diagnostics) -> list
             mission_attrs=mission_attrs,
             actions=actions,
         )
-        names = _method_names(view)
-        clashes = sorted({n for n in names if names.count(n) > 1})
-        if clashes:
+        names = [[x.name for x in group] for group in (services, actions, subscribers, publishers)]
+        clashes = api.clashes(*names)
+        for member, owner, other in clashes:
             diags.error(
                 "GEN841",
-                f"rospy backend: component {comp.name} would define {', '.join(clashes)} twice",
-                hint="give the affordances different names or put them in different components",
+                f"rospy backend: {comp.name}: method {member} of {owner} clashes with {other}",
+                hint="rename one of the affordances",
             )
         views.append(view)
     return views

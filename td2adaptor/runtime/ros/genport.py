@@ -1,7 +1,7 @@
 """A `RobotPort` onto the generated rclpy or rospy component classes: how the edge node reaches real ROS.
 
-The generated packages (issue 3) offer, per component, `construct_<action>_Msg(**fields)`,
-`call_<action>(request, *, timeout)` (procedure runs return `Started(mission_id, response)`, queries and
+The generated packages (issue 3) offer, per component (the names are the contract's, `model/genapi.py`),
+`construct_<action>_Msg(**fields)`, `call_<action>(request, *, timeout)` (procedure runs return `Started(mission_id, response)`, queries and
 cancels accept `mission_id=`), `get_<property>_value(timeout=)`, `construct_<property>_Msg` /
 `publish_<property>_Msg`, and raise `ServiceUnavailable` / `CallTimeout` / `CallFailed` / `NoMessage`.
 This adapter turns dicts into those calls and messages back into dicts, and maps the errors onto
@@ -12,8 +12,8 @@ keeps one mission per component); on ROS 1 the calls of one component are made o
 Values use the field names of the robot's own ROS version, as the event schemas and the robot's published
 TD declare them: a ROS 1 time or duration is `{"secs": ..., "nsecs": ...}`, a ROS 2 one `{"sec": ...,
 "nanosec": ...}` (the generated rospy constructors accept either spelling on the way in).
-Only the standard library and `td2adaptor.model` are imported: the ROS 1 bridge runs this module under a
-ROS 1 interpreter.
+Only the standard library and `td2adaptor.model` (with `genapi`) are imported: the ROS 1 bridge runs this module
+under a ROS 1 interpreter.
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from types import ModuleType
 from typing import Any
 
 from td2adaptor.model import Model, ProcedureRole
+from td2adaptor.model import genapi as api
 from td2adaptor.runtime.ros.port import (
     GoalProgress,
     NoValue,
@@ -354,8 +355,8 @@ class GeneratedPort:
             raise _port_error(exc) from exc
 
     def start(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> StartResult:
-        construct = self._method(component, f"construct_{action}_Msg")
-        call = self._method(component, f"call_{action}")
+        construct = self._method(component, api.CONSTRUCT_REQUEST(action))
+        call = self._method(component, api.CALL(action))
 
         def run() -> StartResult:
             result = call(construct(**payload), timeout=timeout)
@@ -369,17 +370,17 @@ class GeneratedPort:
     def query(self, component: str, action: str, mission_id: int, timeout: float) -> Mapping[str, Any]:
         """Call a query or cancel; the mission id goes where its request carries one (`mission_id=`, see
         `Layout.ids`), else the robot is asked about its current procedure (a request that cannot name it: ROS447)."""
-        call = self._method(component, f"call_{action}")
+        call = self._method(component, api.CALL(action))
         if (component, action) in self.layout.ids:
-            return self._guarded(component, lambda: to_plain(call(mission_id=mission_id, timeout=timeout)))  # type: ignore[no-any-return]
+            return self._guarded(component, lambda: to_plain(call(**{api.MISSION_ID: mission_id}, timeout=timeout)))  # type: ignore[no-any-return]
         return self._guarded(component, lambda: to_plain(call(timeout=timeout)))  # type: ignore[no-any-return]
 
     def cancel(self, component: str, action: str, mission_id: int, timeout: float) -> Mapping[str, Any]:
         return self.query(component, action, mission_id, timeout)
 
     def call(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> Mapping[str, Any]:
-        construct = self._method(component, f"construct_{action}_Msg")
-        call = self._method(component, f"call_{action}")
+        construct = self._method(component, api.CONSTRUCT_REQUEST(action))
+        call = self._method(component, api.CALL(action))
         if (component, action) in self.layout.runs:
             return self.start(component, action, payload, timeout).response
 
@@ -390,35 +391,35 @@ class GeneratedPort:
         return self._guarded(component, run)  # type: ignore[no-any-return]
 
     def read_property(self, component: str, name: str, timeout: float) -> Any:
-        get = self._method(component, f"get_{name}_value")
+        get = self._method(component, api.GET(name))
         return self._guarded(component, lambda: to_plain(get(timeout=timeout)))
 
     def watch_property(self, component: str, name: str, callback: Callable[[Any], None]) -> Callable[[], None]:
         """Call `callback` with every message of a subscribed property (the raw ROS message, on the ROS
         side's thread: it must not block); returns what removes it (property_mode message, streams.py)."""
-        return self._method(component, f"on_{name}")(callback)  # type: ignore[no-any-return]
+        return self._method(component, api.ON(name))(callback)  # type: ignore[no-any-return]
 
     def watch_property_serialized(
         self, component: str, name: str, callback: Callable[[bytes], None]
     ) -> Callable[[], None] | None:
         """`watch_property` with each message's serialized bytes as received (a ROS 2 adaptor's
         `on_<name>_serialized`); None when the adaptor has no such method (generated before it existed)."""
-        method = getattr(self.components.get(component), f"on_{name}_serialized", None)
+        method = getattr(self.components.get(component), api.ON_SERIALIZED(name), None)
         if not callable(method):
             return None
         return method(callback)  # type: ignore[no-any-return]
 
     def write_property(self, component: str, name: str, value: Any) -> None:
-        construct = self._method(component, f"construct_{name}_Msg")
-        publish = self._method(component, f"publish_{name}_Msg")
+        construct = self._method(component, api.CONSTRUCT_MESSAGE(name))
+        publish = self._method(component, api.PUBLISH(name))
         fields = value if isinstance(value, Mapping) else {"data": value}
         self._guarded(component, lambda: publish(construct(**fields)))
 
     # -- ROS actions (the `GoalPort` protocol) --------------------------------------------------------------
 
     def send_goal(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> str:
-        construct = self._method(component, f"construct_{action}_Goal")
-        send = self._method(component, f"send_{action}")
+        construct = self._method(component, api.CONSTRUCT_GOAL(action))
+        send = self._method(component, api.SEND(action))
         handle = self._guarded(component, lambda: send(construct(**payload), timeout=timeout))
         track = GoalTrack(handle, self.feedback_grace, self.server_timeout)
         with self._goals_lock:
