@@ -1,9 +1,10 @@
 """A `RobotPort` onto the generated rclpy or rospy component classes: how the edge node reaches real ROS.
 
 The generated packages (issue 3) offer, per component (the names are the contract's, `model/genapi.py`),
-`construct_<action>_Msg(**fields)`, `call_<action>(request, *, timeout)` (procedure runs return `Started(mission_id, response)`, queries and
-cancels accept `mission_id=`), `get_<property>_value(timeout=)`, `construct_<property>_Msg` /
-`publish_<property>_Msg`, and raise `ServiceUnavailable` / `CallTimeout` / `CallFailed` / `NoMessage`.
+`construct_<action>_Msg(**fields)`, `call_<action>(request, *, timeout)` (procedure runs return
+`Started(mission_id, response)`, queries and cancels accept `mission_id=`), `get_<property>_value(timeout=)`,
+`construct_<property>_Msg` / `publish_<property>_Msg`, and raise `ServiceUnavailable` / `CallTimeout` /
+`CallFailed` / `NoMessage`.
 This adapter turns dicts into those calls and messages back into dicts, and maps the errors onto
 `PortError`s. The engine calls it from several threads at once: on ROS 2 up to `CALLS_PER_COMPONENT` calls
 of one component overlap (an rclpy client takes concurrent requests, each with its own future; the engine
