@@ -928,6 +928,7 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     for name in py.SHARED:
         tree.add(f"{src}/{name}", py.shared_source(name))
     tree.add(f"{src}/py.typed", "")
+    tree.add(f"{src}/{api.RECORD}.py", api.record_source(model, "ros2"))
     for module in view.stubs:
         tree.add(f"{root}/{module.path}", _render("stubs/module.pyi.j2", m=module, **ctx))
     tree.add(f"{root}/launch/edge_node.launch.py", _render("launch/edge_node.launch.py.j2", **ctx))

@@ -676,6 +676,7 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     src = f"{root}src/{pkg}/"
     tree.add(src + "__init__.py", _render("src/__init__.py.j2", **context))
     tree.add(src + "py.typed", "")
+    tree.add(f"{src}{api.RECORD}.py", api.record_source(model, "ros1"))
     for name in py.SHARED:
         tree.add(src + name, py.shared_source(name))
     tree.add(src + "_runtime.py", verbatim(VERBATIM, "_runtime.py"))
