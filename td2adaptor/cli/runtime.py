@@ -3,6 +3,7 @@ source checkout)."""
 
 from __future__ import annotations
 
+import shlex
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -185,7 +186,7 @@ def run(
         )
     from td2adaptor.runtime.bus.bus import BusError
     from td2adaptor.runtime.bus.security import SecurityError
-    from td2adaptor.runtime.ros.port import PortError, RosSetupError
+    from td2adaptor.runtime.ros.port import PortError, RosSetupError, StalePackage
 
     options = RosOptions(int(ros), package, package_paths, prefixes, ros1_python)
     node = EdgeNode(result.model, configs, options)
@@ -200,6 +201,14 @@ def run(
         node.stop()
         click.echo("td2adaptor run: interrupted while starting", err=True)
         sys.exit(130)
+    except StalePackage as exc:  # generated from another TD: say the command that makes it again
+        node.stop()
+        backend = "rospy" if exc.distro == "ros1" else "rclpy"
+        given = [*(a for folder in interfaces for a in ("-I", str(folder))), *(a for v in sets for a in ("--set", v))]
+        given += ["--values", str(values_file)] if values_file is not None else []
+        given += ["--package-name", exc.package] if exc.package != result.model.package_name else []
+        command = shlex.join(["td2adaptor", "gen", source, "-b", backend, *given])
+        _fail("run", f"{exc}; regenerate it with `{command} -o DIR` (DIR: where it is kept) and build it again")
     except (RosSetupError, SecurityError, BusError, PortError) as exc:  # the user's to fix: one clear line
         node.stop()
         _fail("run", str(exc))

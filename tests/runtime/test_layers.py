@@ -39,7 +39,13 @@ RUNTIME_LAYERS: tuple[tuple[str, ...], ...] = (
 EXTENDS = {"bus/drivenbus.py": "bus/mqttbus.py"}
 #: what the ROS 1 bridge's child runs under ROS 1's interpreter, with the standard library and td2adaptor only
 BRIDGE = "td2adaptor.runtime.ros.bridge"
-STDLIB_ONLY = (BRIDGE, "td2adaptor.runtime.ros.genport", "td2adaptor.runtime.ros.port", "td2adaptor.runtime.ros")
+STDLIB_ONLY = (
+    BRIDGE,
+    "td2adaptor.runtime.ros.genport",
+    "td2adaptor.runtime.ros.port",
+    "td2adaptor.runtime.ros",
+    "td2adaptor.model.genapi",
+)
 
 
 def _rank() -> dict[str, int]:

@@ -488,6 +488,13 @@ class ProcedureStyleResponse(Protocol):
     def result(self) -> _ResultFields: ...
 
 
+class SuccessOnlyResponse(Protocol):
+    """A response with `success` and no message."""
+
+    @property
+    def success(self) -> bool: ...
+
+
 class SuccessStyleResponse(Protocol):
     """A response with `success` and `message` (std_srvs/Trigger and SetBool style)."""
 
@@ -510,6 +517,11 @@ def success_failure(response: SuccessStyleResponse) -> str | None:
     if not response.success:
         return response.message or FAILURE_WITHOUT_MESSAGE
     return None
+
+
+def success_only_failure(response: SuccessOnlyResponse) -> str | None:
+    """FAILURE_WITHOUT_MESSAGE when a response with `success` and no message reports failure, else None."""
+    return None if response.success else FAILURE_WITHOUT_MESSAGE
 
 
 class ServiceClient(Generic[RequestT, ResponseT]):
