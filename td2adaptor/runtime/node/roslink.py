@@ -185,7 +185,9 @@ def connect_ros2(model: Model, package: str, configs: Sequence[RuntimeConfig], *
 
     def attach(into: RosLink, members: Sequence[RuntimeConfig], node_name: str) -> None:
         """One rclpy node for `members` in their domain's context, their ports on it, then spun."""
-        node: Any = rclpy.create_node(node_name, context=context_of(members[0].ros_domain_id))
+        context = context_of(members[0].ros_domain_id)
+        # a joiner's node (into a grown link) serves no parameters: one node per joining batch, less graph noise
+        node: Any = rclpy.create_node(node_name, context=context, start_parameter_services=into is link)
         into.closers.append(node.destroy_node)
         # every client and subscription is created before the node spins: an EventsExecutor cannot take new
         # ones while it spins (rclpy 7.1 blocks), and a SingleThreadedExecutor rebuilds its wait set
@@ -207,7 +209,9 @@ def connect_ros2(model: Model, package: str, configs: Sequence[RuntimeConfig], *
 
     def graph(domain: int | None) -> Any:
         if domain not in graph_nodes:
-            node = rclpy.create_node(f"{name or 'td2adaptor_edge'}_graph", context=context_of(domain))
+            node = rclpy.create_node(
+                f"{name or 'td2adaptor_edge'}_graph", context=context_of(domain), start_parameter_services=False
+            )
             link.closers.append(node.destroy_node)
             graph_nodes[domain] = node
         return graph_nodes[domain]
