@@ -256,6 +256,7 @@ def run(
             node.halted,
             reload=None if watched is None else watched.reload,
             tick=None if watched is None else watched.poll,
+            period=0.25,  # a look at the file: one stat
         )
     finally:
         node.stop()

@@ -4,8 +4,8 @@ Each reading goes through the same loader as the start (`config.load_fleet` with
 and the environment) and is applied to the running fleet (`Fleet.apply`, origin "file"): robots no longer in
 the file leave, new ones join, a robot whose settings changed restarts alone. A file that no longer reads (a
 YAML error, an unknown key, a robot id twice, a file gone) is reported and changes nothing: the fleet goes on
-as it runs. On disk a change is taken once the file has stood still for one look (`poll`, every half second
-from `run`'s main loop), so an editor's half-written file is not read.
+as it runs. On disk a change is taken once the file has stood still for one look (`poll`, every quarter of a
+second from `run`'s main loop), so an editor's half-written file is not read.
 """
 
 from __future__ import annotations
