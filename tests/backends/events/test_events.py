@@ -600,8 +600,13 @@ def test_the_broker_acl_names_each_robots_topics_and_refuses_ids_that_would_open
         text, said = acl(robots)
         rules = [line for line in text.splitlines() if line and not line.startswith("#")]
         assert said == [] and not [r for r in rules if "%" in r or r.startswith("pattern")]
-        assert [r for r in rules if r.startswith("user ")] == ["user rb1_a", "user rb1_b", "user application"]
+        users = [r for r in rules if r.startswith("user ")]
+        assert users == ["user rb1_a", "user rb1_b", "user fleet-admin", "user application"]
         block = rules[rules.index("user rb1_a") + 1 : rules.index("user rb1_b")]
+        # and the fleet's admin requests (docs/fleet.md), at a level no robot id can be
+        fleet = f"td2adaptor/.fleet/{model.package_name}"
+        assert block[-1] == f"topic write {fleet}/answer" and f"topic read {fleet}/request" in block
+        block = [r for r in block if not r.startswith(f"topic read {fleet}/") and f" {fleet}/" not in r]
         assert "topic write td2adaptor/rb1_a/wot-thing/GoToComponent/gotoRun/feedback" in block
         # its commands through filters that also match topics no event is defined on (answered unknown-topic)
         assert "topic read td2adaptor/rb1_a/+/+" in block and "topic read td2adaptor/rb1_a/wot-thing/+/+" in block
@@ -620,3 +625,28 @@ def test_the_broker_acl_names_each_robots_topics_and_refuses_ids_that_would_open
     assert said == ["GEN860: events backend: events.robots must be a list of robot ids"]
     text = tree_of(model)["mosquitto.acl"].decode()
     assert "\nuser <robot>\n" in text and "topic write td2adaptor/<robot>/status" in text
+
+
+def test_the_broker_acl_lets_the_fleet_admin_ask_and_the_nodes_answer_and_refuses_a_bad_fleet_name() -> None:
+    """Issue 32: the fleet's admin requests (`events.fleet`, default the package name): the `fleet-admin` user
+    writes requests and reads answers, each node the other way round; a fleet name that is no single topic
+    level is refused (GEN860)."""
+    model = rb1_model()
+
+    def acl(fleet: Any) -> tuple[list[str], list[str]]:
+        diags = Diagnostics()
+        extra = (("events.robots", ["rb1_a"]), ("events.fleet", fleet))
+        tree = backend.generate(model, GenOptions(extra=extra), diags)
+        text = tree.files[f"{model.package_name}/mosquitto.acl"].decode()
+        return [r for r in text.splitlines() if r and not r.startswith("#")], [f"{d.code}: {d.message}" for d in diags]
+
+    rules, said = acl("site_7")
+    assert said == []
+    admin = rules[rules.index("user fleet-admin") + 1 : rules.index("user application")]
+    assert admin == ["topic write td2adaptor/.fleet/site_7/request", "topic read td2adaptor/.fleet/site_7/answer"]
+    node = rules[rules.index("user rb1_a") + 1 : rules.index("user fleet-admin")]
+    assert "topic read td2adaptor/.fleet/site_7/request" in node
+    assert "topic write td2adaptor/.fleet/site_7/answer" in node
+    for bad in ("a/b", "+", "#", ALL_ROBOTS, "", 7):
+        _, said = acl(bad)
+        assert len(said) == 1 and said[0].startswith("GEN860") and "is not a fleet name" in said[0], (bad, said)
