@@ -22,7 +22,7 @@ import pytest
 from td2adaptor.model import Model
 from td2adaptor.model.events import Kind, build_catalog
 from td2adaptor.model.wot import WOT_LEVEL
-from td2adaptor.runtime import PortRejected, PortTimeout, PortUnavailable, RuntimeConfig, serve
+from td2adaptor.runtime import RuntimeConfig, serve
 from td2adaptor.runtime.events import EventValidator
 from td2adaptor.runtime.node.roslink import RosLink, connect
 from tests.lowering.test_actions import INTERFACES, action_td
@@ -31,6 +31,7 @@ from tests.ros2.common import Process
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient, Event
 from tests.runtime.edge import feedback, until
+from tests.runtime.edge import rejects as edge_rejects
 from tests.runtime.fibo_ros2 import ABORT, SLOW, sequence
 from tests.runtime.rb1 import terminal
 from tests.runtime.rclpy_robot import generate_rclpy
@@ -123,13 +124,8 @@ class Edge:
 
 
 def rejects(port: Any) -> bool:
-    try:
-        port.send_goal(COMPONENT, "fibonacci", {"order": -1}, 1.0)
-    except PortRejected:
-        return True
-    except (PortUnavailable, PortTimeout):
-        return False
-    raise AssertionError("a goal of order -1 was accepted")
+    """A goal of order -1 is rejected: the server is there and its answers reach us."""
+    return edge_rejects(port, COMPONENT, "fibonacci", {"order": -1})
 
 
 def sent_feedback(robot: Process, ns: str, order: int) -> list[list[int]]:
