@@ -47,6 +47,7 @@ from tests.runtime.rb1 import terminal
 
 ROBOT = "fibo_one"
 KILLED = "fibo_one_killed"
+BRIDGE_KILLED = "fibo_one_bridge"
 COMPONENT = "MathComponent"
 BUILD_ACTIONS = REPO / "tests" / "ros1" / "build_actions.py"
 
@@ -264,6 +265,38 @@ def test_robot_killed_mid_goal(build: tuple[Model, Path, Path], master: Master, 
         assert not CLASS_NAME.search(last["message"]), last  # was "ServiceUnavailable: service ... (went away ...)"
         assert time.monotonic() - killed < 20.0 + 5.0
         assert sum(1 for e in events if e["payload"]["terminal"]) == 1
+    finally:
+        edge.close()
+        robot.stop()
+
+
+def test_the_bridge_killed_mid_goal_fails_the_goal_at_once_and_a_new_bridge_runs_the_next(
+    build: tuple[Model, Path, Path], master: Master, broker: Mosquitto
+) -> None:
+    """The ROS 1 bridge's child killed (SIGKILL) while it follows a goal: the parent learns it from the child's
+    output ending, and the goal ends `failed`/`unreachable` at once (no query to fail three times, no mission
+    timeout), in words; the next goal starts a new child and runs to its end. (A robot of its own: the slow
+    goal the dead child sent goes on there.)"""
+    robot = robot_process(master, build[2], BRIDGE_KILLED)
+    edge = Edge(build, master, broker, BRIDGE_KILLED, mission_timeout=60.0)
+    try:
+        edge.send("", {"correlation": "b", "payload": {"order": SLOW}})
+        edge.app.wait(lambda ev: any("feedback" in e["payload"] for e in feedback(ev, "b")), timeout=20)
+        pid = edge.bridge.pid
+        assert pid is not None
+        os.kill(pid, signal.SIGKILL)
+        killed = time.monotonic()
+        events = edge.ended("b", timeout=20)
+        last = events[-1]["payload"]
+        assert (last["state"], last["reason"], last["result"]) == ("failed", "unreachable", "lost"), last
+        assert "ROS 1 bridge exited" in last["message"] and not CLASS_NAME.search(last["message"]), last
+        assert time.monotonic() - killed < 5.0
+        assert sum(1 for e in events if e["payload"]["terminal"]) == 1
+        time.sleep(edge.bridge.restart_period)  # the next call restarts the child (at most every restart_period)
+        edge.send("", {"correlation": "next", "payload": {"order": 3}})
+        events = edge.ended("next", timeout=30)
+        assert events[-1]["payload"]["state"] == "finished", events[-1]
+        assert edge.bridge.pid not in (None, pid)
     finally:
         edge.close()
         robot.stop()
