@@ -42,7 +42,7 @@ from tests.ros2.common import Process
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient, Event
 from tests.runtime.edge import CLASS_NAME, feedback
-from tests.runtime.fibo_ros2 import ABORT, SLOW, sequence
+from tests.runtime.fibo_ros2 import ABORT, BURST, SLOW, sequence
 from tests.runtime.rb1 import terminal
 
 ROBOT = "fibo_one"
@@ -300,3 +300,25 @@ def test_the_bridge_killed_mid_goal_fails_the_goal_at_once_and_a_new_bridge_runs
     finally:
         edge.close()
         robot.stop()
+
+
+def test_a_burst_of_a_thousand_feedback_messages_is_relayed_in_order_without_a_gap_or_a_duplicate(
+    build: tuple[Model, Path, Path], master: Master, fibo_robot: Process, broker: Mosquitto
+) -> None:
+    """As on ROS 2: 1,000 feedback messages published back to back ([i] each), through actionlib, the bridge's
+    child and its pipe: one feedback event each, in order, none twice, none missing, then the terminal event."""
+    edge = Edge(build, master, broker, ROBOT)
+    try:
+        edge.send("", {"correlation": "burst", "payload": {"order": BURST + 1000}})
+        events = edge.ended("burst", timeout=60)
+        payloads = [e["payload"] for e in events]
+        relayed = [p.get("feedback", {}).get("sequence") for p in payloads[1:-1]]
+        missing = sorted(set(range(1, 1001)) - {r[0] for r in relayed if r})
+        assert len(relayed) == 1000 and not missing, (len(relayed), missing[:20])
+        assert relayed == [[i] for i in range(1, 1001)]
+        assert [p["seq"] for p in payloads] == list(range(1, 1003))
+        assert (payloads[0]["state"], payloads[-1]["state"]) == ("queued", "finished")
+        assert payloads[-1]["output"] == {"sequence": [1000]}
+        assert len({e["id"] for e in events}) == len(events) == 1002
+    finally:
+        edge.close()
