@@ -384,3 +384,26 @@ def test_the_edge_process_has_as_many_threads_with_eight_goals_in_flight_as_with
             engine.stop()
         link.close()
         robot.stop()
+
+
+def test_a_goal_past_its_mission_timeout_fails_and_the_server_is_asked_to_cancel_it(
+    fibo_build: tuple[Model, Path], fibo_robot: Process, broker: Mosquitto
+) -> None:
+    """The mission timeout is a timer of the goal's machine: the goal ends `failed`/`timeout` once it passes, with
+    one terminal event, and the action server is asked to cancel it (it ends the goal canceled)."""
+    edge = Edge(fibo_build, broker, ROBOT, mission_timeout=1.5)
+    try:
+        fibo_robot.seen.clear()
+        edge.send("", {"correlation": "late", "payload": {"order": SLOW}})
+        fibo_robot.wait_for(lambda e: e.get("event") == "goal" and e.get("ns") == ROBOT and e.get("order") == SLOW, 10)
+        fibo_robot.seen.clear()
+        events = edge.ended("late", timeout=20)
+        last = events[-1]["payload"]
+        assert (last["state"], last["reason"]) == ("failed", "timeout"), last
+        assert "mission timeout of 1.5 s" in last["message"]
+        assert sum(1 for e in events if e["payload"]["terminal"]) == 1
+        assert events[0]["payload"]["result"] == "accepted" and any("feedback" in e["payload"] for e in events)
+        end = fibo_robot.wait_for(lambda e: e.get("event") == "end" and e.get("ns") == ROBOT, timeout=10)
+        assert end["status"] == "canceled", end
+    finally:
+        edge.close()
