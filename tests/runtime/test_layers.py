@@ -25,8 +25,8 @@ PACKAGE = Path(__file__).resolve().parents[2] / "td2adaptor"
 RUNTIME = PACKAGE / "runtime"
 #: the runtime's layers, bottom first; a unit is a subpackage of runtime/ or a module directly in it
 RUNTIME_LAYERS: tuple[tuple[str, ...], ...] = (
-    ("events", "workers", "loop"),  # shared bottom: envelopes, ids and parsing; threads kept for the next task;
-    # the process's engine loop (events and timers) and call pool
+    ("events", "loop"),  # shared bottom: envelopes, ids and parsing; the process's engine loop (events and
+    # timers) and call pool
     ("ros", "bus"),  # the robot side (ports, ROS 1 bridge, CDR) and the event side (buses, WoT topics, security;
     # bus/mqttloop.py, the one thread that serves every MQTT connection of the process, under bus/mqttbus.py)
     ("config",),  # one robot's settings: read by the engine and the node

@@ -20,10 +20,8 @@ under a ROS 1 interpreter.
 from __future__ import annotations
 
 import importlib
-import itertools
 import math
 import threading
-import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from types import ModuleType
@@ -32,7 +30,9 @@ from typing import Any
 from td2adaptor.model import Model, ProcedureRole
 from td2adaptor.model import genapi as api
 from td2adaptor.runtime.ros.port import (
-    GoalProgress,
+    CancelDone,
+    GoalEnd,
+    GoalListener,
     NoValue,
     PortCallFailed,
     PortError,
@@ -42,31 +42,17 @@ from td2adaptor.runtime.ros.port import (
     StalePackage,
     StartResult,
 )
-from td2adaptor.runtime.workers import Workers
 
-#: how long a goal's feedback pump waits in one go (it re-checks whether it was told to stop in between)
-PUMP_WAIT = 1.0
-#: after a goal's result, feedback still arriving is kept until none came for this long (see GoalTrack);
+#: seconds a goal's end waits for feedback that trails its result (the generated goal record's `feedback_grace`);
 #: ROS 1 sends feedback and result over two TCPROS connections read by two threads (and the node reads them
 #: through the bridge), so a feedback message can trail its result by much more there. The run setting
 #: `goal_feedback_grace` (RuntimeConfig) overrides it: it is also the least a goal's terminal event waits
 FEEDBACK_GRACE = {"ros2": 0.01, "ros1": 0.1}
-#: ... but for no longer than this in all
+#: ... but for no longer than this in all (the generated record's own bound)
 TRAIL_LIMIT = 1.0
-#: how long reading a goal's buffered feedback waits for a message not there yet: it does not (the least
-#: timeout the generated iterators accept); later messages come through the feedback callback
-JOIN_WAIT = 1e-6
 #: ROS 2 calls of one component in flight at once (more wait): a service's request and response readers keep the
 #: last 10 messages by default (rmw's services QoS), so a flood of concurrent calls to one service loses some
 CALLS_PER_COMPONENT = 4
-#: the threads that follow goals to their end (one per goal in flight; kept for the next goal)
-FOLLOWERS = Workers("goal-follower")
-#: feedback messages a goal keeps for a caller that has not read them yet (older ones are dropped)
-FEEDBACK_KEEP = 1000
-#: goal states a goal with feedback is past
-_BEFORE_EXECUTING = frozenset({"unknown", "pending", "accepted"})
-
-
 #: per message type: its field names (rosidl's get_fields_and_field_types builds a new dict at every call)
 _FIELDS: dict[type, tuple[str, ...]] = {}
 
@@ -202,140 +188,72 @@ def _differences(have: Any, want: Mapping[str, Any] | None) -> str:
     return (" (" + "; ".join(parts) + ")") if parts else " (its ROS names, types or procedures)"
 
 
-class GoalTrack:
-    """One goal followed through a generated `GoalHandle`: its feedback as dicts, its status and its end.
+class GoalFollower:
+    """One goal started through a generated `start_<action>`: the handle's callbacks, turned into the port's
+    (`GoalListener`), its messages into plain data. The generated goal record keeps the feedback (one buffer)
+    and tells its callbacks once and in order, in the ROS client library's threads; this converts and passes
+    them on, until `close()` (then it tells nothing more).
 
-    Feedback comes from the handle's `on_feedback` callback, registered at once; what arrived before (the
-    handle buffers it) is read at once, in the constructor, with its `feedback()` iterator (without waiting
-    for more), and every message is taken once: one the callback also sees (the same object) is not added
-    again, whichever of the two saw it first. A thread waits for the result; when it came, feedback
-    may still trail it (a different channel, and rclpy hands a result over before feedback taken in the same
-    wake-up): the goal counts as done once no message came for `grace` (at most `TRAIL_LIMIT`); a message
-    later than that is not reported (never after the terminal event). `server_timeout` (None: the handle's
-    default) is how long a ROS 2 handle lets the action server stay silent before it takes it as gone (ROS 1
-    tells at once): the goal then ends `lost`.
-    """
+    The goal's id is known once `start_<action>` returned its handle, but the server may answer before that
+    (ROS 1 reports a goal on another thread while the call returns): what is told before the id is known waits
+    in `early` and is passed on, in order, by `ready()`; a record's callbacks are never told twice."""
 
-    def __init__(self, handle: Any, grace: float = FEEDBACK_GRACE["ros2"], server_timeout: float | None = None) -> None:
-        self.handle = handle
-        self.grace = grace
-        self.goal_id = str(handle.goal_id)
-        if server_timeout is not None and hasattr(handle, "server_timeout"):
-            handle.server_timeout = server_timeout
-        self._cond = threading.Condition()
-        self._items: list[Any] = []
-        self._dropped = 0
-        self._late: list[Any] = []  # messages the callback took before the buffered ones were read
-        self._buffered: list[Any] = []  # buffered messages added whose callback may still come
-        self._joined = False
-        self._done = False
-        self._status = "accepted"
-        self._result: Any = None
-        self._message = ""
-        self._closed = False
-        self._remove = handle.on_feedback(self._on_feedback)
-        self._join()  # here, not in the thread: feedback arriving from now on is relayed without a hand-off
-        FOLLOWERS.submit(self._follow)
+    def __init__(self, listener: GoalListener) -> None:
+        self.listener = listener
+        self.handle: Any = None
+        self.goal_id = ""
+        self.closed = False
+        self._lock = threading.Lock()
+        self._early: list[Callable[[], None]] | None = []  # None once the id is known
 
-    def _add(self, message: Any) -> None:
-        """Append one message (lock held)."""
-        self._items.append(to_plain(message))
-        if len(self._items) > FEEDBACK_KEEP:
-            del self._items[0]
-            self._dropped += 1
-        self._cond.notify_all()
-
-    def _on_feedback(self, message: Any) -> None:
-        with self._cond:
-            if not self._joined:
-                self._late.append(message)
+    def _tell(self, call: Callable[[], None]) -> None:
+        with self._lock:
+            if self._early is not None:
+                self._early.append(call)
                 return
-            for i, buffered in enumerate(self._buffered):
-                if buffered is message:  # read from the buffer before its callback came: already added
-                    del self._buffered[: i + 1]
+        call()
+
+    def ready(self, handle: Any) -> None:
+        """`start_<action>` returned: the id is known; what waited is told now (this thread), the rest as it comes."""
+        self.handle, self.goal_id = handle, str(handle.goal_id)
+        while True:
+            with self._lock:
+                early = self._early
+                if not early:
+                    self._early = None
                     return
-            self._buffered = []  # callbacks come in order: the buffered messages are all behind us
-            self._add(message)
+                self._early = []  # what comes while these are told waits its turn
+            for call in early:
+                call()
 
-    def _join(self) -> None:
-        """The buffered messages the callback did not see, then the ones it did, in order. The buffer is read
-        without waiting for more: a message it holds whose callback has not run yet (the handle buffers it
-        first) is added now and skipped when its callback comes."""
-        earlier: list[Any] = []
-        buffered = getattr(self.handle, "feedback_received", None)  # read no further: no wait at the end
-        messages = self.handle.feedback(timeout=JOIN_WAIT)
-        try:
-            for message in messages if buffered is None else itertools.islice(messages, buffered):
-                with self._cond:
-                    seen = any(message is m for m in self._late)
-                if seen:
-                    break
-                earlier.append(message)
-        except Exception:  # noqa: BLE001 - CallTimeout: the buffer is read; ServiceUnavailable: the end tells
-            pass
-        with self._cond:
-            for message in earlier:
-                self._add(message)
-            for message in self._late:
-                if any(message is m for m in earlier):
-                    continue  # the buffer had it too
-                self._add(message)
-            self._buffered = [m for m in earlier if not any(m is late for late in self._late)]
-            self._late = []
-            self._joined = True
+    def accepted_cb(self) -> None:
+        self._tell(lambda: None if self.closed else self.listener.on_accepted(self.goal_id))
 
-    def _follow(self) -> None:
-        lost = ""
-        result: Any = None
-        while not self._closed:
-            try:
-                result = to_plain(self.handle.result(timeout=PUMP_WAIT))
-                break
-            except Exception as exc:  # noqa: BLE001 - the goal's end, or still running, or its server gone
-                names = {c.__name__ for c in type(exc).__mro__}
-                if "CallTimeout" in names and not self.handle.done:
-                    continue
-                response = getattr(exc, "response", None)
-                result = to_plain(response) if response is not None else None
-                if not self.handle.done:  # the action server went away (ServiceUnavailable's reason says so)
-                    lost = str(getattr(exc, "reason", "") or exc) or "the goal's action server did not answer"
-                break
-        if self._closed:
-            return
-        deadline = time.monotonic() + TRAIL_LIMIT
-        with self._cond:
-            count = -1
-            while count != len(self._items) + self._dropped and time.monotonic() < deadline:
-                count = len(self._items) + self._dropped
-                self._cond.wait(self.grace)
-            ended = bool(self.handle.done)
-            self._status = str(self.handle.status) if ended else "lost"
-            self._message = str(getattr(self.handle, "reason", "") or "") if ended else lost
-            self._result = result if isinstance(result, Mapping) else None
-            self._done = True
-            self._cond.notify_all()
+    def status_cb(self, status: str) -> None:
+        self._tell(lambda: None if self.closed else self.listener.on_status(str(status)))
 
-    def progress(self, since: int | None, wait: float) -> GoalProgress:
-        with self._cond:
-            if since is not None:
-                self._cond.wait_for(lambda: self._done or self._dropped + len(self._items) > since, wait)
-            received = self._dropped + len(self._items)
-            new: tuple[Any, ...] = ()
-            if since is not None:
-                new = tuple(self._items[max(0, since - self._dropped) :])
-            status = self._status if self._done else str(self.handle.status)
-            if received and status in _BEFORE_EXECUTING:
-                # a server sends feedback only while it executes the goal; the status message saying so comes
-                # on another topic and can be taken after that feedback
-                status = "executing"
-            return GoalProgress(new, received, status, self._done, self._result, self._message)
+    def feedback_cb(self, message: Any) -> None:
+        plain = to_plain(message)
+        self._tell(lambda: None if self.closed else self.listener.on_feedback(plain))
+
+    def done_cb(self, outcome: Any) -> None:
+        status = str(getattr(outcome, "status", "") or "lost")
+        result = to_plain(getattr(outcome, "result", None))
+        error = getattr(outcome, "error", None)
+        failure = _port_error(error) if error is not None and status in ("rejected", "lost") else None
+        reason = str(getattr(outcome, "reason", "") or "")
+        if not reason and status == "lost" and failure is not None:
+            reason = str(failure)
+        end = GoalEnd(status, result if isinstance(result, Mapping) else None, reason, failure)
+        self._tell(lambda: self._done(end))
+
+    def _done(self, end: GoalEnd) -> None:
+        if not self.closed:
+            self.closed = True
+            self.listener.on_done(end)
 
     def close(self) -> None:
-        self._closed = True
-        try:
-            self._remove()
-        except Exception:  # noqa: BLE001 - the handle is going away anyway
-            pass
+        self.closed = True
 
 
 class GeneratedPort:
@@ -343,7 +261,9 @@ class GeneratedPort:
 
     `model` is the compiled model (or just its `Layout`). `distro` "ros2" builds components as
     `Cls(node, robot_name, ...)`, "ros1" as `Cls(robot_name, ...)`. `feedback_grace` is each goal's
-    `GoalTrack.grace` (None: `FEEDBACK_GRACE` of the distro), `server_timeout` its `GoalTrack.server_timeout`.
+    goal record's `feedback_grace` (None: `FEEDBACK_GRACE` of the distro), `server_timeout` a ROS 2 goal handle's
+    `server_timeout` (how long its action server may stay silent before the goal ends lost; None: the handle's
+    default).
     """
 
     def __init__(
@@ -372,7 +292,7 @@ class GeneratedPort:
         self.layout.check(module, distro)
         self.components: dict[str, Any] = {}
         self._locks: dict[str, threading.BoundedSemaphore] = {}
-        self._goals: dict[tuple[str, str, str], GoalTrack] = {}
+        self._goals: dict[tuple[str, str, str], GoalFollower] = {}
         self._goals_lock = threading.Lock()
         for name in self.layout.components:
             cls = getattr(module, name, None)
@@ -467,43 +387,64 @@ class GeneratedPort:
 
     # -- ROS actions (the `GoalPort` protocol) --------------------------------------------------------------
 
-    def send_goal(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> str:
+    def start_goal(
+        self, component: str, action: str, payload: Mapping[str, Any], timeout: float, listener: GoalListener
+    ) -> str:
         construct = self._method(component, api.CONSTRUCT_GOAL(action))
-        send = self._method(component, api.SEND(action))
-        handle = self._guarded(component, lambda: send(construct(**payload), timeout=timeout))
-        track = GoalTrack(handle, self.feedback_grace, self.server_timeout)
+        start = self._method(component, api.START(action))
+        follower = GoalFollower(listener)
+
+        def run() -> Any:
+            return start(
+                construct(**payload),
+                on_accepted=follower.accepted_cb,
+                on_status=follower.status_cb,
+                on_feedback=follower.feedback_cb,
+                on_done=follower.done_cb,
+                timeout=timeout,
+                feedback_grace=self.feedback_grace,
+            )
+
+        handle = self._guarded(component, run)
+        if self.server_timeout is not None and hasattr(handle, "server_timeout"):
+            handle.server_timeout = self.server_timeout  # before the ticker's first look: that is after an answer
+        follower.ready(handle)
         with self._goals_lock:
-            self._goals[(component, action, track.goal_id)] = track
-        return track.goal_id
+            if not follower.closed:  # ended already (refused at once): nothing to keep
+                self._goals[(component, action, follower.goal_id)] = follower
+        return follower.goal_id
 
-    def _track(self, component: str, action: str, goal: str) -> GoalTrack:
+    def _follower(self, component: str, action: str, goal: str) -> GoalFollower | None:
         with self._goals_lock:
-            track = self._goals.get((component, action, goal))
-        if track is None:
-            raise PortCallFailed(f"{component}.{action}: no goal {goal} is followed here")
-        return track
+            return self._goals.get((component, action, goal))
 
-    def goal_progress(self, component: str, action: str, goal: str, since: int | None, wait: float) -> GoalProgress:
-        return self._track(component, action, goal).progress(since, wait)
+    def request_cancel(self, component: str, action: str, goal: str, timeout: float, on_done: CancelDone) -> None:
+        follower = self._follower(component, action, goal)
+        if follower is None:
+            failure = PortCallFailed(f"{component}.{action}: no goal {goal} is followed here")
+            on_done(False, failure)
+            return
 
-    def cancel_goal(self, component: str, action: str, goal: str, timeout: float) -> bool:
-        track = self._track(component, action, goal)
+        def answered(outcome: Any) -> None:
+            error = getattr(outcome, "error", None)
+            on_done(bool(getattr(outcome, "canceling", False)), _port_error(error) if error is not None else None)
+
         try:
-            return bool(track.handle.cancel(timeout=timeout))
+            follower.handle.request_cancel(answered, timeout=timeout)
         except Exception as exc:  # noqa: BLE001 - every generated error becomes a port error
-            raise _port_error(exc) from exc
+            on_done(False, _port_error(exc))
 
     def forget_goal(self, component: str, action: str, goal: str) -> None:
         with self._goals_lock:
-            track = self._goals.pop((component, action, goal), None)
-        if track is not None:
-            track.close()
+            follower = self._goals.pop((component, action, goal), None)
+        if follower is not None:
+            follower.close()
 
     def close(self) -> None:
         with self._goals_lock:
-            tracks, self._goals = list(self._goals.values()), {}
-        for track in tracks:
-            track.close()
+            followers, self._goals = list(self._goals.values()), {}
+        for follower in followers:
+            follower.close()
         for instance in self.components.values():
             close = getattr(instance, "close", None)
             if callable(close):
