@@ -107,7 +107,7 @@ def goals(bus_url: str, count: int) -> None:
     path = {r: GOAL_PATHS[i % len(GOAL_PATHS)] for i, r in enumerate(robots)}
     ports = {r: SimPort(model, sim(robot_id=r), readers={}, writers={}, actions=actions) for r in robots}
     run = {r: f"{r}-goal" for r in robots}
-    figures: dict[str, Any] = {"before": counted(local), "path": path}
+    figures: dict[str, Any] = {"before": counted(), "path": path}
     start = time.monotonic()
 
     def config(robot: str) -> RuntimeConfig:
@@ -118,13 +118,13 @@ def goals(bus_url: str, count: int) -> None:
     engines: list[Engine] = serve_fleet(
         model, lambda c: ports[c.robot], [config(r) for r in robots[:FIRST]], broker=broker
     )
-    figures["first"] = counted(local)
+    figures["first"] = counted()
     engines += serve_fleet(model, lambda c: ports[c.robot], [config(r) for r in robots[FIRST:]], broker=broker)
-    figures["all"] = counted(local)
+    figures["all"] = counted()
     figures["names"] = sorted({t.name.rstrip("0123456789") for t in threading.enumerate()})
     app_bus = app_bus_for(bus_url, broker)
     app = Recorder(app_bus)
-    figures["app"] = counted(local)
+    figures["app"] = counted()
     for r in robots:
         invoke = {"correlation": run[r], "payload": {"order": ORDERS[path[r]]}}
         app_bus.publish(f"td2adaptor/{r}/MathComponent/fibonacci", json.dumps(invoke).encode())
@@ -132,7 +132,7 @@ def goals(bus_url: str, count: int) -> None:
     running_at_once = False
     deadline = time.monotonic() + 150
     while time.monotonic() < deadline:
-        during.append(counted(local))
+        during.append(counted())
         if not running_at_once and all("running" in app.states(run[r]) and not app.ends(run[r]) for r in robots):
             running_at_once = True  # every goal runs: now the cancels
             figures["all_running_after"] = round(time.monotonic() - start, 2)
@@ -145,16 +145,16 @@ def goals(bus_url: str, count: int) -> None:
         time.sleep(0.01)
     figures["during"] = during
     figures["running_at_once"] = running_at_once
-    figures["after"] = counted(local)
+    figures["after"] = counted()
     figures["ends"] = {r: app.ends(run[r]) for r in robots}
     figures["states"] = {r: app.states(run[r]) for r in robots}
     for engine in engines:
         engine.stop()
     app_bus.close()
     end = time.monotonic() + 10  # the local bus's delivery thread ends on its own once its last client left
-    while counted(local) > figures["before"] and time.monotonic() < end:
+    while counted() > figures["before"] and time.monotonic() < end:
         time.sleep(0.01)
-    figures["stopped"] = counted(local)
+    figures["stopped"] = counted()
     print(json.dumps(figures), flush=True)
 
 
