@@ -98,6 +98,12 @@ if TYPE_CHECKING:
     show_default=True,
     help="What the edge node logs (stderr).",
 )
+@click.option(
+    "--metrics",
+    envvar="TD2ADAPTOR_METRICS",
+    metavar="HOST:PORT",
+    help="Serve Prometheus metrics over HTTP on this address, e.g. 127.0.0.1:9464 (default: none).",
+)
 def run(
     source: str,
     interfaces: tuple[Path, ...],
@@ -129,6 +135,7 @@ def run(
     allow_insecure: bool | None,
     allow_anonymous_broker: bool | None,
     log_level: str,
+    metrics: str | None,
 ) -> None:
     """Run the edge node of a robot (or a fleet): bus events in, ROS calls out, feedback back.
 
@@ -185,10 +192,11 @@ def run(
         )
     from td2adaptor.runtime.bus.bus import BusError
     from td2adaptor.runtime.bus.security import SecurityError
+    from td2adaptor.runtime.node.metrics import MetricsError
     from td2adaptor.runtime.ros.port import PortError, RosSetupError
 
     options = RosOptions(int(ros), package, package_paths, prefixes, ros1_python)
-    node = EdgeNode(result.model, configs, options)
+    node = EdgeNode(result.model, configs, options, metrics=metrics)
 
     def interrupt(_signum: int, _frame: Any) -> None:
         raise KeyboardInterrupt  # SIGTERM while starting: undo what was opened, like Ctrl-C
@@ -200,9 +208,9 @@ def run(
         node.stop()
         click.echo("td2adaptor run: interrupted while starting", err=True)
         sys.exit(130)
-    except (RosSetupError, SecurityError, BusError, PortError) as exc:  # the user's to fix: one clear line
+    except (RosSetupError, SecurityError, BusError, PortError, MetricsError) as exc:  # the user's to fix: one line
         node.stop()
-        _fail("run", str(exc))
+        _fail("run", str(exc))  # a robot another process serves too (OwnerConflict): exit 1, saying which
     finally:
         signal.signal(signal.SIGTERM, previous)
     click.echo(f"td2adaptor run: {node.describe()}; SIGINT/SIGTERM stops", err=True)

@@ -97,6 +97,7 @@ class RuntimeConfig:
     directory_ttl: int = 600  # seconds the directory keeps the TD without a refresh (0: until it is deleted)
     directory_token: str | None = field(default=None, repr=False)  # Bearer token for the directory, if it wants one
     directory_ca_file: str | None = None  # CA bundle for an https directory with a private CA
+    presence_period: float = 1.0  # seconds between looks at the robot's ROS side (its status `robot`); 0: none
 
     def __post_init__(self) -> None:
         if not ROBOT_ID.match(self.robot) or self.robot == ALL_ROBOTS:
@@ -134,6 +135,8 @@ class RuntimeConfig:
                 "directory_token (TD2ADAPTOR_DIRECTORY_TOKEN) must be 1-8192 printable ASCII characters without "
                 "blanks, as a Bearer token is (not shown)"
             )
+        if not 0 <= self.presence_period < float("inf"):
+            raise ConfigError("presence_period must be >= 0 seconds (0: the robot's ROS side is not watched)")
         if self.directory_ttl < 0:
             raise ConfigError("directory_ttl must be >= 0 (0: the directory keeps the TD until it is deleted)")
         if not self.topic_root or any(c in self.topic_root for c in "+#\x00") or self.topic_root.startswith("/"):

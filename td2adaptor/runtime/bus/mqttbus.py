@@ -42,6 +42,7 @@ from td2adaptor.runtime.bus.security import (
 
 log = logging.getLogger("td2adaptor.runtime.bus")
 
+_TAKEN_OVER = 142  # MQTT 5 DISCONNECT reason: Session taken over (node/owner.py)
 _AUTH_REFUSALS = {134, 135}  # Bad user name or password, Not authorized (paho maps 3.1.1's 4 and 5 onto them)
 MQTT_VERSIONS = ("5", "3.1.1")
 #: topics whose matching handlers a client remembers (then it forgets them all and starts again)
@@ -165,6 +166,9 @@ class MqttBus:
         self.verify = verify  # run on every connection before anything of it is handled: why not to serve, or None
         self.refused: str | None = None  # why this client stopped serving the broker (a connection failed `verify`)
         self.on_refused: Callable[[str], None] | None = None  # told `refused` when a reconnection fails `verify`
+        #: run on every reconnection before anything of it is handled: what took this client's session over (another
+        #: edge node now serves the robot: node/owner.py), or None; this client then stops serving
+        self.owned: Callable[[], str | None] | None = None
         self._retained: dict[str, tuple[bytes, int]] = {}  # topic -> (payload, QoS) of the last retained publish
         self._retained_inflight: dict[int, str] = {}  # QoS 1 retained publishes not acknowledged: paho resends them
         self._retain_lock = threading.RLock()  # orders retained publishes with their republication on reconnect
@@ -322,6 +326,11 @@ class MqttBus:
         if refusal is not None:
             self._stop_serving(client, refusal)
             return
+        if self.connects > 0 and self.owned is not None:
+            other = self._checked(self.owned)
+            if other is not None:
+                self._taken_over(client, other)
+                return
         self.connects += 1
         self._connected = True  # from now on what arrives on this connection is handled
         with self._lock:
@@ -360,6 +369,14 @@ class MqttBus:
             log.exception("checking the MQTT broker at %s failed", self.address)
             return f"the check of the MQTT broker at {self.address} failed (see the log), so it is not trusted"
 
+    def _checked(self, check: Callable[[], str | None]) -> str | None:
+        """`owned`'s verdict; one that cannot be made lets the connection serve (the broker's own rules stand)."""
+        try:
+            return check()
+        except Exception:  # noqa: BLE001 - paho's network thread must live; the details go to the log
+            log.exception("checking who serves this robot on %s failed", self.address)
+            return None
+
     def _stop_serving(self, client: mqtt.Client, why: str) -> None:
         """A connection failed `verify`: handle nothing from it, disconnect, and stay away from this broker
         (on the first connection `connect()` raises; on a later one `on_refused` is told, and the retained
@@ -379,6 +396,25 @@ class MqttBus:
             except Exception:  # noqa: BLE001 - never let a hook kill paho's network thread
                 log.exception("while stopping serving %s", self.address)
 
+    def _taken_over(self, client: mqtt.Client, what: str) -> None:
+        """Another connection with this client id took the session over (a second edge node for the same robot,
+        started at the same moment as this one: node/owner.py): MQTT 5's "Session taken over", or `owned` said
+        so on reconnecting. Taking it back would push the two off the broker in turn for ever: this client stops
+        serving (no reconnection, nothing published: the robot's status is the other's now); `on_refused` is
+        told."""
+        self.refused = (
+            f"stopped serving: another client connected to the MQTT broker at {self.address} with this client id "
+            f"({self.client_id}) and {what}: a second edge node for the same robot?"
+        )
+        self._connected = False
+        log.error("%s", self.refused)
+        client.disconnect()  # no reconnection
+        if self.on_refused is not None:
+            try:
+                self.on_refused(self.refused)
+            except Exception:  # noqa: BLE001 - never let a hook kill paho's network thread
+                log.exception("while stopping serving %s", self.address)
+
     def _on_disconnect(
         self, _client: mqtt.Client, _userdata: Any, _flags: Any, reason: ReasonCode, _props: Properties | None
     ) -> None:
@@ -388,6 +424,9 @@ class MqttBus:
         if self.connects == 0 and not self._connack.is_set():  # dropped before any CONNACK: fail fast
             self._dropped = reason.getName()
             self._connack.set()
+        if reason.value == _TAKEN_OVER and self._client is not None and self.refused is None:
+            self._taken_over(_client, "took its session over")
+            return
         if self._client is not None and reason.value != 0:
             log.warning("lost the MQTT broker %s (%s); reconnecting", self.address, reason.getName())
 

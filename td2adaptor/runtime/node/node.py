@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 from types import FrameType
+from typing import Any
 
 from td2adaptor.model import Model
 from td2adaptor.runtime.bus.localbus import LocalBroker
@@ -53,8 +54,11 @@ class EdgeNode:
         options: RosOptions,
         *,
         broker: LocalBroker | None = None,
+        metrics: str | None = None,
     ) -> None:
         self.model = model
+        self.metrics = metrics  # HOST:PORT to serve the Prometheus metrics on (metrics.py), or None
+        self._metrics_server: Any = None
         self.configs = list(configs)
         self.options = options
         self.broker = broker
@@ -75,6 +79,13 @@ class EdgeNode:
     def start(self) -> None:
         """Check the bus settings, connect to ROS, then to the bus; a failure closes what was opened."""
         self.check_bus()
+        from td2adaptor.runtime.node.owner import check_fleet
+
+        check_fleet(self.model, self.configs)  # no robot another live process serves (OwnerConflict)
+        if self.metrics is not None:
+            from td2adaptor.runtime.node.metrics import serve_metrics
+
+            self._metrics_server = serve_metrics(self.metrics)  # MetricsError: the address cannot be served
         o = self.options
         self.link = connect(
             self.model,
@@ -119,6 +130,10 @@ class EdgeNode:
             engine.stop()
         if self.link is not None:
             self.link.close()
+        server, self._metrics_server = self._metrics_server, None
+        if server is not None:
+            server.shutdown()
+            server.server_close()
 
     def describe(self) -> str:
         robots = ", ".join(f"{c.robot} (namespace {c.ros_namespace or '/'})" for c in self.configs)
@@ -128,7 +143,8 @@ class EdgeNode:
         how = self.link.description if self.link is not None else f"ROS {self.options.ros}"
         directory = self.configs[0].directory
         registered = f"; TDs registered with {redact_url(directory)}" if directory else ""
-        return f"serving {robots} on {bus} via {how}{registered}"
+        metrics = f"; metrics on http://{self.metrics}/metrics" if self.metrics else ""
+        return f"serving {robots} on {bus} via {how}{registered}{metrics}"
 
 
 def wait_for_signal(stop: threading.Event | None = None) -> int:
