@@ -79,8 +79,6 @@ class EdgeNode:
     def start(self) -> None:
         """Check the bus settings, connect to ROS, then to the bus; a failure closes what was opened."""
         self.check_bus()
-        from td2adaptor.runtime.node.owner import check_fleet
-
         check_fleet(self.model, self.configs)  # no robot another live process serves (OwnerConflict)
         if self.metrics is not None:
             from td2adaptor.runtime.node.metrics import serve_metrics
@@ -145,6 +143,23 @@ class EdgeNode:
         registered = f"; TDs registered with {redact_url(directory)}" if directory else ""
         metrics = f"; metrics on http://{self.metrics}/metrics" if self.metrics else ""
         return f"serving {robots} on {bus} via {how}{registered}{metrics}"
+
+
+def check_fleet(model: Model, configs: Sequence[RuntimeConfig]) -> None:
+    """`claim` the robots of `configs` (`RuntimeConfig`s) on their MQTT brokers, one connection per broker (a
+    local bus is this process's own: nothing to check). Raises `OwnerConflict`, or `BusError` / `SecurityError`
+    when a broker cannot be reached or refuses the credentials."""
+    from td2adaptor.runtime.node.owner import claim, probe_bus
+
+    groups: dict[tuple[str, str | None], list[RuntimeConfig]] = {}
+    for config in configs:
+        if config.bus != "local":
+            groups.setdefault((config.bus, config.username), []).append(config)
+    for members in groups.values():
+        first = members[0]
+        address, security = bus_security(first, model)
+        bus = probe_bus(address, security, first.mqtt_version, first.keepalive)
+        claim([c.robot for c in members], [f"{c.topic_root}/{c.robot}/status" for c in members], bus)
 
 
 def wait_for_signal(stop: threading.Event | None = None) -> int:

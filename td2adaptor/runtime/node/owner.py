@@ -201,20 +201,3 @@ def taken_by(robot: str, message: Message | None, ours: Collection[bytes]) -> st
         return None
     who = owner.describe() if owner is not None else "another edge node"
     return f"took its session over: robot {robot} is served by {who} now"
-
-
-def check_fleet(model: Any, configs: Sequence[Any]) -> None:
-    """`claim` the robots of `configs` (`RuntimeConfig`s) on their MQTT brokers, one connection per broker (a
-    local bus is this process's own: nothing to check). Raises `OwnerConflict`, or `BusError` / `SecurityError`
-    when a broker cannot be reached or refuses the credentials."""
-    from td2adaptor.runtime.node.app import bus_security
-
-    groups: dict[tuple[str, str | None], list[Any]] = {}
-    for config in configs:
-        if config.bus != "local":
-            groups.setdefault((config.bus, config.username), []).append(config)
-    for members in groups.values():
-        first = members[0]
-        address, security = bus_security(first, model)
-        bus = probe_bus(address, security, first.mqtt_version, first.keepalive)
-        claim([c.robot for c in members], [f"{c.topic_root}/{c.robot}/status" for c in members], bus)
