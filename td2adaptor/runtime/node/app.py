@@ -187,10 +187,11 @@ def serve(
     engine.start()
     from td2adaptor.runtime.node.status import watch
 
-    watch(engine, raw, port)  # the robot's status kept true: its ROS side, missions, last error (status.py)
+    keeper = watch(engine, raw, port)  # the robot's status kept true: its ROS side, missions, last error
     registration = register(config, td)
     if registration is not None:
         engine.on_stop.append(registration.stop)
+        keeper.on_presence.append(registration.reflect)  # the directory says whether the robot is there
     return engine
 
 

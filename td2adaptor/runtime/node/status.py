@@ -18,7 +18,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from datetime import datetime, timezone
 from typing import Any
 
@@ -88,6 +88,7 @@ class StatusKeeper:
         self._stopped = False
         self._last: dict[str, Any] | None = {**owner_fields(), "missions": 0}  # published last (the birth: app.py)
         self.durations = Durations()
+        self.on_presence: list[Callable[[str | None], None]] = []  # told the robot's ROS side when it changes
         engine.outbox.on_end.append(self._ended)
         birth = getattr(raw, "birth", None)
         self._ours: deque[bytes] = deque([birth.payload] if birth is not None else [], maxlen=OURS_KEPT)
@@ -154,6 +155,11 @@ class StatusKeeper:
             self.presence.update(ready)
             now = self.presence.word()
             if now != before:
+                for hook in self.on_presence:
+                    try:
+                        hook(now)
+                    except Exception:  # noqa: BLE001 - a hook must not keep the status from being published
+                        log.exception("robot %s: a presence hook failed", self.engine.config.robot)
                 missing = ", ".join(self.presence.missing())
                 log.info(
                     "robot %s: ROS side %s%s", self.engine.config.robot, now, f" (missing {missing})" * bool(missing)
