@@ -215,7 +215,7 @@ def watch(engine: Engine, raw: Bus, port: Any) -> StatusKeeper:
     from td2adaptor.runtime.node.presence import probe_of
 
     actions = [s.affordance for s in engine.catalog.specs if s.kind is Kind.INVOKE and s.affordance]
-    keeper = StatusKeeper(engine, raw, probe_of(port, actions))
+    keeper = StatusKeeper(engine, raw, probe_of(port, actions, engine.model, engine.config))
     engine.on_stop.insert(0, keeper.stop)
     keeper.start()
     return keeper
