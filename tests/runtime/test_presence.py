@@ -18,7 +18,7 @@ import pytest
 
 from td2adaptor.runtime import Engine, RuntimeConfig, serve
 from td2adaptor.runtime.bus.mqttbus import MqttBus
-from td2adaptor.runtime.node.node import check_fleet
+from td2adaptor.runtime.node.claims import check_fleet
 from td2adaptor.runtime.node.owner import OwnerConflict, this_process
 from td2adaptor.runtime.ros.simport import SimPort
 from tests.conftest import REPO

@@ -201,9 +201,10 @@ class Engine:
                 shared.loop.post(self._sample_tick)
         log.info("serving robot %s (namespace %s)", self.config.robot, self.config.ros_namespace)
 
-    def stop(self, timeout: float = 5.0) -> None:
+    def stop(self, timeout: float = 5.0, *, retire: str | None = None) -> None:
         """Stop taking events, clear the TD, publish the offline status and disconnect. Missions go on on the
-        robot."""
+        robot (and a restart of the node follows them again, ledger.py); with `retire` (the robot leaves the
+        fleet, node/fleet.py) each mission still in flight ends with a terminal `failed` event that says it."""
         if self._stopping.is_set():
             return
         self._stopping.set()
@@ -224,6 +225,9 @@ class Engine:
             self._lane.wait_idle(timeout)  # calls not started yet are skipped (missions' are made)
         for ended in self.missions.held():
             ended.wait(timeout)
+        if retire is not None:
+            for m in self.missions.running():
+                self.outbox.finish(m, ProcedureStatus("failed", message=retire, reason="unreachable"))
         try:
             if self.td is not None:  # an empty retained message removes the TD from the broker
                 self.bus.publish(self.td.topic, b"", retain=True)

@@ -45,6 +45,7 @@ from td2adaptor.runtime.ros.port import (
     PortTimeout,
     PortUnavailable,
     RosSetupError,
+    StalePackage,
     StartResult,
 )
 from td2adaptor.runtime.ros.words import import_failure, setup_failure
@@ -205,6 +206,9 @@ class Ros1Bridge:
             reader.start()
         try:
             self._request(None, "init", [self.init_request()], self.start_timeout)
+        except StalePackage:
+            self._kill()
+            raise
         except PortError as exc:
             self._kill()
             raise RosSetupError(f"the ROS 1 bridge under {self.python} did not start: {exc}") from None
@@ -323,6 +327,8 @@ class Ros1Bridge:
         reply = box[0]
         if "error" in reply:
             error = reply["error"]
+            if error.get("kind") == "StalePackage":  # the package is not of this TD: the user's to regenerate
+                raise StalePackage(str(error.get("message", "")), self.package, "ros1")
             cls = _ERRORS.get(str(error.get("kind")), PortCallFailed)
             response = error.get("response")
             raise cls(str(error.get("message", "")), response=response if isinstance(response, Mapping) else None)
@@ -436,6 +442,9 @@ def _serve(requests: IO[str], replies: IO[str]) -> int:
                 )
             except ValueError as exc:  # InvalidRobotName of the generated package
                 raise PortCallFailed(f"robot {robot}: {setup_failure(exc)}") from None
+    except StalePackage as exc:
+        reply({"id": request.get("id", 0), "error": {"kind": "StalePackage", "message": str(exc), "response": None}})
+        return 1
     except Exception as exc:  # noqa: BLE001 - reported to the parent, which explains it (the details: stderr)
         if not isinstance(exc, PortError):
             traceback.print_exc()  # relayed to the parent's stderr: the class and where, for a developer

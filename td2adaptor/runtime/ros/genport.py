@@ -1,9 +1,10 @@
 """A `RobotPort` onto the generated rclpy or rospy component classes: how the edge node reaches real ROS.
 
-The generated packages (issue 3) offer, per component, `construct_<action>_Msg(**fields)`,
-`call_<action>(request, *, timeout)` (procedure runs return `Started(mission_id, response)`, queries and
-cancels accept `mission_id=`), `get_<property>_value(timeout=)`, `construct_<property>_Msg` /
-`publish_<property>_Msg`, and raise `ServiceUnavailable` / `CallTimeout` / `CallFailed` / `NoMessage`.
+The generated packages (issue 3) offer, per component (the names are the contract's, `model/genapi.py`),
+`construct_<action>_Msg(**fields)`, `call_<action>(request, *, timeout)` (procedure runs return
+`Started(mission_id, response)`, queries and cancels accept `mission_id=`), `get_<property>_value(timeout=)`,
+`construct_<property>_Msg` / `publish_<property>_Msg`, and raise `ServiceUnavailable` / `CallTimeout` /
+`CallFailed` / `NoMessage`.
 This adapter turns dicts into those calls and messages back into dicts, and maps the errors onto
 `PortError`s. The engine calls it from several threads at once: on ROS 2 up to `CALLS_PER_COMPONENT` calls
 of one component overlap (an rclpy client takes concurrent requests, each with its own future; the engine
@@ -12,24 +13,24 @@ keeps one mission per component); on ROS 1 the calls of one component are made o
 Values use the field names of the robot's own ROS version, as the event schemas and the robot's published
 TD declare them: a ROS 1 time or duration is `{"secs": ..., "nsecs": ...}`, a ROS 2 one `{"sec": ...,
 "nanosec": ...}` (the generated rospy constructors accept either spelling on the way in).
-Only the standard library and `td2adaptor.model` are imported: the ROS 1 bridge runs this module under a
-ROS 1 interpreter.
+Only the standard library and `td2adaptor.model` (with `genapi`) are imported: the ROS 1 bridge runs this module
+under a ROS 1 interpreter.
 """
 
 from __future__ import annotations
 
 import importlib
-import inspect
 import itertools
 import math
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import ModuleType
 from typing import Any
 
 from td2adaptor.model import Model, ProcedureRole
+from td2adaptor.model import genapi as api
 from td2adaptor.runtime.ros.port import (
     GoalProgress,
     NoValue,
@@ -38,6 +39,7 @@ from td2adaptor.runtime.ros.port import (
     PortRejected,
     PortTimeout,
     PortUnavailable,
+    StalePackage,
     StartResult,
 )
 from td2adaptor.runtime.workers import Workers
@@ -119,32 +121,85 @@ def _port_error(exc: BaseException) -> PortError:
     return PortCallFailed(message, response=plain if isinstance(plain, Mapping) else None)
 
 
-def _takes_mission_id(method: Callable[..., Any]) -> bool:
-    try:
-        return "mission_id" in inspect.signature(method).parameters
-    except (TypeError, ValueError):
-        return False
-
-
 @dataclass(frozen=True)
 class Layout:
-    """What the port needs to know of a model: its component classes and its procedure run actions."""
+    """What the port needs to know of a model: its component classes, its procedure run actions and the
+    queries and cancels whose requests carry a mission id (`Procedure.slot`: their methods take `mission_id=`)."""
 
     components: tuple[str, ...]
     runs: frozenset[tuple[str, str]] = frozenset()
+    ids: frozenset[tuple[str, str]] = frozenset()
+    #: per ROS version ("ros1", "ros2"): the hash of the model a package of that version must record; and the
+    #: model's ports (`genapi.ports`), to say what differs when it does not
+    hashes: tuple[tuple[str, str], ...] = ()
+    ports: Mapping[str, Any] | None = field(default=None, compare=False)
 
     @classmethod
     def of(cls, model: Model) -> Layout:
         runs = {(c.name, s.name) for c in model.components for s in c.services if s.procedure_role is ProcedureRole.RUN}
-        return cls(tuple(c.name for c in model.components), frozenset(runs))
+        ids = {
+            (c.name, action)
+            for c in model.components
+            for p in c.procedures
+            for role, action in (("query", p.query), ("cancel", p.cancel))
+            if action is not None and p.slot(role)
+        }
+        hashes = tuple((d, api.model_hash(model, d)) for d in ("ros1", "ros2"))
+        return cls(tuple(c.name for c in model.components), frozenset(runs), frozenset(ids), hashes, api.ports(model))
 
     def to_json(self) -> dict[str, Any]:
-        return {"components": list(self.components), "runs": sorted([c, a] for c, a in self.runs)}
+        pairs = {"runs": self.runs, "ids": self.ids}
+        out = {"components": list(self.components), **{k: sorted([c, a] for c, a in v) for k, v in pairs.items()}}
+        return {**out, "hashes": dict(self.hashes), "ports": self.ports}
+
+    def check(self, module: ModuleType, distro: str) -> None:
+        """Refuse (`StalePackage`) a generated package whose record (`genapi.RECORD`) is not of this model."""
+        want = dict(self.hashes).get(distro)
+        if want is None:  # a layout made by hand (tests): nothing to compare with
+            return
+        name = str(getattr(module, "__name__", module))
+        try:
+            record = importlib.import_module(f"{name}.{api.RECORD}")
+        except ImportError:
+            record = None
+        have = getattr(record, "MODEL_HASH", None)
+        if have == want:
+            return
+        if have is None:
+            why = "it records no model (generated by an older td2adaptor)"
+        else:
+            why = "its model differs" + _differences(getattr(record, "PORTS", None), self.ports)
+        raise StalePackage(
+            f"the adaptor package {name} was not generated from this Thing Description: {why}", name, distro
+        )
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Layout:
-        runs: Iterable[Any] = data.get("runs") or ()
-        return cls(tuple(str(c) for c in data["components"]), frozenset((str(c), str(a)) for c, a in runs))
+        def pairs(key: str) -> frozenset[tuple[str, str]]:
+            found: Iterable[Any] = data.get(key) or ()
+            return frozenset((str(c), str(a)) for c, a in found)
+
+        hashes = tuple(sorted((str(d), str(h)) for d, h in (data.get("hashes") or {}).items()))
+        return cls(tuple(str(c) for c in data["components"]), pairs("runs"), pairs("ids"), hashes, data.get("ports"))
+
+
+def _differences(have: Any, want: Mapping[str, Any] | None) -> str:
+    """What a package's ports lack or have beyond the model's (", only in the TD: ...; only in the package:
+    ..."), "" when they are the same (the types or the ROS names differ then)."""
+    if not isinstance(have, Mapping) or want is None:
+        return ""
+
+    def flat(table: Mapping[str, Any]) -> list[str]:
+        kinds = [(c, k) for c, k in table.items() if isinstance(k, Mapping)]
+        return [f"{c}.{n}" for c, k in kinds for names in k.values() for n in names]
+
+    theirs, ours = flat(have), flat(want)
+    parts = []
+    if missing := [p for p in ours if p not in theirs]:
+        parts.append("only in the TD: " + ", ".join(missing[:5]) + (", ..." if len(missing) > 5 else ""))
+    if extra := [p for p in theirs if p not in ours]:
+        parts.append("only in the package: " + ", ".join(extra[:5]) + (", ..." if len(extra) > 5 else ""))
+    return (" (" + "; ".join(parts) + ")") if parts else " (its ROS names, types or procedures)"
 
 
 class GoalTrack:
@@ -314,11 +369,11 @@ class GeneratedPort:
         self.feedback_grace = FEEDBACK_GRACE[distro] if feedback_grace is None else feedback_grace
         self.server_timeout = server_timeout
         module = importlib.import_module(package) if isinstance(package, str) else package
+        self.layout.check(module, distro)
         self.components: dict[str, Any] = {}
         self._locks: dict[str, threading.BoundedSemaphore] = {}
         self._goals: dict[tuple[str, str, str], GoalTrack] = {}
         self._goals_lock = threading.Lock()
-        self._takes: dict[tuple[str, str], bool] = {}  # whether call_<action> takes mission_id= (inspect is slow)
         for name in self.layout.components:
             cls = getattr(module, name, None)
             if cls is None:
@@ -350,8 +405,8 @@ class GeneratedPort:
             raise _port_error(exc) from exc
 
     def start(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> StartResult:
-        construct = self._method(component, f"construct_{action}_Msg")
-        call = self._method(component, f"call_{action}")
+        construct = self._method(component, api.CONSTRUCT_REQUEST(action))
+        call = self._method(component, api.CALL(action))
 
         def run() -> StartResult:
             result = call(construct(**payload), timeout=timeout)
@@ -363,22 +418,19 @@ class GeneratedPort:
         return self._guarded(component, run)  # type: ignore[no-any-return]
 
     def query(self, component: str, action: str, mission_id: int, timeout: float) -> Mapping[str, Any]:
-        """Call a query or cancel; the mission id goes where the generated method takes one (`mission_id=`),
-        else the robot is asked about its current procedure (a request that cannot name it: ROS447)."""
-        call = self._method(component, f"call_{action}")
-        takes = self._takes.get((component, action))
-        if takes is None:
-            takes = self._takes[(component, action)] = _takes_mission_id(call)
-        if takes:
-            return self._guarded(component, lambda: to_plain(call(mission_id=mission_id, timeout=timeout)))  # type: ignore[no-any-return]
+        """Call a query or cancel; the mission id goes where its request carries one (`mission_id=`, see
+        `Layout.ids`), else the robot is asked about its current procedure (a request that cannot name it: ROS447)."""
+        call = self._method(component, api.CALL(action))
+        if (component, action) in self.layout.ids:
+            return self._guarded(component, lambda: to_plain(call(**{api.MISSION_ID: mission_id}, timeout=timeout)))  # type: ignore[no-any-return]
         return self._guarded(component, lambda: to_plain(call(timeout=timeout)))  # type: ignore[no-any-return]
 
     def cancel(self, component: str, action: str, mission_id: int, timeout: float) -> Mapping[str, Any]:
         return self.query(component, action, mission_id, timeout)
 
     def call(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> Mapping[str, Any]:
-        construct = self._method(component, f"construct_{action}_Msg")
-        call = self._method(component, f"call_{action}")
+        construct = self._method(component, api.CONSTRUCT_REQUEST(action))
+        call = self._method(component, api.CALL(action))
         if (component, action) in self.layout.runs:
             return self.start(component, action, payload, timeout).response
 
@@ -389,35 +441,35 @@ class GeneratedPort:
         return self._guarded(component, run)  # type: ignore[no-any-return]
 
     def read_property(self, component: str, name: str, timeout: float) -> Any:
-        get = self._method(component, f"get_{name}_value")
+        get = self._method(component, api.GET(name))
         return self._guarded(component, lambda: to_plain(get(timeout=timeout)))
 
     def watch_property(self, component: str, name: str, callback: Callable[[Any], None]) -> Callable[[], None]:
         """Call `callback` with every message of a subscribed property (the raw ROS message, on the ROS
         side's thread: it must not block); returns what removes it (property_mode message, streams.py)."""
-        return self._method(component, f"on_{name}")(callback)  # type: ignore[no-any-return]
+        return self._method(component, api.ON(name))(callback)  # type: ignore[no-any-return]
 
     def watch_property_serialized(
         self, component: str, name: str, callback: Callable[[bytes], None]
     ) -> Callable[[], None] | None:
         """`watch_property` with each message's serialized bytes as received (a ROS 2 adaptor's
         `on_<name>_serialized`); None when the adaptor has no such method (generated before it existed)."""
-        method = getattr(self.components.get(component), f"on_{name}_serialized", None)
+        method = getattr(self.components.get(component), api.ON_SERIALIZED(name), None)
         if not callable(method):
             return None
         return method(callback)  # type: ignore[no-any-return]
 
     def write_property(self, component: str, name: str, value: Any) -> None:
-        construct = self._method(component, f"construct_{name}_Msg")
-        publish = self._method(component, f"publish_{name}_Msg")
+        construct = self._method(component, api.CONSTRUCT_MESSAGE(name))
+        publish = self._method(component, api.PUBLISH(name))
         fields = value if isinstance(value, Mapping) else {"data": value}
         self._guarded(component, lambda: publish(construct(**fields)))
 
     # -- ROS actions (the `GoalPort` protocol) --------------------------------------------------------------
 
     def send_goal(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> str:
-        construct = self._method(component, f"construct_{action}_Goal")
-        send = self._method(component, f"send_{action}")
+        construct = self._method(component, api.CONSTRUCT_GOAL(action))
+        send = self._method(component, api.SEND(action))
         handle = self._guarded(component, lambda: send(construct(**payload), timeout=timeout))
         track = GoalTrack(handle, self.feedback_grace, self.server_timeout)
         with self._goals_lock:

@@ -78,6 +78,17 @@ class RosSetupError(Exception):
     `PortError`: no call failed, the ports cannot be made; raised by node/roslink.py and by the ROS 1 bridge.)"""
 
 
+class StalePackage(RosSetupError):
+    """The generated package was generated from another model than the Thing Description `run` was given
+    (its recorded hash differs, or it records none: generated before packages did). `package` and `distro`
+    ("ros1", "ros2") name it; the message says what differs."""
+
+    def __init__(self, message: str, package: str = "", distro: str = "") -> None:
+        super().__init__(message)
+        self.package = package
+        self.distro = distro
+
+
 @dataclass(frozen=True)
 class StartResult:
     """Answer to starting a procedure: the robot's response and the mission id it assigned (None if none)."""
