@@ -23,6 +23,7 @@ import logging
 import os
 import queue
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -412,6 +413,25 @@ def clear_retained(bus: Any, setup: Setup, robots: Sequence[str]) -> None:
     bus.flush(5.0)
 
 
+@contextmanager
+def stopped_by_sigterm() -> Iterator[None]:
+    """SIGTERM ends the demo as an error does, through every clean-up on the way out: Python's default would
+    end this process at once and leave its simulations and edge nodes running (they are not in its process
+    group when a supervisor started it). In the main thread only, where signal handlers can be set."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(_signum: int, _frame: object) -> None:
+        raise DemoError("stopped by SIGTERM before every cart was stored")
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def run_warehouse(options: WarehouseOptions, out: Callable[[str], None] = print) -> bool:
     """Run the demo and print its summary; True when every cart was stored."""
     started = time.monotonic()
@@ -427,6 +447,7 @@ def run_warehouse(options: WarehouseOptions, out: Callable[[str], None] = print)
 
     try:
         with ExitStack() as stack:
+            stack.enter_context(stopped_by_sigterm())  # left first: the simulations and edge nodes stop too
             setup = prepare(options, work, say)
             from td2adaptor.runtime.bus.localbus import LocalBroker
 

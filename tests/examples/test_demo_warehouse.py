@@ -7,8 +7,10 @@ from __future__ import annotations
 
 import os
 import re
+import signal
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -119,3 +121,69 @@ def test_an_unknown_robot_kind_is_a_usage_error() -> None:
     )
     assert out.returncode == 2 and "Traceback" not in out.stderr, out.stderr
     assert "'tugbot' is not one of 'rb1', 'nav_base'" in out.stderr, out.stderr
+
+
+def descendants(pid: int) -> set[int]:
+    """Every process started under `pid`, however deep (from /proc: the demo's simulations and edge nodes)."""
+    found: set[int] = set()
+    todo = [pid]
+    while todo:
+        parent = todo.pop()
+        for task in Path(f"/proc/{parent}/task").glob("*"):
+            try:
+                children = {int(c) for c in (task / "children").read_text().split()}
+            except (OSError, ValueError):
+                continue
+            todo += sorted(children - found)
+            found |= children
+    return found
+
+
+def alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def test_sigterm_stops_the_demo_with_its_simulations_and_edge_nodes(
+    ros2_domain: int, rb1_prefix: Path, broker: Mosquitto
+) -> None:
+    """SIGTERM to the demo alone (as a supervisor sends it, not to a process group) ends it with one line, and
+    its simulations and edge node processes too: Python's default SIGTERM left them running."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "td2adaptor", "demo", "warehouse", "--duration", "5", "--bus", broker.url],
+        cwd=REPO,
+        env=dict(os.environ, ROS_DOMAIN_ID=str(env.private_domain_id())),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    children: set[int] = set()
+    try:
+        assert proc.stdout is not None
+        for line in proc.stdout:  # the robots are online once the start-up line comes
+            if line.strip().startswith("start-up"):
+                break
+        children = descendants(proc.pid)
+        assert len(children) >= 4, children  # the simulations and the three edge nodes at least
+        proc.send_signal(signal.SIGTERM)
+        code = proc.wait(60)
+        err = proc.stderr.read() if proc.stderr is not None else ""
+        deadline = time.monotonic() + 20
+        while any(alive(pid) for pid in children) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        left = sorted(pid for pid in children if alive(pid))
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(10)
+        for stream in (proc.stdout, proc.stderr):
+            if stream is not None:
+                stream.close()
+        for pid in children:
+            if alive(pid):
+                os.kill(pid, signal.SIGKILL)
+    assert not left, f"still running after the demo's SIGTERM: {left}"
+    assert code == 1 and "stopped by SIGTERM" in err and "Traceback" not in err, err

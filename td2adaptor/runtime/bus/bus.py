@@ -55,6 +55,12 @@ class Bus(Protocol):
         """Wait until everything published so far is acknowledged; False on timeout."""
         ...
 
+    @property
+    def connected(self) -> bool:
+        """Whether a broker can acknowledge now (a local bus always can): a node stopping while its broker is
+        gone does not wait for acknowledgements that cannot come."""
+        ...
+
     def close(self) -> None:
         """Disconnect cleanly (the will is not published)."""
         ...

@@ -229,6 +229,10 @@ class LocalBus:
     def flush(self, timeout: float) -> bool:
         return True  # a local publish is in every subscriber's queue when `publish` returns
 
+    @property
+    def connected(self) -> bool:
+        return True
+
     def drain(self, timeout: float) -> bool:
         """Wait until this client has handled everything queued for it (tests)."""
         with self.broker.cond:

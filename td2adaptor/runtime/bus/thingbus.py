@@ -130,6 +130,10 @@ class ThingBus:
     def flush(self, timeout: float) -> bool:
         return self.bus.flush(timeout)
 
+    @property
+    def connected(self) -> bool:
+        return self.bus.connected
+
     def close(self) -> None:
         self.bus.close()
 

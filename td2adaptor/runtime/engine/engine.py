@@ -232,7 +232,8 @@ class Engine:
                 self.bus.publish(self.td.topic, b"", retain=True)
             offline = self.offline or status_event(self.config, self.model, "offline")
             self.bus.publish(offline.topic, offline.payload, retain=True)
-            self.bus.flush(timeout)
+            if self.bus.connected:  # else no broker can acknowledge it: the will says offline, if it ever can
+                self.bus.flush(timeout)
         except BusError as exc:
             log.warning("could not publish the offline status: %s", exc)
         self.bus.close()

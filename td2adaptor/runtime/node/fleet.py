@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import partial
@@ -30,6 +31,9 @@ from td2adaptor.runtime.node.roslink import RosLink
 from td2adaptor.runtime.ros.port import RobotPort
 
 log = logging.getLogger("td2adaptor.runtime.fleet")
+#: seconds a stopping process waits, for all its robots together, for what is still in flight (calls, the
+#: offline status's acknowledgement)
+STOP_TIMEOUT = 5.0
 
 ORIGINS = ("file", "discovery", "admin")
 
@@ -187,8 +191,9 @@ class Fleet:
         with self._lock:
             self._closed = True
             engines, self._engines = dict(self._engines), {}
+            deadline = time.monotonic() + STOP_TIMEOUT  # one bound for the fleet, not one per robot
             for engine in engines.values():
-                engine.stop()
+                engine.stop(max(0.1, deadline - time.monotonic()))
             for robot in engines:
                 self._release(robot)
             self._origin.clear()
