@@ -18,13 +18,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import pytest
-
 from td2adaptor.backends.rospy import generator as rospy_backend
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GenOptions
 from tests.ros1 import harness
 from tests.ros2.common import build_rclpy
+from tests.tools import require_ok
 
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain
 
@@ -117,11 +116,7 @@ def test_rclpy_construct_refuses_floats_ros_2_cannot_hold(ros2_domain: int, tmp_
 
 
 def test_rospy_construct_refuses_floats_ros_1_cannot_hold(tmp_path: Path) -> None:
-    problem = harness.ros1_problem()
-    if problem:
-        if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
-            pytest.skip(problem)
-        pytest.fail(problem)
+    require_ok(harness.ros1_problem())
     import td2adaptor
 
     path = tmp_path / "td.json"

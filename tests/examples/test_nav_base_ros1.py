@@ -8,7 +8,6 @@ serves several bases, and every test drives a base of its own. The client code r
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -28,15 +27,6 @@ from tests.ros1.harness import Master, Sim
 SIM = EXAMPLE / "sim" / "ros1.py"
 BASES = tuple(f"nav1_{i}" for i in range(6))
 SPEED = 2.0
-
-
-@pytest.fixture(scope="module")
-def ros1() -> None:
-    problem = harness.ros1_problem()
-    if problem:
-        if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
-            pytest.skip(problem)
-        pytest.fail(problem)
 
 
 @pytest.fixture(scope="module")
@@ -66,12 +56,6 @@ def package(tmp_path_factory: pytest.TempPathFactory) -> Path:
         (root / rel).parent.mkdir(parents=True, exist_ok=True)
         (root / rel).write_bytes(data)
     return root / PACKAGE
-
-
-@pytest.fixture(scope="module")
-def master(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Iterator[Master]:
-    with harness.rosmaster(tmp_path_factory.mktemp("nav-ros1-home")) as m:
-        yield m
 
 
 @pytest.fixture(scope="module")

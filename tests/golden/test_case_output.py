@@ -22,6 +22,7 @@ from td2adaptor.diagnostics import Severity
 from tests.backends.events.schemawalk import untyped
 from tests.backends.mros import build as mros_build
 from tests.golden.goldens import CASES, materialize, tomllib
+from tests.tools import require
 
 VENV_BIN = Path(sys.executable).parent
 
@@ -102,10 +103,10 @@ def test_event_schemas_and_exposed_td_are_valid(out: Path) -> None:
             assert untyped(affordance) == [], f"{section}/{name}"
 
 
-@pytest.mark.skipif(not mros_build.have(mros_build.HOST_CXX), reason="g++ not installed (.ci/setup-mros.sh)")
 @pytest.mark.parametrize("golden", MROS, ids=[_id(p) for p in MROS])
 def test_mros_application_is_cxx98(golden: Path, tmp_path: Path, materialized: Callable[[Path], Path]) -> None:
     """In a copy, with the kernel_cfg.h the TOPPERS configurator would make from app.cfg."""
+    require(mros_build.HOST_CXX, ".ci/setup-mros.sh")
     root = tmp_path / golden.name
     shutil.copytree(materialized(golden), root)
     (root / "kernel_cfg.h").write_text(mros_lint.kernel_cfg_h((root / "app.cfg").read_text(encoding="utf-8")))

@@ -12,7 +12,6 @@ killed mid-goal → failure within the timeout.
 from __future__ import annotations
 
 import json
-import os
 import signal
 import subprocess
 import time
@@ -52,15 +51,6 @@ BUILD_ACTIONS = REPO / "tests" / "ros1" / "build_actions.py"
 
 
 @pytest.fixture(scope="module")
-def ros1() -> None:
-    problem = harness.ros1_problem()
-    if problem:
-        if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
-            pytest.skip(problem)
-        pytest.fail(problem)
-
-
-@pytest.fixture(scope="module")
 def build(ros1: None, tmp_path_factory: pytest.TempPathFactory) -> tuple[Model, Path, Path]:
     """The model, the generated rospy package's src/ and the genpy modules of tests/data/actions."""
     base = tmp_path_factory.mktemp("fibo-ros1")
@@ -83,12 +73,6 @@ def build(ros1: None, tmp_path_factory: pytest.TempPathFactory) -> tuple[Model, 
     )
     assert built.returncode == 0, built.stderr
     return result.model, base / "pkg" / result.model.package_name / "src", modules
-
-
-@pytest.fixture(scope="module")
-def master(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Iterator[Master]:
-    with harness.rosmaster(tmp_path_factory.mktemp("ros1-home")) as m:
-        yield m
 
 
 def robot_process(master: Master, modules: Path, namespace: str) -> Process:

@@ -43,15 +43,6 @@ ROBOT = "edge_ros1"
 
 
 @pytest.fixture(scope="module")
-def ros1() -> None:
-    problem = harness.ros1_problem()
-    if problem:
-        if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
-            pytest.skip(problem)
-        pytest.fail(problem)
-
-
-@pytest.fixture(scope="module")
 def package_src(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Path:
     """The RB-1 rospy package generated into a temporary directory; its src/ (to import from)."""
     result = td2adaptor.compile(EXAMPLE / "td.json", interfaces=[EXAMPLE / "interfaces"])
@@ -66,12 +57,6 @@ def package_src(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Path:
 @pytest.fixture(scope="module")
 def interfaces(ros1: None) -> Path:
     return harness.interfaces_dir()
-
-
-@pytest.fixture(scope="module")
-def master(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Iterator[Master]:
-    with harness.rosmaster(tmp_path_factory.mktemp("ros1-home")) as m:
-        yield m
 
 
 @pytest.fixture(scope="module")

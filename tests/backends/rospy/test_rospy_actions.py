@@ -33,15 +33,6 @@ STEP = 0.05  # seconds between two feedback messages of the server
 
 
 @pytest.fixture(scope="module")
-def ros1() -> None:
-    problem = harness.ros1_problem()
-    if problem:
-        if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
-            pytest.skip(problem)
-        pytest.fail(problem)
-
-
-@pytest.fixture(scope="module")
 def package(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The fibo_action golden TD's rospy package (a ROS action and a property), generated; its directory."""
     result = td2adaptor.compile(CASE / "td.json", interfaces=[INTERFACES])
@@ -68,12 +59,6 @@ def interfaces(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Path:
     )
     assert built.returncode == 0, built.stderr
     return out
-
-
-@pytest.fixture(scope="module")
-def master(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Iterator[Master]:
-    with harness.rosmaster(tmp_path_factory.mktemp("ros1-home")) as m:
-        yield m
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,6 @@ from __future__ import annotations
 import json
 import os
 import subprocess
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -22,15 +21,6 @@ from tests.ros1 import harness
 from tests.ros1.harness import Master
 
 PKG = "robotnik_rb_1_adaptor"
-
-
-@pytest.fixture(scope="module")
-def ros1() -> None:
-    problem = harness.ros1_problem()
-    if problem:
-        if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
-            pytest.skip(problem)
-        pytest.fail(problem)
 
 
 @pytest.fixture(scope="module")
@@ -49,12 +39,6 @@ def package(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Path:
 @pytest.fixture(scope="module")
 def interfaces(ros1: None) -> Path:
     return harness.interfaces_dir()
-
-
-@pytest.fixture(scope="module")
-def master(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Iterator[Master]:
-    with harness.rosmaster(tmp_path_factory.mktemp("ros1-home")) as m:
-        yield m
 
 
 @pytest.fixture(scope="module")
