@@ -16,10 +16,7 @@ from typing import Any
 
 import pytest
 
-import td2adaptor
-from td2adaptor.backends.registry import load as load_backend
-from td2adaptor.diagnostics import Diagnostics, Severity
-from td2adaptor.generation.backend import GenOptions
+from tests import generated
 from tests.examples.nav_base import EXAMPLE, INTERFACES, PACKAGE
 from tests.ros1 import harness
 from tests.ros1.harness import Master, Sim
@@ -46,16 +43,11 @@ def genpy(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Path:
 @pytest.fixture(scope="module")
 def package(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The rospy package of examples/nav_base/td.json; its directory."""
-    result = td2adaptor.compile(EXAMPLE / "td.json", interfaces=[INTERFACES])
-    assert result.model is not None, [d.message for d in result.diagnostics]
-    diags = Diagnostics()
-    tree = load_backend("rospy").generate(result.model, GenOptions(), diags)
-    assert not [d for d in diags if d.severity is Severity.ERROR], [d.message for d in diags]
-    root = tmp_path_factory.mktemp("nav-rospy")
-    for rel, data in tree:
-        (root / rel).parent.mkdir(parents=True, exist_ok=True)
-        (root / rel).write_bytes(data)
-    return root / PACKAGE
+    _, package = generated.generate(
+        "rospy", EXAMPLE / "td.json", tmp_path_factory.mktemp("nav-rospy"), interfaces=[INTERFACES]
+    )
+    assert package.name == PACKAGE
+    return package
 
 
 @pytest.fixture(scope="module")

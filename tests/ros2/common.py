@@ -17,6 +17,7 @@ from td2adaptor.backends.registry import load as load_backend
 from td2adaptor.compiler.pipeline import Result
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GenOptions
+from tests import generated
 from tests.ros2 import env
 from tests.tools import missing
 
@@ -48,10 +49,7 @@ def build_rclpy(
     diags = Diagnostics()
     tree = load_backend("rclpy").generate(result.model, GenOptions(package_name=package_name), diags)
     assert not [d for d in diags if d.severity is Severity.ERROR], [d.message for d in diags]
-    for rel, data in tree:
-        path = out / rel
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_bytes(data)
+    generated.write(tree, out)
     return result, out / (package_name or result.model.package_name)
 
 
