@@ -25,6 +25,7 @@ run "gen next to a peer generator (issue 3)" "$PY" bench/peer.py
 [ -f bench/edge_node_ros2.py ] && run "edge node: MQTT event -> ROS 2 call -> feedback (issue 5)" "$PY" bench/edge_node_ros2.py
 [ -f bench/wot_consumer.py ] && run "a WoT consumer (node-wot) on ROS 2; the retained TD at start (issue 11)" "$PY" bench/wot_consumer.py
 [ -f bench/discovery.py ] && run "discovery: TD registered with a TD directory at start (issue 11)" "$PY" bench/discovery.py
+[ -f bench/td_size.py ] && run "the examples' published TDs: JSON, RDF, and what a TD directory gives back (issue 35)" "$PY" bench/td_size.py
 [ -f bench/scaffold.py ] && run "scaffold a 100-node ROS 2 graph (issue 15)" "$PY" bench/scaffold.py
 [ -f bench/edge_node_actions_ros2.py ] && run "edge node: ROS 2 action goal -> feedback and result events (issue 12)" "$PY" bench/edge_node_actions_ros2.py
 [ -f bench/fleet_ros2.py ] && run "a fleet of 100 robots on one broker: one edge node per robot, one for the fleet (issue 17)" "$PY" bench/fleet_ros2.py

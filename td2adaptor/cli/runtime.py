@@ -3,6 +3,7 @@ source checkout)."""
 
 from __future__ import annotations
 
+import shlex
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -61,6 +62,17 @@ if TYPE_CHECKING:
     type=click.Path(dir_okay=False, path_type=Path),
     help="YAML runtime configuration; with a robots: list, one process serves the whole fleet.",
 )
+@click.option(
+    "--discover",
+    is_flag=True,
+    help="Serve every robot whose namespace shows the Thing Model's ROS interfaces in the ROS graph (ROS 2, or "
+    "the ROS 1 master), from when it appears until it has been gone for --discover-grace.",
+)
+@click.option(
+    "--discover-grace",
+    type=click.FloatRange(min=0),
+    help="Seconds a discovered robot may be gone from the ROS graph before it is retired (default 10).",
+)
 @click.option("--ros", type=click.Choice(["1", "2"]), default="2", show_default=True, help="ROS version.")
 @click.option("--package", help="Module name of the generated adaptor package (default: the TD's package name).")
 @click.option(
@@ -115,6 +127,8 @@ def run(
     directory: str | None,
     directory_ttl: int | None,
     config_file: Path | None,
+    discover: bool,
+    discover_grace: float | None,
     ros: str,
     package: str | None,
     package_paths: tuple[Path, ...],
@@ -139,6 +153,8 @@ def run(
     --directory, registered with a TD directory. SIGINT/SIGTERM stop it cleanly (the TD is cleared and
     deregistered, the robot's status becomes offline). When the TD requires authentication, a broker that
     accepts anonymous clients is refused at start and on every reconnection: the node stops and exits 1.
+    Robots join and leave while it runs: the --config file is read again on SIGHUP and when it changes on
+    disk, --discover follows the ROS graph, and admin requests on the bus add or remove one (docs/fleet.md).
     """
     import logging
     import signal
@@ -171,43 +187,86 @@ def run(
         "property_period": property_period,
         "allow_insecure": allow_insecure,
         "allow_anonymous_broker": allow_anonymous_broker,
+        "discover_grace": discover_grace,
     }
+    from td2adaptor.runtime.config import load_defaults, names_robots
+    from td2adaptor.runtime.node.fleetfile import stamp
+
+    seen = stamp(config_file) if config_file is not None else None  # before it is read: a change meanwhile counts
+
+    def load() -> list[Any]:
+        if discover and not robot and not names_robots(config_file):
+            return []  # only the robots discovery finds
+        return load_fleet(config_file, overrides=overrides)
+
     try:
-        configs = load_fleet(config_file, overrides=overrides)
+        configs = load()
+        defaults = load_defaults(config_file, overrides=overrides)
+        if discover:
+            from td2adaptor.runtime.node.graphwatch import signature
+
+            signature(result.model)
     except ConfigError as exc:
         _fail("run", f"configuration: {exc}")
     logging.basicConfig(
         level=getattr(logging, log_level.upper()), format="%(asctime)s %(levelname)s %(name)s: %(message)s"
     )
-    if any(c.bus == "local" for c in configs):
+    if defaults.get("bus", "local") == "local" or any(c.bus == "local" for c in configs):
         click.echo(
             "td2adaptor run: warning: --bus local is in-process; nothing outside this process can reach it", err=True
         )
     from td2adaptor.runtime.bus.bus import BusError
     from td2adaptor.runtime.bus.security import SecurityError
-    from td2adaptor.runtime.ros.port import PortError, RosSetupError
+    from td2adaptor.runtime.ros.port import PortError, RosSetupError, StalePackage
 
     options = RosOptions(int(ros), package, package_paths, prefixes, ros1_python)
-    node = EdgeNode(result.model, configs, options)
+    node = EdgeNode(result.model, configs, options, defaults=defaults)
 
     def interrupt(_signum: int, _frame: Any) -> None:
         raise KeyboardInterrupt  # SIGTERM while starting: undo what was opened, like Ctrl-C
 
     previous = signal.signal(signal.SIGTERM, interrupt)
+    signal.signal(signal.SIGHUP, signal.SIG_IGN)  # until the main loop takes it: the file is looked at afterwards
     try:
         node.start()
+        if discover:
+            node.discover()
+        if defaults.get("bus", "local") != "local":
+            try:
+                node.listen_admin()
+            except (SecurityError, BusError) as exc:  # the robots are served all the same
+                click.echo(f"td2adaptor run: warning: admin requests are not taken: {exc}", err=True)
     except KeyboardInterrupt:
         node.stop()
         click.echo("td2adaptor run: interrupted while starting", err=True)
         sys.exit(130)
+    except StalePackage as exc:  # generated from another TD: say the command that makes it again
+        node.stop()
+        backend = "rospy" if exc.distro == "ros1" else "rclpy"
+        given = [*(a for folder in interfaces for a in ("-I", str(folder))), *(a for v in sets for a in ("--set", v))]
+        given += ["--values", str(values_file)] if values_file is not None else []
+        given += ["--package-name", exc.package] if exc.package != result.model.package_name else []
+        command = shlex.join(["td2adaptor", "gen", source, "-b", backend, *given])
+        _fail("run", f"{exc}; regenerate it with `{command} -o DIR` (DIR: where it is kept) and build it again")
     except (RosSetupError, SecurityError, BusError, PortError) as exc:  # the user's to fix: one clear line
         node.stop()
         _fail("run", str(exc))
     finally:
         signal.signal(signal.SIGTERM, previous)
-    click.echo(f"td2adaptor run: {node.describe()}; SIGINT/SIGTERM stops", err=True)
+    watched = None
+    if config_file is not None and node.fleet is not None:
+        from td2adaptor.runtime.node.fleetfile import FleetFile
+
+        watched = FleetFile(config_file, node.fleet, load, seen=seen)
+    reloads = "; SIGHUP or a change of the file reloads it" if watched is not None else ""
+    click.echo(f"td2adaptor run: {node.describe()}{reloads}; SIGINT/SIGTERM stops", err=True)
     try:
-        wait_for_signal(node.halted)  # or until a robot's broker fails the check on reconnecting
+        wait_for_signal(  # or until a robot's broker fails the check on reconnecting
+            node.halted,
+            reload=None if watched is None else watched.reload,
+            tick=None if watched is None else watched.poll,
+            period=0.25,  # a look at the file: one stat
+        )
     finally:
         node.stop()
         click.echo("td2adaptor run: stopped", err=True)

@@ -354,7 +354,7 @@ _ENTRIES: tuple[Entry, ...] = (
     Entry("GEN821", (_W,), "rclpy backend skipped an affordance (--partial)"),
     Entry("GEN822", (_E,), "rclpy backend: generated method names clash", "rename one of the affordances"),
     Entry("GEN840", (_E,), "rospy backend cannot express a message field"),
-    Entry("GEN841", (_E,), "rospy backend: a component would define a name twice"),
+    Entry("GEN841", (_E,), "rospy backend: generated method names clash", "rename one of the affordances"),
     Entry(
         "GEN842",
         (_E,),

@@ -3,7 +3,8 @@
 Each backend keeps its templates in its own folder (`backends/<name>/templates/`) and its verbatim files
 (copied unchanged) in `backends/<name>/verbatim/`.
 
-Templates are dumb (backends compute names, types and imports); StrictUndefined turns a missing value into
+Templates are dumb (backends compute names, types and imports; the names of generated methods come from the
+global `api`, the contract of the generated API, `model/genapi.py`); StrictUndefined turns a missing value into
 an error instead of an empty string. Compiled templates are cached in the user cache (compiling them is
 most of a warm `check`); any cache failure just means no cache.
 """
@@ -16,6 +17,7 @@ from pathlib import Path
 import jinja2
 import jinja2.bccache
 
+from td2adaptor.model import genapi
 from td2adaptor.support.cache import cache_dir
 
 
@@ -48,7 +50,7 @@ def _bytecode_cache(backend: str) -> jinja2.BytecodeCache | None:
 def environment(directory: Path, *, trim: bool = True) -> jinja2.Environment:
     """The environment for a backend's template folder."""
     backend = directory.parent.name
-    return jinja2.Environment(
+    env = jinja2.Environment(
         loader=jinja2.FileSystemLoader(str(directory)),
         autoescape=False,
         keep_trailing_newline=True,
@@ -57,6 +59,8 @@ def environment(directory: Path, *, trim: bool = True) -> jinja2.Environment:
         undefined=jinja2.StrictUndefined,
         bytecode_cache=_bytecode_cache(backend),
     )
+    env.globals["api"] = genapi
+    return env
 
 
 def render(directory: Path, template: str, **context: object) -> str:

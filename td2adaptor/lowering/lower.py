@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity, pointer_join
 from td2adaptor.frontend.extract import BINDING, REFERENCE, RawEndpoint, obj
 from td2adaptor.lowering.distros import BACKENDS, DISTROS, LABELS, Loss, loss, other, split_problems, usable
-from td2adaptor.lowering.procstate import READING_KEYS, RoleInfo, check_reading, parse_reading
+from td2adaptor.lowering.procstate import READING_KEYS, RoleInfo, check_reading, failure_of, parse_reading
 from td2adaptor.lowering.rosnames import (
     BINDING_PLACEHOLDER,
     REFERENCE_PLACEHOLDER,
@@ -29,7 +29,6 @@ from td2adaptor.model import (
     ActionEndpoint,
     Component,
     Interface,
-    MessageDef,
     Model,
     Procedure,
     ProcedureRole,
@@ -42,6 +41,7 @@ from td2adaptor.model import (
     TypeTable,
     freeze,
 )
+from td2adaptor.model.primitives import INTEGERS
 
 if TYPE_CHECKING:
     from td2adaptor.rostypes.registry import TypeRegistry
@@ -142,7 +142,7 @@ def lower(
     components = tuple(
         Component(
             name=g.name,
-            services=tuple(_service(ep) for ep in g.endpoints if ep.raw.interface is Interface.SERVICE),
+            services=tuple(_service(ep, tables) for ep in g.endpoints if ep.raw.interface is Interface.SERVICE),
             topics=tuple(_topic(ep) for ep in g.endpoints if ep.raw.interface is Interface.TOPIC),
             procedures=procedures[g.name],
             actions=tuple(_action(ep) for ep in g.endpoints if ep.raw.interface is Interface.ACTION),
@@ -550,25 +550,6 @@ def _derived_procedure(services: Mapping[str, _Endpoint], group: _Group, diags: 
     return Procedure(runs[0], query, cancel)
 
 
-def _field_path(msg: MessageDef, path: Sequence[str], table: TypeTable) -> str | None:
-    """The primitive type at `path` in `msg`, or None when the path does not exist."""
-    current: MessageDef | None = msg
-    for i, part in enumerate(path):
-        if current is None:
-            return None
-        fld = next((f for f in current.fields if f.name == part), None)
-        if fld is None or fld.type.array.value != "none":
-            return None
-        if i == len(path) - 1:
-            return None if fld.type.is_message else fld.type.base
-        found = table.get(fld.type.base) if fld.type.is_message else None
-        current = found if isinstance(found, MessageDef) else None
-    return None
-
-
-_INT_TYPES = {"int8", "int16", "int32", "int64", "uint8", "uint16", "uint32", "uint64"}
-
-
 def _mission_ids(
     group: _Group, procs: Sequence[Procedure], tables: Mapping[str, TypeTable], diags: Diagnostics
 ) -> list[Procedure]:
@@ -583,8 +564,8 @@ def _mission_ids(
             if isinstance(srv, ServiceDef):
                 responses.append((tables[distro], srv.response))
         if proc.mission_id:
-            types = {_field_path(resp, proc.mission_id, t) for t, resp in responses}
-            if responses and not types <= _INT_TYPES:
+            types = {t.primitive_at(resp, proc.mission_id) for t, resp in responses}
+            if responses and not types <= INTEGERS:
                 ptr = ep.raw.procedure.pointer if ep.raw.procedure else ep.raw.pointer
                 diags.error(
                     "ROS444",
@@ -595,7 +576,7 @@ def _mission_ids(
             out.append(proc)
             continue
         derived = ("state", "header", "id")
-        if responses and all(_field_path(resp, derived, t) in _INT_TYPES for t, resp in responses):
+        if responses and all(t.primitive_at(resp, derived) in INTEGERS for t, resp in responses):
             out.append(replace(proc, mission_id=derived))
         else:
             out.append(proc)
@@ -833,7 +814,7 @@ def _plain(value: Any) -> Any:
     return thaw(value)
 
 
-def _service(ep: _Endpoint) -> ServiceEndpoint:
+def _service(ep: _Endpoint, tables: Mapping[str, TypeTable]) -> ServiceEndpoint:
     raw = ep.raw
     return ServiceEndpoint(
         raw.name,
@@ -844,6 +825,7 @@ def _service(ep: _Endpoint) -> ServiceEndpoint:
         raw.input_schema,
         raw.output_schema,
         raw.pointer,
+        failure_of(ep.type_name, tables),
     )
 
 

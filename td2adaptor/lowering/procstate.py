@@ -18,16 +18,15 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from td2adaptor.diagnostics import Diagnostics, pointer_join
-from td2adaptor.model import ArrayKind, MessageDef, Procedure, ServiceDef, TypeTable
+from td2adaptor.model import Failure, Procedure, ServiceDef, TypeTable
+from td2adaptor.model.primitives import INTEGERS
 
 READING_KEYS = ("state", "states", "message")
 #: the states a mapping may name (what feedback and state events report)
 MAPPED_STATES = ("queued", "running", "paused", "finished", "failed", "cancelled")
 _PATH = re.compile(r"[A-Za-z_]\w*(/[A-Za-z_]\w*)*")
-#: integer types a mission id may have (what both Python backends accept)
-_INTS = {"int8", "int16", "int32", "int64", "uint8", "uint16", "uint32", "uint64"}
 #: types whose values read as decimal integers
-_WHOLE = _INTS | {"byte", "char"}
+_WHOLE = INTEGERS | {"byte", "char"}
 _CONVENTION = ("state", "current_state")
 
 
@@ -107,20 +106,6 @@ def parse_reading(
     return (state, tuple(states), message) if ok else None
 
 
-def field_type(msg: MessageDef, path: Sequence[str], table: TypeTable) -> str | None:
-    """The primitive type at `path` in `msg` (no arrays on the way), or None."""
-    current: MessageDef | None = msg
-    for i, part in enumerate(path):
-        found = next((f for f in current.fields if f.name == part), None) if current is not None else None
-        if found is None or found.type.array is not ArrayKind.NONE:
-            return None
-        if i == len(path) - 1:
-            return None if found.type.is_message else found.type.base
-        inner = table.get(found.type.base) if found.type.is_message else None
-        current = inner if isinstance(inner, MessageDef) else None
-    return None
-
-
 def _services(info: RoleInfo, tables: Mapping[str, TypeTable]) -> list[tuple[TypeTable, ServiceDef]]:
     out = []
     for table in tables.values():
@@ -134,18 +119,44 @@ def _has(info: RoleInfo, tables: Mapping[str, TypeTable], path: Sequence[str], *
     """Whether every resolved definition of the service has a primitive field at `path`."""
     found = _services(info, tables)
     return bool(found) and all(
-        field_type(srv.request if request else srv.response, path, table) is not None for table, srv in found
+        table.primitive_at(srv.request if request else srv.response, path) is not None for table, srv in found
     )
 
 
-def _takes_id(info: RoleInfo, tables: Mapping[str, TypeTable], id_path: Sequence[str]) -> bool:
-    """Whether the request can carry a mission id: an integer field at a suffix of the run response's id path
-    (the rclpy backend's rule) or at header/id, id or mission_id (the rospy backend's)."""
+def mission_slot(info: RoleInfo, tables: Mapping[str, TypeTable], id_path: Sequence[str]) -> tuple[str, ...]:
+    """Where the request carries a mission id, the one rule both Python backends and the edge node read (as
+    `Procedure.slot`): an integer field at the longest suffix of the run response's id path (`header/id` for
+    `state/header/id`), else at header/id, id or mission_id, in every ROS version that defines the type; ()
+    when there is none."""
     candidates = [tuple(id_path[i:]) for i in range(len(id_path))] + [("header", "id"), ("id",), ("mission_id",)]
     found = _services(info, tables)
-    return bool(found) and any(
-        all(field_type(srv.request, path, table) in _INTS for table, srv in found) for path in candidates
-    )
+    for path in candidates if found else ():
+        if all(table.primitive_at(srv.request, path) in INTEGERS for table, srv in found):
+            return path
+    return ()
+
+
+def failure_of(type_name: str, tables: Mapping[str, TypeTable]) -> Failure:
+    """How the response of service `type_name` says the robot failed (`Failure`), when every ROS version that
+    defines the type agrees; NONE when it cannot say (or the versions differ)."""
+    styles = set()
+    for table in tables.values():
+        srv = table.get(type_name)
+        if not isinstance(srv, ServiceDef):
+            continue
+        response = srv.response
+        if (
+            table.primitive_at(response, ("result", "result"))
+            == "string"
+            == table.primitive_at(response, ("result", "message"))
+        ):
+            styles.add(Failure.RESULT)
+        elif table.primitive_at(response, ("success",)) == "bool":
+            has_message = table.primitive_at(response, ("message",)) == "string"
+            styles.add(Failure.SUCCESS if has_message else Failure.SUCCESS_ONLY)
+        else:
+            styles.add(Failure.NONE)
+    return styles.pop() if len(styles) == 1 else Failure.NONE
 
 
 def check_reading(
@@ -185,6 +196,7 @@ def check_reading(
             "link a query action whose response carries the state (rosv:procedure query), or map a state field "
             "of the run response with state/states",
         )
+    slots: list[tuple[str, tuple[str, ...]]] = []
     for role in ("query", "cancel"):
         info = roles.get(role)
         if info is None or role not in resolved:
@@ -198,7 +210,10 @@ def check_reading(
                 "name the run response's integer id field with missionId, if the robot has one",
             )
             break
-        if not _takes_id(info, tables, proc.mission_id):
+        slot = mission_slot(info, tables, proc.mission_id)
+        if slot:
+            slots.append((role, slot))
+        else:
             diags.warning(
                 "ROS447",
                 f"procedure {proc.run!r}: the request of its {role} {info.action!r} ({info.type_name}) has no "
@@ -206,7 +221,7 @@ def check_reading(
                 info.pointer,
                 "a request field at the end of the missionId path (or header/id, id, mission_id) carries the id",
             )
-    return replace(proc, stateful=stateful)
+    return replace(proc, stateful=stateful, slots=tuple(slots))
 
 
 def _check_values(
@@ -214,7 +229,7 @@ def _check_values(
 ) -> None:
     """The mapped values must be spellable values of the state field (numbers for a numeric field)."""
     info = roles.get("query", roles["run"])
-    kinds = {field_type(srv.response, proc.state, table) for table, srv in _services(info, tables)} - {None}
+    kinds = {table.primitive_at(srv.response, proc.state) for table, srv in _services(info, tables)} - {None}
     if proc.message and _services(info, tables) and not _has(info, tables, proc.message):
         diags.error(
             "ROS446",

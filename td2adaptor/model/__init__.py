@@ -7,7 +7,7 @@ for diagnostics but excluded from equality, so a TD and its migrated form compil
 from __future__ import annotations
 
 import enum
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
@@ -194,6 +194,20 @@ class TypeTable:
         found: MessageDef | ServiceDef | ActionDef | None = self._by_name.get(name)
         return found
 
+    def primitive_at(self, msg: MessageDef, path: Sequence[str]) -> str | None:
+        """The primitive type of the field at `path` (field names, through nested messages, no arrays on the
+        way) in `msg`, or None when there is none: the one walk of a field path every stage reads."""
+        current: MessageDef | None = msg
+        for i, part in enumerate(path):
+            found = next((f for f in current.fields if f.name == part), None) if current is not None else None
+            if found is None or found.type.array is not ArrayKind.NONE:
+                return None
+            if i == len(path) - 1:
+                return None if found.type.is_message else found.type.base
+            inner = self.get(found.type.base) if found.type.is_message else None
+            current = inner if isinstance(inner, MessageDef) else None
+        return None
+
     @property
     def complete(self) -> bool:
         return not self.missing
@@ -281,6 +295,19 @@ class Text:
     descriptions: Mapping[str, str] = field(default_factory=FrozenMap)
 
 
+class Failure(str, enum.Enum):
+    """How a service's response says that the robot failed (the lowering reads it from the response type).
+
+    RESULT: procedures_msgs style, `result.result == "error"` with `result.message`; SUCCESS: std_srvs style,
+    `success` false with `message`; SUCCESS_ONLY: `success` false and no message field; NONE: it cannot say.
+    """
+
+    NONE = "none"
+    RESULT = "result"
+    SUCCESS = "success"
+    SUCCESS_ONLY = "success_only"
+
+
 @dataclass(frozen=True)
 class ServiceEndpoint:
     """A TD action bound to a ROS service, called by the adaptor (client side)."""
@@ -293,6 +320,8 @@ class ServiceEndpoint:
     input_schema: Any = None  # frozen JSON
     output_schema: Any = None
     pointer: str = field(default="", compare=False)
+    #: how its response says the robot failed, in every ROS version that defines the type
+    failure: Failure = Failure.NONE
 
 
 @dataclass(frozen=True)
@@ -333,7 +362,8 @@ class Procedure:
     queued/running/paused/finished/failed/cancelled) and `message` (a field path), or, when `state` is empty,
     by the procedures_msgs convention (state/current_state, state/last_event, result/result, result/message).
     `stateful` names the roles ("run", "query", "cancel") whose responses carry a state that way; the
-    others only say that the call was taken.
+    others only say that the call was taken. `slots` says, per role ("query", "cancel"), the request field path
+    that carries the mission id (see `slot`); a role without one cannot name the mission.
     """
 
     run: str
@@ -344,6 +374,11 @@ class Procedure:
     states: tuple[tuple[str, str], ...] = ()
     message: tuple[str, ...] = ()
     stateful: frozenset[str] = frozenset()
+    slots: tuple[tuple[str, tuple[str, ...]], ...] = ()
+
+    def slot(self, role: str) -> tuple[str, ...]:
+        """The request field path of `role` ("query", "cancel") that takes the mission id; () when none does."""
+        return next((path for r, path in self.slots if r == role), ())
 
 
 @dataclass(frozen=True)

@@ -63,7 +63,14 @@ def _wot_description(spec: EventSpec) -> str:
             "A request to an affordance (an action's input, a written value) was refused or failed: a stable "
             "code, a message in user words, the affordance and, when known, the correlationId and mission."
         )
-    return f"{spec.description} Carries the correlationId sent with the action's input and the mission id."
+    return spec.description  # what every feedback and state event carries: said once, in the Thing's description
+
+
+#: said once in the Thing's description rather than in each feedback and state event's (their `correlationId`
+#: and `mission` members say it too): the published TD must stay small (docs/fleet.md, the directory limit)
+OUTCOME_TEXT = (
+    "Every feedback and state event carries the correlationId sent with the action's input and the mission id."
+)
 
 
 def standalone(spec: EventSpec, catalog: EventCatalog) -> dict[str, Any]:
@@ -97,23 +104,42 @@ def topic_href(broker: str, topic: str, *, model: bool = False) -> str:
     return f"{broker.rstrip('/')}/{quote(topic, safe='/{}' if model else '/')}"
 
 
+#: the W3C MQTT binding's default control packet of each operation (its "Default mappings"): a form whose
+#: operations all have their default says none, and each operation takes its own (a subscription form with
+#: `subscribeevent` and `unsubscribeevent` sends SUBSCRIBE for the one, UNSUBSCRIBE for the other)
+DEFAULT_PACKET = {
+    "readproperty": "subscribe",
+    "observeproperty": "subscribe",
+    "unobserveproperty": "unsubscribe",
+    "writeproperty": "publish",
+    "invokeaction": "publish",
+    "subscribeevent": "subscribe",
+    "unsubscribeevent": "unsubscribe",
+}
+
+
 def _form(
     broker: str,
     topic: str,
     op: str | list[str],
-    packet: str,
     *,
     model: bool,
     retain: bool = False,
     qos: str = MQTT_QOS,
 ) -> dict[str, Any]:
     """A form of the W3C MQTT binding: the topic in the href path and in `mqv:topic` (publish) or `mqv:filter`
-    (subscribe, unsubscribe); the QoS the runtime uses; `mqv:retain` where the runtime retains."""
-    form: dict[str, Any] = {"href": topic_href(broker, topic, model=model), "op": op, "contentType": "application/json"}
-    form["mqv:controlPacket"] = packet
-    form["mqv:topic" if packet == "publish" else "mqv:filter"] = topic
-    if packet != "unsubscribe":
-        form["mqv:qos"] = qos
+    (subscribe and unsubscribe: one form for both); the QoS the runtime uses; `mqv:retain` where the runtime
+    retains. What TD 1.1 or the binding implies is left out, as the published TD must stay small (a directory
+    such as Domus 1.0.2 cannot give back a TD whose RDF passes 128 KiB, docs/fleet.md): `contentType`
+    (`application/json`, TD 1.1's default) and `mqv:controlPacket` where the binding's default mapping gives it
+    (stated for `queryaction` and `cancelaction` only, which the binding maps to nothing)."""
+    ops = [op] if isinstance(op, str) else op
+    packets = {DEFAULT_PACKET.get(o) for o in ops}
+    form: dict[str, Any] = {"href": topic_href(broker, topic, model=model), "op": op}
+    if None in packets:  # an operation without a default: what the runtime takes it as, a publish
+        form["mqv:controlPacket"] = "publish"
+    form["mqv:topic" if packets <= {"publish", None} else "mqv:filter"] = topic
+    form["mqv:qos"] = qos
     if retain:
         form["mqv:retain"] = True
     return form
@@ -169,6 +195,8 @@ def exposed_td(
     # model keeps it, a robot's TD says which robot it is and links the model instead
     if thing.description and (is_model or not thing.model_description):
         description = f"{thing.description} {description}"
+    if any(s.kind in (Kind.FEEDBACK, Kind.STATE) for s in catalog.specs):
+        description = f"{description} {OUTCOME_TEXT}"
     td["description"] = description
     if thing.model and not is_model:
         td["links"] = [{"rel": "type", "href": thing.model, "type": TM_MEDIA_TYPE}]
@@ -185,8 +213,8 @@ def exposed_td(
     actions: dict[str, Any] = {}
     events: dict[str, Any] = {}
 
-    def form(topic: str, op: str | list[str], packet: str, retain: bool = False, qos: str = MQTT_QOS) -> dict[str, Any]:
-        return _form(broker, topic, op, packet, model=is_model, retain=retain, qos=qos)
+    def form(topic: str, op: str | list[str], *, retain: bool = False, qos: str = MQTT_QOS) -> dict[str, Any]:
+        return _form(broker, topic, op, model=is_model, retain=retain, qos=qos)
 
     runs = {s.run: s for s in catalog.specs if s.kind is Kind.QUERY and s.run}
     stops = {s.run: s for s in catalog.specs if s.kind is Kind.CANCEL and s.run}
@@ -196,33 +224,30 @@ def exposed_td(
             data = standalone(spec, catalog)
             event = texts(data)
             event["data"] = {k: v for k, v in data.items() if k not in ("title", "description")}
-            event["forms"] = [
-                form(spec.topic(robot, root), "subscribeevent", "subscribe", retain=True),
-                form(spec.topic(robot, root), "unsubscribeevent", "unsubscribe"),
-            ]
+            event["forms"] = [form(spec.topic(robot, root), ["subscribeevent", "unsubscribeevent"], retain=True)]
             events[spec.kind.value] = event
             continue
         data = dict(td_schema(wot_data(spec)))
         if spec.kind is Kind.PROPERTY and spec.affordance:
             prop = {**texts({"title": spec.title, "description": spec.description}), **data}
-            prop.update(readOnly=True, writeOnly=False, observable=True)
-            prop["forms"] = [
-                form(topic, ["readproperty", "observeproperty"], "subscribe", retain=True, qos=str(property_qos)),
-                form(topic, "unobserveproperty", "unsubscribe"),
-            ]
+            prop.update(readOnly=True, observable=True)  # writeOnly: false is TD 1.1's default
+            ops = ["readproperty", "observeproperty", "unobserveproperty"]
+            prop["forms"] = [form(topic, ops, retain=True, qos=str(property_qos))]
             properties[spec.affordance] = prop
         elif spec.kind is Kind.WRITE and spec.affordance:
             prop = {**texts({"title": spec.title, "description": spec.description}), **data}
-            prop.update(readOnly=False, writeOnly=True, observable=False)
-            prop["forms"] = [form(topic, "writeproperty", "publish")]
+            prop["writeOnly"] = True  # readOnly and observable: false, TD 1.1's default
+            prop["forms"] = [form(topic, "writeproperty")]
             properties[spec.affordance] = prop
         elif spec.kind in (Kind.INVOKE, Kind.QUERY, Kind.CANCEL) and spec.affordance:
             action = texts({"title": spec.title, "description": spec.description})
             action["input"] = data
-            action["safe"] = spec.kind is Kind.QUERY
-            action["idempotent"] = spec.kind is not Kind.INVOKE
+            if spec.kind is Kind.QUERY:  # safe and idempotent: false is TD 1.1's default
+                action["safe"] = True
+            if spec.kind is not Kind.INVOKE:
+                action["idempotent"] = True
             action["synchronous"] = False
-            action["forms"] = [form(topic, "invokeaction", "publish")]
+            action["forms"] = [form(topic, "invokeaction")]
             # TD 1.1's own operations on the run action, for clients that offer them: the same messages as
             # the query and cancel actions (answered by the run's state event)
             for op, linked in (
@@ -231,7 +256,7 @@ def exposed_td(
             ):
                 linked_topic = None if linked is None else wot_topic(linked, robot, root)
                 if linked_topic is not None:
-                    action["forms"].append(form(linked_topic, op, "publish"))
+                    action["forms"].append(form(linked_topic, op))
             # a ROS action's query and cancel have no TD affordance of their own: name them after it
             suffix = spec.kind.value.capitalize() if spec.goal_control else ""
             actions[spec.affordance + suffix] = action
@@ -240,10 +265,7 @@ def exposed_td(
             key = f"{spec.affordance}{name}" if spec.affordance else spec.kind.value
             event = texts({"title": spec.title, "description": _wot_description(spec)})
             event["data"] = data
-            event["forms"] = [
-                form(topic, "subscribeevent", "subscribe"),
-                form(topic, "unsubscribeevent", "unsubscribe"),
-            ]
+            event["forms"] = [form(topic, ["subscribeevent", "unsubscribeevent"])]
             events[key] = event
     for name, section in (("properties", properties), ("actions", actions), ("events", events)):
         if section:

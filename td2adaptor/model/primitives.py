@@ -13,6 +13,8 @@ INT_RANGES: dict[str, tuple[int, int]] = {
     "uint64": (0, 2**64 - 1),
     "char": (0, 2**8 - 1),
 }
+#: the integer types a mission id may have (char and byte read as characters and bytes, not numbers)
+INTEGERS = frozenset({"int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64"})
 FLOATS = frozenset({"float32", "float64"})
 #: the largest finite float32 (C's FLT_MAX, (2 - 2**-23) * 2**127): a float32 field's range is +-this; a double
 #: beyond it would become infinity on the way into the message

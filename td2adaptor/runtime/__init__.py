@@ -26,8 +26,9 @@ if TYPE_CHECKING:
     from td2adaptor.runtime.engine.engine import Engine
     from td2adaptor.runtime.node.app import open_bus, serve, serve_fleet
     from td2adaptor.runtime.ros.port import (
+        GoalEnd,
+        GoalListener,
         GoalPort,
-        GoalProgress,
         NoValue,
         PortCallFailed,
         PortError,
@@ -53,7 +54,8 @@ _WHERE = {
     "LocalBroker": "bus.localbus",
     "LocalBus": "bus.localbus",
     "GoalPort": "ros.port",
-    "GoalProgress": "ros.port",
+    "GoalEnd": "ros.port",
+    "GoalListener": "ros.port",
     "NoValue": "ros.port",
     "PortCallFailed": "ros.port",
     "PortError": "ros.port",
@@ -71,7 +73,8 @@ __all__ = [
     "ConfigError",
     "Engine",
     "GoalPort",
-    "GoalProgress",
+    "GoalEnd",
+    "GoalListener",
     "LocalBroker",
     "LocalBus",
     "Message",

@@ -97,6 +97,10 @@ class RuntimeConfig:
     directory_ttl: int = 600  # seconds the directory keeps the TD without a refresh (0: until it is deleted)
     directory_token: str | None = field(default=None, repr=False)  # Bearer token for the directory, if it wants one
     directory_ca_file: str | None = None  # CA bundle for an https directory with a private CA
+    # the fleet's (every robot of the process has the same; not compared: changing them restarts no robot)
+    fleet: str | None = field(default=None, compare=False)  # the fleet's name in admin topics (default: package)
+    fleet_admin_key: str | None = field(default=None, repr=False, compare=False)  # signs admin requests
+    discover_grace: float = field(default=10.0, compare=False)  # `run --discover`: a robot gone this long retires
 
     def __post_init__(self) -> None:
         if not ROBOT_ID.match(self.robot) or self.robot == ALL_ROBOTS:
@@ -136,6 +140,12 @@ class RuntimeConfig:
             )
         if self.directory_ttl < 0:
             raise ConfigError("directory_ttl must be >= 0 (0: the directory keeps the TD until it is deleted)")
+        if self.fleet is not None and (not ROBOT_ID.match(self.fleet) or self.fleet == ALL_ROBOTS):
+            raise ConfigError(f"fleet {self.fleet!r} must be 1-128 letters, digits, '_', '.', '-' (a topic level)")
+        if self.fleet_admin_key is not None and not 16 <= len(self.fleet_admin_key) <= 4096:
+            raise ConfigError("fleet_admin_key (TD2ADAPTOR_FLEET_ADMIN_KEY) must be 16-4096 characters (not shown)")
+        if not 0 <= self.discover_grace < float("inf"):
+            raise ConfigError("discover_grace must be >= 0 seconds")
         if not self.topic_root or any(c in self.topic_root for c in "+#\x00") or self.topic_root.startswith("/"):
             raise ConfigError(f"topic_root {self.topic_root!r} is not a valid MQTT topic prefix")
 
@@ -244,6 +254,17 @@ def _yaml_problem(exc: yaml.YAMLError) -> str:
     return f"not valid YAML: {where}{what or 'syntax error'}"
 
 
+def _read_yaml(path: str | Path) -> Any:
+    try:
+        return yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
+    except OSError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
+    except UnicodeDecodeError as exc:  # its words quote the bytes, which may be a password's
+        raise ConfigError(f"{path}: not UTF-8 text (at byte {exc.start})") from None
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path}: {_yaml_problem(exc)}") from None
+
+
 def load_fleet(
     path: str | Path | None = None,
     *,
@@ -255,14 +276,7 @@ def load_fleet(
     base: dict[str, Any] = {}
     robots: list[dict[str, Any]] = [{}]
     if path is not None:
-        try:
-            data = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
-        except OSError as exc:
-            raise ConfigError(f"{path}: {exc}") from None
-        except UnicodeDecodeError as exc:  # its words quote the bytes, which may be a password's
-            raise ConfigError(f"{path}: not UTF-8 text (at byte {exc.start})") from None
-        except yaml.YAMLError as exc:
-            raise ConfigError(f"{path}: {_yaml_problem(exc)}") from None
+        data = _read_yaml(path)
         base = _section(data, str(path))
         if isinstance(data, Mapping) and "robots" in data:
             items = data["robots"]
@@ -303,3 +317,47 @@ def load_config(
     if len(configs) != 1:
         raise ConfigError(f"{path} describes {len(configs)} robots; pick one with --robot or run the fleet")
     return configs[0]
+
+
+#: the keys each robot of a fleet keeps for itself (a robot that joins at run time brings them, the rest is shared)
+ROBOT_KEYS = ("robot", "namespace", "client_id", "source")
+STAND_IN = "stand-in"
+
+
+def load_defaults(
+    path: str | Path | None = None,
+    *,
+    env: Mapping[str, str] | None = None,
+    overrides: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
+    """The settings a robot that joins a running fleet gets (discovered, or added by an admin request): the
+    YAML file's top-level keys, the environment and `overrides`, without the per-robot keys; checked as one
+    robot's (a `ConfigError` says what is wrong)."""
+    env = os.environ if env is None else env
+    base: dict[str, Any] = {}
+    if path is not None:
+        base = _section(_read_yaml(path), str(path))
+    values = {**base, **from_env(env), **{k: v for k, v in (overrides or {}).items() if v is not None}}
+    values = {k: v for k, v in values.items() if k not in ROBOT_KEYS}
+    robot_config(values, STAND_IN)
+    return values
+
+
+def names_robots(path: str | Path | None) -> bool:
+    """Whether the YAML file names a robot (`robot:` or `robots:`); `run --discover` serves only the robots it
+    finds otherwise. A file that cannot be read names none here (reading it again says why)."""
+    if path is None:
+        return False
+    try:
+        data = _read_yaml(path)
+    except ConfigError:
+        return False
+    return isinstance(data, Mapping) and ("robot" in data or "robots" in data)
+
+
+def robot_config(defaults: Mapping[str, Any], robot: str, namespace: str | None = None) -> RuntimeConfig:
+    """One robot of a fleet from its shared settings (`load_defaults`); raises `ConfigError`."""
+    try:
+        return RuntimeConfig(**{**defaults, "robot": robot, "namespace": namespace})
+    except TypeError as exc:
+        raise ConfigError(str(exc)) from None

@@ -1,6 +1,8 @@
-"""The rclpy and rospy packages of one TD are twins: the same component methods with the same parameter names
-(also for fields named like Python builtins or the methods' own parameters), the same refusal of a timeout that
-would wait forever, the same CallFailed text when the robot sends an empty message."""
+"""The rclpy and rospy packages of one TD keep the contract of the generated API (`td2adaptor/model/genapi.py`):
+the methods it names, in its shapes, with the same parameter names (also for fields named like Python builtins
+or the methods' own parameters), the goal handle's members, one clash check; and they behave alike where their
+shared runtime decides: the same refusal of a timeout that would wait forever, the same CallFailed text when
+the robot sends an empty message or a bare `success: false`."""
 
 from __future__ import annotations
 
@@ -10,6 +12,8 @@ import json
 import math
 import sys
 from collections.abc import Iterator
+from dataclasses import replace
+from pathlib import Path
 from types import ModuleType, SimpleNamespace
 from typing import Any
 
@@ -19,11 +23,14 @@ import td2adaptor
 from td2adaptor.backends.registry import load as load_backend
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GenOptions
+from td2adaptor.model import Model, genapi
 
 PACKAGE = "twins_adaptor"
 #: request and message fields that clash with builtins (id, type, list) and with call_X's own `timeout`
 _SRV = "int32 id\nstring type\nfloat64 timeout\nstring list\n---\nbool success\nstring message\n"
 _MSG = "int32 id\nstring type\nfloat64 timeout\n"
+#: a response that says failure with `success` alone, no message
+_FLAG = "int32 id\n---\nbool success\n"
 _PACKAGE_XML = (
     '<?xml version="1.0"?><package format="3"><name>kw_msgs</name><version>0.0.0</version><description>x'
     '</description><maintainer email="a@b.c">a</maintainer><license>MIT</license></package>'
@@ -55,27 +62,39 @@ def _td() -> dict[str, Any]:
                 "safe": False,
                 "idempotent": False,
                 "forms": form("/go", "kw_msgs/srv/Go", "invokeaction"),
-            }
+            },
+            "flag": {
+                "rosv:component": "GoComponent",
+                "safe": False,
+                "idempotent": False,
+                "forms": form("/flag", "kw_msgs/srv/Flag", "invokeaction"),
+            },
         },
     }
 
 
 @pytest.fixture(scope="module")
-def trees(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict[str, bytes]]:
+def model(tmp_path_factory: pytest.TempPathFactory) -> Model:
     tmp = tmp_path_factory.mktemp("twins")
     pkg = tmp / "ifaces" / "kw_msgs"
     (pkg / "srv").mkdir(parents=True)
     (pkg / "msg").mkdir()
     (pkg / "package.xml").write_text(_PACKAGE_XML, encoding="utf-8")
     (pkg / "srv" / "Go.srv").write_text(_SRV, encoding="utf-8")
+    (pkg / "srv" / "Flag.srv").write_text(_FLAG, encoding="utf-8")
     (pkg / "msg" / "State.msg").write_text(_MSG, encoding="utf-8")
     (tmp / "td.json").write_text(json.dumps(_td()), encoding="utf-8")
     result = td2adaptor.compile(tmp / "td.json", interfaces=[tmp / "ifaces"])
     assert result.model is not None, [d.message for d in result.diagnostics]
+    return result.model
+
+
+@pytest.fixture(scope="module")
+def trees(model: Model) -> dict[str, dict[str, bytes]]:
     out = {}
     for backend in ("rclpy", "rospy"):
         diags = Diagnostics()
-        tree = load_backend(backend).generate(result.model, GenOptions(package_name=PACKAGE), diags)
+        tree = load_backend(backend).generate(model, GenOptions(package_name=PACKAGE), diags)
         assert not [d for d in diags if d.severity is Severity.ERROR], [d.message for d in diags]
         out[backend] = dict(tree)
     return out
@@ -87,14 +106,15 @@ def _components(tree: dict[str, bytes]) -> str:
 
 
 def _api(source: str) -> dict[str, dict[str, list[str]]]:
-    """Per component class, its public methods (and __init__'s keyword-only part) with their parameter names."""
+    """Per component class, its public methods, async ones too (and __init__'s keyword-only part), with their
+    parameter names: positional ones, "*", keyword-only ones."""
     api: dict[str, dict[str, list[str]]] = {}
     for node in ast.parse(source).body:
         if not isinstance(node, ast.ClassDef):
             continue
         methods = api.setdefault(node.name, {})
         for f in node.body:
-            if not isinstance(f, ast.FunctionDef):
+            if not isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 continue
             a = f.args
             if f.name == "__init__":
@@ -104,23 +124,100 @@ def _api(source: str) -> dict[str, dict[str, list[str]]]:
     return api
 
 
-#: documented differences: rospy's close() (ROS 2 has no connections to release); robot_name is a property in
-#: rclpy and a plain attribute in rospy
-_LIFECYCLE = {"close", "robot_name"}
+def _contract(backend: str, model: Model, component: str) -> dict[str, tuple[str, ...]]:
+    """What the contract (`model/genapi.py`) says a component class of `backend` offers: method -> shape."""
+    comp = model.component(component)
+    groups = (
+        (genapi.SERVICE, [s.name for s in comp.services]),
+        (genapi.ACTION, [a.name for a in comp.actions]),
+        (genapi.SUBSCRIBER, [t.name for t in comp.subscribers]),
+        (genapi.PUBLISHER, [t.name for t in comp.publishers]),
+    )
+    out = {m.pattern: m.shape for m in (genapi.REGISTER, genapi.CLOSE) if backend in m.backends}
+    for methods, names in groups:
+        out |= {m(name): m.shape for name in names for m in methods if backend in m.backends}
+    if len(comp.subscribers) == 1:
+        out[genapi.GET_ONLY.pattern] = genapi.GET_ONLY.shape
+    for proc in comp.procedures:
+        for role, action in (("query", proc.query), ("cancel", proc.cancel)):
+            if action is not None and proc.slot(role):
+                call = genapi.CALL(action)
+                out[call] = (*out[call][:-1], genapi.MISSION_ID, out[call][-1])
+    return out
 
 
-def test_both_packages_offer_the_same_methods_with_the_same_parameter_names(trees: dict[str, dict[str, bytes]]) -> None:
-    ros2, ros1 = (_api(_components(trees[b])) for b in ("rclpy", "rospy"))
-    assert set(ros2) == set(ros1) == {"GoComponent"}
-    for cls in ros2:
-        two = {k: v for k, v in ros2[cls].items() if k not in _LIFECYCLE}
-        one = {k: v for k, v in ros1[cls].items() if k not in _LIFECYCLE}
-        assert two == one
-    methods = ros2["GoComponent"]
-    # a field never takes a builtin's or the method's own name: `timeout=` stays the per-call timeout
-    assert methods["construct_go_Msg"] == ["self", "*", "id_", "type_", "timeout_", "list_"]
-    assert methods["call_go"] == ["self", "request", "*", "timeout"]
-    assert methods["get_state_value"] == ["self", "*", "timeout"]
+def _matches(shape: tuple[str, ...], params: list[str]) -> bool:
+    """Whether a method's parameters (without self: positional ones, "*", keyword-only ones) have the contract's
+    shape; "**fields" stands for the keyword-only fields of a message."""
+    if "**fields" in shape:
+        return params[: params.index("*")] == []
+    return params == ([*shape] if "*" in shape else [*shape, "*"])
+
+
+def test_both_packages_offer_the_contracts_methods_in_its_shapes(
+    trees: dict[str, dict[str, bytes]], model: Model
+) -> None:
+    for backend in ("rclpy", "rospy"):
+        api = _api(_components(trees[backend]))
+        assert set(api) == {c.name for c in model.components}
+        for cls, methods in api.items():
+            contract = _contract(backend, model, cls)
+            offered = {name: params[1:] for name, params in methods.items() if name != "__init__"}
+            # robot_name: a property in rclpy, an attribute in rospy; the contract counts it among the attributes
+            assert set(offered) - set(genapi.ATTRIBUTES) == set(contract), backend
+            for name, shape in contract.items():
+                assert _matches(shape, offered[name]), (backend, name, offered[name], shape)
+    # a field never takes a builtin's or the method's own name (`timeout=` stays the per-call timeout), and both
+    # packages name the fields alike
+    ros2, ros1 = (_api(_components(trees[b]))["GoComponent"] for b in ("rclpy", "rospy"))
+    assert ros2["construct_go_Msg"] == ros1["construct_go_Msg"] == ["self", "*", "id_", "type_", "timeout_", "list_"]
+
+
+def test_the_goal_handles_offer_what_the_contract_names() -> None:
+    """`send_X`/`start_X` return a GoalHandle: both packages' (with their shared GoalRecord) define every member
+    the contract names, which the edge node's generated port uses."""
+    from td2adaptor.backends import _python, rclpy, rospy
+
+    shared = Path(_python.__file__).parent / "verbatim" / "goals.py"
+    own = (
+        Path(rclpy.__file__).parent / "verbatim" / "runtime.py",
+        Path(rospy.__file__).parent / "verbatim" / "_actions.py",
+    )
+    for module in own:
+        defined: set[str] = set()
+        for source in (module, shared):
+            for cls in ast.parse(source.read_text(encoding="utf-8")).body:
+                if isinstance(cls, ast.ClassDef) and cls.name in ("GoalHandle", "GoalRecord"):
+                    for node in ast.walk(cls):
+                        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                            defined.add(node.name)
+                        elif isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store):
+                            defined.add(node.attr)
+                        elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
+                            defined.add(node.target.id)
+        assert set(genapi.GOAL_HANDLE) <= defined, (module.name, set(genapi.GOAL_HANDLE) - defined)
+
+
+def test_one_clash_check_for_both_packages() -> None:
+    """An action and a published property of one name, a service `go_async` beside `go` (rclpy's awaitable
+    call_go_async), a subscriber `a_serialized` beside `a`: the contract finds each."""
+    assert genapi.clashes(services=["go"], publishers=["go"]) == [("construct_go_Msg", "go", "go")]
+    assert [c[0] for c in genapi.clashes(services=["go", "go_async"])] == ["call_go_async"]
+    assert [c[0] for c in genapi.clashes(subscribers=["a", "a_serialized"])] == ["on_a_serialized"]
+    assert genapi.clashes(services=["go"], actions=["fly"], subscribers=["state"], publishers=["cmd"]) == []
+
+
+@pytest.mark.parametrize(("backend", "code"), [("rclpy", "GEN822"), ("rospy", "GEN841")])
+def test_both_backends_refuse_a_clash_alike(model: Model, backend: str, code: str) -> None:
+    """rospy has no call_X_async, but refuses a service `go_async` beside `go` as rclpy does: one TD gives both
+    packages the same names, or neither gets generated."""
+    comp = model.components[0]
+    twin = replace(comp.service("go"), name="go_async")
+    clashing = replace(model, components=(replace(comp, services=(*comp.services, twin)),))
+    diags = Diagnostics()
+    load_backend(backend).generate(clashing, GenOptions(package_name=PACKAGE), diags)
+    errors = [d for d in diags if d.severity is Severity.ERROR]
+    assert [d.code for d in errors] == [code] and "call_go_async" in errors[0].message, [d.message for d in errors]
 
 
 @pytest.fixture(scope="module")
@@ -173,3 +270,17 @@ def test_an_empty_robot_message_gives_the_same_call_failed_text(
     # and rclpy's checks the response with success_failure
     assert "success_failure" in _components(trees["rclpy"])
     assert trees["rospy"][f"{PACKAGE}/src/{PACKAGE}/common.py"] == trees["rclpy"][f"{PACKAGE}/{PACKAGE}/common.py"]
+
+
+def test_a_response_with_success_alone_fails_alike(
+    trees: dict[str, dict[str, bytes]], rclpy_runtime: ModuleType
+) -> None:
+    """`success` false without a message field: both packages raise CallFailed with the shared text (the rule is
+    the model's, `Failure.SUCCESS_ONLY`; rclpy used to return such a response as a success)."""
+    common = importlib.import_module(f"{PACKAGE}.common")
+    assert rclpy_runtime.success_only_failure(SimpleNamespace(success=False)) == common.FAILURE_WITHOUT_MESSAGE
+    assert rclpy_runtime.success_only_failure(SimpleNamespace(success=True)) is None
+    ros2 = _components(trees["rclpy"])
+    assert "success_only_failure" in ros2.split("self._flag: ServiceClient", 1)[1].split(")\n", 1)[0]
+    ros1 = _components(trees["rospy"])
+    assert "if not response.success:\n            raise CallFailed(self._svc_flag.name, FAILURE_WITHOUT_MESSAGE" in ros1

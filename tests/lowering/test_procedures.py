@@ -190,3 +190,59 @@ def test_procedure_api_only_where_true(tmp_path: Path, backend: str) -> None:
     plain = methods(no_id)
     assert "Started" not in ast.unparse(plain["call_taskRun"].returns or ast.Constant(None))
     assert "mission_id" not in params(plain["call_taskQuery"]) and "mission_id" not in params(plain["call_taskCancel"])
+
+
+def test_the_lowering_resolves_the_mission_slot_and_the_failure_rule_once(tmp_path: Path) -> None:
+    """The request field that carries the mission id (per role) and how a response says the robot failed are in
+    the model: the backends and the edge node read them there instead of each walking the types."""
+    from td2adaptor.model import Failure
+
+    model, diags = compile_td(tmp_path, procedure_td("test_msgs/srv/BasicTypes", MAPPED))
+    assert model is not None, [d.message for d in diags]
+    (proc,) = model.components[0].procedures
+    assert proc.slot("query") == proc.slot("cancel") == ("int64_value",) and proc.slot("run") == ()
+    assert {s.failure for s in model.components[0].services} == {Failure.NONE}  # BasicTypes says no failure
+
+    td = procedure_td("test_msgs/srv/BasicTypes", {**MAPPED})
+    td["actions"]["taskCancel"]["forms"][0]["rosv:type"] = "std_srvs/srv/Trigger"
+    model, diags = compile_td(tmp_path, td)
+    assert model is not None, [d.message for d in diags]
+    (proc,) = model.components[0].procedures
+    assert proc.slot("query") == ("int64_value",) and proc.slot("cancel") == ()  # and ROS447 said so
+    assert model.components[0].service("taskCancel").failure is Failure.SUCCESS
+
+
+@pytest.mark.parametrize(
+    ("response", "failure"),
+    [
+        ("Outcome result", "RESULT"),
+        ("Outcome[] result", "NONE"),
+        ("bool success\nstring message", "SUCCESS"),
+        ("bool success", "SUCCESS_ONLY"),
+        ("bool success\nint32 message", "SUCCESS_ONLY"),
+        ("bool[] success\nstring message", "NONE"),
+        ("string result\nstring message", "NONE"),
+    ],
+)
+def test_how_a_response_says_failure(tmp_path: Path, response: str, failure: str) -> None:
+    from td2adaptor.model import Failure
+
+    pkg = tmp_path / "ifaces" / "fail_msgs"
+    (pkg / "srv").mkdir(parents=True)
+    (pkg / "package.xml").write_text(
+        '<?xml version="1.0"?><package format="3"><name>fail_msgs</name><version>0.0.0</version><description>x'
+        '</description><maintainer email="a@b.c">a</maintainer><license>MIT</license>'
+        "</package>",
+        encoding="utf-8",
+    )
+    (pkg / "msg").mkdir()
+    (pkg / "msg" / "Outcome.msg").write_text("string result\nstring message\n", encoding="utf-8")  # procedures_msgs'
+    (pkg / "srv" / "Act.srv").write_text(f"int32 x\n---\n{response}\n", encoding="utf-8")
+    td = procedure_td("fail_msgs/srv/Act", {})
+    td["actions"] = {"act": td["actions"]["taskRun"]}
+    del td["actions"]["act"]["rosv:procedure"]
+    path = tmp_path / "td.json"
+    path.write_text(json.dumps(td), encoding="utf-8")
+    result = td2adaptor.compile(path, interfaces=[tmp_path / "ifaces"])
+    assert result.model is not None, [d.message for d in result.diagnostics]
+    assert result.model.components[0].service("act").failure is Failure[failure]

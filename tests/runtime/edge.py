@@ -138,3 +138,50 @@ class Recorder:
 
     def close(self) -> None:
         self.bus.close()
+
+
+class GoalEvents:
+    """A `GoalListener` (runtime/ros/port.py) that records what a port tells of one goal, for a test to wait on."""
+
+    def __init__(self) -> None:
+        self.cond = threading.Condition()
+        self.told: list[tuple[str, Any]] = []  # (what, value) in the order told
+        self.threads: set[str] = set()  # the threads that told them
+
+    def _tell(self, what: str, value: Any) -> None:
+        with self.cond:
+            self.told.append((what, value))
+            self.threads.add(threading.current_thread().name)
+            self.cond.notify_all()
+
+    def on_accepted(self, goal: str) -> None:
+        self._tell("accepted", goal)
+
+    def on_status(self, status: str) -> None:
+        self._tell("status", status)
+
+    def on_feedback(self, message: Any) -> None:
+        self._tell("feedback", message)
+
+    def on_done(self, end: Any) -> None:
+        self._tell("done", end)
+
+    def end(self, timeout: float) -> Any:
+        """The goal's end (a GoalEnd), once told within `timeout` seconds; None otherwise."""
+        with self.cond:
+            self.cond.wait_for(lambda: any(what == "done" for what, _ in self.told), timeout)
+            return next((value for what, value in self.told if what == "done"), None)
+
+
+def rejects(port: Any, component: str, action: str, payload: dict[str, Any], timeout: float = 2.0) -> bool:
+    """Whether a goal of `payload` sent through `port` is rejected by its action server within `timeout` (an
+    answered goal: the server is there and answers us)."""
+    events = GoalEvents()
+    try:
+        port.start_goal(component, action, payload, 1.0, events)
+    except Exception:  # noqa: BLE001 - not there yet
+        return False
+    end = events.end(timeout)
+    if end is not None and end.status not in ("rejected", "lost"):
+        raise AssertionError(f"a goal of {payload} was not rejected: {end}")
+    return end is not None and end.status == "rejected"

@@ -18,7 +18,7 @@ import actionlib
 import rospy
 from test_msgs.msg import FibonacciAction, FibonacciFeedback, FibonacciResult
 
-from tests.runtime.fibo_ros2 import ABORT, SLOW, SLOW_STEP, STEP, sequence
+from tests.runtime.fibo_ros2 import ABORT, BURST, BURST_MOST, SLOW, SLOW_STEP, STEP, sequence
 
 
 def emit(**event: Any) -> None:
@@ -30,8 +30,19 @@ def main() -> None:
     rospy.init_node("fibo_robot", anonymous=True, disable_signals=True)
     lock = threading.Lock()
 
+    def burst(handle: Any, count: int) -> None:
+        emit(event="goal", ns=namespace, order=BURST + count)
+        for i in range(1, count + 1):
+            handle.publish_feedback(FibonacciFeedback(sequence=[i]))
+        emit(event="burst", ns=namespace, count=count)
+        handle.set_succeeded(FibonacciResult(sequence=[count]), "done")
+        emit(event="end", ns=namespace, status="succeeded")
+
     def execute(handle: Any) -> None:
         order = handle.get_goal().order
+        if order >= BURST:
+            burst(handle, order - BURST)
+            return
         steps = 10**6 if order == SLOW else order
         step = SLOW_STEP if order == SLOW else STEP
         emit(event="goal", ns=namespace, order=order)
@@ -61,6 +72,8 @@ def main() -> None:
         handle.set_accepted("on it")
         threading.Thread(target=execute, args=(handle,), daemon=True).start()
 
+    # actionlib's server publishes through queues of 50 messages by default: a burst would overflow them
+    rospy.set_param("actionlib_server_pub_queue_size", BURST_MOST)
     server = actionlib.ActionServer(
         f"/{namespace}/fibonacci", FibonacciAction, on_goal, lambda handle: None, auto_start=False
     )

@@ -22,6 +22,11 @@ SLOW_STEP = 0.2
 #: orders from FAST on: FAST_STEP apart, (order - FAST) messages (benchmarks)
 FAST = 10000
 FAST_STEP = 0.001
+#: orders from BURST on: (order - BURST) messages published back to back, message i carrying [i] (so that each
+#: one differs), then the result [order - BURST]
+BURST = 20000
+#: the longest burst the server keeps for a client that has not taken it yet (its feedback publisher's depth)
+BURST_MOST = 1000
 
 
 def sequence(order: int) -> list[int]:
@@ -41,6 +46,7 @@ def serve(namespaces: list[str]) -> None:
     from rclpy.action import ActionServer, CancelResponse, GoalResponse
     from rclpy.callback_groups import ReentrantCallbackGroup
     from rclpy.executors import MultiThreadedExecutor
+    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
     from test_msgs.action import Fibonacci
 
     rclpy.init()
@@ -53,6 +59,8 @@ def serve(namespaces: list[str]) -> None:
     def make_execute(ns: str) -> Any:
         def execute(handle: Any) -> Any:
             order = handle.request.order
+            if order >= BURST:
+                return burst(ns, handle, order - BURST)
             steps = 10**6 if order == SLOW else order - FAST if order >= FAST else order
             step = SLOW_STEP if order == SLOW else FAST_STEP if order >= FAST else STEP
             emit(event="goal", ns=ns, order=order)
@@ -81,7 +89,21 @@ def serve(namespaces: list[str]) -> None:
 
         return execute
 
+    def burst(ns: str, handle: Any, count: int) -> Any:
+        emit(event="goal", ns=ns, order=BURST + count)
+        for i in range(1, count + 1):
+            feedback = Fibonacci.Feedback()
+            feedback.sequence = [i]
+            handle.publish_feedback(feedback)
+        emit(event="burst", ns=ns, count=count)
+        handle.succeed()
+        result = Fibonacci.Result()
+        result.sequence = [count]
+        emit(event="end", ns=ns, status="succeeded")
+        return result
+
     group = ReentrantCallbackGroup()
+    feedback_qos = QoSProfile(depth=BURST_MOST, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
     servers = [
         ActionServer(
             node,
@@ -91,10 +113,11 @@ def serve(namespaces: list[str]) -> None:
             goal_callback=on_goal,
             cancel_callback=lambda _handle: CancelResponse.ACCEPT,
             callback_group=group,
+            feedback_pub_qos_profile=feedback_qos,  # a burst is kept until our client has it
         )
         for ns in namespaces
     ]
-    executor = MultiThreadedExecutor(num_threads=4)
+    executor = MultiThreadedExecutor(num_threads=max(4, len(namespaces) + 2))  # each running goal holds one
     executor.add_node(node)
     emit(event="ready", servers=len(servers))
     try:

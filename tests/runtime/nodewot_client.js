@@ -3,8 +3,9 @@
 // on td2adaptor/<robot>/td) and consumes it exactly as published; reads, observes and writes properties with
 // their own data; invokes gotoRun with the goal's fields (plus the optional correlationId the TD declares)
 // and follows it to its terminal outcome; invokes a second run, queries it and cancels it while it runs;
-// sends a goal the robot's message cannot hold and receives the error event. One JSON line per observation
-// on stdout; exits 0 when all is seen, 1 on an error or after 25 s.
+// sends a goal the robot's message cannot hold and receives the error event; then ends its observation and
+// its subscription to the error event (the TD's one form for both operations) and receives nothing more there.
+// One JSON line per observation on stdout; exits 0 when all is seen, 1 on an error or after 25 s.
 //   NODE_PATH=<node_modules> node nodewot_client.js BROKER_URL ROBOT
 // With WOT_USERNAME and WOT_PASSWORD set, it logs in to the broker with them: to fetch the TD, and as the
 // credentials it gives node-wot for the Thing (which uses them only where the TD's security asks for them).
@@ -71,7 +72,7 @@ async function main() {
   const read = await thing.readProperty("poseMarker");
   emit("read", await read.value());
   const observed = waiter([]);
-  await thing.observeProperty("poseMarker", async (output) => {
+  const observation = await thing.observeProperty("poseMarker", async (output) => {
     const value = await output.value();
     emit("observed", value);
     observed.push(value);
@@ -83,8 +84,9 @@ async function main() {
   const feedback = waiter([]);
   const states = waiter([]);
   const errors = waiter([]);
+  const subscriptions = {};
   for (const [name, sink] of [["gotoRunFeedback", feedback], ["gotoRunState", states], ["error", errors]]) {
-    await thing.subscribeEvent(name, async (output) => {
+    subscriptions[name] = await thing.subscribeEvent(name, async (output) => {
       const value = await output.value();
       emit(name, value);
       sink.push(value);
@@ -114,6 +116,22 @@ async function main() {
   await thing.invokeAction("pickRun", { nope: 1, correlationId: "bad-1" });
   await errors.until((e) => e.correlationId === "bad-1");
   await observed.until(() => true);
+
+  // 4. unobserve and unsubscribe (node-wot takes the topic from the form it finds for that operation): the
+  // next error reaches a plain MQTT client but not node-wot; the state event node-wot still receives after
+  // it was published on the same connection, so the error would have come first
+  const watcher = await mqtt.connectAsync(broker, login || {});
+  const seen = waiter([]);
+  watcher.on("message", (_topic, payload) => seen.push(JSON.parse(payload.toString("utf8"))));
+  await watcher.subscribeAsync(`td2adaptor/${robot}/wot-thing/error`);
+  await observation.stop();
+  await subscriptions.error.stop();
+  emit("unsubscribed", null);
+  await thing.invokeAction("pickRun", { nope: 2, correlationId: "bad-2" });
+  await seen.until((e) => e.correlationId === "bad-2");
+  await thing.invokeAction("gotoQuery", { correlationId: "q-2" });
+  await states.until((e) => e.correlationId === "q-2");
+  await watcher.endAsync();
   emit("done", null);
   await servient.shutdown();
   process.exit(0);

@@ -7,7 +7,7 @@ rdflib-endpoint spends ~10 s of CPU parsing the update that stores the RB-1's TD
 could never register; Oxigraph's /sparql endpoint takes queries and updates on one URL as Domus needs, in well
 under a second. Domus 1.0.2 hands a stored TD's N-Triples to node as one command-line argument to frame it
 as JSON again, so it cannot give back as JSON a TD whose N-Triples exceed Linux's 128 KiB argument limit (the
-full RB-1's: ~180 KiB): the JSON round-trip tests use a robot with fewer affordances (`small_robot_td`), and
+full RB-1's: ~167 KiB): the JSON round-trip tests use a robot with fewer affordances (`small_robot_td`), and
 the full RB-1's registration is read back as RDF (`triples`).
 """
 

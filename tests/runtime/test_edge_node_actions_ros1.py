@@ -39,11 +39,12 @@ from tests.ros2.common import Process
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient, Event
 from tests.runtime.edge import CLASS_NAME, feedback
-from tests.runtime.fibo_ros2 import ABORT, SLOW, sequence
+from tests.runtime.fibo_ros2 import ABORT, BURST, SLOW, sequence
 from tests.runtime.rb1 import terminal
 
 ROBOT = "fibo_one"
 KILLED = "fibo_one_killed"
+BRIDGE_KILLED = "fibo_one_bridge"
 COMPONENT = "MathComponent"
 BUILD_ACTIONS = REPO / "tests" / "ros1" / "build_actions.py"
 
@@ -244,3 +245,57 @@ def test_robot_killed_mid_goal(build: tuple[Model, Path, Path], master: Master, 
     finally:
         edge.close()
         robot.stop()
+
+
+def test_the_bridge_killed_mid_goal_fails_the_goal_at_once_and_a_new_bridge_runs_the_next(
+    build: tuple[Model, Path, Path], master: Master, broker: Mosquitto
+) -> None:
+    """The ROS 1 bridge's child killed (SIGKILL) while it follows a goal: the parent learns it from the child's
+    output ending, and the goal ends `failed`/`unreachable` at once (no query to fail three times, no mission
+    timeout), in words; the next goal starts a new child and runs to its end. (A robot of its own: the slow
+    goal the dead child sent goes on there.)"""
+    robot = robot_process(master, build[2], BRIDGE_KILLED)
+    edge = Edge(build, master, broker, BRIDGE_KILLED, mission_timeout=60.0)
+    try:
+        edge.send("", {"correlation": "b", "payload": {"order": SLOW}})
+        edge.app.wait(lambda ev: any("feedback" in e["payload"] for e in feedback(ev, "b")), timeout=20)
+        pid = edge.bridge.pid
+        assert pid is not None
+        os.kill(pid, signal.SIGKILL)
+        killed = time.monotonic()
+        events = edge.ended("b", timeout=20)
+        last = events[-1]["payload"]
+        assert (last["state"], last["reason"], last["result"]) == ("failed", "unreachable", "lost"), last
+        assert "ROS 1 bridge exited" in last["message"] and not CLASS_NAME.search(last["message"]), last
+        assert time.monotonic() - killed < 5.0
+        assert sum(1 for e in events if e["payload"]["terminal"]) == 1
+        time.sleep(edge.bridge.restart_period)  # the next call restarts the child (at most every restart_period)
+        edge.send("", {"correlation": "next", "payload": {"order": 3}})
+        events = edge.ended("next", timeout=30)
+        assert events[-1]["payload"]["state"] == "finished", events[-1]
+        assert edge.bridge.pid not in (None, pid)
+    finally:
+        edge.close()
+        robot.stop()
+
+
+def test_a_burst_of_a_thousand_feedback_messages_is_relayed_in_order_without_a_gap_or_a_duplicate(
+    build: tuple[Model, Path, Path], master: Master, fibo_robot: Process, broker: Mosquitto
+) -> None:
+    """As on ROS 2: 1,000 feedback messages published back to back ([i] each), through actionlib, the bridge's
+    child and its pipe: one feedback event each, in order, none twice, none missing, then the terminal event."""
+    edge = Edge(build, master, broker, ROBOT)
+    try:
+        edge.send("", {"correlation": "burst", "payload": {"order": BURST + 1000}})
+        events = edge.ended("burst", timeout=60)
+        payloads = [e["payload"] for e in events]
+        relayed = [p.get("feedback", {}).get("sequence") for p in payloads[1:-1]]
+        missing = sorted(set(range(1, 1001)) - {r[0] for r in relayed if r})
+        assert len(relayed) == 1000 and not missing, (len(relayed), missing[:20])
+        assert relayed == [[i] for i in range(1, 1001)]
+        assert [p["seq"] for p in payloads] == list(range(1, 1003))
+        assert (payloads[0]["state"], payloads[-1]["state"]) == ("queued", "finished")
+        assert payloads[-1]["output"] == {"sequence": [1000]}
+        assert len({e["id"] for e in events}) == len(events) == 1002
+    finally:
+        edge.close()

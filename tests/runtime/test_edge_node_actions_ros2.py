@@ -5,13 +5,15 @@ process, the edge node is `connect` + `serve` in this process on the rclpy adapt
 tests.lowering.test_actions.action_td. Checked: invoke → the acceptance, one feedback event per ROS feedback
 message (in order, carrying it) → exactly one terminal event with the result; rejected and aborted goals;
 query and cancel; the throttle; the action server killed mid-goal → failure within `action_server_timeout`,
-the component free again.
+the component free again; a burst of 1,000 feedback messages relayed in order, without a gap or a duplicate;
+the edge process's threads the same with eight goals in flight as with none.
 """
 
 from __future__ import annotations
 
 import signal
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -22,7 +24,7 @@ import pytest
 from td2adaptor.model import Model
 from td2adaptor.model.events import Kind, build_catalog
 from td2adaptor.model.wot import WOT_LEVEL
-from td2adaptor.runtime import PortRejected, PortTimeout, PortUnavailable, RuntimeConfig, serve
+from td2adaptor.runtime import RuntimeConfig, serve
 from td2adaptor.runtime.events import EventValidator
 from td2adaptor.runtime.node.roslink import RosLink, connect
 from tests.lowering.test_actions import INTERFACES, action_td
@@ -31,7 +33,8 @@ from tests.ros2.common import Process
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient, Event
 from tests.runtime.edge import feedback, until
-from tests.runtime.fibo_ros2 import ABORT, SLOW, sequence
+from tests.runtime.edge import rejects as edge_rejects
+from tests.runtime.fibo_ros2 import ABORT, BURST, SLOW, sequence
 from tests.runtime.rb1 import terminal
 from tests.runtime.rclpy_robot import generate_rclpy
 
@@ -123,13 +126,8 @@ class Edge:
 
 
 def rejects(port: Any) -> bool:
-    try:
-        port.send_goal(COMPONENT, "fibonacci", {"order": -1}, 1.0)
-    except PortRejected:
-        return True
-    except (PortUnavailable, PortTimeout):
-        return False
-    raise AssertionError("a goal of order -1 was accepted")
+    """A goal of order -1 is rejected: the server is there and its answers reach us."""
+    return edge_rejects(port, COMPONENT, "fibonacci", {"order": -1})
 
 
 def sent_feedback(robot: Process, ns: str, order: int) -> list[list[int]]:
@@ -310,5 +308,102 @@ def test_a_wot_consumer_sends_a_goal_queries_and_cancels_it(
         edge.app.send(wot + "/cancel", {"correlationId": "wc"})
         edge.app.wait(lambda _: any(e["terminal"] for e in of("/feedback", "w")), timeout=20)
         assert [e["state"] for e in of("/feedback", "w") if e["terminal"]] == ["cancelled"]
+    finally:
+        edge.close()
+
+
+def test_a_burst_of_a_thousand_feedback_messages_is_relayed_in_order_without_a_gap_or_a_duplicate(
+    fibo_build: tuple[Model, Path], fibo_robot: Process, broker: Mosquitto
+) -> None:
+    """The server publishes 1,000 feedback messages back to back (each one different: [i]), then its result: one
+    feedback event per message, in the order sent, none twice, none missing, then the terminal event."""
+    edge = Edge(fibo_build, broker, ROBOT)
+    try:
+        edge.send("", {"correlation": "burst", "payload": {"order": BURST + 1000}})
+        events = edge.ended("burst", timeout=60)
+        fibo_robot.wait_for(lambda e: e.get("event") == "burst" and e.get("ns") == ROBOT, timeout=10)
+        relayed = [e["payload"].get("feedback", {}).get("sequence") for e in events[1:-1]]
+        missing = sorted({i for i in range(1, 1001)} - {r[0] for r in relayed if r})
+        assert len(relayed) == 1000 and not missing, (len(relayed), missing[:20])
+        last = check_goal(events, [[i] for i in range(1, 1001)], "finished")
+        assert last["output"] == {"sequence": [1000]}
+        assert len({e["id"] for e in events}) == len(events) == 1002  # no event twice either
+    finally:
+        edge.close()
+
+
+def goal_threads() -> dict[str, int]:
+    """This process's threads by name (without the number a thread pool gives each)."""
+    names: dict[str, int] = {}
+    for thread in threading.enumerate():
+        name = thread.name.rstrip("0123456789")
+        names[name] = names.get(name, 0) + 1
+    return names
+
+
+def test_the_edge_process_has_as_many_threads_with_eight_goals_in_flight_as_with_none(
+    fibo_build: tuple[Model, Path], broker: Mosquitto
+) -> None:
+    """Eight robots of one edge node, each with a ROS 2 action goal in flight on a real action server: the
+    process runs the threads it ran before the goals (none is started, or kept, per goal)."""
+    robots = [f"fibo_threads_{i}" for i in range(8)]
+    robot = robot_process(*robots)
+    model, src = fibo_build
+    configs = [
+        RuntimeConfig(robot=r, bus=broker.url, property_period=0, state_dir="", mission_timeout=60.0, call_timeout=15.0)
+        for r in robots
+    ]
+    link = connect(model, model.package_name, configs, ros=2, package_paths=[src])
+    engines = []
+    app = AppClient(broker.url, [f"td2adaptor/{r}/#" for r in robots])
+    try:
+        for r in robots:
+            assert until(lambda r=r: rejects(link.ports[r]), 30, 0.1)
+        engines = [serve(model, link.ports[c.robot], c) for c in configs]
+        # one goal to its end first: whatever is made on first use is made now (a thread kept for the next goal too)
+        app.send(topic(robots[0]), {"source": "test", "correlation": "warm", "payload": {"order": 1}})
+        app.wait(terminal("feedback", "warm"), timeout=30)
+        before = goal_threads()
+        for r in robots:
+            app.send(topic(r), {"source": "test", "correlation": f"{r}-slow", "payload": {"order": SLOW}})
+
+        def running(r: str) -> bool:
+            return any("feedback" in e["payload"] for e in feedback(app.events, f"{r}-slow"))
+
+        app.wait(lambda _: all(running(r) for r in robots), timeout=30)
+        during = goal_threads()
+        for r in robots:
+            app.send(topic(r, "/cancel"), {"source": "test", "correlation": f"{r}-cancel"})
+        for r in robots:
+            app.wait(terminal("feedback", f"{r}-slow"), timeout=30)
+            assert feedback(app.events, f"{r}-slow")[-1]["payload"]["state"] == "cancelled"
+        assert during == before, sorted(set(during.items()) ^ set(before.items()))
+    finally:
+        app.close()
+        for engine in engines:
+            engine.stop()
+        link.close()
+        robot.stop()
+
+
+def test_a_goal_past_its_mission_timeout_fails_and_the_server_is_asked_to_cancel_it(
+    fibo_build: tuple[Model, Path], fibo_robot: Process, broker: Mosquitto
+) -> None:
+    """The mission timeout is a timer of the goal's machine: the goal ends `failed`/`timeout` once it passes, with
+    one terminal event, and the action server is asked to cancel it (it ends the goal canceled)."""
+    edge = Edge(fibo_build, broker, ROBOT, mission_timeout=1.5)
+    try:
+        fibo_robot.seen.clear()
+        edge.send("", {"correlation": "late", "payload": {"order": SLOW}})
+        fibo_robot.wait_for(lambda e: e.get("event") == "goal" and e.get("ns") == ROBOT and e.get("order") == SLOW, 10)
+        fibo_robot.seen.clear()
+        events = edge.ended("late", timeout=20)
+        last = events[-1]["payload"]
+        assert (last["state"], last["reason"]) == ("failed", "timeout"), last
+        assert "mission timeout of 1.5 s" in last["message"]
+        assert sum(1 for e in events if e["payload"]["terminal"]) == 1
+        assert events[0]["payload"]["result"] == "accepted" and any("feedback" in e["payload"] for e in events)
+        end = fibo_robot.wait_for(lambda e: e.get("event") == "end" and e.get("ns") == ROBOT, timeout=10)
+        assert end["status"] == "canceled", end
     finally:
         edge.close()

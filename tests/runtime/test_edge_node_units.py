@@ -49,6 +49,9 @@ def test_layout_of_the_rb1_and_its_json_round_trip() -> None:
     layout = Layout.of(rb1_model())
     assert layout.components[:3] == ("GoToComponent", "PickComponent", "PlaceComponent")
     assert layout.runs == {("GoToComponent", "gotoRun"), ("PickComponent", "pickRun"), ("PlaceComponent", "placeRun")}
+    # the queries and cancels whose requests carry the mission id (the model's Procedure.slot, not a guess from
+    # the generated method's signature)
+    assert layout.ids == {(c, a.replace("Run", role)) for c, a in layout.runs for role in ("Query", "Cancel")}
     assert Layout.from_json(json.loads(json.dumps(layout.to_json()))) == layout
 
 

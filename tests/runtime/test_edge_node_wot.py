@@ -116,6 +116,12 @@ def test_node_wot_uses_the_robot_as_a_thing_through_the_scripting_api(broker: Mo
     assert "'nope' was unexpected" in refused["message"] and "Port" not in refused["message"]
     assert refused["topic"] == f"td2adaptor/{ROBOT}/wot-thing/PickComponent/pickRun"
     assert robot.next_id == 2  # the two gotoRun missions; the refused pickRun never reached the robot
+    # 4. unobserved and unsubscribed through the TD's one form per subscription: nothing more arrived there
+    kinds = [line["kind"] for line in lines]
+    after = kinds[kinds.index("unsubscribed") :]
+    assert "observed" not in after and "error" not in after, after
+    assert not [e for e in values("error") if e.get("correlationId") == "bad-2"]
+    assert [e for e in values("gotoRunState") if e.get("correlationId") == "q-2"]
 
 
 def test_a_nosec_td_is_exposed_as_basic_when_the_node_logs_in_and_node_wot_then_works(tmp_path: Path) -> None:

@@ -1,12 +1,11 @@
-"""The pure parts of goals and procedures: ROS goal status words → procedure states, mapped state fields, the
-goal progress crossing the ROS 1 bridge as JSON, and the `goal_feedback_grace` setting reaching GoalTrack.
+"""The pure parts of goals and procedures: ROS goal status words → procedure states, mapped state fields, a
+goal's end crossing the ROS 1 bridge as JSON, and the `goal_feedback_grace` and `action_server_timeout` settings
+reaching the generated package's goal.
 (The real middleware tests are test_edge_node_actions_* and test_edge_node_mapped_procedure.)"""
 
 from __future__ import annotations
 
 import json
-import threading
-from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -19,9 +18,10 @@ from td2adaptor.runtime.config import ConfigError, RuntimeConfig, load_config
 from td2adaptor.runtime.engine.goals import _running_word, goal_status
 from td2adaptor.runtime.node.roslink import make_port
 from td2adaptor.runtime.ros.bridge import Ros1Bridge
-from td2adaptor.runtime.ros.genport import FEEDBACK_GRACE, GoalTrack, Layout
-from td2adaptor.runtime.ros.port import GOAL_STATES, GoalProgress
+from td2adaptor.runtime.ros.genport import FEEDBACK_GRACE, Layout
+from td2adaptor.runtime.ros.port import GOAL_STATES, GoalEnd, PortRejected, PortUnavailable
 from td2adaptor.runtime.ros.procedures import read
+from tests.runtime.edge import GoalEvents
 
 MAPPED = Procedure(
     "taskRun",
@@ -51,7 +51,7 @@ MAPPED = Procedure(
     ],
 )
 def test_goal_words(word: str, done: bool, state: str, reason: str | None) -> None:
-    status = goal_status(GoalProgress((), 0, word, done, None, "the server's words" if done else ""))
+    status = goal_status(word, done, "the server's words" if done else "")
     assert (status.state, status.reason, status.terminal) == (state, reason, done)
     assert status.result in GOAL_WORDS and status.state in STATES
     if done and word != "executing":
@@ -62,7 +62,7 @@ def test_goal_words(word: str, done: bool, state: str, reason: str | None) -> No
 def test_a_running_feedback_event_never_carries_an_end_word(word: str) -> None:
     # feedback trailing the result (or held by feedback_period) is still sent as `running`: with a running word
     running = _running_word(word)
-    assert goal_status(GoalProgress((), 1, running, False)).state == "running"
+    assert goal_status(running, False).state == "running"
     assert running == (word if word in ("executing", "canceling") else "executing")
 
 
@@ -70,9 +70,13 @@ def test_every_goal_state_is_a_word_of_the_contract() -> None:
     assert set(GOAL_STATES) <= set(GOAL_WORDS)
 
 
-def test_goal_progress_crosses_the_bridge_as_json() -> None:
-    progress = GoalProgress(({"sequence": [0, 1]},), 3, "aborted", True, {"sequence": [0]}, "13 is unlucky")
-    assert GoalProgress.from_json(json.loads(json.dumps(progress.to_json()))) == progress
+def test_a_goal_end_crosses_the_bridge_as_json() -> None:
+    end = GoalEnd("aborted", {"sequence": [0]}, "13 is unlucky")
+    assert GoalEnd.from_json(json.loads(json.dumps(end.to_json()))) == end
+    lost = GoalEnd.from_json(json.loads(json.dumps(GoalEnd("lost", None, "gone", PortUnavailable("gone")).to_json())))
+    assert (lost.status, lost.message, type(lost.error), str(lost.error)) == ("lost", "gone", PortUnavailable, "gone")
+    refused = GoalEnd.from_json(json.loads(json.dumps(GoalEnd("rejected", error=PortRejected("no")).to_json())))
+    assert isinstance(refused.error, PortRejected) and refused.error.reason == "rejected"
 
 
 def test_mapped_state_field() -> None:
@@ -103,83 +107,22 @@ def test_boolean_state_fields_read_as_true_and_false() -> None:
 
 
 class _Handle:
-    """A goal that has ended: what GoalTrack reads of a generated GoalHandle."""
+    """What GeneratedPort reads of a generated GoalHandle: its id; a ROS 2 one also has a `server_timeout`."""
 
     goal_id = "0123456789abcdef0123456789abcdef"
-    done = True
-    status = "succeeded"
-    reason = ""
 
-    def on_feedback(self, callback: Any) -> Any:
-        return lambda: None
-
-    def feedback(self, timeout: float) -> Iterator[Any]:
-        return iter(())
-
-    def result(self, timeout: float) -> dict[str, Any]:
-        return {"sequence": [0, 1]}
+    def __init__(self, grace: float | None) -> None:
+        self.grace = grace
 
 
-class CallTimeout(Exception):
-    """The generated packages' error for a wait that ran out (GoalTrack knows it by its name)."""
-
-
-class _Executing(_Handle):
-    """A goal whose first feedback came before the status message saying it executes (another topic)."""
-
-    done = False
-    status = "accepted"
-
-    def __init__(self) -> None:
-        self.over = threading.Event()
-
-    def feedback(self, timeout: float) -> Iterator[Any]:
-        return iter([{"sequence": [0]}])
-
-    def result(self, timeout: float) -> dict[str, Any]:
-        self.over.wait(timeout)
-        raise CallTimeout("still running")
-
-
-def test_a_goal_with_feedback_is_executing_whatever_its_status_says() -> None:
-    handle = _Executing()
-    track = GoalTrack(handle, 0.0)
-    try:
-        progress = track.progress(0, 0.0)
-        assert progress.feedback == ({"sequence": [0]},) and not progress.done
-        assert progress.status == "executing"  # a query answered now says running, as the feedback events do
-    finally:
-        track.close()
-        handle.over.set()
-
-
-class _Buffered(_Executing):
-    """A goal with two feedback messages buffered, whose iterator must not be asked for a third: the
-    generated one would wait for it (a hand-over of the interpreter lock on the goal's hot path)."""
-
-    feedback_received = 2
-    read_past = False
-
-    def feedback(self, timeout: float) -> Iterator[Any]:
-        yield {"sequence": [0]}
-        yield {"sequence": [0, 1]}
-        self.read_past = True
-        raise CallTimeout("no third message within the timeout")
-
-
-def test_the_goal_track_reads_the_buffered_feedback_without_waiting_for_more() -> None:
-    handle = _Buffered()
-    track = GoalTrack(handle, 0.0)
-    try:
-        assert track.progress(0, 0.0).feedback == ({"sequence": [0]}, {"sequence": [0, 1]})
-        assert not handle.read_past
-    finally:
-        track.close()
-        handle.over.set()
+class _Watched(_Handle):
+    server_timeout = 99.0
 
 
 class _Component:
-    """The generated component class's surface GeneratedPort uses for a ROS action."""
+    """The generated component class's surface GeneratedPort uses for a ROS action (`start_<action>`)."""
+
+    handle: type[_Handle] = _Handle
 
     def __init__(self, *args: Any, timeout: float, wait_timeout: float) -> None:
         pass
@@ -190,25 +133,35 @@ class _Component:
     def construct_count_Goal(self, **fields: Any) -> dict[str, Any]:
         return fields
 
-    def send_count(self, goal: Any, *, timeout: float) -> _Handle:
-        return _Handle()
+    def start_count(self, goal: Any, *, feedback_grace: float | None = None, **callbacks: Any) -> _Handle:
+        return self.handle(feedback_grace)
 
 
-def _grace(config: RuntimeConfig, distro: str) -> float:
-    """The grace of a goal sent through the port the edge node makes for `config`."""
+class _WatchedComponent(_Component):
+    handle = _Watched
+
+
+def _started(config: RuntimeConfig, distro: str, component: type[_Component] = _Component) -> _Handle:
+    """The handle of a goal sent through the port the edge node makes for `config`."""
     package = ModuleType("fake_adaptor")
-    package.CountComponent = _Component  # type: ignore[attr-defined]
+    package.CountComponent = component  # type: ignore[attr-defined]
     port = make_port(Layout(("CountComponent",)), package, config, distro, node=object() if distro == "ros2" else None)
     try:
-        goal = port.send_goal("CountComponent", "count", {"order": 3}, 1.0)
-        track = port._track("CountComponent", "count", goal)
-        assert track.progress(None, 0).status in ("accepted", "succeeded")
-        return track.grace
+        goal = port.start_goal("CountComponent", "count", {"order": 3}, 1.0, GoalEvents())
+        follower = port._follower("CountComponent", "count", goal)
+        assert follower is not None
+        handle: _Handle = follower.handle
+        return handle
     finally:
         port.close()
 
 
-def test_goal_feedback_grace_reaches_the_goal_track(tmp_path: Path) -> None:
+def _grace(config: RuntimeConfig, distro: str) -> float | None:
+    """The feedback grace a goal sent through the port the edge node makes for `config` is started with."""
+    return _started(config, distro).grace
+
+
+def test_goal_feedback_grace_reaches_the_generated_goal(tmp_path: Path) -> None:
     # default: the ROS version's own
     assert _grace(RuntimeConfig(robot="r"), "ros2") == FEEDBACK_GRACE["ros2"] == 0.01
     assert _grace(RuntimeConfig(robot="r"), "ros1") == FEEDBACK_GRACE["ros1"] == 0.1
@@ -234,27 +187,11 @@ def test_goal_feedback_grace_reaches_the_goal_track(tmp_path: Path) -> None:
             load_config(path, env={"TD2ADAPTOR_GOAL_FEEDBACK_GRACE": bad})
 
 
-class _Watched(_Handle):
-    """A ROS 2 handle: it has a `server_timeout` the port sets."""
-
-    server_timeout = 99.0
-
-
-class _WatchedComponent(_Component):
-    def send_count(self, goal: Any, *, timeout: float) -> _Handle:
-        return _Watched()
-
-
 def _server_timeout(config: RuntimeConfig) -> float:
     """The server_timeout of a goal's handle sent through the port the edge node makes for `config` (ROS 2)."""
-    package = ModuleType("fake_adaptor")
-    package.CountComponent = _WatchedComponent  # type: ignore[attr-defined]
-    port = make_port(Layout(("CountComponent",)), package, config, "ros2", node=object())
-    try:
-        goal = port.send_goal("CountComponent", "count", {"order": 3}, 1.0)
-        return float(port._track("CountComponent", "count", goal).handle.server_timeout)
-    finally:
-        port.close()
+    handle = _started(config, "ros2", _WatchedComponent)
+    assert isinstance(handle, _Watched)
+    return handle.server_timeout
 
 
 def test_action_server_timeout_reaches_the_goal_handle(tmp_path: Path) -> None:
@@ -263,10 +200,10 @@ def test_action_server_timeout_reaches_the_goal_handle(tmp_path: Path) -> None:
     path.write_text("robot: r\naction_server_timeout: 0\n")
     assert _server_timeout(load_config(path, env={})) == 0.0
     assert _server_timeout(load_config(path, env={"TD2ADAPTOR_ACTION_SERVER_TIMEOUT": "1.5"})) == 1.5
-    # a ROS 1 handle has none (ROS 1 tells at once): GoalTrack leaves it alone
-    track = GoalTrack(_Handle(), 0.0, 1.5)
-    track.close()
-    assert not hasattr(track.handle, "server_timeout")
+    # a ROS 1 handle has none (ROS 1 tells at once): the port leaves it alone
+    assert not hasattr(
+        _started(load_config(path, env={"TD2ADAPTOR_ACTION_SERVER_TIMEOUT": "1.5"}), "ros1"), "server_timeout"
+    )
     for bad in ("-1", "nan", "inf", "x"):
         with pytest.raises(ConfigError, match="action_server_timeout"):
             load_config(path, env={"TD2ADAPTOR_ACTION_SERVER_TIMEOUT": bad})

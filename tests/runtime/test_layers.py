@@ -25,9 +25,10 @@ PACKAGE = Path(__file__).resolve().parents[2] / "td2adaptor"
 RUNTIME = PACKAGE / "runtime"
 #: the runtime's layers, bottom first; a unit is a subpackage of runtime/ or a module directly in it
 RUNTIME_LAYERS: tuple[tuple[str, ...], ...] = (
-    ("events", "workers", "loop"),  # shared bottom: envelopes, ids and parsing; threads kept for the next task;
-    # the process's engine loop (events and timers) and call pool
-    ("ros", "bus"),  # the robot side (ports, ROS 1 bridge, CDR) and the event side (buses, WoT topics, security)
+    ("events", "loop"),  # shared bottom: envelopes, ids and parsing; the process's engine loop (events and
+    # timers) and call pool
+    ("ros", "bus"),  # the robot side (ports, ROS 1 bridge, CDR) and the event side (buses, WoT topics, security;
+    # bus/mqttloop.py, the one thread that serves every MQTT connection of the process, under bus/mqttbus.py)
     ("config",),  # one robot's settings: read by the engine and the node
     ("engine",),  # admission, missions, goals, property streams, outbox, replay guard, ledger
     ("node",),  # putting a robot or a fleet together: bus, engine, ROS graph, discovery, `td2adaptor run`
@@ -38,7 +39,13 @@ RUNTIME_LAYERS: tuple[tuple[str, ...], ...] = (
 EXTENDS = {"bus/drivenbus.py": "bus/mqttbus.py"}
 #: what the ROS 1 bridge's child runs under ROS 1's interpreter, with the standard library and td2adaptor only
 BRIDGE = "td2adaptor.runtime.ros.bridge"
-STDLIB_ONLY = (BRIDGE, "td2adaptor.runtime.ros.genport", "td2adaptor.runtime.ros.port", "td2adaptor.runtime.ros")
+STDLIB_ONLY = (
+    BRIDGE,
+    "td2adaptor.runtime.ros.genport",
+    "td2adaptor.runtime.ros.port",
+    "td2adaptor.runtime.ros",
+    "td2adaptor.model.genapi",
+)
 
 
 def _rank() -> dict[str, int]:

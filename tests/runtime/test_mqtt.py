@@ -705,7 +705,7 @@ def test_property_qos_0_publishes_property_events_at_most_once_and_the_td_says_s
             td = next(e for t, e in app.events if t.endswith("/td"))
         app.close()
         forms = td["properties"]["availability"]["forms"]
-        assert forms[0]["op"] == ["readproperty", "observeproperty"] and forms[0]["mqv:qos"] == "0"
+        assert forms[0]["op"] == ["readproperty", "observeproperty", "unobserveproperty"] and forms[0]["mqv:qos"] == "0"
         assert {f["mqv:qos"] for a in td["actions"].values() for f in a["forms"]} == {"1"}
         assert _retained(broker, prop) is not None  # retained, as at QoS 1
     finally:

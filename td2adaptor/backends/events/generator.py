@@ -246,16 +246,40 @@ ROBOTS_OPTION = "events.robots"
 ROBOT_STANDIN = "<robot>"
 
 
+#: the option that names the fleet whose admin requests the ACL lets through (default: the package name)
+FLEET_OPTION = "events.fleet"
+#: the level under the topic root where admin requests of a fleet go (runtime/node/admin.py: no robot id is it)
+ADMIN_LEVEL = ".fleet"
+
+
+def _fleet(options: GenOptions, diags: Diagnostics) -> str | None:
+    """The fleet name of `events.fleet`, checked as a robot id is (one topic level, no wildcard)."""
+    fleet = None
+    for key, raw in options.extra:
+        if key != FLEET_OPTION:
+            continue
+        if not isinstance(raw, str) or not ROBOT_ID.match(raw) or raw == ALL_ROBOTS:
+            diags.error(
+                "GEN860",
+                f"events backend: {FLEET_OPTION}: {raw!r} is not a fleet name (1-128 letters, digits, '_', '.', "
+                "'-'); in the broker ACL a '/', '+' or '#' in it would open other topics",
+            )
+        else:
+            fleet = raw
+    return fleet
+
+
 def _robots(options: GenOptions, diags: Diagnostics) -> list[str]:
     """The robot ids of `events.robots` (a list, or one string of ids separated by commas), each checked: an id
     with '/', '+' or '#' would name other robots' topics in the ACL (`_acl`), so none is accepted that a robot's
     configuration would refuse."""
     robots: list[str] = []
     for key, raw in options.extra:
-        if not key.startswith("events."):
+        if not key.startswith("events.") or key == FLEET_OPTION:
             continue
         if key != ROBOTS_OPTION:
-            diags.error("GEN860", f"events backend: unknown option {key!r}", hint=f"known: {ROBOTS_OPTION}")
+            known = f"{ROBOTS_OPTION}, {FLEET_OPTION}"
+            diags.error("GEN860", f"events backend: unknown option {key!r}", hint=f"known: {known}")
             continue
         items = raw.split(",") if isinstance(raw, str) else raw if isinstance(raw, list) else None
         if items is None or not items:
@@ -280,6 +304,7 @@ def _robots(options: GenOptions, diags: Diagnostics) -> list[str]:
 def generate(model: Model, options: GenOptions, diags: Diagnostics) -> GeneratedTree:
     """Schemas, AsyncAPI document, exposed TD, README and broker ACL of `model`'s events, under `<package>/`."""
     robots = _robots(options, diags)
+    fleet = _fleet(options, diags)
     catalog = build_catalog(model)
     folder = f"{catalog.package}/"
     tree = GeneratedTree()
@@ -288,11 +313,11 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     tree.add(folder + "td.mqtt.json", dump(exposed_td(model, catalog)))
     for path, document in catalog.files:
         tree.add(folder + path, dump(portable(document)))
-    tree.add(folder + "mosquitto.acl", _acl(model, catalog, robots))
+    tree.add(folder + "mosquitto.acl", _acl(model, catalog, robots, fleet or catalog.package))
     return tree
 
 
-def _acl(model: Model, catalog: EventCatalog, robots: list[str]) -> str:
+def _acl(model: Model, catalog: EventCatalog, robots: list[str], fleet: str) -> str:
     """mosquitto's ACL for these events: each edge node (user = robot id) publishes only its robot's outbound
     topics and reads its inbound ones; an `application` user publishes the inbound ones; nobody else.
 
@@ -300,7 +325,8 @@ def _acl(model: Model, catalog: EventCatalog, robots: list[str]) -> str:
     puts the user name into `%u` as it is, '/' included, so a user `<robot>/wot-thing` would be granted, by the
     node's envelope patterns, that robot's WoT topics (forge its feedback, errors and property values, read its
     commands), and no pattern can tell the two apart. Without robot ids (`events.robots`), one block for the
-    stand-in `<robot>` shows what each robot needs."""
+    stand-in `<robot>` shows what each robot needs. The fleet's admin requests (`td2adaptor run`, docs/fleet.md):
+    every edge node reads them and writes their answers; the `fleet-admin` user writes them and reads the answers."""
     inbound = [s for s in catalog.specs if s.kind.inbound]
     outbound = [s for s in catalog.specs if not s.kind.inbound]
 
@@ -317,7 +343,10 @@ def _acl(model: Model, catalog: EventCatalog, robots: list[str]) -> str:
             *(t for s in outbound if (t := wot_topic(s, robot))),
             td_topic(robot),
         ]
-        return {"id": robot, "reads": reads, "writes": writes}
+        return {"id": robot, "reads": [*reads, admin_request], "writes": [*writes, admin_answer]}
+
+    admin_request = f"{TOPIC_ROOT}/{ADMIN_LEVEL}/{fleet}/request"
+    admin_answer = f"{TOPIC_ROOT}/{ADMIN_LEVEL}/{fleet}/answer"
 
     env = environment(TEMPLATES, trim=True)
     return env.get_template("mosquitto.acl.j2").render(
@@ -329,6 +358,9 @@ def _acl(model: Model, catalog: EventCatalog, robots: list[str]) -> str:
         nodes=[node(robot) for robot in robots or [ROBOT_STANDIN]],
         given=bool(robots),
         app_writes=[t for s in inbound for t in (s.topic("+"), wot_topic(s, "+")) if t],
+        fleet=fleet,
+        admin_request=admin_request,
+        admin_answer=admin_answer,
     )
 
 

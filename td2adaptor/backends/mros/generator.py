@@ -73,6 +73,7 @@ from td2adaptor.generation import textsafe as ts
 from td2adaptor.generation.backend import GeneratedTree, GenOptions
 from td2adaptor.generation.templating import render, verbatim
 from td2adaptor.model import ArrayKind, Component, MessageDef, Model, Role, TopicEndpoint, TypeTable
+from td2adaptor.model import genapi as api
 
 TEMPLATES = Path(__file__).parent / "templates"
 VERBATIM = Path(__file__).parent / "verbatim"
@@ -441,9 +442,9 @@ def _component(
         name
         for t in c.topics
         for name in (
-            (f"construct_{t.name}_Msg", f"publish_{t.name}_Msg", f"{t.name}_pub_")
+            (api.CONSTRUCT_MESSAGE(t.name), api.PUBLISH(t.name), f"{t.name}_pub_")
             if t.role is Role.PUBLISHER
-            else (f"get_{t.name}_value", f"{t.name}_sub_", f"{t.name}_latest_", f"{t.name}_callback")
+            else (api.GET(t.name), f"{t.name}_sub_", f"{t.name}_latest_", f"{t.name}_callback")
         )
     ]
     fixed = {"register_", "registerPublishers", "registerSubscribers", "get_value", "published_", "subscribed_"}
@@ -462,8 +463,8 @@ def _component(
                 topic=expr,
                 topic_text=comment(text),
                 queue_size=t.qos.queue_size,
-                construct=f"construct_{t.name}_Msg",
-                publish=f"publish_{t.name}_Msg",
+                construct=api.CONSTRUCT_MESSAGE(t.name),
+                publish=api.PUBLISH(t.name),
                 handle=f"{t.name}_pub_",
                 hook=f"fill_{t.name}",
                 task_msg=f"td2a_{c.name}_{t.name}_msg",
@@ -489,11 +490,11 @@ def _component(
                 topic=expr,
                 topic_text=comment(text),
                 queue_size=t.qos.queue_size,
-                getter=f"get_{t.name}_value",
+                getter=api.GET(t.name),
                 handle=f"{t.name}_sub_",
                 latest=f"{t.name}_latest_",
                 callback=f"{t.name}_callback",
-                hook=f"on_{t.name}",
+                hook=api.ON(t.name),
                 comment=_text(t),
             )
         )

@@ -28,6 +28,7 @@ from td2adaptor.model import (
     ActionEndpoint,
     ArrayKind,
     Component,
+    Failure,
     FieldType,
     MessageDef,
     Model,
@@ -40,6 +41,7 @@ from td2adaptor.model import (
     TopicEndpoint,
     TypeTable,
 )
+from td2adaptor.model import genapi as api
 from td2adaptor.support.providers import providers
 
 TEMPLATES = Path(__file__).parent / "templates"
@@ -271,8 +273,13 @@ def _runtime_module(name: str) -> str:
     return ".goals" if name in py.goals_names() else ".runtime"
 
 
-def _is(ftype: FieldType | None, base: str) -> bool:
-    return ftype is not None and ftype.base == base and ftype.array is ArrayKind.NONE and not ftype.is_message
+#: the runtime function that finds a failure in a response, by how the response says it (`Failure`)
+_FAILURE = {
+    Failure.NONE: "None",
+    Failure.RESULT: "procedure_failure",
+    Failure.SUCCESS: "success_failure",
+    Failure.SUCCESS_ONLY: "success_only_failure",
+}
 
 
 def _parts(d: MessageDef | ServiceDef | ActionDef) -> list[MessageDef]:
@@ -361,37 +368,21 @@ class Builder:
         topics: list[TopicEndpoint],
         actions: Sequence[ActionEndpoint] = (),
     ) -> bool:
-        """Generated method names must not clash (e.g. an action and a property of the same name)."""
-        fixed = {"register", "robot_name", "node", "timeout", "wait_timeout"}
-        members: dict[str, str] = {}
-        ok = True
-        wanted: list[tuple[str, str]] = []
-        for s in services:
-            wanted += [(m, s.name) for m in (f"construct_{s.name}_Msg", f"call_{s.name}", f"call_{s.name}_async")]
-        for a in actions:
-            sends = (f"send_{a.name}", f"send_{a.name}_async", f"start_{a.name}")
-            wanted += [(m, a.name) for m in (f"construct_{a.name}_Goal", *sends)]
-        subscribers = 0
-        for t in topics:
-            if t.role is Role.SUBSCRIBER:
-                subscribers += 1
-                wanted += [(f"get_{t.name}_value", t.name), (f"on_{t.name}", t.name)]
-                wanted.append((f"on_{t.name}_serialized", t.name))
-            else:
-                wanted += [(f"construct_{t.name}_Msg", t.name), (f"publish_{t.name}_Msg", t.name)]
-        if subscribers == 1:
-            wanted.append(("get_value", "the only subscribed property"))
-        for member, owner in wanted:
-            if member in fixed or member in members:
-                other = members.get(member, "a member every component has")
-                self.diags.error(
-                    "GEN822",
-                    f"rclpy backend: {comp.name}: method {member} of {owner} clashes with {other}",
-                    hint="rename one of the affordances",
-                )
-                ok = False
-            members[member] = owner
-        return ok
+        """Generated method names must not clash (e.g. an action and a property of the same name): the
+        contract's one check (`genapi.clashes`)."""
+        found = api.clashes(
+            [s.name for s in services],
+            [a.name for a in actions],
+            [t.name for t in topics if t.role is Role.SUBSCRIBER],
+            [t.name for t in topics if t.role is not Role.SUBSCRIBER],
+        )
+        for member, owner, other in found:
+            self.diags.error(
+                "GEN822",
+                f"rclpy backend: {comp.name}: method {member} of {owner} clashes with {other}",
+                hint="rename one of the affordances",
+            )
+        return not found
 
     # -- types
 
@@ -415,36 +406,6 @@ class Builder:
             if name.endswith(suffix):
                 return name[: -len(suffix)]
         return name
-
-    def failure(self, response: MessageDef) -> str:
-        """How a response reports failure: procedures_msgs-style result, std_srvs-style success, or not at all."""
-        fields = {f.name: f.type for f in response.fields}
-        result = fields.get("result")
-        if result is not None and result.is_message and result.array is ArrayKind.NONE:
-            inner = {f.name: f.type for f in self.message(result.base).fields}
-            if _is(inner.get("result"), "string") and _is(inner.get("message"), "string"):
-                return "procedure_failure"
-        if _is(fields.get("success"), "bool") and _is(fields.get("message"), "string"):
-            return "success_failure"
-        return "None"
-
-    def mission_path(self, svc: ServiceDef, response_path: Sequence[str]) -> str | None:
-        """Where a query/cancel request carries the mission id: the longest suffix of the run response's
-        mission-id path that is an integer field of the request (`header/id` for `state/header/id`), else
-        header/id, id or mission_id (the rule validate checks, ROS447)."""
-        candidates = [tuple(response_path[i:]) for i in range(len(response_path))]
-        for path in (*candidates, ("header", "id"), ("id",), ("mission_id",)):
-            msg: MessageDef | None = svc.request
-            for i, part in enumerate(path):
-                found = next((x for x in msg.fields if x.name == part), None) if msg is not None else None
-                if found is None or found.type.array is not ArrayKind.NONE:
-                    break
-                if i == len(path) - 1:
-                    if found.type.base in rt.INTS:
-                        return ".".join(path)
-                    break
-                msg = self.message(found.type.base) if found.type.is_message else None
-        return None
 
     # -- names in the generated code
 
@@ -528,19 +489,19 @@ class Builder:
                 f"Returns Started(mission_id, response); the mission id is {'/'.join(proc.mission_id)} of the "
                 "response, and the procedure's query and cancel methods use it when given no mission_id."
             )
-        elif proc is not None and proc.mission_id and svc.procedure_role in (ProcedureRole.QUERY, ProcedureRole.CANCEL):
-            path = self.mission_path(sdef, proc.mission_id)
-            if path is not None:
+        elif proc is not None and svc.procedure_role in (ProcedureRole.QUERY, ProcedureRole.CANCEL):
+            path = ".".join(proc.slot(svc.procedure_role.value))
+            if path:
                 mission_field = "request." + path
                 last_attr = f"self._last_{proc.run}_id"
                 self.runtime_used.add("LAST_MISSION")
                 body.append(
                     f"mission_id selects the procedure: it is written to {path.replace('.', '/')} of the request "
-                    f"(of an explicit request too). Default: the id this object's last call_{proc.run} returned; "
+                    f"(of an explicit request too). Default: the id this object's last {api.CALL(proc.run)} returned; "
                     "-1 (LAST_MISSION: the robot's last procedure) only when it made none yet."
                 )
-        body.append(f"request: None sends construct_{svc.name}_Msg() (all ROS defaults).")
-        failure = self.failure(sdef.response)
+        body.append(f"request: None sends {api.CONSTRUCT_REQUEST(svc.name)}() (all ROS defaults).")
+        failure = _FAILURE[svc.failure]
         if failure != "None":
             self.runtime_used.add(failure)
         body.append(
@@ -548,10 +509,11 @@ class Builder:
             "takes longer than timeout (default: the component's), CallFailed "
             + ("when the robot reports an error (with its message)." if failure != "None" else "if it is cancelled.")
         )
-        construct = self.construct(f"construct_{svc.name}_Msg", sdef.request, req, namer, f"the request of {svc.name}")
+        what = f"the request of {svc.name}"
+        construct = self.construct(api.CONSTRUCT_REQUEST(svc.name), sdef.request, req, namer, what)
         async_doc = docstring(
             [
-                f"call_{svc.name}, awaitable: await it in a coroutine callback of the node's executor (or in any "
+                f"{api.CALL(svc.name)}, awaitable: await it in a coroutine callback of the node's executor (or in any "
                 "coroutine while an executor spins the node). No thread blocks; the errors are the same."
             ],
             "        ",
@@ -583,7 +545,7 @@ class Builder:
         body = [
             *text_paragraphs(action.text, action.name),
             f"ROS 2 action {self.ros_name_doc(action.ros_name)} ({action.type_name}).",
-            f"Sends goal (None sends construct_{action.name}_Goal(), all ROS defaults) and returns the accepted "
+            f"Sends goal (None sends {api.CONSTRUCT_GOAL(action.name)}(), all ROS defaults) and returns the accepted "
             "goal's GoalHandle: goal_id, status, on_feedback(callback), feedback(timeout=...) to iterate over the "
             "feedback until the goal ends, result(timeout=...) and cancel(timeout=...), and for coroutines "
             "feedback_async (async for), result_async and cancel_async. Its waits default to timeout (default: "
@@ -593,7 +555,7 @@ class Builder:
             "GoalAborted or GoalCanceled when the goal does not succeed.",
         ]
         construct = self.construct(
-            f"construct_{action.name}_Goal", adef.goal, goal, namer, f"the goal of {action.name}"
+            api.CONSTRUCT_GOAL(action.name), adef.goal, goal, namer, f"the goal of {action.name}"
         )
         return ActionView(
             name=action.name,
@@ -607,14 +569,15 @@ class Builder:
             doc=docstring(body, "        "),
             async_doc=docstring(
                 [
-                    f"send_{action.name}, awaitable: await it in a coroutine callback of the node's executor (or in "
+                    f"{api.SEND(action.name)}, awaitable: await it in a coroutine callback of the node's executor "
+                    "(or in "
                     "any coroutine while an executor spins the node). No thread blocks; the errors are the same."
                 ],
                 "        ",
             ),
             start_doc=docstring(
                 [
-                    f"send_{action.name} without waiting: returns the goal's GoalHandle at once (its goal_id is "
+                    f"{api.SEND(action.name)} without waiting: returns the goal's GoalHandle at once (its goal_id is "
                     "known) and tells what happens to the callbacks: on_accepted() once the server accepted the "
                     "goal, on_status(status) at each change of status while it runs, on_feedback(message) with "
                     "each feedback message (also those that came before the acceptance), in order, then exactly "
@@ -683,9 +646,9 @@ class Builder:
                 serialized_doc=serialized_doc,
             )
         self.runtime_used.add("TopicPublisher")
-        body.append(f"Publishes msg (build it with construct_{topic.name}_Msg).")
+        body.append(f"Publishes msg (build it with {api.CONSTRUCT_MESSAGE(topic.name)}).")
         construct = self.construct(
-            f"construct_{topic.name}_Msg", self.message(topic.type_name), msg, namer, f"the message of {topic.name}"
+            api.CONSTRUCT_MESSAGE(topic.name), self.message(topic.type_name), msg, namer, f"the message of {topic.name}"
         )
         return TopicView(
             topic.name, f"self._{topic.name}", msg, ros_name, qos, False, docstring(body, "        "), "", construct
@@ -723,7 +686,7 @@ class Builder:
         value = subs[0] if len(subs) == 1 else None
         value_doc = (
             docstring(
-                [f"The component's only subscribed property: get_{value.name}_value(timeout=timeout)."], "        "
+                [f"The component's only subscribed property: {api.GET(value.name)}(timeout=timeout)."], "        "
             )
             if value is not None
             else ""
@@ -965,6 +928,7 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     for name in py.SHARED:
         tree.add(f"{src}/{name}", py.shared_source(name))
     tree.add(f"{src}/py.typed", "")
+    tree.add(f"{src}/{api.RECORD}.py", api.record_source(model, "ros2"))
     for module in view.stubs:
         tree.add(f"{root}/{module.path}", _render("stubs/module.pyi.j2", m=module, **ctx))
     tree.add(f"{root}/launch/edge_node.launch.py", _render("launch/edge_node.launch.py.j2", **ctx))

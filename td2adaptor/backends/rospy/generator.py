@@ -34,6 +34,7 @@ from td2adaptor.model import (
     ActionDef,
     ActionEndpoint,
     Component,
+    Failure,
     MessageDef,
     Model,
     ProcedureRole,
@@ -44,6 +45,7 @@ from td2adaptor.model import (
     TopicEndpoint,
     TypeTable,
 )
+from td2adaptor.model import genapi as api
 from td2adaptor.support.providers import providers
 
 TEMPLATES = Path(__file__).parent / "templates"
@@ -260,46 +262,13 @@ def _params(msg: MessageDef, imports: _Imports, diags: Diagnostics, where: str) 
     return out
 
 
-def _path(msg: MessageDef, types: TypeTable, path: tuple[str, ...], want: str) -> bool:
-    """Whether `path` leads through `msg` to a field of primitive kind `want` ("int", "str", "bool")."""
-    current: MessageDef | None = msg
-    for i, part in enumerate(path):
-        if current is None:
-            return False
-        found = next((f for f in current.fields if f.name == part), None)
-        if found is None or found.type.array.value != "none":
-            return False
-        if i == len(path) - 1:
-            base = found.type.base
-            kinds = {
-                "int": base in {"int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64"},
-                "str": base == "string",
-                "bool": base == "bool",
-            }
-            return not found.type.is_message and kinds[want]
-        current = types.message(found.type.base) if found.type.is_message else None
-    return False
-
-
-def _failure(resp: MessageDef, types: TypeTable) -> tuple[str | None, str | None]:
-    """How a response says it failed: procedures_msgs style (result.result == "error"), std_srvs style (success)."""
-    if _path(resp, types, ("result", "result"), "str") and _path(resp, types, ("result", "message"), "str"):
-        return 'response.result.result == "error"', "response.result.message or ERROR_WITHOUT_MESSAGE"
-    if _path(resp, types, ("success",), "bool"):
-        has_message = _path(resp, types, ("message",), "str")
-        message = "response.message or FAILURE_WITHOUT_MESSAGE" if has_message else "FAILURE_WITHOUT_MESSAGE"
-        return "not response.success", message
-    return None, None
-
-
-def _mission_target(req: MessageDef, types: TypeTable, id_path: tuple[str, ...]) -> str | None:
-    """The request field of a query/cancel that takes a mission id: an integer field at the longest suffix of
-    the run response's id path, else at header/id, id or mission_id (the rule validate checks, ROS447)."""
-    suffixes = [id_path[i:] for i in range(len(id_path))]
-    for path in (*suffixes, ("header", "id"), ("id",), ("mission_id",)):
-        if _path(req, types, path, "int"):
-            return "request." + ".".join(path)
-    return None
+#: the condition and the message of a CallFailed, by how the response says the robot failed (`Failure`)
+_FAILURE: dict[Failure, tuple[str | None, str | None]] = {
+    Failure.NONE: (None, None),
+    Failure.RESULT: ('response.result.result == "error"', "response.result.message or ERROR_WITHOUT_MESSAGE"),
+    Failure.SUCCESS: ("not response.success", "response.message or FAILURE_WITHOUT_MESSAGE"),
+    Failure.SUCCESS_ONLY: ("not response.success", "FAILURE_WITHOUT_MESSAGE"),
+}
 
 
 def _service_view(
@@ -310,32 +279,30 @@ def _service_view(
     req_class = imports.use(sdef.request.name)
     resp_class = imports.use(sdef.response.name)
     params = _params(sdef.request, imports, diags, svc.pointer)
-    fail_condition, fail_message = _failure(sdef.response, types)
+    fail_condition, fail_message = _FAILURE[svc.failure]
     proc = comp.procedure_of(svc.name)
     display = svc.ros_name.binding_form()
     returns = resp_class
     mission_expr = mission_attr = mission_target = None
     notes = []
     if proc is not None and svc.procedure_role is ProcedureRole.RUN and proc.mission_id:
-        if all(p.isidentifier() for p in proc.mission_id) and _path(sdef.response, types, proc.mission_id, "int"):
-            mission_expr = "response." + ".".join(proc.mission_id)
-            mission_attr = f"_mission_{svc.name}"
-            returns = f"Started[{resp_class}]"
-            notes.append(
-                f"Returns Started(mission_id, response): the mission id is the response's "
-                f"{'.'.join(proc.mission_id)}; query and cancel use it by default."
-            )
+        mission_expr = "response." + ".".join(proc.mission_id)
+        mission_attr = f"_mission_{svc.name}"
+        returns = f"Started[{resp_class}]"
+        notes.append(
+            f"Returns Started(mission_id, response): the mission id is the response's "
+            f"{'.'.join(proc.mission_id)}; query and cancel use it by default."
+        )
     elif proc is not None and svc.procedure_role in (ProcedureRole.QUERY, ProcedureRole.CANCEL):
-        run = comp.service(proc.run)
-        if proc.mission_id and run.procedure_role is ProcedureRole.RUN:
-            mission_target = _mission_target(sdef.request, types, proc.mission_id)
-            if mission_target is not None:
-                mission_attr = f"_mission_{proc.run}"
-                notes.append(
-                    f"Without a request, asks about mission_id: by default the mission this object last started "
-                    f"with call_{proc.run}, or -1 (the robot's last procedure) when it has started none. Pass "
-                    f"mission_id explicitly when several callers share the robot."
-                )
+        slot = proc.slot(svc.procedure_role.value)
+        if slot:
+            mission_target = "request." + ".".join(slot)
+            mission_attr = f"_mission_{proc.run}"
+            notes.append(
+                f"Without a request, asks about mission_id: by default the mission this object last started "
+                f"with {api.CALL(proc.run)}, or -1 (the robot's last procedure) when it has started none. Pass "
+                f"mission_id explicitly when several callers share the robot."
+            )
     raises = "Raises ServiceUnavailable (not reachable), CallTimeout (no answer within timeout, default self.timeout)"
     if fail_condition:
         raises += " or CallFailed (the robot reports failure; .message is its explanation)."
@@ -445,7 +412,7 @@ def _action_view(action: ActionEndpoint, types: TypeTable, imports: _Imports, di
         [
             f"Send a goal to ROS action {display} ({ros_type}, actionlib: {display}/goal, cancel, status, feedback, "
             "result).",
-            f"goal=None sends construct_{action.name}_Goal() (all fields zero). Returns the goal's GoalHandle: "
+            f"goal=None sends {api.CONSTRUCT_GOAL(action.name)}() (all fields zero). Returns the goal's GoalHandle: "
             "goal_id, status, on_feedback(callback), feedback(timeout=...) to iterate over the feedback until the "
             "goal ends, result(timeout=...) and cancel(timeout=...). Its waits default to timeout (default: "
             "self.timeout).",
@@ -458,7 +425,8 @@ def _action_view(action: ActionEndpoint, types: TypeTable, imports: _Imports, di
     start_doc = docstring(
         [],
         [
-            f"send_{action.name} without waiting: returns the goal's GoalHandle at once (its goal_id is known) and "
+            f"{api.SEND(action.name)} without waiting: returns the goal's GoalHandle at once (its goal_id is known) "
+            "and "
             "tells what happens to the callbacks: on_accepted() once the server reported the goal, "
             "on_status(status) at each change of status while it runs, on_feedback(message) with each feedback "
             "message, in order, then exactly one on_done(outcome), a GoalOutcome: status succeeded, canceled, "
@@ -490,21 +458,6 @@ def _action_view(action: ActionEndpoint, types: TypeTable, imports: _Imports, di
         send_doc=send_doc,
         start_doc=start_doc,
     )
-
-
-def _method_names(view: ComponentView) -> list[str]:
-    names = ["register", "close"]
-    for s in view.services:
-        names += [f"construct_{s.name}_Msg", f"call_{s.name}"]
-    for sub in view.subscribers:
-        names += [f"get_{sub.name}_value", f"on_{sub.name}", f"on_{sub.name}_serialized"]
-    for p in view.publishers:
-        names += [f"construct_{p.name}_Msg", f"publish_{p.name}_Msg"]
-    for a in view.actions:
-        names += [f"construct_{a.name}_Goal", f"send_{a.name}", f"start_{a.name}"]
-    if view.single is not None:
-        names.append("get_value")
-    return names
 
 
 def component_views(model: Model, imports: _Imports, diags: Diagnostics) -> list[ComponentView]:
@@ -547,13 +500,13 @@ def component_views(model: Model, imports: _Imports, diags: Diagnostics) -> list
             mission_attrs=mission_attrs,
             actions=actions,
         )
-        names = _method_names(view)
-        clashes = sorted({n for n in names if names.count(n) > 1})
-        if clashes:
+        names = [[x.name for x in group] for group in (services, actions, subscribers, publishers)]
+        clashes = api.clashes(*names)
+        for member, owner, other in clashes:
             diags.error(
                 "GEN841",
-                f"rospy backend: component {comp.name} would define {', '.join(clashes)} twice",
-                hint="give the affordances different names or put them in different components",
+                f"rospy backend: {comp.name}: method {member} of {owner} clashes with {other}",
+                hint="rename one of the affordances",
             )
         views.append(view)
     return views
@@ -723,6 +676,7 @@ def generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generated
     src = f"{root}src/{pkg}/"
     tree.add(src + "__init__.py", _render("src/__init__.py.j2", **context))
     tree.add(src + "py.typed", "")
+    tree.add(f"{src}{api.RECORD}.py", api.record_source(model, "ros1"))
     for name in py.SHARED:
         tree.add(src + name, py.shared_source(name))
     tree.add(src + "_runtime.py", verbatim(VERBATIM, "_runtime.py"))

@@ -1,9 +1,9 @@
 """An MQTT connection served by the thread that publishes on it, for the property streams (streams.py).
 
-A `MqttBus` is served by paho's network thread: every publish wakes that thread to write the message, and the
-publisher waits for the interpreter lock again behind it. With one client per robot, a process that streams
-a thousand property events a second wakes a dozen network threads two thousand times a second, and its
-publishing thread spends most of its time waiting (bench/sensor_stream_ros2.py). `DrivenBus` has no network
+A `MqttBus` is served by a network thread (the process's serving loop, mqttloop.py): every publish wakes that
+thread to write the message, and the publisher waits for the interpreter lock again behind it. A process that
+streams a thousand property events a second would wake it two thousand times a second, and its publishing
+thread would spend most of its time waiting (bench/sensor_stream_ros2.py). `DrivenBus` has no network
 thread: a publish writes to the socket at once, in the publisher's thread, and that thread calls `step()`
 between batches to read what the broker sent (PUBACKs, PINGRESPs), keep the connection alive and reconnect.
 
@@ -41,6 +41,10 @@ class DrivenBus(MqttBus):
 
     def _start(self, client: mqtt.Client) -> None:
         """No network thread: publishes write at once (paho does when it has no thread), `step` reads."""
+
+    def _stop(self, client: mqtt.Client) -> None:
+        """A normal disconnect, written at once (the broker drops the will)."""
+        client.disconnect()
 
     def _await_connack(self, client: mqtt.Client) -> bool:
         deadline = time.monotonic() + self.connect_timeout

@@ -3,14 +3,17 @@
 MQTT 5 (or 3.1.1 for brokers that speak only that: `mqtt_version`), QoS 1 both ways, a persistent session
 (`clean_start=False` with a session expiry; in 3.1.1 `clean_session=False`, kept as long as the broker keeps
 sessions) so that neither side loses messages while the other is away (except on the filters subscribed at
-QoS 0, which the broker does not queue for an absent client); paho reconnects by itself with
-back-off, keeps unacknowledged QoS 1 publishes and resends them; we resubscribe and republish the birth
-message on every (re)connect, and on a reconnect every retained message this client published last on a topic
-(property values, their WoT form): a broker restarted without persistence has forgotten them, and a client
-that reads a retained value (node-wot's readProperty) would otherwise wait until the value changes.
+QoS 0, which the broker does not queue for an absent client). One thread serves every connection of the
+process (mqttloop.py) and reconnects with back-off; paho keeps unacknowledged QoS 1 publishes and resends
+them; we resubscribe and republish the birth message on every (re)connect, and on a reconnect every retained
+message this client published last on a topic (property values, their WoT form): a broker restarted without
+persistence has forgotten them, and a client that reads a retained value (node-wot's readProperty) would
+otherwise wait until the value changes.
 The will (the retained `offline` status) is published by the broker when the connection drops uncleanly.
 `verify` (the anonymous-broker check, app.py) runs on every connection before anything of it is handled; a
-connection that fails it ends the client's service of the broker for good (`refused`, `on_refused`).
+connection that fails it ends the client's service of the broker for good (`refused`, `on_refused`). It runs
+on a helper thread while the connection is held: what arrives meanwhile is kept unhandled (and unacknowledged:
+a held connection writes nothing), then handled in order once the check passes.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from paho.mqtt.reasoncodes import ReasonCode
 from paho.mqtt.subscribeoptions import SubscribeOptions
 
 from td2adaptor.runtime.bus.bus import BusError, Handler, Message, check_qos, topic_matches, valid_filter, valid_topic
+from td2adaptor.runtime.bus.mqttloop import Link, ServedClient, shared
 from td2adaptor.runtime.bus.security import (
     ENV_PASSWORD,
     ENV_USERNAME,
@@ -182,6 +186,8 @@ class MqttBus:
         self._dropped: str | None = None
         self._connected = False
         self._client: mqtt.Client | None = None
+        self._link: Link | None = None  # how the process's serving loop serves the client (None: `DrivenBus`)
+        self._held: list[Message] | None = None  # what arrived while `verify` checks the connection
 
     @property
     def connected(self) -> bool:
@@ -191,23 +197,22 @@ class MqttBus:
 
     def _make_client(self) -> mqtt.Client:
         if self.mqtt_version == "5":
-            client = mqtt.Client(
+            client = ServedClient(
                 CallbackAPIVersion.VERSION2,
                 client_id=self.client_id,
                 protocol=MQTTProtocolVersion.MQTTv5,
-                reconnect_on_failure=True,
+                reconnect_on_failure=False,  # paho would reconnect inside a read (blocking): the loop does it
             )
         else:  # 3.1.1: the session flag is set here, and there are no CONNECT properties
-            client = mqtt.Client(
+            client = ServedClient(
                 CallbackAPIVersion.VERSION2,
                 client_id=self.client_id,
                 clean_session=self.clean_start,
                 protocol=MQTTProtocolVersion.MQTTv311,
-                reconnect_on_failure=True,
+                reconnect_on_failure=False,
             )
         client.max_queued_messages_set(0)  # unlimited: nothing published while offline is dropped
         client.max_inflight_messages_set(200)
-        client.reconnect_delay_set(*self.reconnect_delay)
         sec = self.security
         if sec.username:
             client.username_pw_set(sec.username, sec.password)
@@ -248,8 +253,8 @@ class MqttBus:
             raise BusError(f"TLS handshake with the MQTT broker at {self.address} failed: {exc}{hint}") from None
         except OSError as exc:
             raise BusError(f"cannot reach the MQTT broker at {self.address}: {exc.strerror or exc}") from None
-        self._start(client)
         self._client = client
+        self._start(client)
         if not self._await_connack(client):
             self._abort()
             hint = (
@@ -280,8 +285,15 @@ class MqttBus:
         self._await_first_subscribe()
 
     def _start(self, client: mqtt.Client) -> None:
-        """Start serving the connection: paho's network thread (`DrivenBus` serves it from its owner's)."""
-        client.loop_start()
+        """Start serving the connection: the process's serving loop (`DrivenBus` serves it from its owner's)."""
+        self._link = Link(shared(), client, self.reconnect_delay, self.client_id)
+        self._link.start()
+
+    def _stop(self, client: mqtt.Client) -> None:
+        """Disconnect cleanly and stop serving the connection (waiting at most `connect_timeout` for it)."""
+        link, self._link = self._link, None
+        if link is not None:
+            link.close(self.connect_timeout)
 
     def _await_connack(self, _client: mqtt.Client) -> bool:
         return self._connack.wait(self.connect_timeout)
@@ -298,7 +310,10 @@ class MqttBus:
             self._first_subscribe = None
 
     def _await_suback(self, mid: int, what: str) -> None:
-        """Wait (lock held) at most `connect_timeout` for the SUBACK of subscribe message `mid`."""
+        """Wait (lock held) at most `connect_timeout` for the SUBACK of subscribe message `mid` (not on the
+        serving thread, which reads it)."""
+        if self._link is not None and self._link.loop.on_thread():
+            return
         if not self._lock.wait_for(lambda: mid in self._subacked, self.connect_timeout):
             log.warning("no SUBACK for %s within %g s", what, self.connect_timeout)
         self._subacked.discard(mid)
@@ -306,8 +321,7 @@ class MqttBus:
     def _abort(self) -> None:
         client, self._client = self._client, None
         if client is not None:
-            client.disconnect()
-            client.loop_stop()
+            self._stop(client)
 
     def _on_connect(
         self, client: mqtt.Client, _userdata: Any, flags: Any, reason: ReasonCode, _props: Properties | None
@@ -318,10 +332,43 @@ class MqttBus:
             if not self.probe:
                 log.error("MQTT broker %s refused the connection: %s", self.address, reason.getName())
             return
+        link = self._link
+        if self.verify is not None and link is not None:  # checked on a helper; held meanwhile
+            self._held = []
+            link.hold()
+            sock = client.socket()
+            link.loop.run_blocking(lambda: self._check(link, client, sock, flags))
+            return
         refusal = self._verified()
         if refusal is not None:
             self._stop_serving(client, refusal)
             return
+        self._accept(client, flags)
+
+    def _check(self, link: Link, client: mqtt.Client, sock: Any, flags: Any) -> None:
+        """(Helper thread) `verify` the connection whose socket is `sock`; its verdict goes back to the loop."""
+        refusal = self._verified()
+        link.loop.call_soon(lambda: self._checked(client, sock, flags, refusal))
+
+    def _checked(self, client: mqtt.Client, sock: Any, flags: Any, refusal: str | None) -> None:
+        """(Serving thread) the check's verdict: stop serving the broker, or handle what was held and go on. A
+        connection lost during its check is not served: its successor is checked in turn."""
+        link = self._link
+        if client is not self._client or link is None:
+            return  # closed meanwhile
+        if refusal is not None:
+            self._stop_serving(client, refusal)
+            return
+        if client.socket() is not sock:
+            return
+        held, self._held = self._held or [], None
+        self._accept(client, flags)
+        for message in held:
+            self._deliver(message)
+        link.release()
+
+    def _accept(self, client: mqtt.Client, flags: Any) -> None:
+        """A connection to serve: subscribe, publish again what the broker may have lost, then the birth."""
         self.connects += 1
         self._connected = True  # from now on what arrives on this connection is handled
         with self._lock:
@@ -356,7 +403,7 @@ class MqttBus:
             return None
         try:
             return self.verify()
-        except Exception:  # noqa: BLE001 - paho's network thread must live; the details go to the log
+        except Exception:  # noqa: BLE001 - the thread that runs it must live; the details go to the log
             log.exception("checking the MQTT broker at %s failed", self.address)
             return f"the check of the MQTT broker at {self.address} failed (see the log), so it is not trusted"
 
@@ -367,22 +414,37 @@ class MqttBus:
         first = self.connects == 0 and self.refused is None
         self.refused = why if first else f"stopped serving: after reconnecting, {why}"
         self._connected = False
+        self._held = None  # never handled
+        link = self._link
         if not first:
             log.error("%s", self.refused)
-            if self.will is not None:
+        if link is None:  # served by its owner (`DrivenBus`): tell the others it is gone, and end it
+            if not first and self.will is not None:
                 self._send(client, self.will.topic, self.will.payload, self.will.retain)
-        client.disconnect()  # paho's thread ends with this connection: no reconnection
+            client.disconnect()
+        elif first:
+            link.close(self.connect_timeout)  # the robot was never online there: a clean disconnect
+        else:
+            link.drop()  # nothing more is written there; the broker publishes the will (offline)
         self._connack.set()
         if not first and self.on_refused is not None:
-            try:
-                self.on_refused(self.refused)
-            except Exception:  # noqa: BLE001 - never let a hook kill paho's network thread
-                log.exception("while stopping serving %s", self.address)
+            refused, hook = self.refused, self.on_refused
+            if link is None:
+                self._tell_refused(hook, refused)
+            else:  # the hook may block (the engine halts): not on the serving thread
+                link.loop.run_blocking(lambda: self._tell_refused(hook, refused))
+
+    def _tell_refused(self, hook: Callable[[str], None], refused: str) -> None:
+        try:
+            hook(refused)
+        except Exception:  # noqa: BLE001 - never let a hook kill a thread that serves connections
+            log.exception("while stopping serving %s", self.address)
 
     def _on_disconnect(
         self, _client: mqtt.Client, _userdata: Any, _flags: Any, reason: ReasonCode, _props: Properties | None
     ) -> None:
         self._connected = False
+        self._held = None  # unacknowledged: the broker delivers them again on the next connection
         with self._lock:
             self._unacked.clear()  # paho drops the QoS 0 messages it had not written yet
         if self.connects == 0 and not self._connack.is_set():  # dropped before any CONNACK: fail fast
@@ -392,22 +454,30 @@ class MqttBus:
             log.warning("lost the MQTT broker %s (%s); reconnecting", self.address, reason.getName())
 
     def _on_message(self, _client: mqtt.Client, _userdata: Any, msg: mqtt.MQTTMessage) -> None:
+        message = Message(msg.topic, bytes(msg.payload), bool(msg.retain))
+        held = self._held
+        if held is not None:  # the connection is being checked: handled once it passes
+            held.append(message)
+            return
         if not self._connected:  # a connection that failed `verify`: nothing of it is handled
             return
-        message = Message(msg.topic, bytes(msg.payload), bool(msg.retain))
+        self._deliver(message)
+
+    def _deliver(self, message: Message) -> None:
+        topic = message.topic
         with self._lock:  # an edge node subscribes to dozens of filters: match each topic once, not every time
-            handlers = self._routes.get(msg.topic)
+            handlers = self._routes.get(topic)
             if handlers is None:
-                handlers = [h for p, h in self._handlers if topic_matches(p, msg.topic)]
+                handlers = [h for p, h in self._handlers if topic_matches(p, topic)]
                 if len(self._routes) >= ROUTES_KEPT:
                     self._routes.clear()
-                self._routes[msg.topic] = handlers
+                self._routes[topic] = handlers
         for handler in handlers:
             try:
                 handler(message)
             except Exception:
-                # never let a handler bug kill paho's network thread
-                log.exception("bus handler failed on %s", msg.topic)
+                # never let a handler bug stop the thread that serves every connection
+                log.exception("bus handler failed on %s", topic)
 
     def _on_publish(
         self, _client: mqtt.Client, _userdata: Any, mid: int, _reason: ReasonCode, _props: Properties
@@ -508,6 +578,9 @@ class MqttBus:
     def flush(self, timeout: float) -> bool:
         if self.refused is not None:
             return False  # no broker will acknowledge what is pending
+        link = self._link
+        if link is not None and link.loop.on_thread():
+            timeout = 0.0  # the serving thread reads the acknowledgements: it cannot wait for them
         with self._lock:
             return self._lock.wait_for(lambda: not self._pending, timeout)
 
@@ -515,8 +588,7 @@ class MqttBus:
         client, self._client = self._client, None
         if client is None:
             return
-        client.disconnect()  # a normal disconnect: the broker drops the will
-        client.loop_stop()
+        self._stop(client)  # a normal disconnect: the broker drops the will
         self._connected = False
 
 

@@ -7,7 +7,7 @@ timer, a feedback event on every state change, exactly one terminal event, an ov
 robot calls (a mission's start, queries and cancels; queries, cancels of missions we do not follow, writes,
 plain calls and property samples) run on the process's call pool, at most `ROBOT_CALLS` of one robot at a
 time; a sampled robot's properties are read each `property_period` (a timer) and published when changed.
-ROS action goals are still followed by a thread each (goals.py), from a pool kept for the next goal.
+ROS action goals are state machines on the loop too (goals.py), driven by the port's callbacks and timers.
 
 Policies (documented in README of the generated events):
 * one mission per component at a time: a second invoke is refused with an error event (`busy`) and a
@@ -41,6 +41,7 @@ from td2adaptor.model.events import ALL_ROBOTS, EventCatalog, EventSpec, Kind, b
 from td2adaptor.runtime.bus.bus import Bus, BusError, Message
 from td2adaptor.runtime.bus.thingbus import WOT_SOURCE, own_topics, wot_problem, wot_references
 from td2adaptor.runtime.config import RuntimeConfig
+from td2adaptor.runtime.engine.context import RobotContext
 from td2adaptor.runtime.engine.goals import GoalRunner
 from td2adaptor.runtime.engine.ledger import Ledger, Record
 from td2adaptor.runtime.engine.missions import Mission, MissionTable
@@ -53,13 +54,9 @@ from td2adaptor.runtime.loop import Lane, Shared, Timer, acquire, release
 from td2adaptor.runtime.ros.port import NoValue, PortError, RobotPort
 from td2adaptor.runtime.ros.procedures import ProcedureStatus, read
 from td2adaptor.runtime.ros.words import INTERNAL, describe
-from td2adaptor.runtime.workers import Workers
 
 log = logging.getLogger("td2adaptor.runtime")
 
-#: the threads that follow ROS action goals, one per goal in flight, kept for the next goal (goals.py), for
-#: every robot of the process
-GOAL_FOLLOWERS = Workers("td2adaptor-goal")
 #: seconds a `busy` refusal waits for the robot to answer the start of the mission it names, so that it can
 #: name it by its mission id (the robot answers in milliseconds; one that takes longer is named by its action)
 BUSY_WAIT = 0.25
@@ -146,7 +143,7 @@ class Engine:
         self._shared: Shared | None = None  # the process's loop and call pool (loop.py), from start to stop
         self._lane: Lane | None = None  # this robot's share of the call pool
         self._procedures: ProcedureRunner | None = None  # the procedure missions, on the loop (procedure.py)
-        self._goals = GoalRunner(port, config, self.missions, self.outbox, self._submit, self._stopping, clock)
+        self._goals: GoalRunner | None = None  # the ROS action goals, on the loop (goals.py)
         self._streams: PropertyStreams | None = None
         self._sampler: Timer | None = None  # the next sampling of the properties (the loop's)
         self._sampling = False  # a sampling is under way on the pool (the next tick skips its turn)
@@ -168,9 +165,11 @@ class Engine:
         shared = self._shared = acquire()
         self._threads = [shared.loop.thread]
         self._lane = Lane(shared.pool)
-        self._procedures = ProcedureRunner(
+        ctx = RobotContext(
             self.port, self.config, self.missions, self.outbox, shared.loop, self._lane, self._stopping, self.clock
         )
+        self._procedures = ProcedureRunner(ctx)
+        self._goals = GoalRunner(ctx)
         try:
             for pattern in command_filters(self.catalog, robot, root):
                 self.bus.subscribe(pattern, self._take)
@@ -196,9 +195,10 @@ class Engine:
                 shared.loop.post(self._sample_tick)
         log.info("serving robot %s (namespace %s)", self.config.robot, self.config.ros_namespace)
 
-    def stop(self, timeout: float = 5.0) -> None:
+    def stop(self, timeout: float = 5.0, *, retire: str | None = None) -> None:
         """Stop taking events, clear the TD, publish the offline status and disconnect. Missions go on on the
-        robot."""
+        robot (and a restart of the node follows them again, ledger.py); with `retire` (the robot leaves the
+        fleet, node/fleet.py) each mission still in flight ends with a terminal `failed` event that says it."""
         if self._stopping.is_set():
             return
         self._stopping.set()
@@ -219,6 +219,9 @@ class Engine:
             self._lane.wait_idle(timeout)  # calls not started yet are skipped (missions' are made)
         for ended in self.missions.held():
             ended.wait(timeout)
+        if retire is not None:
+            for m in self.missions.running():
+                self.outbox.finish(m, ProcedureStatus("failed", message=retire, reason="unreachable"))
         try:
             if self.td is not None:  # an empty retained message removes the TD from the broker
                 self.bus.publish(self.td.topic, b"", retain=True)
@@ -241,6 +244,8 @@ class Engine:
             self._sampler.cancel()
         if self._procedures is not None:
             self._procedures.stop()
+        if self._goals is not None:
+            self._goals.stop()
 
     def halt(self, reason: str) -> None:
         """The bus stopped serving its broker for good (a reconnection failed the check every connection
@@ -416,12 +421,13 @@ class Engine:
         assert spec.affordance is not None
         procedure = component.procedure_of(spec.affordance)
         if any(a.name == spec.affordance for a in component.actions):
+            assert self._goals is not None
             if spec.kind is Kind.INVOKE:
                 self._invoke(spec, Procedure(spec.affordance), event, msg.topic, goal=True)
             elif spec.kind is Kind.CANCEL:
                 self._goals.cancel(spec, event)
             elif spec.kind is Kind.QUERY:
-                self._submit(self._goals.query, spec, event)
+                self._goals.query(spec, event)
         elif spec.kind is Kind.INVOKE and procedure is not None and procedure.run == spec.affordance:
             self._invoke(spec, procedure, event, msg.topic)
         elif spec.kind is Kind.INVOKE:
@@ -545,7 +551,8 @@ class Engine:
             return
         self.outbox.count("missions")
         if goal:
-            GOAL_FOLLOWERS.submit(lambda: self._follow_goal(mission, ended))
+            assert self._goals is not None
+            self._goals.start(mission, ended)
             return
         assert self._procedures is not None
         self._procedures.start(mission, ended)
@@ -558,17 +565,6 @@ class Engine:
         self.outbox.error("busy", message, topic=topic, affordance=mission.action, correlation=mission.correlation)
         status = ProcedureStatus("failed", message=message, reason="busy")
         self.outbox.feedback(mission, status, terminal=True)
-
-    def _follow_goal(self, m: Mission, ended: threading.Event) -> None:
-        """(a goal follower's thread) A ROS action goal, followed until its end (goals.py)."""
-        try:
-            self._goals.follow(m)
-        except Exception:  # the last line of defence: report, never crash
-            log.exception("mission %s failed internally", m.action)
-            self.outbox.finish(m, ProcedureStatus("failed", message=INTERNAL, reason="call-failed"))
-        finally:
-            self.missions.release(ended)
-            ended.set()
 
     def _cancel(self, spec: EventSpec, procedure: Procedure, event: dict[str, Any]) -> None:
         wanted = event.get("mission")

@@ -1,17 +1,23 @@
-"""The engine's side of TD actions bound to ROS actions: a goal is a mission, followed to its one end.
+"""The engine's side of TD actions bound to ROS actions: a goal is a mission, a state machine on the engine's loop.
 
 An invoke sends the goal (one mission per component at a time, as for procedures). Once the server accepts,
 a feedback event says so (`queued`, `result: accepted`, with the goal id); then every ROS feedback message
 becomes one feedback event (`running`, `result` `executing` or `canceling`, the message in `feedback`), in
 order, or, with `feedback_period` > 0, at most one per period carrying the latest message; then exactly one
-terminal event: `finished`
-(succeeded), `cancelled` (canceled) or `failed` (aborted: reason `aborted`; refused: `rejected`; no end within
-`mission_timeout`: `timeout`; the action server gone (the port says the goal is `lost`: on ROS 2 after
-`action_server_timeout` of silence) or the port failing `max_query_failures` times in a row: `unreachable`), with the
-server's result in `output` and its status word in `result`. A cancel event cancels the goal followed (the
-mission thread asks the server, and answers with a state event; the terminal feedback follows when the
-server ends the goal); a query answers with the goal's current state, or with the end of the last goal.
-Every decision that fails a goal is logged.
+terminal event: `finished` (succeeded), `cancelled` (canceled) or `failed` (aborted: reason `aborted`;
+refused: `rejected`; no end within `mission_timeout`: `timeout`; the action server gone (the port says the
+goal is `lost`: on ROS 2 after `action_server_timeout` of silence; through the ROS 1 bridge also when the
+bridge dies): `unreachable`), with the server's result in `output` and its status word in `result`. A cancel
+event asks the server to cancel the goal followed and is answered with a state event once the server
+answered (the terminal feedback follows when the server ends the goal); a query answers with the goal's
+current state, or with the end of the last goal. Every decision that fails a goal is logged.
+
+No thread waits for a goal. The port tells what happens to it through a `GoalListener` (ros/port.py), from
+the ROS client library's threads; each of those calls only posts the news to the loop, which owns the goal's
+machine (`Chase`): its status, whether it was accepted, its feedback held back by `feedback_period`, its
+timers (the mission timeout, the held feedback's) and its end. Calls into the robot's side (start, cancel,
+forget) go to the robot's lane of the call pool and come back as posted callbacks too. The generated package
+keeps the goal's feedback (one buffer) and tells it in order; the loop's queue keeps that order.
 """
 
 from __future__ import annotations
@@ -20,15 +26,16 @@ import logging
 import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 from td2adaptor.model.events import GOAL_WORDS, EventSpec, Kind
-from td2adaptor.runtime.config import RuntimeConfig
-from td2adaptor.runtime.engine.missions import Mission, MissionTable
-from td2adaptor.runtime.engine.outbox import Outbox
-from td2adaptor.runtime.ros.port import GoalPort, GoalProgress, PortError, PortRejected, RobotPort
+from td2adaptor.runtime.engine.context import RobotContext
+from td2adaptor.runtime.engine.missions import Mission
+from td2adaptor.runtime.loop import Timer
+from td2adaptor.runtime.ros.port import GoalEnd, GoalPort, PortCallFailed, PortError
 from td2adaptor.runtime.ros.procedures import ProcedureStatus
-from td2adaptor.runtime.ros.words import describe
+from td2adaptor.runtime.ros.words import INTERNAL, describe
 
 log = logging.getLogger("td2adaptor.runtime")
 
@@ -56,23 +63,21 @@ _ENDS = {
 }
 
 
-def goal_status(progress: GoalProgress) -> ProcedureStatus:
-    """A goal's progress as a procedure state; the status word is kept as `result`, the server's words (or
-    ours, when it said nothing) as `message`."""
-    word = progress.status
+def goal_status(word: str, done: bool, message: str = "") -> ProcedureStatus:
+    """A goal's status word as a procedure state (`done`: the goal ended); the word is kept as `result`, the
+    server's words (or ours, when it said nothing) as `message`."""
     state = _STATES.get(word, "running")
-    if progress.done and state not in ("finished", "cancelled", "failed"):
+    if done and state not in ("finished", "cancelled", "failed"):
         return ProcedureStatus("failed", word, f"the goal ended with status {word}", reason="robot-error")
     reason = _REASONS.get(word, "robot-error") if state == "failed" else None
-    message = progress.message or (_ENDS.get(word, "") if progress.done else "")
+    message = message or (_ENDS.get(word, "") if done else "")
     return ProcedureStatus(state, word if word in GOAL_WORDS else "unknown", message, reason=reason)
 
 
 def _running_word(word: str) -> str:
     """The status word a `running` feedback event carries: the goal's own while it runs (`canceling`), else
     `executing`. A server sends feedback only while it executes the goal, but the goal's status may already say
-    how it ended (the result came first, the feedback trails it, or is held back by `feedback_period`): that word
-    belongs to the terminal event alone."""
+    how it ended: that word belongs to the terminal event alone."""
     return word if _STATES.get(word) == "running" else "executing"
 
 
@@ -82,180 +87,279 @@ class _Ended:
     status: ProcedureStatus
 
 
-class GoalRunner:
-    """Follows the ROS action goals of one robot (see the module docstring): its missions in the engine's
-    `missions` table, its events through the engine's `outbox`; queries and cancels of goals nobody follows
-    are answered through `submit` (the robot's lane of the call pool); `stopping` set, the goals are left to
-    the robot."""
+@dataclass(eq=False)
+class Chase:
+    """One goal's machine (the loop's; see the module docstring)."""
 
-    def __init__(
-        self,
-        port: RobotPort,
-        config: RuntimeConfig,
-        missions: MissionTable,
-        outbox: Outbox,
-        submit: Callable[..., None],
-        stopping: threading.Event,
-        clock: Callable[[], float],
-    ) -> None:
-        self.port = port
-        self.config = config
-        self.missions = missions
-        self.outbox = outbox
-        self.submit = submit
-        self.stopping = stopping
-        self.clock = clock
-        self._lock = threading.Lock()
+    m: Mission
+    held: threading.Event  # set once the machine is done with the mission (stopping waits for it)
+    goal: str | None = None  # the port's id of the goal, once start_goal returned or the server accepted
+    accepted: bool = False
+    status: str = "unknown"  # the latest status the port told
+    ended: bool = False  # the terminal event is published, or the goal was left to the robot
+    cancel_when_sent: bool = False  # given up before start_goal returned: cancel the goal once it has an id
+    deadline: Timer | None = None  # the mission timeout's
+    kept: tuple[Any, ...] = ()  # the latest feedback message held back by feedback_period (one or none)
+    sent: float = float("-inf")  # when the last feedback event went out (feedback_period)
+    flush: Timer | None = None  # when the held message goes out
+
+
+class _Told:
+    """The listener of one goal: each call from the port's threads is posted to the loop (nothing else)."""
+
+    def __init__(self, runner: GoalRunner, chase: Chase) -> None:
+        self.post = runner.ctx.loop.post
+        self.runner = runner
+        self.chase = chase
+
+    def on_accepted(self, goal: str) -> None:
+        self.post(self.runner._accepted, self.chase, goal)
+
+    def on_status(self, status: str) -> None:
+        self.post(self.runner._status, self.chase, status)
+
+    def on_feedback(self, message: Any) -> None:
+        self.post(self.runner._feedback, self.chase, message)
+
+    def on_done(self, end: GoalEnd) -> None:
+        self.post(self.runner._done, self.chase, end)
+
+
+class GoalRunner:
+    """Follows the ROS action goals of one robot (see the module docstring); every method runs on the loop."""
+
+    def __init__(self, ctx: RobotContext) -> None:
+        self.ctx = ctx
+        self._chases: dict[int, Chase] = {}  # by id of the Mission
         self._last: dict[str, _Ended] = {}  # per action: how its last goal ended
 
     def _port(self) -> GoalPort | None:
-        port = self.port
+        port = self.ctx.port
         return port if isinstance(port, GoalPort) else None
 
-    # -- the mission thread --------------------------------------------------------------------------------
+    # -- the machine ---------------------------------------------------------------------------------------
 
-    def follow(self, m: Mission) -> None:
-        """Send the goal and report it until its end (run in the mission's own thread)."""
-        out, cfg = self.outbox, self.config
+    def start(self, m: Mission, held: threading.Event) -> None:
+        """Send the goal of a mission the engine admitted (its component claimed with `held`)."""
+        ctx = self.ctx
+        chase = Chase(m, held)
+        self._chases[id(m)] = chase
         port = self._port()
         if port is None:
             message = "this robot's port cannot send ROS action goals"
             log.warning("%s: failed: %s", m.action, message)
-            out.finish(m, ProcedureStatus("failed", message=message, reason="call-failed"))
+            self._end(chase, ProcedureStatus("failed", message=message, reason="call-failed"))
             return
-        try:
-            goal = port.send_goal(m.component, m.action, m.payload, cfg.call_timeout)
-        except PortError as exc:
-            word = "rejected" if isinstance(exc, PortRejected) else ""
-            message = (str(exc) or "the action server rejected the goal") if word else describe(exc)
-            log.warning("%s goal failed (%s): %s", m.action, exc.reason, message)
-            out.finish(m, ProcedureStatus("failed", word, message, reason=exc.reason))
-            return
-        m.goal = goal
-        log.info("%s goal %s accepted", m.action, goal)
-        out.feedback(m, ProcedureStatus("queued", "accepted", "goal accepted"), terminal=False)
-        try:
-            self._watch(port, m, goal)
-        finally:
+        wait = max(0.0, m.started + ctx.config.mission_timeout - ctx.clock())
+        chase.deadline = ctx.loop.call_later(wait, self._give_up, chase)
+        listener = _Told(self, chase)
+
+        def send() -> None:
             try:
+                goal = port.start_goal(m.component, m.action, m.payload, ctx.config.call_timeout, listener)
+            except PortError as exc:
+                ctx.loop.post(self._done, chase, GoalEnd("lost", message=str(exc), error=exc))
+                return
+            except Exception:  # the last line of defence: report, never crash
+                log.exception("mission %s failed internally", m.action)
+                ctx.loop.post(self._done, chase, GoalEnd("lost", message=INTERNAL, error=PortCallFailed(INTERNAL)))
+                return
+            ctx.loop.post(self._sent, chase, goal)
+
+        ctx.lane.submit(send)
+
+    def _sent(self, chase: Chase, goal: str) -> None:
+        """start_goal returned the goal's id."""
+        chase.goal = chase.goal or goal
+        if chase.ended:  # given up or left meanwhile: the port forgets it now (cancelled first when given up)
+            self._forget(chase, cancel=chase.cancel_when_sent)
+
+    def _accepted(self, chase: Chase, goal: str) -> None:
+        if chase.ended:
+            return
+        m = chase.m
+        chase.accepted, chase.goal, m.goal = True, goal, goal
+        if chase.status == "unknown":
+            chase.status = "accepted"
+        log.info("%s goal %s accepted", m.action, goal)
+        self.ctx.outbox.feedback(m, ProcedureStatus("queued", "accepted", "goal accepted"), terminal=False)
+
+    def _status(self, chase: Chase, status: str) -> None:
+        if not chase.ended:
+            chase.status = status
+
+    def _feedback(self, chase: Chase, message: Any) -> None:
+        if chase.ended:
+            return
+        period, now = self.ctx.config.feedback_period, self.ctx.clock()
+        if period <= 0 or (chase.flush is None and now - chase.sent >= period):
+            self._relay(chase, message)
+            return
+        chase.kept = (message,)
+        if chase.flush is None:
+            chase.flush = self.ctx.loop.call_later(chase.sent + period - now, self._flush, chase)
+
+    def _flush(self, chase: Chase) -> None:
+        """The held feedback message's turn (feedback_period)."""
+        chase.flush = None
+        if not chase.ended and chase.kept:
+            (message,), chase.kept = chase.kept, ()
+            self._relay(chase, message)
+
+    def _relay(self, chase: Chase, message: Any) -> None:
+        running = ProcedureStatus("running", _running_word(chase.status))
+        chase.sent = self.ctx.clock()
+        self.ctx.outbox.feedback(chase.m, running, terminal=False, extra={"feedback": message})
+
+    def _done(self, chase: Chase, end: GoalEnd) -> None:
+        """The goal's end as the port told it: its held feedback, then the one terminal event."""
+        if chase.ended:
+            return
+        m = chase.m
+        if chase.flush is not None:
+            chase.flush.cancel()
+            chase.flush = None
+        self._flush(chase)
+        if not chase.accepted:  # it never ran: refused, or no server took it
+            error = end.error or PortCallFailed(end.message)
+            rejected = end.status == "rejected"
+            message = (str(error) or end.message or _ENDS["rejected"]) if rejected else describe(error)
+            log.warning("%s goal failed (%s): %s", m.action, error.reason, message)
+            word = "rejected" if rejected else ""
+            self._end(chase, ProcedureStatus("failed", word, message, reason=error.reason))
+            return
+        status = goal_status(end.status, True, end.message)
+        if status.state == "failed":
+            log.warning("%s goal %s: failed: %s", m.action, chase.goal, status.message)
+        self._end(chase, status, output=end.result)
+
+    def _give_up(self, chase: Chase) -> None:
+        """The mission timeout passed: the goal fails, and the server is asked to cancel it."""
+        if chase.ended:
+            return
+        message = f"no result within the mission timeout of {self.ctx.config.mission_timeout:g} s"
+        log.warning("%s goal %s: failed: %s", chase.m.action, chase.goal, message)
+        chase.cancel_when_sent = True  # the server is asked to cancel it as the port forgets it
+        self._end(chase, ProcedureStatus("failed", message=message, reason="timeout"))
+
+    def _end(self, chase: Chase, status: ProcedureStatus, output: Any = None) -> None:
+        """Publish the goal's terminal event and leave it."""
+        if chase.goal is not None and chase.accepted:
+            self._last[chase.m.action] = _Ended(chase.goal, status)
+        self.ctx.outbox.finish(chase.m, status, output=output)
+        self._leave(chase)
+
+    def _leave(self, chase: Chase) -> None:
+        """The machine is done with the goal (ended, or left to the robot at a stop)."""
+        if chase.ended:
+            return
+        chase.ended = True
+        for timer in (chase.deadline, chase.flush):
+            if timer is not None:
+                timer.cancel()
+        chase.deadline = chase.flush = None
+        self._chases.pop(id(chase.m), None)
+        self._forget(chase, cancel=chase.cancel_when_sent)
+        self.ctx.missions.release(chase.held)
+        chase.held.set()
+
+    def _forget(self, chase: Chase, cancel: bool = False) -> None:
+        """The port forgets the goal (a task on the lane; the cancel of a goal given up first, in the same task:
+        two tasks of a lane may run at once)."""
+        port, m, goal = self._port(), chase.m, chase.goal
+        if port is None or goal is None:  # not sent yet: forgotten once start_goal returns (_sent)
+            return
+        timeout = self.ctx.config.call_timeout
+
+        def answered(_canceling: bool, error: PortError | None) -> None:
+            if error is not None:
+                log.warning("could not cancel timed-out %s goal %s: %s", m.action, goal, describe(error))
+
+        def forget() -> None:
+            try:
+                if cancel:
+                    port.request_cancel(m.component, m.action, goal, timeout, answered)
                 port.forget_goal(m.component, m.action, goal)
             except Exception as exc:  # noqa: BLE001 - the goal is over for us either way
                 log.debug("forgetting %s goal %s: %s", m.action, goal, describe(exc))
 
-    def _watch(self, port: GoalPort, m: Mission, goal: str) -> None:
-        out, cfg = self.outbox, self.config
-        deadline = m.started + cfg.mission_timeout
-        since, failures, sent = 0, 0, -1e18
-        held: Any = None
-        while True:
-            if self.stopping.is_set():
-                log.info("stopping: no longer following %s goal %s", m.action, goal)
-                return
-            self._carry_out_cancels(port, m, goal)
-            remaining = deadline - self.clock()
-            if remaining <= 0:
-                self._give_up(port, m, goal)
-                return
-            try:
-                progress = port.goal_progress(m.component, m.action, goal, since, min(cfg.poll_period, remaining))
-            except Exception as exc:
-                failures += 1
-                log.warning("following %s goal %s failed (%d): %s", m.action, goal, failures, describe(exc))
-                if failures >= cfg.max_query_failures:
-                    message = f"the robot did not answer {failures} times: {describe(exc)}"
-                    log.warning("%s goal %s: failed: %s", m.action, goal, message)
-                    out.finish(m, ProcedureStatus("failed", message=message, reason="unreachable"))
-                    return
-                continue
-            failures = 0
-            since = progress.received
-            running = ProcedureStatus("running", _running_word(progress.status))
-            for message in progress.feedback:
-                if cfg.feedback_period <= 0:
-                    out.feedback(m, running, terminal=False, extra={"feedback": message})
-                else:
-                    held = message
-            if held is not None and (progress.done or self.clock() - sent >= cfg.feedback_period):
-                out.feedback(m, running, terminal=False, extra={"feedback": held})
-                held, sent = None, self.clock()
-            if progress.done:
-                status = goal_status(progress)
-                if status.state == "failed":
-                    log.warning("%s goal %s: failed: %s", m.action, goal, status.message)
-                self._remember(m.action, goal, status)
-                out.finish(m, status, output=progress.result)
-                return
+        self.ctx.lane.submit(forget)
 
-    def _give_up(self, port: GoalPort, m: Mission, goal: str) -> None:
-        out, cfg = self.outbox, self.config
-        message = f"no result within the mission timeout of {cfg.mission_timeout:g} s"
-        log.warning("%s goal %s: failed: %s", m.action, goal, message)
-        status = ProcedureStatus("failed", message=message, reason="timeout")
-        self._remember(m.action, goal, status)
-        out.finish(m, status)
-        try:
-            port.cancel_goal(m.component, m.action, goal, cfg.call_timeout)
-        except Exception as exc:  # noqa: BLE001 - the server may be gone: that is why we gave up
-            log.warning("could not cancel timed-out %s goal %s: %s", m.action, goal, describe(exc))
-
-    def _carry_out_cancels(self, port: GoalPort, m: Mission, goal: str) -> None:
-        """Cancel events for the goal followed: ask the server, answer each with a state event."""
-        for correlation in self.missions.take_cancels(m):
-            try:
-                accepted = port.cancel_goal(m.component, m.action, goal, self.config.call_timeout)
-                progress = port.goal_progress(m.component, m.action, goal, None, 0.0)
-            except Exception as exc:
-                message = f"cancelling {m.action} goal {goal} failed: {describe(exc)}"
-                self._refuse(Kind.CANCEL, m.action, m.component, "call-failed", message, correlation)
-                continue
-            status = goal_status(progress)
-            word = "cancel requested" if accepted else "the server did not accept to cancel"
-            log.info("%s goal %s: %s", m.action, goal, word)
-            status = ProcedureStatus(status.state, status.result, status.message or word, reason=status.reason)
-            self.outbox.state(m.action, status, correlation, None, {"goal": goal})
-
-    def _remember(self, action: str, goal: str, status: ProcedureStatus) -> None:
-        with self._lock:
-            self._last[action] = _Ended(goal, status)
+    def stop(self) -> None:
+        """The node stops: leave every goal to the robot (no terminal event: the ledger keeps the mission)."""
+        for chase in list(self._chases.values()):
+            log.info("stopping: no longer following %s goal %s", chase.m.action, chase.goal)
+            self._leave(chase)
 
     # -- query and cancel events ---------------------------------------------------------------------------
 
-    @staticmethod
-    def _followed(spec: EventSpec, wanted: Any) -> Callable[[Mission], bool]:
+    def _followed(self, spec: EventSpec, wanted: Any) -> Callable[[Mission], bool]:
         """Whether a component's mission follows the goal a query or cancel of `spec` (for goal `wanted`) is for."""
-        return lambda m: m.action == spec.affordance and not m.done and m.goal is not None and wanted in (None, m.goal)
+
+        def match(m: Mission) -> bool:
+            chase = self._chases.get(id(m))
+            followed = chase is not None and chase.accepted and not chase.ended
+            return followed and m.action == spec.affordance and not m.done and wanted in (None, m.goal)
+
+        return match
 
     def cancel(self, spec: EventSpec, event: Mapping[str, Any]) -> None:
-        """A cancel event (the engine's loop): hand it to the mission that follows the goal."""
+        """A cancel event: the server is asked to cancel the goal followed, and the answer is a state event."""
         wanted = _wanted(event)
         correlation = event.get("correlation") or event.get("id")
-        if self.missions.add_cancel(spec.component or "", correlation, self._followed(spec, wanted)) is not None:
+        m = self.ctx.missions.add_cancel(spec.component or "", correlation, self._followed(spec, wanted))
+        chase = self._chases.get(id(m)) if m is not None else None
+        if m is None or chase is None:
+            self._answer_ended(spec, wanted, correlation)
             return
-        self.submit(self._answer_ended, spec, wanted, correlation)
+        port = self._port()
+        assert port is not None and chase.goal is not None  # followed: accepted
+        goal, timeout = chase.goal, self.ctx.config.call_timeout
+        for taken in self.ctx.missions.take_cancels(m):
+            answered = partial(self._post_cancel_answer, chase, taken)
+            self.ctx.lane.submit(partial(port.request_cancel, m.component, m.action, goal, timeout, answered))
+
+    def _post_cancel_answer(
+        self, chase: Chase, correlation: str | None, canceling: bool, error: PortError | None
+    ) -> None:
+        """(the port's thread) The server's answer to a cancel event's request: to the loop."""
+        self.ctx.loop.post(self._cancel_answered, chase, correlation, canceling, error)
+
+    def _cancel_answered(self, chase: Chase, correlation: str | None, canceling: bool, error: PortError | None) -> None:
+        m, goal = chase.m, chase.goal
+        ended = self._last.get(m.action)
+        if chase.ended and ended is not None and ended.goal == goal:  # it ended meanwhile: its end answers
+            self.ctx.outbox.state(m.action, ended.status, correlation, None, {"goal": goal})
+            return
+        if error is not None:
+            message = f"cancelling {m.action} goal {goal} failed: {describe(error)}"
+            self._refuse(Kind.CANCEL, m.action, m.component, "call-failed", message, correlation)
+            return
+        word = "cancel requested" if canceling else "the server did not accept to cancel"
+        log.info("%s goal %s: %s", m.action, goal, word)
+        status = goal_status(chase.status, False)
+        status = ProcedureStatus(status.state, status.result, status.message or word, reason=status.reason)
+        self.ctx.outbox.state(m.action, status, correlation, None, {"goal": goal})
 
     def query(self, spec: EventSpec, event: Mapping[str, Any]) -> None:
-        """A query event (pool thread): the followed goal's state, else how the last one ended."""
+        """A query event: the followed goal's state, else how the last one ended (no call to the robot: the
+        machine knows what the port told)."""
         wanted = _wanted(event)
         correlation = event.get("correlation") or event.get("id")
-        port = self._port()
-        m = self.missions.find(spec.component or "", self._followed(spec, wanted))
-        if m is not None and m.goal is not None and port is not None:
-            try:
-                progress = port.goal_progress(m.component, m.action, m.goal, None, 0.0)
-            except Exception as exc:
-                message = f"querying {m.action} goal {m.goal} failed: {describe(exc)}"
-                self._refuse(Kind.QUERY, m.action, m.component, "call-failed", message, correlation)
-                return
-            self.outbox.state(m.action, goal_status(progress), correlation, None, {"goal": m.goal})
+        m = self.ctx.missions.find(spec.component or "", self._followed(spec, wanted))
+        chase = self._chases.get(id(m)) if m is not None else None
+        if chase is not None:
+            self.ctx.outbox.state(
+                chase.m.action, goal_status(chase.status, False), correlation, None, {"goal": chase.goal}
+            )
             return
         self._answer_ended(spec, wanted, correlation)
 
     def _answer_ended(self, spec: EventSpec, wanted: Any, correlation: str | None) -> None:
         action = spec.affordance or ""
-        with self._lock:
-            ended = self._last.get(action)
+        ended = self._last.get(action)
         if ended is not None and wanted in (None, ended.goal):
-            self.outbox.state(action, ended.status, correlation, None, {"goal": ended.goal})
+            self.ctx.outbox.state(action, ended.status, correlation, None, {"goal": ended.goal})
             return
         which = f"goal {wanted}" if wanted is not None else "goal"
         message = f"{spec.kind.value}: no {action} {which} is known to this node"
@@ -264,13 +368,8 @@ class GoalRunner:
     def _refuse(
         self, kind: Kind, action: str, component: str, code: str, message: str, correlation: str | None
     ) -> None:
-        catalog, cfg = self.outbox.catalog, self.config
-        spec = next(
-            (s for s in catalog.specs if s.kind is kind and s.affordance == action and s.component == component),
-            None,
-        )
-        topic = spec.topic(cfg.robot, cfg.topic_root) if spec is not None else ""
-        self.outbox.error(code, message, topic=topic, affordance=action, correlation=correlation)
+        topic = self.ctx.topic(kind, action, component)
+        self.ctx.outbox.error(code, message, topic=topic, affordance=action, correlation=correlation)
 
 
 def _wanted(event: Mapping[str, Any]) -> Any:

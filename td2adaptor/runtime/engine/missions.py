@@ -1,12 +1,13 @@
 """Which mission each component of a robot runs, behind one lock.
 
 The engine's loop admits an invoke (one mission per component at a time: a second one is refused `busy`) and
-hands cancel events to the mission they are for; whoever follows the mission (a procedure's state machine on
-the loop, procedure.py; a goal's follower thread, goals.py) takes those cancels and ends the mission once;
+hands cancel events to the mission they are for; whoever follows the mission (a procedure's or a goal's state
+machine on the loop, procedure.py and goals.py) takes those cancels and ends the mission once;
 queries without a mission id ask about the action's current mission, else the last one the robot named;
 stopping waits until nobody follows a mission any more. All of that goes through a `MissionTable` the engine
 hands to its runners and its outbox, so no module reaches into another's dictionaries and lock. The loop's
-thread is the table's owner; the lock is there for the goal followers (and a query's look-up on the pool).
+thread is the table's owner; the lock is there for the pool threads that end a procedure mission as they read
+the robot's answer (outbox.py's `finish`), and for stopping, which waits from the node's thread.
 """
 
 from __future__ import annotations

@@ -29,13 +29,13 @@ from enum import Enum
 from functools import partial
 from typing import Any
 
+from td2adaptor.model import Procedure
 from td2adaptor.model.events import Kind
-from td2adaptor.runtime.config import RuntimeConfig
-from td2adaptor.runtime.engine.missions import Mission, MissionTable
-from td2adaptor.runtime.engine.outbox import Outbox
-from td2adaptor.runtime.loop import Lane, Loop, Timer
-from td2adaptor.runtime.ros.port import PortError, RobotPort, StartResult
-from td2adaptor.runtime.ros.procedures import ProcedureStatus, read
+from td2adaptor.runtime.engine.context import RobotContext
+from td2adaptor.runtime.engine.missions import Mission
+from td2adaptor.runtime.loop import Timer
+from td2adaptor.runtime.ros.port import PortError, StartResult
+from td2adaptor.runtime.ros.procedures import ProcedureStatus, Reading, read
 from td2adaptor.runtime.ros.words import INTERNAL, describe
 
 log = logging.getLogger("td2adaptor.runtime")
@@ -79,28 +79,11 @@ Reader = Callable[[Run, Any, "Exception | None"], Then]
 
 
 class ProcedureRunner:
-    """Follows one robot's procedure missions (see the module docstring). The public methods run on `loop`'s
-    thread. Handed the engine's `missions` and `outbox`, never the engine."""
+    """Follows one robot's procedure missions (see the module docstring). The public methods run on the loop's
+    thread. Handed the robot's context (context.py), never the engine."""
 
-    def __init__(
-        self,
-        port: RobotPort,
-        config: RuntimeConfig,
-        missions: MissionTable,
-        outbox: Outbox,
-        loop: Loop,
-        lane: Lane,
-        stopping: threading.Event,
-        clock: Callable[[], float],
-    ) -> None:
-        self.port = port
-        self.config = config
-        self.missions = missions
-        self.outbox = outbox
-        self.loop = loop
-        self.lane = lane
-        self.stopping = stopping
-        self.clock = clock
+    def __init__(self, ctx: RobotContext) -> None:
+        self.ctx = ctx
         self._runs: dict[int, Run] = {}  # by id of the Mission (the loop's)
 
     # -- events (the loop) ---------------------------------------------------------------------------------
@@ -108,8 +91,8 @@ class ProcedureRunner:
     def start(self, m: Mission, held: threading.Event) -> None:
         """Run a mission the engine admitted (its component claimed with `held`)."""
         run = self._add(m, held)
-        timeout = self.config.call_timeout
-        start = partial(self.port.start, m.component, m.action, m.payload, timeout)
+        timeout = self.ctx.config.call_timeout
+        start = partial(self.ctx.port.start, m.component, m.action, m.payload, timeout)
         self._call(run, Phase.STARTING, start, self._started)
 
     def resume(self, m: Mission, held: threading.Event) -> None:
@@ -133,7 +116,7 @@ class ProcedureRunner:
             return False
         run.started.append(do)
         if run.started_timer is None:
-            run.started_timer = self.loop.call_later(within, self._after_start, run)
+            run.started_timer = self.ctx.loop.call_later(within, self._after_start, run)
         return True
 
     def stop(self) -> None:
@@ -144,7 +127,7 @@ class ProcedureRunner:
     # -- the machine (the loop) ----------------------------------------------------------------------------
 
     def _add(self, m: Mission, held: threading.Event) -> Run:
-        run = Run(m, held, m.started + self.config.mission_timeout)
+        run = Run(m, held, m.started + self.ctx.config.mission_timeout)
         self._runs[id(m)] = run
         return run
 
@@ -162,18 +145,18 @@ class ProcedureRunner:
                 then = reader(run, value, error)
             except Exception:  # the last line of defence: report, never crash
                 log.exception("mission %s failed internally", run.m.action)
-                self.outbox.finish(run.m, ProcedureStatus("failed", message=INTERNAL, reason="call-failed"))
+                self.ctx.outbox.finish(run.m, ProcedureStatus("failed", message=INTERNAL, reason="call-failed"))
                 then = Then.END
-            self.loop.post(self._answered, run, then)
+            self.ctx.loop.post(self._answered, run, then)
 
-        self.lane.submit(task)
+        self.ctx.lane.submit(task)
 
     def _answered(self, run: Run, then: Then) -> None:
         run.calling = False
         self._after_start(run)
         if then is Then.END:
             self._leave(run)
-        elif then is Then.STEP or self.stopping.is_set() or run.m.cancels:
+        elif then is Then.STEP or self.ctx.stopping.is_set() or run.m.cancels:
             self._wake(run)
         else:
             self._sleep(run)
@@ -192,8 +175,8 @@ class ProcedureRunner:
 
     def _sleep(self, run: Run) -> None:
         """Wait for the next query: `poll_period`, or what is left until the deadline."""
-        wait = max(0.0, min(self.config.poll_period, run.deadline - self.clock()))
-        run.timer = self.loop.call_later(wait, self._wake, run)
+        wait = max(0.0, min(self.ctx.config.poll_period, run.deadline - self.ctx.clock()))
+        run.timer = self.ctx.loop.call_later(wait, self._wake, run)
 
     def _wake(self, run: Run) -> None:
         """A timer, a cancel event or the stop: the next step, unless a call is in flight or it ended."""
@@ -206,43 +189,36 @@ class ProcedureRunner:
             self._step(run)
         except Exception:  # the last line of defence: report, never crash
             log.exception("mission %s failed internally", run.m.action)
-            self.outbox.finish(run.m, ProcedureStatus("failed", message=INTERNAL, reason="call-failed"))
+            self.ctx.outbox.finish(run.m, ProcedureStatus("failed", message=INTERNAL, reason="call-failed"))
             self._leave(run)
 
     def _step(self, run: Run) -> None:
         """What a woken mission does next: leave (stopping), carry out a cancel, give up (deadline), or query."""
-        m, proc, cfg = run.m, run.m.procedure, self.config
-        if self.stopping.is_set():
+        m, proc, cfg = run.m, run.m.procedure, self.ctx.config
+        if self.ctx.stopping.is_set():
             log.info("stopping: no longer following %s mission %s", m.action, m.mission_id)
             self._leave(run)
             return
-        run.cancels.extend(self.missions.take_cancels(m))
+        run.cancels.extend(self.ctx.missions.take_cancels(m))
         mid = m.mission_id if m.mission_id is not None else -1
         while run.cancels:
             correlation = run.cancels.popleft()
             if proc.cancel is None:
-                self.outbox.error(
-                    "unsupported",
-                    f"{m.action} has no cancel action",
-                    topic=self._topic(Kind.INVOKE, m.action),
-                    affordance=m.action,
-                    correlation=correlation,
-                    mission=m.mission_id,
-                )
+                self._error("unsupported", f"{m.action} has no cancel action", Kind.INVOKE, m.action, correlation, m)
                 continue
-            ask = partial(answer, self.port.cancel, m.component, proc.cancel, mid, cfg.call_timeout)
+            ask = partial(answer, self.ctx.port.cancel, m.component, proc.cancel, mid, cfg.call_timeout)
             self._call(run, Phase.CANCELLING, ask, partial(self._cancelled, correlation))
             return
-        if self.clock() >= run.deadline:
+        if self.ctx.clock() >= run.deadline:
             if proc.cancel is not None and m.mission_id is not None:  # ask the robot to stop it, then give up
-                ask = partial(self.port.cancel, m.component, proc.cancel, m.mission_id, cfg.call_timeout)
+                ask = partial(self.ctx.port.cancel, m.component, proc.cancel, m.mission_id, cfg.call_timeout)
                 self._call(run, Phase.CANCELLING, ask, self._timed_out)
                 return
             self._timed_out(run, None, None)
             self._leave(run)
             return
         assert proc.query is not None
-        ask = partial(answer, self.port.query, m.component, proc.query, mid, cfg.call_timeout)
+        ask = partial(answer, self.ctx.port.query, m.component, proc.query, mid, cfg.call_timeout)
         self._call(run, Phase.POLLING, ask, self._queried)
 
     def _leave(self, run: Run) -> None:
@@ -254,7 +230,7 @@ class ProcedureRunner:
             run.timer.cancel()
             run.timer = None
         self._runs.pop(id(run.m), None)
-        self.missions.release(run.held)
+        self.ctx.missions.release(run.held)
         run.held.set()
 
     # -- readers: an answer, read and published (the pool thread that made the call) --------------------------
@@ -287,7 +263,7 @@ class ProcedureRunner:
             log.warning("%s returned no mission id; following mission -1 (the robot's last one)", m.action)
         if status.terminal:
             return self._finish(run, status)
-        self.outbox.feedback(m, status, terminal=False)
+        self.ctx.outbox.feedback(m, status, terminal=False)
         if proc.query is None:
             message = "started; no query action links to this procedure"
             return self._finish(run, ProcedureStatus("finished", message=message))
@@ -295,14 +271,11 @@ class ProcedureRunner:
         return Then.NEXT
 
     def _queried(self, run: Run, value: Any, error: Exception | None) -> Then:
-        m, cfg = run.m, self.config
+        m, cfg = run.m, self.ctx.config
         mid = m.mission_id if m.mission_id is not None else -1
-        if error is None:
-            try:
-                reading = read(value, m.procedure, "query", DEFAULT_MISSION_PATH)
-            except Exception as exc:  # noqa: BLE001 - an answer that cannot be read counts as a failed query
-                error = exc
-        if error is not None:
+        reading, error = _read(value, error, m.procedure, "query")  # an answer that cannot be read: a failed query
+        if reading is None:
+            assert error is not None
             run.failures += 1
             log.warning("query %d of %s mission %s failed: %s", run.failures, m.action, mid, describe(error))
             if run.failures >= cfg.max_query_failures:
@@ -318,7 +291,7 @@ class ProcedureRunner:
                 log.warning("%s mission %s: the robot reports it failed: %s", m.action, mid, current.message)
             return self._finish(run, current)
         elif current.state != m.state:
-            self.outbox.feedback(m, current, terminal=False)
+            self.ctx.outbox.feedback(m, current, terminal=False)
         return Then.NEXT
 
     def _cancelled(self, correlation: str | None, run: Run, value: Any, error: Exception | None) -> Then:
@@ -326,27 +299,18 @@ class ProcedureRunner:
         m, proc = run.m, run.m.procedure
         mid = m.mission_id if m.mission_id is not None else -1
         run.phase = Phase.POLLING
-        if error is None:
-            try:
-                status = read(value, proc, "cancel", DEFAULT_MISSION_PATH).status or requested(m.state)
-            except Exception as exc:  # noqa: BLE001 - an answer that cannot be read is a failed cancel
-                error = exc
-        if error is not None:
-            assert proc.cancel is not None
-            self.outbox.error(
-                "call-failed",
-                f"cancelling {m.action} mission {mid} failed: {describe(error)}",
-                topic=self._topic(Kind.CANCEL, proc.cancel),
-                affordance=proc.cancel,
-                correlation=correlation,
-                mission=m.mission_id,
-            )
+        reading, error = _read(value, error, proc, "cancel")  # an answer that cannot be read: a failed cancel
+        if reading is None:
+            assert proc.cancel is not None and error is not None
+            message = f"cancelling {m.action} mission {mid} failed: {describe(error)}"
+            self._error("call-failed", message, Kind.CANCEL, proc.cancel, correlation, m)
             return Then.STEP  # the other cancels, then the deadline and the query, as if woken
-        self.outbox.state(m.action, status, correlation, m.mission_id)
+        status = reading.status or requested(m.state)
+        self.ctx.outbox.state(m.action, status, correlation, m.mission_id)
         if status.terminal:
             return self._finish(run, status)
         if status.state != m.state:
-            self.outbox.feedback(m, status, terminal=False)
+            self.ctx.outbox.feedback(m, status, terminal=False)
         return Then.STEP
 
     def _timed_out(self, run: Run, value: Any, error: Exception | None) -> Then:
@@ -354,16 +318,32 @@ class ProcedureRunner:
         m = run.m
         if error is not None:
             log.warning("could not cancel timed-out %s mission %s: %s", m.action, m.mission_id, describe(error))
-        message = f"no terminal state within the mission timeout of {self.config.mission_timeout:g} s"
+        message = f"no terminal state within the mission timeout of {self.ctx.config.mission_timeout:g} s"
         last = f" (last state: {m.state})" if m.state else ""
         return self._finish(run, ProcedureStatus("failed", message=message + last, reason="timeout"))
 
     def _finish(self, run: Run, status: ProcedureStatus) -> Then:
-        self.outbox.finish(run.m, status)
+        self.ctx.outbox.finish(run.m, status)
         return Then.END
 
-    def _topic(self, kind: Kind, affordance: str) -> str:
-        return self.outbox.catalog.find(kind, affordance).topic(self.config.robot, self.config.topic_root)
+    def _error(self, code: str, message: str, kind: Kind, affordance: str, correlation: str | None, m: Mission) -> None:
+        """An error event answering a cancel event of mission `m`, on the topic of the `kind` event of `affordance`."""
+        topic = self.ctx.topic(kind, affordance)
+        self.ctx.outbox.error(
+            code, message, topic=topic, affordance=affordance, correlation=correlation, mission=m.mission_id
+        )
+
+
+def _read(
+    value: Any, error: Exception | None, procedure: Procedure, kind: str
+) -> tuple[Reading | None, Exception | None]:
+    """A query's or cancel's answer read (None and why when the call failed or its answer cannot be read)."""
+    if error is not None:
+        return None, error
+    try:
+        return read(value, procedure, kind, DEFAULT_MISSION_PATH), None
+    except Exception as exc:  # noqa: BLE001 - handed to the caller, which reports it
+        return None, exc
 
 
 def answer(

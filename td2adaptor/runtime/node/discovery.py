@@ -5,7 +5,9 @@ Optional (`directory` in the runtime configuration): the edge node `PUT`s the TD
 published TD plus the discovery context and, with `directory_ttl`, a `registration.ttl` (WoT Discovery): the
 node repeats the `PUT` every ttl/2 seconds, so the directory drops the TD of a node that died without stopping
 (expiry) and gets it back after the directory itself restarted. `PUT` creates or replaces: a TD that changed
-between two runs of a robot updates its registration.
+between two runs of a robot updates its registration. After the first `PUT` the node reads the TD back
+(`GET /things/{id}`): a directory that stored it but cannot give it back as JSON (Domus 1.0.2, for a TD whose
+RDF passes 128 KiB: docs/fleet.md) is reported in one warning, not left as a silently broken entry.
 
 The directory is never in the way of the robot: registration runs on its own thread, failures are logged (the
 URL without credentials, the directory's answer in short) and retried with exponential backoff, and stopping
@@ -17,6 +19,7 @@ from __future__ import annotations
 import http.client
 import json
 import logging
+import re
 import ssl
 import threading
 import time
@@ -79,6 +82,13 @@ class Directory:
     ) -> int:
         """One request on /things/{id}; its HTTP status. Raises DirectoryError for no answer or an error status
         (other than those in `ok`)."""
+        return self.exchange(method, thing_id, body, timeout, ok=ok)[0]
+
+    def exchange(
+        self, method: str, thing_id: str, body: bytes | None, timeout: float, *, ok: tuple[int, ...] = ()
+    ) -> tuple[int, bytes]:
+        """One request on /things/{id}; its HTTP status and answer. Raises DirectoryError for no answer or an
+        error status (other than those in `ok`, answered with an empty body)."""
         headers = {"Accept": "application/json"}
         if body is not None:
             headers["Content-Type"] = TD_MEDIA_TYPE
@@ -90,10 +100,10 @@ class Directory:
         where = f"{method} {redact_url(target)}"
         try:
             with urllib.request.urlopen(req, timeout=timeout, context=context) as resp:
-                return int(resp.status)
+                return int(resp.status), bytes(resp.read())
         except urllib.error.HTTPError as exc:
             if exc.code in ok:
-                return int(exc.code)
+                return int(exc.code), b""
             detail = _answer(exc)
             raise DirectoryError(f"{where}: the directory answered HTTP {exc.code} {exc.reason}{detail}") from None
         except (urllib.error.URLError, OSError, http.client.HTTPException) as exc:
@@ -104,6 +114,10 @@ class Directory:
         """Create or replace the TD `thing_id` (201 created, 204 replaced)."""
         body = json.dumps(document, ensure_ascii=False).encode("utf-8")
         return self.request("PUT", thing_id, body, timeout)
+
+    def get(self, thing_id: str, timeout: float = PUT_TIMEOUT) -> bytes:
+        """The TD `thing_id` as the directory gives it back (JSON)."""
+        return self.exchange("GET", thing_id, None, timeout)[1]
 
     def delete(self, thing_id: str, timeout: float = DELETE_TIMEOUT) -> int:
         """Remove the TD `thing_id` (404: it was not there, which is fine too)."""
@@ -116,6 +130,8 @@ def _answer(exc: urllib.error.HTTPError) -> str:
         text = exc.read(400).decode("utf-8", errors="replace")
     except OSError:
         return ""
+    if text.lstrip().startswith("<"):  # an HTML error page (Flask's, Domus's): its words, not its markup
+        text = re.sub(r"<[^>]*>?", " ", text)
     text = " ".join(text.split())
     return f": {text[:300]}" if text else ""
 
@@ -146,6 +162,7 @@ class Registration:
         self.puts = 0  # successful PUTs (registrations and refreshes)
         self.failures = 0  # failed attempts in a row (0 once one succeeded)
         self.last_error: str | None = None
+        self.readable: bool | None = None  # whether the directory gave the TD back after the first PUT
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -203,7 +220,32 @@ class Registration:
                 status,
                 f", ttl {self.ttl} s" if self.ttl else "",
             )
+            self._read_back()
         return True
+
+    def _read_back(self) -> None:
+        """GET the TD just registered: a directory that stored it but cannot give it back is reported once (the
+        robot is served, and the registration kept, all the same)."""
+        where = redact_url(self.directory.url)
+        try:
+            answer = self.directory.get(self.thing_id)
+            back = json.loads(answer)
+            if not isinstance(back, dict) or back.get("id") != self.thing_id:
+                raise DirectoryError(f"GET {where}/things/...: the directory gave back a document without its id")
+        except (DirectoryError, ValueError) as exc:
+            self.readable = False
+            reason = exc if isinstance(exc, DirectoryError) else "the directory's answer is not JSON"
+            log.warning(
+                "robot %s: the directory %s stored its Thing Description %s but cannot give it back: %s. The entry "
+                "is stored and searchable there (SPARQL), but not readable as JSON (a directory such as Domus "
+                "1.0.2 cannot give back a TD whose RDF passes 128 KiB; see docs/fleet.md)",
+                self.robot,
+                where,
+                self.thing_id,
+                reason,
+            )
+            return
+        self.readable = True
 
     def stop(self) -> None:
         """Stop refreshing and remove the TD from the directory (one short attempt; its expiry is the fallback)."""

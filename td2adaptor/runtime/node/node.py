@@ -12,21 +12,26 @@ the check every connection passes (a broker that lets anonymous clients in, docs
 from __future__ import annotations
 
 import logging
+import os
 import signal
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from functools import partial
 from pathlib import Path
 from types import FrameType
+from typing import TYPE_CHECKING, Any
 
 from td2adaptor.model import Model
 from td2adaptor.runtime.bus.localbus import LocalBroker
-from td2adaptor.runtime.config import RuntimeConfig
+from td2adaptor.runtime.config import STAND_IN, RuntimeConfig
 from td2adaptor.runtime.engine.engine import Engine
-from td2adaptor.runtime.node.app import bus_security, serve_fleet, td_broker
+from td2adaptor.runtime.node.app import bus_security, td_broker
+from td2adaptor.runtime.node.fleet import Fleet
 from td2adaptor.runtime.node.roslink import RosLink, connect
-from td2adaptor.runtime.ros.port import RobotPort
+
+if TYPE_CHECKING:
+    from td2adaptor.runtime.node.admin import Admin
+    from td2adaptor.runtime.node.graphwatch import Discovery
 
 log = logging.getLogger("td2adaptor.runtime")
 
@@ -53,15 +58,18 @@ class EdgeNode:
         options: RosOptions,
         *,
         broker: LocalBroker | None = None,
+        defaults: Mapping[str, Any] | None = None,
     ) -> None:
         self.model = model
+        self.defaults = dict(defaults or {})  # the shared settings of robots that join later (config.load_defaults)
         self.configs = list(configs)
         self.options = options
         self.broker = broker
         self.package = options.package or model.package_name
         self.link: RosLink | None = None
-        self.engines: list[Engine] = []
+        self.fleet: Fleet | None = None  # the robots served: the one place that changes them (node/fleet.py)
         self._stopped = threading.Event()
+        self._extras: list[Callable[[], None]] = []  # discovery, admin requests: stopped first
         self.halted = threading.Event()  # set when a robot's bus stopped serving its broker (`failure` says why)
         self.failure: str | None = None
 
@@ -86,22 +94,66 @@ class EdgeNode:
             ros1_python=o.ros1_python,
             name=o.node_name,
         )
-        ports = self.link.ports
-
-        def port_of(config: RuntimeConfig) -> RobotPort:
-            return ports[config.robot]
-
+        self.fleet = Fleet(
+            self.model, self.link, distro=f"ros{self.options.ros}", broker=self.broker, on_halt=self._halt
+        )
         try:
-            self.engines = serve_fleet(
-                self.model, port_of, self.configs, broker=self.broker, distro=f"ros{self.options.ros}"
-            )
+            self.fleet.start(self.configs)
         except BaseException:
             self.link.close()
             raise
-        for engine in self.engines:
-            engine.on_halt.append(partial(self._halt, engine.config.robot))
-            if engine.failure is not None:  # halted before the hook was in place
-                self._halt(engine.config.robot, engine.failure)
+
+    def discover(self) -> Discovery:
+        """Serve every robot of the model the ROS graph shows, as they come and go (node/graphwatch.py);
+        raises `ConfigError` when the model names no interface under the robot's namespace."""
+        from td2adaptor.runtime.config import robot_config
+        from td2adaptor.runtime.node.graphwatch import Discovery, ros1_graph, ros2_graph, signature
+
+        assert self.fleet is not None and self.link is not None
+        sig = signature(self.model)
+        template = robot_config(self.defaults, STAND_IN)
+        if self.options.ros == 2:
+            assert self.link.graph is not None
+            graph = ros2_graph(self.link.graph, template.ros_domain_id)
+        else:
+            graph = ros1_graph(template.ros_master_uri, os.environ)
+        discovery = Discovery(
+            self.fleet,
+            graph,
+            sig,
+            lambda robot, namespace: robot_config(self.defaults, robot, namespace),
+            grace=template.discover_grace,
+        )
+        discovery.start()
+        self._extras.append(discovery.stop)
+        return discovery
+
+    def listen_admin(self) -> Admin:
+        """Take admin requests on the bus (node/admin.py); raises `SecurityError` or `BusError` as a robot's
+        connection would."""
+        from td2adaptor.runtime.config import robot_config
+        from td2adaptor.runtime.node.admin import Admin, admin_bus
+
+        assert self.fleet is not None
+        template = robot_config(self.defaults, STAND_IN)
+        admin = Admin(
+            self.fleet,
+            admin_bus(template, self.model, broker=self.broker),
+            name=template.fleet or self.model.package_name,
+            root=template.topic_root,
+            key=template.fleet_admin_key,
+            make_config=lambda robot, namespace: robot_config(self.defaults, robot, namespace),
+            freshness_window=template.freshness_window,
+            clock_skew=template.clock_skew,
+        )
+        admin.start()
+        self._extras.append(admin.stop)
+        return admin
+
+    @property
+    def engines(self) -> list[Engine]:
+        """The engines of the robots served now."""
+        return [] if self.fleet is None else self.fleet.engines()
 
     def _halt(self, robot: str, reason: str) -> None:
         """A robot's bus stopped serving its broker (it failed the check every connection passes): the node
@@ -115,36 +167,76 @@ class EdgeNode:
         if self._stopped.is_set():
             return
         self._stopped.set()
-        for engine in self.engines:
-            engine.stop()
+        for stop in reversed(self._extras):  # no more changes of the fleet
+            try:
+                stop()
+            except Exception:  # noqa: BLE001 - stopping: the robots still go offline
+                log.exception("while stopping")
+        if self.fleet is not None:
+            self.fleet.stop()
         if self.link is not None:
             self.link.close()
 
     def describe(self) -> str:
-        robots = ", ".join(f"{c.robot} (namespace {c.ros_namespace or '/'})" for c in self.configs)
+        configs = list(self.fleet.robots().values()) if self.fleet is not None else self.configs
+        robots = ", ".join(f"{c.robot} (namespace {c.ros_namespace or '/'})" for c in configs) or "no robot yet"
         from td2adaptor.runtime.bus.security import redact_url
 
-        bus = redact_url(self.configs[0].bus)
+        bus = redact_url(self.defaults.get("bus", "local") if not self.configs else self.configs[0].bus)
         how = self.link.description if self.link is not None else f"ROS {self.options.ros}"
-        directory = self.configs[0].directory
+        directory = self.configs[0].directory if self.configs else self.defaults.get("directory")
         registered = f"; TDs registered with {redact_url(directory)}" if directory else ""
         return f"serving {robots} on {bus} via {how}{registered}"
 
 
-def wait_for_signal(stop: threading.Event | None = None) -> int:
-    """Block until SIGINT or SIGTERM (or `stop` is set); the signal number (0 for `stop`)."""
+def wait_for_signal(
+    stop: threading.Event | None = None,
+    *,
+    reload: Callable[[], object] | None = None,
+    tick: Callable[[], object] | None = None,
+    period: float = 0.5,
+) -> int:
+    """Block until SIGINT or SIGTERM (or `stop` is set); the signal number (0 for `stop`). SIGHUP calls
+    `reload` (in this thread, not in the signal handler; without one it is logged and ignored instead of
+    ending the process); `tick` is called every `period` seconds (a fleet file's look for changes)."""
     stop = stop or threading.Event()
+    wake = threading.Event()
     got: list[int] = []
+    hangups: list[int] = []
 
     def handler(signum: int, _frame: FrameType | None) -> None:
         got.append(signum)
-        stop.set()
+        wake.set()
+
+    def hangup(signum: int, _frame: FrameType | None) -> None:
+        hangups.append(signum)
+        wake.set()
 
     previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    previous[signal.SIGHUP] = signal.signal(signal.SIGHUP, hangup)
     try:
-        while not stop.wait(0.5):
-            pass
+        while not got and not stop.is_set():
+            wake.wait(period)
+            wake.clear()
+            if got or stop.is_set():
+                break
+            if hangups:
+                hangups.clear()
+                if reload is None:
+                    log.info("SIGHUP: no fleet file to reload")
+                else:
+                    _guarded(reload, "reloading the fleet file")
+            elif tick is not None:
+                _guarded(tick, "looking for changes of the fleet file")
     finally:
         for sig, old in previous.items():
             signal.signal(sig, old)
     return got[0] if got else 0
+
+
+def _guarded(call: Callable[[], object], what: str) -> None:
+    """One call of the main loop: a failure is logged, and the node goes on serving."""
+    try:
+        call()
+    except Exception:
+        log.exception("%s failed", what)

@@ -20,6 +20,7 @@ import ctypes
 import functools
 import importlib
 import importlib.util
+import itertools
 import os
 import re
 import sys
@@ -41,14 +42,33 @@ _loaded_prefixes: set[Path] = set()
 
 @dataclass
 class RosLink:
-    """Ports onto the ROS graph, by robot id, and what closes them (in reverse order of opening)."""
+    """Ports onto the ROS graph, by robot id, and what closes them: the ports first, then `closers` in reverse
+    order of opening. `grow` connects more robots while this link is open (a robot that joins the fleet at run
+    time): a link of their own, closed before this one, on the same ROS graph (ROS 2: a new rclpy node in this
+    link's context, since a spinning executor cannot take new clients; rospy: the same node; the ROS 1 bridge:
+    a bridge process of their own). `graph(domain)`: an rclpy node of that domain that is not spun, for reading
+    the ROS 2 graph (discovery); None on ROS 1."""
 
     ports: dict[str, RobotPort] = field(default_factory=dict)
     closers: list[Callable[[], None]] = field(default_factory=list)
     description: str = ""
+    grow: Callable[[Sequence[RuntimeConfig]], RosLink] | None = None
+    graph: Callable[[int | None], Any] | None = None
+
+    def release(self, robot: str) -> None:
+        """Close one robot's port (the robot left the fleet); the link goes on for the others."""
+        port = self.ports.pop(robot, None)
+        close = getattr(port, "close", None)
+        if callable(close):
+            try:
+                close()
+            except Exception:  # noqa: BLE001 - the robot is leaving either way
+                pass
 
     def close(self) -> None:
         """Close every port, stop spinning, leave the ROS graph; errors are swallowed (we are leaving)."""
+        for robot in list(self.ports):
+            self.release(robot)
         closers, self.closers = self.closers, []
         for closer in reversed(closers):
             try:
@@ -152,22 +172,55 @@ def connect_ros2(model: Model, package: str, configs: Sequence[RuntimeConfig], *
     from rclpy.signals import SignalHandlerOptions
 
     link = RosLink(description=f"ROS 2, package {package}")
-    try:
-        for domain, members in _groups(configs, lambda c: c.ros_domain_id).items():
+    contexts: dict[int | None, Any] = {}  # one rclpy context per domain id, the link's to shut down
+    graph_nodes: dict[int | None, Any] = {}
+
+    def context_of(domain: int | None) -> Any:
+        if domain not in contexts:
             context = Context()
             rclpy.init(context=context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
             link.closers.append(functools.partial(rclpy.shutdown, context=context))
-            suffix = f"_d{domain}" if domain is not None and len(configs) > len(members) else ""
-            node: Any = rclpy.create_node((name or node_name(members)) + suffix, context=context)
+            contexts[domain] = context
+        return contexts[domain]
+
+    def attach(into: RosLink, members: Sequence[RuntimeConfig], node_name: str) -> None:
+        """One rclpy node for `members` in their domain's context, their ports on it, then spun."""
+        context = context_of(members[0].ros_domain_id)
+        # a joiner's node (into a grown link) serves no parameters: one node per joining batch, less graph noise
+        node: Any = rclpy.create_node(node_name, context=context, start_parameter_services=into is link)
+        into.closers.append(node.destroy_node)
+        # every client and subscription is created before the node spins: an EventsExecutor cannot take new
+        # ones while it spins (rclpy 7.1 blocks), and a SingleThreadedExecutor rebuilds its wait set
+        for config in members:
+            into.ports[config.robot] = make_port(model, module, config, "ros2", node)
+        into.closers.append(spin(node).stop)  # stopped after the ports closed (RosLink.close)
+
+    grown = itertools.count(1)
+
+    def grow(more: Sequence[RuntimeConfig]) -> RosLink:
+        extra = RosLink(description=link.description)
+        try:
+            for members in _groups(more, lambda c: c.ros_domain_id).values():
+                attach(extra, members, f"{name or node_name(members)}_{next(grown)}")
+        except BaseException:
+            extra.close()
+            raise
+        return extra
+
+    def graph(domain: int | None) -> Any:
+        if domain not in graph_nodes:
+            node = rclpy.create_node(
+                f"{name or 'td2adaptor_edge'}_graph", context=context_of(domain), start_parameter_services=False
+            )
             link.closers.append(node.destroy_node)
-            # every client and subscription is created before the node spins: an EventsExecutor cannot take
-            # new ones while it spins (rclpy 7.1 blocks), and a SingleThreadedExecutor rebuilds its wait set
-            first = len(link.closers)
-            for config in members:
-                port = make_port(model, module, config, "ros2", node)
-                link.closers.append(port.close)
-                link.ports[config.robot] = port
-            link.closers.insert(first, spin(node).stop)  # stopped after the ports closed
+            graph_nodes[domain] = node
+        return graph_nodes[domain]
+
+    link.grow, link.graph = grow, graph
+    try:
+        for domain, members in _groups(configs, lambda c: c.ros_domain_id).items():
+            suffix = f"_d{domain}" if domain is not None and len(configs) > len(members) else ""
+            attach(link, members, (name or node_name(members)) + suffix)
     except BaseException:
         link.close()
         raise
@@ -198,24 +251,44 @@ def connect_ros1(
         )
     link = RosLink(description=f"ROS 1 via {interpreter}, package {package}")
     layout = Layout.of(model)
+
+    def attach(into: RosLink, members: Sequence[RuntimeConfig], suffix: str) -> None:
+        """A bridge process for `members` (one ROS master), their ports on it."""
+        bridge = Ros1Bridge(
+            layout,
+            package,
+            [(c.robot, c.ros_namespace) for c in members],
+            python=interpreter,
+            pythonpath=pythonpath,
+            master_uri=members[0].ros_master_uri or environ.get("ROS_MASTER_URI"),
+            node_name=(name or node_name(members)) + suffix,
+            timeout=max(c.call_timeout for c in members),
+            feedback_grace={c.robot: c.goal_feedback_grace for c in members},
+            environ=environ,
+        )
+        bridge.start()
+        into.closers.append(bridge.close)
+        for config in members:
+            into.ports[config.robot] = bridge.port(config.robot)
+
+    grown = itertools.count(1)
+
+    def grow(more: Sequence[RuntimeConfig]) -> RosLink:
+        """A bridge of their own: a bridge's robots are fixed when it starts (and a ROS 1 node name is unique
+        on its master, so it gets a numbered one)."""
+        extra = RosLink(description=link.description)
+        try:
+            for members in _groups(more, lambda c: c.ros_master_uri).values():
+                attach(extra, members, f"_{next(grown)}")
+        except BaseException:
+            extra.close()
+            raise
+        return extra
+
+    link.grow = grow
     try:
-        for master, members in _groups(configs, lambda c: c.ros_master_uri).items():
-            bridge = Ros1Bridge(
-                layout,
-                package,
-                [(c.robot, c.ros_namespace) for c in members],
-                python=interpreter,
-                pythonpath=pythonpath,
-                master_uri=master or environ.get("ROS_MASTER_URI"),
-                node_name=name or node_name(members),
-                timeout=max(c.call_timeout for c in members),
-                feedback_grace={c.robot: c.goal_feedback_grace for c in members},
-                environ=environ,
-            )
-            bridge.start()
-            link.closers.append(bridge.close)
-            for config in members:
-                link.ports[config.robot] = bridge.port(config.robot)
+        for members in _groups(configs, lambda c: c.ros_master_uri).values():
+            attach(link, members, "")
     except BaseException:
         link.close()
         raise
@@ -230,17 +303,30 @@ def _connect_rospy(model: Model, package: str, configs: Sequence[RuntimeConfig],
             "or use the bridge (--ros1-python)"
         )
     if masters:
-        os.environ["ROS_MASTER_URI"] = masters.pop()
+        os.environ["ROS_MASTER_URI"] = next(iter(masters))
     module = import_package(package)
     rospy: Any = importlib.import_module("rospy")
     link = RosLink(description=f"ROS 1 (rospy), package {package}")
     rospy.init_node(name or node_name(configs), disable_signals=True)
     link.closers.append(lambda: rospy.signal_shutdown("td2adaptor edge node stopped"))
+
+    def grow(more: Sequence[RuntimeConfig]) -> RosLink:
+        """Their ports on the process's one rospy node (rospy takes new clients at any time)."""
+        if len({c.ros_master_uri for c in more if c.ros_master_uri} | masters) > 1:
+            raise RosSetupError("rospy allows one master per process: a robot of another master needs its own")
+        extra = RosLink(description=link.description)
+        try:
+            for config in more:
+                extra.ports[config.robot] = make_port(model, module, config, "ros1")
+        except BaseException:
+            extra.close()
+            raise
+        return extra
+
+    link.grow = grow
     try:
         for config in configs:
-            port = make_port(model, module, config, "ros1")
-            link.closers.append(port.close)
-            link.ports[config.robot] = port
+            link.ports[config.robot] = make_port(model, module, config, "ros1")
     except BaseException:
         link.close()
         raise

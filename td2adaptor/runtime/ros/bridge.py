@@ -10,9 +10,15 @@ one JSON object per line, requests handled concurrently:
     parent → child   {"id": 0, "op": "init", "package": ..., "layout": ..., "robots": [[id, ns], ...], ...}
                      {"id": n, "robot": id, "op": "start" | "query" | ..., "args": [...]}
     child → parent   {"id": n, "ok": <result>}  or  {"id": n, "error": {"kind", "message", "response"}}
+                     {"goal": tag, "event": "accepted" | "status" | "feedback" | "done", "value": ...}
 
+A ROS action goal is followed by callbacks on both sides: the parent names each goal it starts with a tag
+(`start_goal`'s first argument), the child's `GoalListener` writes what happens to the goal as lines carrying
+that tag, in order, and the parent's reader thread tells them to the goal's listener; a cancel request is
+answered when the server answers (`request_cancel`), not waited for. No parent thread waits for a goal.
 `BridgePort` is the `RobotPort` of one robot on a bridge. A bridge that dies fails its calls as
-`PortUnavailable` and is restarted by the next call (at most every `restart_period` seconds).
+`PortUnavailable`, ends the goals it followed as lost, and is restarted by the next call (at most every
+`restart_period` seconds).
 The child side imports only the standard library, `td2adaptor.runtime.ros.genport`, `.port` and `.words`.
 """
 
@@ -30,14 +36,16 @@ import threading
 import time
 import traceback
 from collections import deque
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import IO, Any
 
 from td2adaptor.runtime.ros.genport import GeneratedPort, Layout
 from td2adaptor.runtime.ros.port import (
-    GoalProgress,
+    CancelDone,
+    GoalEnd,
+    GoalListener,
     NoValue,
     PortCallFailed,
     PortError,
@@ -45,6 +53,7 @@ from td2adaptor.runtime.ros.port import (
     PortTimeout,
     PortUnavailable,
     RosSetupError,
+    StalePackage,
     StartResult,
 )
 from td2adaptor.runtime.ros.words import import_failure, setup_failure
@@ -152,7 +161,8 @@ class Ros1Bridge:
         self.starts = 0
         self._lock = threading.Lock()
         self._proc: subprocess.Popen[bytes] | None = None
-        self._pending: dict[int, tuple[threading.Event, list[Any]]] = {}
+        self._pending: dict[int, Callable[[dict[str, Any]], None]] = {}  # by request id: who takes the reply
+        self._listeners: dict[str, GoalListener] = {}  # by tag: the goals followed through the child
         self._next_id = 1
         self._stderr: deque[str] = deque(maxlen=20)
         self._shim: str | None = None
@@ -205,6 +215,9 @@ class Ros1Bridge:
             reader.start()
         try:
             self._request(None, "init", [self.init_request()], self.start_timeout)
+        except StalePackage:
+            self._kill()
+            raise
         except PortError as exc:
             self._kill()
             raise RosSetupError(f"the ROS 1 bridge under {self.python} did not start: {exc}") from None
@@ -282,34 +295,59 @@ class Ros1Bridge:
             for raw in proc.stdout:
                 try:
                     reply = json.loads(raw)
-                    waiter = self._pending.pop(int(reply["id"]), None)
+                    if "goal" in reply:
+                        self._goal_event(reply)
+                        continue
+                    deliver = self._pending.pop(int(reply["id"]), None)
                 except (ValueError, KeyError, TypeError):
                     continue
-                if waiter is not None:
-                    waiter[1].append(reply)
-                    waiter[0].set()
+                if deliver is not None:
+                    deliver(reply)
         code = proc.wait()
         time.sleep(0.05)  # let the stderr relay catch the last words
         why = f"the ROS 1 bridge exited with code {code}" + (f": {self._stderr[-1]}" if self._stderr else "")
         with self._lock:
             if self._proc is proc:
                 pending, self._pending = self._pending, {}
+                listeners, self._listeners = self._listeners, {}
             else:
-                pending = {}
-        for event, box in pending.values():
-            box.append({"error": {"kind": "PortUnavailable", "message": why}})
-            event.set()
+                pending, listeners = {}, {}
+        for deliver in pending.values():
+            deliver({"error": {"kind": "PortUnavailable", "message": why}})
+        for listener in listeners.values():
+            listener.on_done(GoalEnd("lost", message=why, error=PortUnavailable(why)))
 
-    def _request(self, robot: str | None, op: str, args: list[Any], timeout: float) -> Any:
+    def _goal_event(self, line: Mapping[str, Any]) -> None:
+        """A line about a goal followed through the child (the reader's thread): to its listener."""
+        tag, event, value = str(line["goal"]), line.get("event"), line.get("value")
+        if event == "done":
+            with self._lock:
+                listener = self._listeners.pop(tag, None)
+        else:
+            listener = self._listeners.get(tag)
+        if listener is None:  # forgotten meanwhile
+            return
+        if event == "accepted":
+            listener.on_accepted(str(value))
+        elif event == "status":
+            listener.on_status(str(value))
+        elif event == "feedback":
+            listener.on_feedback(value)
+        elif event == "done":
+            listener.on_done(GoalEnd.from_json(value if isinstance(value, Mapping) else {}))
+
+    def _send(
+        self, robot: str | None, op: str, args: list[Any], deliver: Callable[[dict[str, Any]], None] | None
+    ) -> int:
+        """Write one request; `deliver` is given its reply (in the reader's thread), None: nobody waits for one."""
         with self._lock:
             proc = self._proc
             if proc is None or proc.poll() is not None or proc.stdin is None:
                 raise PortUnavailable("the ROS 1 bridge is not running")
             rid = 0 if op == "init" else self._next_id
             self._next_id += 1
-            event = threading.Event()
-            box: list[Any] = []
-            self._pending[rid] = (event, box)
+            if deliver is not None:
+                self._pending[rid] = deliver
             line = json.dumps({"id": rid, "robot": robot, "op": op, "args": args}) + "\n"
             try:
                 proc.stdin.write(line.encode("utf-8"))
@@ -317,19 +355,24 @@ class Ros1Bridge:
             except (OSError, ValueError):
                 self._pending.pop(rid, None)
                 raise PortUnavailable("the ROS 1 bridge is not running (its input is closed)") from None
+        return rid
+
+    def _request(self, robot: str | None, op: str, args: list[Any], timeout: float) -> Any:
+        event = threading.Event()
+        box: list[dict[str, Any]] = []
+
+        def deliver(reply: dict[str, Any]) -> None:
+            box.append(reply)
+            event.set()
+
+        rid = self._send(robot, op, args, deliver)
         if not event.wait(timeout):
             self._pending.pop(rid, None)
             raise PortTimeout(f"the ROS 1 bridge did not answer {op} within {timeout:g} s")
-        reply = box[0]
-        if "error" in reply:
-            error = reply["error"]
-            cls = _ERRORS.get(str(error.get("kind")), PortCallFailed)
-            response = error.get("response")
-            raise cls(str(error.get("message", "")), response=response if isinstance(response, Mapping) else None)
-        return reply.get("ok")
+        return _outcome(box[0], self.package)
 
-    def call(self, robot: str, op: str, args: list[Any], timeout: float) -> Any:
-        """Run `op` on `robot`'s port in the child (restarting a dead child first, if it is time to)."""
+    def _ensure_started(self) -> None:
+        """Restart a dead child first, if it is time to."""
         proc = self._proc
         if (proc is None or proc.poll() is not None) and not self._closed:
             if time.monotonic() - self._last_start >= self.restart_period:
@@ -337,8 +380,50 @@ class Ros1Bridge:
                     self.start()
                 except Exception as exc:  # noqa: BLE001 - reported as the call's failure
                     raise PortUnavailable(f"restarting the ROS 1 bridge failed: {exc}") from None
+
+    def call(self, robot: str, op: str, args: list[Any], timeout: float) -> Any:
+        """Run `op` on `robot`'s port in the child (restarting a dead child first, if it is time to)."""
+        self._ensure_started()
         # the child bounds each call by wait_timeout + timeout; the margin covers the pipe and the scheduler
         return self._request(robot, op, args, timeout + self.wait_timeout + 5.0)
+
+    def start_goal(self, robot: str, args: list[Any], listener: GoalListener, timeout: float) -> str:
+        """Start a goal in the child, followed by `listener` (told by the reader's thread); its id."""
+        self._ensure_started()
+        with self._lock:
+            tag = f"g{self._next_id}"
+            self._next_id += 1
+            self._listeners[tag] = listener  # before the request: the child may tell before it answers
+        try:
+            return str(self._request(robot, "start_goal", [tag, *args], timeout + self.wait_timeout + 5.0))
+        except BaseException:
+            with self._lock:
+                self._listeners.pop(tag, None)
+            raise
+
+    def forget(self, listener: GoalListener) -> None:
+        """`listener` is told nothing more."""
+        with self._lock:
+            for tag, known in list(self._listeners.items()):
+                if known is listener:
+                    del self._listeners[tag]
+
+    def ask(self, robot: str, op: str, args: list[Any], answer: Callable[[Any, PortError | None], None]) -> None:
+        """Run `op` in the child without waiting: `answer(result, error)` is told its reply (the reader's thread;
+        here when the request cannot be sent)."""
+
+        def deliver(reply: dict[str, Any]) -> None:
+            try:
+                value = _outcome(reply, self.package)
+            except PortError as exc:
+                answer(None, exc)
+                return
+            answer(value, None)
+
+        try:
+            self._send(robot, op, args, deliver)
+        except PortError as exc:
+            answer(None, exc)
 
     def port(self, robot: str) -> BridgePort:
         return BridgePort(self, robot)
@@ -352,6 +437,7 @@ class BridgePort:
     def __init__(self, bridge: Ros1Bridge, robot: str) -> None:
         self.bridge = bridge
         self.robot = robot
+        self._listeners: dict[tuple[str, str, str], GoalListener] = {}
 
     def start(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> StartResult:
         out = self.bridge.call(self.robot, "start", [component, action, dict(payload), timeout], timeout)
@@ -373,20 +459,63 @@ class BridgePort:
     def write_property(self, component: str, name: str, value: Any) -> None:
         self.bridge.call(self.robot, "write_property", [component, name, value], self.bridge.timeout)
 
-    # ROS actions: the child follows the goal (feedback, result), the parent asks it what happened
+    # ROS actions: the child follows the goal and tells the parent what happens, by lines read here
 
-    def send_goal(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> str:
-        return str(self.bridge.call(self.robot, "send_goal", [component, action, dict(payload), timeout], timeout))
+    def start_goal(
+        self, component: str, action: str, payload: Mapping[str, Any], timeout: float, listener: GoalListener
+    ) -> str:
+        goal = self.bridge.start_goal(self.robot, [component, action, dict(payload), timeout], listener, timeout)
+        self._listeners[(component, action, goal)] = listener
+        return goal
 
-    def goal_progress(self, component: str, action: str, goal: str, since: int | None, wait: float) -> GoalProgress:
-        out = self.bridge.call(self.robot, "goal_progress", [component, action, goal, since, wait], wait)
-        return GoalProgress.from_json(out)
-
-    def cancel_goal(self, component: str, action: str, goal: str, timeout: float) -> bool:
-        return bool(self.bridge.call(self.robot, "cancel_goal", [component, action, goal, timeout], timeout))
+    def request_cancel(self, component: str, action: str, goal: str, timeout: float, on_done: CancelDone) -> None:
+        self.bridge.ask(
+            self.robot,
+            "request_cancel",
+            [component, action, goal, timeout],
+            lambda value, error: on_done(bool(value), error),
+        )
 
     def forget_goal(self, component: str, action: str, goal: str) -> None:
-        self.bridge.call(self.robot, "forget_goal", [component, action, goal], self.bridge.timeout)
+        listener = self._listeners.pop((component, action, goal), None)
+        if listener is not None:
+            self.bridge.forget(listener)
+        try:
+            self.bridge.ask(self.robot, "forget_goal", [component, action, goal], lambda value, error: None)
+        except Exception:  # noqa: BLE001, S110 - a dead child has forgotten it already
+            pass
+
+
+def _outcome(reply: Mapping[str, Any], package: str) -> Any:
+    """A reply's result, or its error raised as the port error it names."""
+    if "error" in reply:
+        error = reply["error"]
+        if error.get("kind") == "StalePackage":  # the package is not of this TD: the user's to regenerate
+            raise StalePackage(str(error.get("message", "")), package, "ros1")
+        cls = _ERRORS.get(str(error.get("kind")), PortCallFailed)
+        response = error.get("response")
+        raise cls(str(error.get("message", "")), response=response if isinstance(response, Mapping) else None)
+    return reply.get("ok")
+
+
+class _Relay:
+    """The child's listener of one goal: each event a line for the parent, carrying the parent's tag."""
+
+    def __init__(self, tag: str, write: Callable[[dict[str, Any]], None]) -> None:
+        self.tag = tag
+        self.write = write
+
+    def on_accepted(self, goal: str) -> None:
+        self.write({"goal": self.tag, "event": "accepted", "value": goal})
+
+    def on_status(self, status: str) -> None:
+        self.write({"goal": self.tag, "event": "status", "value": status})
+
+    def on_feedback(self, message: Any) -> None:
+        self.write({"goal": self.tag, "event": "feedback", "value": message})
+
+    def on_done(self, end: GoalEnd) -> None:
+        self.write({"goal": self.tag, "event": "done", "value": end.to_json()})
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -436,6 +565,9 @@ def _serve(requests: IO[str], replies: IO[str]) -> int:
                 )
             except ValueError as exc:  # InvalidRobotName of the generated package
                 raise PortCallFailed(f"robot {robot}: {setup_failure(exc)}") from None
+    except StalePackage as exc:
+        reply({"id": request.get("id", 0), "error": {"kind": "StalePackage", "message": str(exc), "response": None}})
+        return 1
     except Exception as exc:  # noqa: BLE001 - reported to the parent, which explains it (the details: stderr)
         if not isinstance(exc, PortError):
             traceback.print_exc()  # relayed to the parent's stderr: the class and where, for a developer
@@ -451,9 +583,21 @@ def _serve(requests: IO[str], replies: IO[str]) -> int:
             if op == "start":
                 started = port.start(*args)
                 reply({"id": rid, "ok": {"response": started.response, "mission_id": started.mission_id}})
-            elif op == "goal_progress":
-                reply({"id": rid, "ok": port.goal_progress(*args).to_json()})
-            elif op in ("query", "cancel", "call", "read_property", "write_property", "send_goal", "cancel_goal"):
+            elif op == "start_goal":
+                tag, component, action, payload, timeout = args
+                goal = port.start_goal(component, action, payload, timeout, _Relay(str(tag), reply))
+                reply({"id": rid, "ok": goal})
+            elif op == "request_cancel":
+
+                def answered(canceling: bool, failure: PortError | None) -> None:
+                    if failure is not None:
+                        error(rid, failure)
+                    else:
+                        reply({"id": rid, "ok": canceling})
+
+                component, action, goal, timeout = args
+                port.request_cancel(component, action, goal, timeout, answered)
+            elif op in ("query", "cancel", "call", "read_property", "write_property"):
                 reply({"id": rid, "ok": getattr(port, op)(*args)})
             elif op == "forget_goal":
                 port.forget_goal(*args)

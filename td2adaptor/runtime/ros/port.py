@@ -12,7 +12,7 @@ name of the service to call (the run, query or cancel action itself), `name` a p
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
@@ -78,6 +78,17 @@ class RosSetupError(Exception):
     `PortError`: no call failed, the ports cannot be made; raised by node/roslink.py and by the ROS 1 bridge.)"""
 
 
+class StalePackage(RosSetupError):
+    """The generated package was generated from another model than the Thing Description `run` was given
+    (its recorded hash differs, or it records none: generated before packages did). `package` and `distro`
+    ("ros1", "ros2") name it; the message says what differs."""
+
+    def __init__(self, message: str, package: str = "", distro: str = "") -> None:
+        super().__init__(message)
+        self.package = package
+        self.distro = distro
+
+
 @dataclass(frozen=True)
 class StartResult:
     """Answer to starting a procedure: the robot's response and the mission id it assigned (None if none)."""
@@ -124,66 +135,84 @@ class RobotPort(Protocol):
 
 
 @dataclass(frozen=True)
-class GoalProgress:
-    """What happened to a ROS action goal since the caller last asked.
+class GoalEnd:
+    """How a ROS action goal ended, as a port tells it (`GoalListener.on_done`).
 
-    `feedback` are the feedback messages received after the first `since` ones (as dicts, in order),
-    `received` how many arrived in all, `status` one of GOAL_STATES; once `done`, `result` is the result
-    message the server sent (None when it sent none) and `message` the server's words (actionlib's status
-    text) or why the goal was lost.
+    `status` is "succeeded", "canceled", "aborted", "rejected" (the server refused it) or "lost" (no end came
+    from the server: it went away, it did not take the goal in time, or it forgot it); `result` the result
+    message the server sent (None when it sent none); `message` the server's words (actionlib's status text)
+    or why the goal is lost; `error` why a goal that never ran did not (PortRejected, PortUnavailable,
+    PortTimeout, PortCallFailed; None otherwise).
     """
 
-    feedback: tuple[Any, ...]
-    received: int
     status: str
-    done: bool = False
     result: Mapping[str, Any] | None = None
     message: str = ""
+    error: PortError | None = None
 
     def to_json(self) -> dict[str, Any]:
-        return {
-            "feedback": list(self.feedback),
-            "received": self.received,
-            "status": self.status,
-            "done": self.done,
-            "result": self.result,
-            "message": self.message,
-        }
+        error = None
+        if self.error is not None:
+            error = {"kind": type(self.error).__name__, "message": str(self.error)}
+        return {"status": self.status, "result": self.result, "message": self.message, "error": error}
 
     @classmethod
-    def from_json(cls, data: Mapping[str, Any]) -> GoalProgress:
-        result = data.get("result")
+    def from_json(cls, data: Mapping[str, Any]) -> GoalEnd:
+        result, error = data.get("result"), data.get("error")
+        made: PortError | None = None
+        if isinstance(error, Mapping):
+            kinds = {k.__name__: k for k in (PortUnavailable, PortTimeout, PortCallFailed, PortRejected)}
+            made = kinds.get(str(error.get("kind")), PortCallFailed)(str(error.get("message") or ""))
         return cls(
-            tuple(data.get("feedback") or ()),
-            int(data.get("received") or 0),
-            str(data.get("status") or "unknown"),
-            bool(data.get("done")),
+            str(data.get("status") or "lost"),
             result if isinstance(result, Mapping) else None,
             str(data.get("message") or ""),
+            made,
         )
+
+
+class GoalListener(Protocol):
+    """Who follows a goal: told what happens to it, once and in order, by the port's own threads (one call at a
+    time per goal; each must return at once: hand the news to your own loop). `on_accepted(goal)` when the
+    server took the goal (its id), then `on_status(status)` at each change of a running goal's status
+    ("pending", "accepted", "executing", "canceling") and `on_feedback(message)` for each feedback message
+    (as plain data), then exactly one `on_done(end)` (a goal refused or lost before acceptance gets only that).
+    """
+
+    def on_accepted(self, goal: str) -> None: ...
+
+    def on_status(self, status: str) -> None: ...
+
+    def on_feedback(self, message: Any) -> None: ...
+
+    def on_done(self, end: GoalEnd) -> None: ...
+
+
+#: the answer to a cancel request: whether the server cancels the goal, or why no answer came
+CancelDone = Callable[[bool, "PortError | None"], None]
 
 
 @runtime_checkable
 class GoalPort(Protocol):
-    """A robot whose TD actions may be ROS actions: goals, their feedback, result and cancel.
+    """A robot whose TD actions may be ROS actions: goals followed by callbacks, never by a waiting thread.
 
-    `goal` is the goal id the port returned from `send_goal` (a hex string). A port forgets a goal when told
-    to, or when it is closed; until then `goal_progress` keeps every feedback message (up to a bound).
+    `goal` is the goal id `start_goal` returned (a string). Until the goal's end is told, or `forget_goal`,
+    the port keeps the goal's listener; the generated package keeps its feedback (one buffer, the goal's).
     """
 
-    def send_goal(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> str:
-        """Send a goal built from `payload`; its id once accepted (`PortRejected` when the server refuses)."""
+    def start_goal(
+        self, component: str, action: str, payload: Mapping[str, Any], timeout: float, listener: GoalListener
+    ) -> str:
+        """Send a goal built from `payload` without waiting for the server; its id. The server must accept it
+        within `timeout`. Raises `PortError` only when no goal can be sent (a payload the goal message does not
+        take, no such action); everything else comes through `listener`."""
         ...
 
-    def goal_progress(self, component: str, action: str, goal: str, since: int | None, wait: float) -> GoalProgress:
-        """Feedback after the first `since` messages (None: none, the status only), waiting at most `wait`
-        seconds for some to arrive or for the goal to end."""
-        ...
-
-    def cancel_goal(self, component: str, action: str, goal: str, timeout: float) -> bool:
-        """Ask the server to cancel the goal; whether it accepted to."""
+    def request_cancel(self, component: str, action: str, goal: str, timeout: float, on_done: CancelDone) -> None:
+        """Ask the server to cancel the goal without waiting: `on_done(canceling, error)` is told once, by the
+        port's threads at most `timeout` seconds from now (inside this call when the port cannot ask at all)."""
         ...
 
     def forget_goal(self, component: str, action: str, goal: str) -> None:
-        """The caller no longer follows the goal."""
+        """The caller no longer follows the goal: its listener is told nothing more (the goal goes on)."""
         ...

@@ -3,19 +3,34 @@
 For tests, benchmarks and the in-process demo: the same procedure semantics as the ROS simulations, without
 ROS. It also shows what an adapter does: pick the component, turn the payload into the call's arguments,
 turn the answer into plain data, and raise `PortError` subclasses. `down` and `delay` inject faults.
+`SimActions` simulates ROS action servers (a Fibonacci-like goal: `order` feedback messages, then the
+result) for every `SimPort` given it, telling each goal's events through the port's callback protocol
+(`GoalListener`) from one thread of its own, whatever the number of goals, as the ROS client libraries do.
 """
 
 from __future__ import annotations
 
+import heapq
+import itertools
 import threading
 import time
+import uuid
 from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
 from td2adaptor.model import Model
 from td2adaptor.model.events import payload_schema
 from td2adaptor.model.msgschema import fill
-from td2adaptor.runtime.ros.port import NoValue, PortCallFailed, PortUnavailable, StartResult
+from td2adaptor.runtime.ros.port import (
+    CancelDone,
+    GoalEnd,
+    GoalListener,
+    NoValue,
+    PortCallFailed,
+    PortRejected,
+    PortUnavailable,
+    StartResult,
+)
 from td2adaptor.runtime.ros.procedures import mission_id_of
 
 
@@ -77,8 +92,109 @@ def _as_ros(response: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def fibonacci(count: int) -> list[int]:
+    """The first `count + 1` Fibonacci numbers (at least [0, 1])."""
+    seq = [0, 1]
+    while len(seq) < count + 1:
+        seq.append(seq[-1] + seq[-2])
+    return seq[: max(count + 1, 2)]
+
+
+class _SimGoal:
+    def __init__(self, listener: GoalListener, order: int) -> None:
+        self.listener = listener
+        self.order = order
+        self.sent = 0
+        self.cancel = False
+        self.over = False
+
+
+class SimActions:
+    """Simulated ROS action servers (see the module docstring): a goal of `{"order": n}` is accepted (n < 0:
+    rejected), sends n feedback messages `{"sequence": [...]}` `step` seconds apart (40 at most are grown),
+    then succeeds with `{"sequence": [...]}`; a cancel request ends it canceled at its next step. One daemon
+    thread (`sim-actions`) keeps every goal's time."""
+
+    def __init__(self, step: float = 0.05) -> None:
+        self.step = step
+        self._cond = threading.Condition()
+        self._due: list[tuple[float, int, Callable[[], None]]] = []
+        self._order = itertools.count()
+        self._goals: dict[str, _SimGoal] = {}
+        self.thread = threading.Thread(target=self._run, name="sim-actions", daemon=True)
+        self.thread.start()
+
+    def _later(self, delay: float, fn: Callable[[], None]) -> None:
+        with self._cond:
+            heapq.heappush(self._due, (time.monotonic() + delay, next(self._order), fn))
+            self._cond.notify()
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                while not self._due or self._due[0][0] > time.monotonic():
+                    self._cond.wait(self._due[0][0] - time.monotonic() if self._due else None)
+                _, _, fn = heapq.heappop(self._due)
+            fn()
+
+    def start(self, payload: Mapping[str, Any], listener: GoalListener) -> str:
+        order = payload.get("order")
+        if not isinstance(order, int) or isinstance(order, bool):
+            raise PortCallFailed("the goal needs an integer `order`")
+        goal = uuid.uuid4().hex
+        state = _SimGoal(listener, order)
+        with self._cond:
+            self._goals[goal] = state
+        self._later(0.0, lambda: self._answer(goal, state))
+        return goal
+
+    def _answer(self, goal: str, state: _SimGoal) -> None:
+        if state.order < 0:
+            self._end(goal, state, GoalEnd("rejected", error=PortRejected("the order must not be negative")))
+            return
+        state.listener.on_accepted(goal)
+        state.listener.on_status("executing")
+        self._later(self.step, lambda: self._next(goal, state))
+
+    def _next(self, goal: str, state: _SimGoal) -> None:
+        if state.over:
+            return
+        if state.cancel:
+            self._end(goal, state, GoalEnd("canceled", {"sequence": fibonacci(min(state.sent, 40))}))
+            return
+        if state.sent >= state.order:
+            self._end(goal, state, GoalEnd("succeeded", {"sequence": fibonacci(min(state.order, 40))}))
+            return
+        state.sent += 1
+        state.listener.on_feedback({"sequence": fibonacci(min(state.sent, 40))})
+        self._later(self.step, lambda: self._next(goal, state))
+
+    def _end(self, goal: str, state: _SimGoal, end: GoalEnd) -> None:
+        state.over = True
+        with self._cond:
+            self._goals.pop(goal, None)
+        state.listener.on_done(end)
+
+    def cancel(self, goal: str, on_done: CancelDone) -> None:
+        with self._cond:
+            state = self._goals.get(goal)
+        if state is None:
+            self._later(0.0, lambda: on_done(False, None))
+            return
+        self._later(0.0, lambda: self._canceling(state, on_done))
+
+    @staticmethod
+    def _canceling(state: _SimGoal, on_done: CancelDone) -> None:
+        if state.over:  # ended meanwhile: nothing to cancel
+            on_done(False, None)
+            return
+        state.cancel = True
+        state.listener.on_status("canceling")
+        on_done(True, None)
+
+
 class SimPort:
-    """Drives a simulated robot through the `RobotPort` protocol."""
+    """Drives a simulated robot through the `RobotPort` protocol (and its ROS actions through `actions`)."""
 
     def __init__(
         self,
@@ -88,9 +204,11 @@ class SimPort:
         readers: Mapping[str, Callable[[], Any]] | None = None,
         writers: Mapping[str, Callable[[Any], None]] | None = None,
         request_field: str = "procedure",
+        actions: SimActions | None = None,
     ) -> None:
         self.model = model
         self.sim = sim
+        self.actions = actions
         self.readers = dict(rb1_readers(sim) if readers is None else readers)
         self.writers = dict(rb1_writers(sim) if writers is None else writers)
         self.request_field = request_field
@@ -156,3 +274,25 @@ class SimPort:
         if writer is None:
             raise PortCallFailed(f"the simulation does not publish {name!r}")
         writer(value)
+
+    # -- ROS actions (the `GoalPort` protocol): the simulated servers of `actions`
+
+    def start_goal(
+        self, component: str, action: str, payload: Mapping[str, Any], timeout: float, listener: GoalListener
+    ) -> str:
+        with self._lock:
+            self.calls.append((component, action))
+        if self.actions is None:
+            raise PortCallFailed("the simulation has no ROS actions")
+        if self.down:
+            raise PortUnavailable(f"the action server of {action} is not available")
+        return self.actions.start(payload, listener)
+
+    def request_cancel(self, component: str, action: str, goal: str, timeout: float, on_done: CancelDone) -> None:
+        if self.actions is None:
+            on_done(False, PortCallFailed("the simulation has no ROS actions"))
+            return
+        self.actions.cancel(goal, on_done)
+
+    def forget_goal(self, component: str, action: str, goal: str) -> None:
+        """Nothing to forget: a simulated goal tells its listener until it ends."""

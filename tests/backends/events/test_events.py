@@ -20,6 +20,7 @@ from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GenOptions
 from td2adaptor.model import Model
 from td2adaptor.model.events import ALL_ROBOTS, Kind, build_catalog, data_schema
+from td2adaptor.model.exposed import DEFAULT_PACKET
 from td2adaptor.model.wot import wot_topic
 from td2adaptor.runtime.events import EventValidator
 from tests.backends.events.schemawalk import subschemas, untyped
@@ -349,17 +350,25 @@ def test_exposed_td_forms(files: dict[str, bytes]) -> None:
     topics = {wot_topic(s, ROBOT) or s.topic(ROBOT) for s in rb1_catalog().specs}
     seen = set()
     for form in _forms(td):
-        packet = form["mqv:controlPacket"]
-        assert packet in ("publish", "subscribe", "unsubscribe") and form["contentType"] == "application/json"
-        topic = form["mqv:topic"] if packet == "publish" else form["mqv:filter"]
-        assert ("mqv:topic" in form) == (packet == "publish") and ("mqv:filter" in form) == (packet != "publish")
+        ops = [form["op"]] if isinstance(form["op"], str) else form["op"]
+        # the W3C MQTT binding's default mapping gives each operation its control packet: stated only for the
+        # operations it maps to nothing; the content type is TD 1.1's default (application/json)
+        assert ("mqv:controlPacket" in form) == (
+            ops in (["queryaction"], ["cancelaction"])
+        ) and "contentType" not in form
+        packets = {form.get("mqv:controlPacket") or DEFAULT_PACKET[op] for op in ops}
+        assert packets in ({"publish"}, {"subscribe", "unsubscribe"})  # one form for a subscription and its end
+        publish = packets == {"publish"}
+        topic = form["mqv:topic"] if publish else form["mqv:filter"]
+        assert ("mqv:topic" in form) == publish and ("mqv:filter" in form) != publish
         assert form["href"] == f"{BROKER}/{topic}"  # node-wot 0.8 reads the topic from the href path
-        assert form.get("mqv:qos") == (None if packet == "unsubscribe" else "1")  # the runtime's QoS 1
+        assert form["mqv:qos"] == "1"  # the runtime's QoS 1
         seen.add(topic)
     assert seen == topics
     goto = td["actions"]["gotoRun"]
     assert [f["op"] for f in goto["forms"]] == ["invokeaction", "queryaction", "cancelaction"]
-    assert all(f["mqv:controlPacket"] == "publish" and "mqv:retain" not in f for f in goto["forms"])
+    assert [f.get("mqv:controlPacket") for f in goto["forms"]] == [None, "publish", "publish"]
+    assert all("mqv:retain" not in f for f in goto["forms"])
     assert [f["mqv:topic"] for f in goto["forms"]] == [
         f"td2adaptor/{ROBOT}/wot-thing/GoToComponent/{name}" for name in ("gotoRun", "gotoQuery", "gotoCancel")
     ]
@@ -369,16 +378,17 @@ def test_exposed_td_forms(files: dict[str, bytes]) -> None:
     query = td["actions"]["gotoQuery"]["input"]
     assert set(query["properties"]) == {"mission", "correlationId"}
     availability = td["properties"]["availability"]
-    assert availability["forms"][0]["op"] == ["readproperty", "observeproperty"] and availability["observable"]
+    assert availability["forms"][0]["op"] == ["readproperty", "observeproperty", "unobserveproperty"]
+    assert availability["observable"] and availability["readOnly"] and "writeOnly" not in availability
     assert availability["forms"][0]["mqv:retain"] is True  # property values are retained, as is the status
     assert td["events"]["status"]["forms"][0]["mqv:retain"] is True
     assert "mqv:retain" not in td["events"]["gotoRunFeedback"]["forms"][0]
-    assert td["properties"]["door"]["writeOnly"] is True
+    assert td["properties"]["door"]["writeOnly"] is True and "readOnly" not in td["properties"]["door"]
     assert td["properties"]["door"]["forms"][0]["mqv:topic"] == f"td2adaptor/{ROBOT}/wot-thing/DoorComponent/door"
     assert set(td["properties"]["door"]["properties"]) == {"data"}  # the value itself
     assert "payload" not in td["properties"]["poseMarker"]["properties"]
     feedback = td["events"]["gotoRunFeedback"]
-    assert feedback["forms"][0]["op"] == "subscribeevent"
+    assert [f["op"] for f in feedback["forms"]] == [["subscribeevent", "unsubscribeevent"]]
     assert feedback["data"]["properties"]["state"]["enum"][-1] == "cancelled"
     assert {"correlationId", "mission", "terminal", "seq"} <= set(feedback["data"]["properties"])
     assert set(td["events"]) == {
@@ -401,7 +411,7 @@ def test_property_qos_0_is_what_the_observe_forms_say() -> None:
     default = robot_td()
     for name, prop in td["properties"].items():
         for form, before in zip(prop["forms"], default["properties"][name]["forms"], strict=True):
-            observe = form["mqv:controlPacket"] == "subscribe"
+            observe = "mqv:filter" in form
             assert form.get("mqv:qos") == ("0" if observe else before.get("mqv:qos")), (name, form)
     assert any(f.get("mqv:qos") == "0" for p in td["properties"].values() for f in p["forms"])
     others = [f for s in ("actions", "events") for a in td[s].values() for f in a["forms"]]
@@ -590,8 +600,13 @@ def test_the_broker_acl_names_each_robots_topics_and_refuses_ids_that_would_open
         text, said = acl(robots)
         rules = [line for line in text.splitlines() if line and not line.startswith("#")]
         assert said == [] and not [r for r in rules if "%" in r or r.startswith("pattern")]
-        assert [r for r in rules if r.startswith("user ")] == ["user rb1_a", "user rb1_b", "user application"]
+        users = [r for r in rules if r.startswith("user ")]
+        assert users == ["user rb1_a", "user rb1_b", "user fleet-admin", "user application"]
         block = rules[rules.index("user rb1_a") + 1 : rules.index("user rb1_b")]
+        # and the fleet's admin requests (docs/fleet.md), at a level no robot id can be
+        fleet = f"td2adaptor/.fleet/{model.package_name}"
+        assert block[-1] == f"topic write {fleet}/answer" and f"topic read {fleet}/request" in block
+        block = [r for r in block if not r.startswith(f"topic read {fleet}/") and f" {fleet}/" not in r]
         assert "topic write td2adaptor/rb1_a/wot-thing/GoToComponent/gotoRun/feedback" in block
         # its commands through filters that also match topics no event is defined on (answered unknown-topic)
         assert "topic read td2adaptor/rb1_a/+/+" in block and "topic read td2adaptor/rb1_a/wot-thing/+/+" in block
@@ -610,3 +625,28 @@ def test_the_broker_acl_names_each_robots_topics_and_refuses_ids_that_would_open
     assert said == ["GEN860: events backend: events.robots must be a list of robot ids"]
     text = tree_of(model)["mosquitto.acl"].decode()
     assert "\nuser <robot>\n" in text and "topic write td2adaptor/<robot>/status" in text
+
+
+def test_the_broker_acl_lets_the_fleet_admin_ask_and_the_nodes_answer_and_refuses_a_bad_fleet_name() -> None:
+    """Issue 32: the fleet's admin requests (`events.fleet`, default the package name): the `fleet-admin` user
+    writes requests and reads answers, each node the other way round; a fleet name that is no single topic
+    level is refused (GEN860)."""
+    model = rb1_model()
+
+    def acl(fleet: Any) -> tuple[list[str], list[str]]:
+        diags = Diagnostics()
+        extra = (("events.robots", ["rb1_a"]), ("events.fleet", fleet))
+        tree = backend.generate(model, GenOptions(extra=extra), diags)
+        text = tree.files[f"{model.package_name}/mosquitto.acl"].decode()
+        return [r for r in text.splitlines() if r and not r.startswith("#")], [f"{d.code}: {d.message}" for d in diags]
+
+    rules, said = acl("site_7")
+    assert said == []
+    admin = rules[rules.index("user fleet-admin") + 1 : rules.index("user application")]
+    assert admin == ["topic write td2adaptor/.fleet/site_7/request", "topic read td2adaptor/.fleet/site_7/answer"]
+    node = rules[rules.index("user rb1_a") + 1 : rules.index("user fleet-admin")]
+    assert "topic read td2adaptor/.fleet/site_7/request" in node
+    assert "topic write td2adaptor/.fleet/site_7/answer" in node
+    for bad in ("a/b", "+", "#", ALL_ROBOTS, "", 7):
+        _, said = acl(bad)
+        assert len(said) == 1 and said[0].startswith("GEN860") and "is not a fleet name" in said[0], (bad, said)

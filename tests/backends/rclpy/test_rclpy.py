@@ -172,6 +172,7 @@ def test_hostile_titles_and_descriptions_stay_text(tmp_path: Path) -> None:
         "collections",
         "collections.abc",
         "typing",
+        "math",
         "re",
         "sys",
         "threading",

@@ -34,7 +34,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.subscription import Subscription
 from rclpy.task import Future
 
-from .common import ERROR_WITHOUT_MESSAGE, FAILURE_WITHOUT_MESSAGE, Callbacks, check_timeout
+from .common import ERROR_WITHOUT_MESSAGE, FAILURE_WITHOUT_MESSAGE, Callbacks, check_message, check_timeout
 from .errors import (
     AdaptorError,
     CallFailed,
@@ -488,6 +488,13 @@ class ProcedureStyleResponse(Protocol):
     def result(self) -> _ResultFields: ...
 
 
+class SuccessOnlyResponse(Protocol):
+    """A response with `success` and no message."""
+
+    @property
+    def success(self) -> bool: ...
+
+
 class SuccessStyleResponse(Protocol):
     """A response with `success` and `message` (std_srvs/Trigger and SetBool style)."""
 
@@ -510,6 +517,11 @@ def success_failure(response: SuccessStyleResponse) -> str | None:
     if not response.success:
         return response.message or FAILURE_WITHOUT_MESSAGE
     return None
+
+
+def success_only_failure(response: SuccessOnlyResponse) -> str | None:
+    """FAILURE_WITHOUT_MESSAGE when a response with `success` and no message reports failure, else None."""
+    return None if response.success else FAILURE_WITHOUT_MESSAGE
 
 
 class ServiceClient(Generic[RequestT, ResponseT]):
@@ -778,9 +790,17 @@ class TopicPublisher(Generic[MessageT]):
                 self.publisher = _api(self.node).create_publisher(self.msg_type, self.topic, self.qos)
 
     def publish(self, msg: MessageT) -> None:
+        """Publish `msg` after checking its numbers (check_message): a ValueError sends nothing."""
+        check_message(msg, type(msg).__name__, _message_fields)
         if self.publisher is None:
             self.register()
         cast(Publisher, self.publisher).publish(msg)
+
+
+def _message_fields(msg: object) -> Any:
+    """A rosidl message's (field, type) pairs, None for any other value."""
+    listing = getattr(type(msg), "get_fields_and_field_types", None)
+    return None if listing is None else listing().items()
 
 
 # ---------------------------------------------------------------------------------------------------------

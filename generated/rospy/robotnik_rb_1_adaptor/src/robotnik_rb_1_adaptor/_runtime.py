@@ -29,7 +29,7 @@ from rospy.exceptions import TransportException, TransportInitError
 if TYPE_CHECKING:
     from typing import TypeGuard  # Python 3.10; only in annotations here, which Python 3.8 never evaluates
 
-from .common import Callbacks, check_float32, check_float64
+from .common import Callbacks, check_float32, check_float64, check_message
 from .errors import CallFailed, CallTimeout, InvalidMessage, NoMessage, NotInitialized, ServiceUnavailable
 
 Req = TypeVar("Req")
@@ -470,5 +470,21 @@ class TopicPublisher(Generic[M]):
     def publish(self, msg: M) -> None:
         if not isinstance(msg, self._msg_class):
             raise InvalidMessage(f"{self.name}: expected {_type_name(self._msg_class)}, not {type(msg).__name__}")
+        check_message(msg, type(msg).__name__, _message_fields)  # a ValueError sends nothing
         self.register()
         self._publisher.publish(msg)
+
+
+def _message_fields(msg: object) -> Any:
+    """A genpy message's (field, type) pairs (a time's and a duration's too), None for any other value."""
+    if isinstance(msg, genpy.Time):
+        return _TIME_FIELDS
+    if isinstance(msg, genpy.Duration):
+        return _DURATION_FIELDS
+    types = getattr(msg, "_slot_types", None)
+    return None if types is None else zip(msg.__slots__, types)  # type: ignore[attr-defined]
+
+
+#: what ROS 1 serialises a time and a duration as (genpy checks neither when a field is set)
+_TIME_FIELDS = (("secs", "uint32"), ("nsecs", "uint32"))
+_DURATION_FIELDS = (("secs", "int32"), ("nsecs", "int32"))

@@ -1,0 +1,487 @@
+"""One thread serves every MQTT connection an `MqttBus` opens in the process, with paho's external-loop API.
+
+paho's `loop_start()` gives each client a network thread of its own: a fleet of 100 robots in one process had
+100 of them, every publish woke its robot's thread, and under load most of their time went into waiting for
+the interpreter lock (docs/fleet.md). Here one thread (`td2adaptor-mqtt`) waits on every connection's socket
+in one selector and does for each what paho's thread did: it reads what the broker sends (paho calls the bus's
+callbacks; its handlers only queue the messages), keeps the connection alive (`loop_misc`) and reconnects a
+lost one after paho's back-off (the first wait `reconnect_delay[0]`, doubling up to `reconnect_delay[1]`, from
+the start again once a CONNACK accepts it). A publish is written by the publishing thread itself, as paho
+does without a network thread, unless the loop is on that connection at that moment: then it wakes the loop
+(a socket pair in its selector), which writes it. Nothing that may block runs on the loop's thread: a
+reconnection's TCP connect and TLS handshake, and a bus's check of a new connection, run on a few helper
+threads (`td2adaptor-mqtt-helper-N`, at most `HELPERS`; one attempt per broker at a time), so that one slow
+or unreachable broker never stalls the other connections.
+
+A connection's socket is read and written only under its `Link.io` lock (the loop's steps, a publisher's
+write), and taken out of the selector before paho closes it, so the selector never holds a stale descriptor;
+a helper reconnects a client only while the loop has no socket of it. A held connection (`Link.hold`, while
+the bus checks it) is read but not written: nothing goes to a broker not yet trusted, not even the
+acknowledgement of a message.
+"""
+
+from __future__ import annotations
+
+import functools
+import heapq
+import itertools
+import logging
+import queue
+import selectors
+import socket
+import ssl
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from typing import Any
+
+import paho.mqtt.client as mqtt
+from paho.mqtt.enums import MQTTErrorCode
+
+log = logging.getLogger("td2adaptor.runtime.bus")
+
+#: seconds between two keep-alive checks of every connection (keep-alive periods are whole seconds)
+MISC = 0.5
+#: threads for what may block (reconnections, checks of new connections)
+HELPERS = 4
+THREAD = "td2adaptor-mqtt"
+_OK = MQTTErrorCode.MQTT_ERR_SUCCESS
+
+
+class ServedClient(mqtt.Client):
+    """A paho client that writes nothing while `held`: paho writes by itself in one place, on a CONNACK when
+    more messages wait than its in-flight window lets out (`loop_write` from inside the read)."""
+
+    held = False
+
+    def loop_write(self) -> MQTTErrorCode:
+        if self.held:
+            return _OK
+        return super().loop_write()
+
+
+class Link:
+    """One paho client served by the loop. Its state belongs to the loop's thread; other threads use `start`,
+    `close`, and paho's callbacks set here (a publish written at once, or the loop woken to write it)."""
+
+    def __init__(self, loop: MqttLoop, client: mqtt.Client, reconnect_delay: tuple[int, int], name: str) -> None:
+        self.loop = loop
+        self.client = client
+        self.name = name  # for the log
+        self.min_delay, self.max_delay = reconnect_delay
+        self.delay: float | None = None  # the last wait before a reconnection; None: connected since
+        self.sock: Any = None  # the socket registered in the selector
+        self.writing = False  # registered for writability too (a write would have blocked)
+        self._held = False  # write nothing (the bus checks this connection)
+        self.closing = False  # never reconnect; forget once the socket is gone
+        self.away = False  # no socket: waiting to reconnect, or reconnecting on a helper
+        self.trying = False  # a helper is reconnecting it
+        self.done = threading.Event()  # the loop has forgotten it
+        self.io = threading.RLock()  # held by whoever reads or writes the socket: the loop, or a publisher
+        client.on_socket_close = self._socket_closed
+        client.on_socket_register_write = self._wants_write
+        client.on_socket_unregister_write = self._wrote
+
+    def start(self) -> None:
+        """Serve the client, whose `connect()` has returned (its CONNECT is written or queued)."""
+        self.loop.call_soon(lambda: self.loop._activate(self))
+
+    def close(self, timeout: float) -> None:
+        """Disconnect cleanly (or, while held, drop the connection: see `drop`) and forget the client; wait at
+        most `timeout` for it (not on the loop's thread), then drop what is still open."""
+        self.loop.call_soon(lambda: self.loop._close(self, clean=True))
+        if self.loop.on_thread():
+            return
+        if not self.done.wait(timeout):
+            self.loop.call_soon(lambda: self.loop._close(self, clean=False))
+
+    @property
+    def held(self) -> bool:
+        """Write nothing on this connection (paho neither, see `ServedClient`)."""
+        return self._held
+
+    @held.setter
+    def held(self, held: bool) -> None:
+        self._held = held
+        if isinstance(self.client, ServedClient):
+            self.client.held = held
+
+    def hold(self) -> None:
+        """(Loop thread) write nothing on this connection until `release`; what arrives is still read."""
+        self.held = True
+
+    def release(self) -> None:
+        """(Loop thread) write what was queued meanwhile, and go on as usual."""
+        self.held = False
+        self.loop._settle(self, _OK)
+
+    def drop(self) -> None:
+        """(Loop thread) close the connection without writing anything more, and forget the client: the broker
+        publishes the will. For a connection that must not be trusted."""
+        self.loop._close(self, clean=False)
+
+    # paho's callbacks (any thread)
+    def _wants_write(self, client: mqtt.Client, _userdata: Any, _sock: Any) -> None:
+        """Something was queued: a publisher writes it at once, as paho does without a network thread, unless
+        the loop is reading or writing this connection right now (then the loop writes it)."""
+        if not self.loop.on_thread() and self.sock is not None and not self._held and self.io.acquire(False):
+            try:
+                if self.sock is not None and not self._held:
+                    client.loop_write()  # a failure closes the socket: see _socket_closed
+                    if client.socket() is not None and not client.want_write():
+                        return
+            finally:
+                self.io.release()
+        self.loop.notify(self)
+
+    def _wrote(self, client: mqtt.Client, _userdata: Any, _sock: Any) -> None:
+        # paho clears its "registered" flag after checking its queue; a publish from another thread between
+        # the two saw the flag still set and did not call `_wants_write`: look again
+        if client.want_write():
+            self.loop.notify(self)
+
+    def _socket_closed(self, _client: mqtt.Client, _userdata: Any, _sock: Any) -> None:
+        """paho closes the socket (right after this): out of the selector first. Off the loop's thread only a
+        publisher's write that failed closes it, holding `io`: the loop learns it is lost."""
+        self.loop._unregister(self)
+        if not self.loop.on_thread():
+            self.loop.call_soon(lambda: self.loop._settle(self, _OK))
+
+
+class _Helpers:
+    """At most `size` daemon threads for work that may block, started as work comes and none is idle."""
+
+    def __init__(self, size: int, name: str) -> None:
+        self._size = size
+        self._name = name
+        self._jobs: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
+        self._lock = threading.Lock()
+        self._threads = 0
+        self._idle = 0
+
+    def submit(self, job: Callable[[], None]) -> None:
+        self._jobs.put(job)
+        with self._lock:
+            if self._idle > 0 or self._threads >= self._size:
+                return
+            self._threads += 1
+            name = f"{self._name}-{self._threads}"
+        threading.Thread(target=self._work, name=name, daemon=True).start()
+
+    def _work(self) -> None:
+        while True:
+            with self._lock:
+                self._idle += 1
+            job = self._jobs.get()
+            with self._lock:
+                self._idle -= 1
+            try:
+                job()
+            except Exception:  # noqa: BLE001 - a helper serves every connection: it must live
+                log.exception("MQTT helper job failed")
+
+
+class MqttLoop:
+    """The serving thread and its helpers (see the module's doc); `shared()` is the process's one."""
+
+    def __init__(self) -> None:
+        self._selector = selectors.DefaultSelector()
+        self._wake_r, self._wake_w = socket.socketpair()
+        self._wake_r.setblocking(False)
+        self._wake_w.setblocking(False)
+        self._selector.register(self._wake_r, selectors.EVENT_READ, None)
+        self._calls: deque[Callable[[], None]] = deque()
+        self._dirty: deque[Link] = deque()  # links a thread queued something on
+        self._signalled = False  # a wake-up byte is on its way: no need for another
+        self._links: set[Link] = set()
+        self._timers: list[tuple[float, int, Link]] = []  # reconnections due, a heap
+        self._trying: dict[tuple[str, int], list[Link]] = {}  # a broker being reconnected to: who waits for it
+        self._order = itertools.count()
+        self._misc_at = 0.0
+        self.helpers = _Helpers(HELPERS, f"{THREAD}-helper")
+        self._ident: int | None = None
+        self._thread = threading.Thread(target=self._run, name=THREAD, daemon=True)
+        self._thread.start()
+
+    # -- any thread ------------------------------------------------------------------------------------
+
+    def on_thread(self) -> bool:
+        return threading.get_ident() == self._ident
+
+    def call_soon(self, call: Callable[[], None]) -> None:
+        """Run `call` on the loop's thread, in order with the other calls."""
+        self._calls.append(call)
+        self._wake()
+
+    def notify(self, link: Link) -> None:
+        """Something was queued on `link`'s client: write it promptly."""
+        self._dirty.append(link)
+        self._wake()
+
+    def run_blocking(self, job: Callable[[], None]) -> None:
+        """Run `job`, which may block, on a helper thread."""
+        self.helpers.submit(job)
+
+    def _wake(self) -> None:
+        if self._signalled or self.on_thread():
+            return  # the loop looks at its queues before it waits again
+        self._signalled = True
+        try:
+            self._wake_w.send(b"\0")
+        except OSError:  # full: it is awake already
+            pass
+
+    # -- the loop's thread -----------------------------------------------------------------------------
+
+    def _run(self) -> None:
+        self._ident = threading.get_ident()
+        while True:
+            try:
+                self._turn()
+            except Exception:  # noqa: BLE001 - it serves every connection: it must live
+                log.exception("serving the MQTT connections failed")
+                time.sleep(0.1)
+
+    def _turn(self) -> None:
+        events = self._selector.select(self._timeout())
+        self._signalled = False  # before draining: a wake-up sent from now on is seen next turn
+        for key, _mask in events:
+            if key.data is None:
+                try:
+                    self._wake_r.recv(4096)
+                except OSError:
+                    pass
+        while self._calls:
+            call = self._calls.popleft()
+            try:
+                call()
+            except Exception:  # noqa: BLE001 - as below
+                log.exception("serving the MQTT connections failed")
+        for key, mask in events:
+            link = key.data
+            if link is None or link.sock is not key.fileobj:
+                continue  # the wake-up pair, or a socket closed since the wait
+            if mask & selectors.EVENT_READ:
+                self._guarded(link, self._read)
+            if mask & selectors.EVENT_WRITE and link.sock is not None and not link.held:
+                self._guarded(link, self._write)
+        self._flush()
+        now = time.monotonic()
+        if now >= self._misc_at:
+            self._misc_at = now + MISC
+            for link in list(self._links):
+                if link.sock is not None and not link.held:
+                    self._guarded(link, self._misc)
+            self._flush()
+        while self._timers and self._timers[0][0] <= now:
+            _, _, link = heapq.heappop(self._timers)
+            if link.closing:
+                self._forget(link)
+                continue
+            broker = (link.client.host, link.client.port)
+            waiting = self._trying.get(broker)
+            if waiting is not None:  # one attempt per broker at a time: the others follow its outcome
+                waiting.append(link)
+                continue
+            self._trying[broker] = []
+            link.trying = True
+            self.run_blocking(functools.partial(self._reconnect, link, broker))
+
+    def _timeout(self) -> float | None:
+        if self._calls or self._dirty:
+            return 0.0  # queued by this thread itself (a handler that closes a bus): no wake-up was sent
+        if not self._links:
+            return None
+        now = time.monotonic()
+        due = self._misc_at
+        if self._timers:
+            due = min(due, self._timers[0][0])
+        return max(0.0, due - now)
+
+    def _flush(self) -> None:
+        """Write what other threads (and the callbacks of this turn) queued."""
+        for _ in range(len(self._dirty)):
+            link = self._dirty.popleft()
+            if link.sock is not None and not link.held and link.client.want_write():
+                self._guarded(link, self._write)
+
+    def _guarded(self, link: Link, step: Callable[[Link], MQTTErrorCode]) -> None:
+        with link.io:
+            try:
+                rc = step(link)
+            except Exception:  # noqa: BLE001 - one connection's fault must not stop the others' service
+                log.exception("serving the MQTT connection %s failed", link.name)
+                rc = _OK
+            self._settle(link, rc)
+
+    @staticmethod
+    def _read(link: Link) -> MQTTErrorCode:
+        client = link.client
+        rc = client.loop_read()
+        sock = client.socket()
+        while rc is _OK and isinstance(sock, ssl.SSLSocket) and sock.pending() > 0:
+            rc = client.loop_read()  # decrypted already: the selector would not say
+            sock = client.socket()
+        return rc
+
+    @staticmethod
+    def _write(link: Link) -> MQTTErrorCode:
+        return link.client.loop_write()
+
+    @staticmethod
+    def _misc(link: Link) -> MQTTErrorCode:
+        return link.client.loop_misc()  # a PINGREQ when due; a connection whose broker stays silent dropped
+
+    def _settle(self, link: Link, rc: MQTTErrorCode) -> None:
+        """After a step: write what it queued, watch writability while a write would block; a lost connection
+        is reconnected later (or forgotten when closing)."""
+        with link.io:
+            self._settled(link, rc)
+
+    def _settled(self, link: Link, rc: MQTTErrorCode) -> None:
+        if link.away or link not in self._links:
+            return  # no socket now, or forgotten
+        client = link.client
+        sock = client.socket()
+        if rc is _OK and sock is not None and sock is not link.sock:
+            self._unregister(link)  # paho made a new connection itself (it does for some refusals)
+            self._register(link, sock)
+        if rc is _OK and sock is not None and not link.held and client.want_write():
+            rc = client.loop_write()
+            sock = client.socket()
+        if rc is not _OK or sock is None:
+            self._lost(link)
+            return
+        if link.delay is not None and client.is_connected():
+            link.delay = None  # accepted: the next loss waits the shortest delay again
+        writing = not link.held and client.want_write()
+        if writing != link.writing:
+            link.writing = writing
+            mask = selectors.EVENT_READ | (selectors.EVENT_WRITE if writing else 0)
+            self._selector.modify(sock, mask, link)
+
+    def _register(self, link: Link, sock: Any) -> None:
+        link.sock = sock
+        link.writing = False
+        self._selector.register(sock, selectors.EVENT_READ, link)
+
+    def _unregister(self, link: Link) -> None:
+        sock, link.sock = link.sock, None
+        link.writing = False
+        if sock is not None:
+            try:
+                self._selector.unregister(sock)
+            except (KeyError, ValueError, OSError):
+                pass
+
+    def _activate(self, link: Link) -> None:
+        self._links.add(link)
+        with link.io:
+            sock = link.client.socket()
+            if sock is None:
+                self._lost(link)
+                return
+            self._register(link, sock)
+            self._settle(link, _OK)
+
+    def _lost(self, link: Link) -> None:
+        """The connection is gone: reconnect after the back-off, unless the client is closing."""
+        if link.away:
+            return  # a reconnection is under way already
+        self._unregister(link)
+        link.held = False
+        if link.closing:
+            self._forget(link)
+            return
+        link.delay = link.min_delay if link.delay is None else min(link.delay * 2, link.max_delay)
+        link.away = True
+        heapq.heappush(self._timers, (time.monotonic() + link.delay, next(self._order), link))
+
+    def _reconnect(self, link: Link, broker: tuple[str, int] | None) -> None:
+        """(Helper thread) connect the client again: TCP, TLS and CONNECT; the loop serves it from then on.
+        `broker`: this attempt is the one the other clients of that broker wait for (see `_turn`): a broker
+        that drops packets costs `connect_timeout` per attempt, and a fleet's hundred attempts in a row
+        would keep every robot away for minutes after it is back."""
+        try:
+            link.client.reconnect()
+        except Exception as exc:  # noqa: BLE001 - refused, unreachable, TLS: tried again after the back-off
+            log.debug("reconnecting to the MQTT broker failed: %s", exc)
+            self.call_soon(lambda: self._failed(link, broker))
+            return
+        self.call_soon(lambda: self._back(link, broker))
+
+    def _failed(self, link: Link, broker: tuple[str, int] | None) -> None:
+        """The attempt failed: it, and those that waited for it, wait their next back-off."""
+        link.trying = False
+        for other in [link, *self._trying.pop(broker, [])] if broker is not None else [link]:
+            other.away = False
+            self._lost(other)
+
+    def _back(self, link: Link, broker: tuple[str, int] | None) -> None:
+        """Connected: serve it; the clients that waited for this broker try now, each on its own."""
+        for other in self._trying.pop(broker, []) if broker is not None else []:
+            if other.closing:
+                other.away = False
+                self._forget(other)
+            else:
+                other.trying = True
+                self.run_blocking(functools.partial(self._reconnect, other, None))
+        link.trying = link.away = False
+        with link.io:
+            sock = link.client.socket()
+            if sock is None:
+                self._lost(link)
+                return
+            self._register(link, sock)
+            if link.closing:  # closed while it was reconnecting: end this connection at once
+                link.client.disconnect()
+            self._settle(link, _OK)
+
+    def _close(self, link: Link, *, clean: bool) -> None:
+        """Stop serving `link`: a clean DISCONNECT (`clean`, and not held) or a drop without writing anything
+        (the broker publishes the will); it is forgotten once its socket is gone."""
+        with link.io:
+            self._closing(link, clean=clean)
+
+    def _closing(self, link: Link, *, clean: bool) -> None:
+        first = not link.closing
+        link.closing = True
+        if link.sock is None:
+            if not link.trying:
+                self._forget(link)  # (a reconnection due later finds it closing)
+            return  # else the helper's reconnection ends at once
+        if clean and not link.held:
+            if first:
+                link.client.disconnect()  # queued after what was published before
+                self._settle(link, _OK)
+            return
+        link.held = True
+        self._unregister(link)
+        sock: Any = link.client.socket()
+        try:
+            sock.shutdown(socket.SHUT_RDWR)
+        except (OSError, AttributeError):
+            pass
+        for _ in range(64):  # paho reads the end of the stream, closes its socket and says so
+            if link.client.socket() is None or link.client.loop_read() is not _OK:
+                break
+        self._forget(link)
+
+    def _forget(self, link: Link) -> None:
+        self._unregister(link)
+        self._links.discard(link)
+        link.done.set()
+
+
+_shared: MqttLoop | None = None
+_shared_lock = threading.Lock()
+
+
+def shared() -> MqttLoop:
+    """The process's serving loop (started on first use)."""
+    global _shared
+    with _shared_lock:
+        if _shared is None:
+            _shared = MqttLoop()
+        return _shared

@@ -1,0 +1,279 @@
+"""The robots one edge-node process serves, and the one place that changes that list while it runs.
+
+A robot joins (`add`: its port on the ROS graph, its engine connected, its TD published and registered) or
+leaves (`remove`: its engine stopped with every mission in flight ended by a terminal event, its TD cleared
+and deregistered, its status `offline`, its port closed) on its own: the other robots keep their bus
+connections, their ports and their missions. A robot whose settings changed restarts alone (`replace`).
+`apply` takes a whole new list of one origin (a reloaded fleet file), changing only what differs.
+
+Who asks: the fleet file at start and on reload (origin "file"), discovery ("discovery", runtime/node/
+graphwatch.py) and admin requests on the bus ("admin", runtime/node/admin.py). Each origin manages its own
+robots: a reloaded file never removes a robot discovery found. One change runs at a time (a lock); hooks
+(`on_added`, `on_removed`) hear of each robot that started or stopped, after the fact.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from functools import partial
+
+from td2adaptor.model import Model
+from td2adaptor.runtime.bus.localbus import LocalBroker
+from td2adaptor.runtime.config import RuntimeConfig
+from td2adaptor.runtime.engine.engine import Engine
+from td2adaptor.runtime.node.app import serve
+from td2adaptor.runtime.node.roslink import RosLink
+from td2adaptor.runtime.ros.port import RobotPort
+
+log = logging.getLogger("td2adaptor.runtime.fleet")
+
+ORIGINS = ("file", "discovery", "admin")
+
+
+class FleetError(Exception):
+    """A change of the fleet was refused or failed; the message says which robot and why (`why` alone)."""
+
+    def __init__(self, robots: str, why: str) -> None:
+        super().__init__(f"robot {robots}: {why}" if robots else why)
+        self.why = why
+
+
+@dataclass
+class Changes:
+    """What one `apply` did, by robot id; `failed` maps a robot to why it could not be started."""
+
+    added: list[str] = field(default_factory=list)
+    removed: list[str] = field(default_factory=list)
+    replaced: list[str] = field(default_factory=list)
+    failed: dict[str, str] = field(default_factory=dict)
+
+    def __bool__(self) -> bool:
+        return bool(self.added or self.removed or self.replaced or self.failed)
+
+    def describe(self) -> str:
+        parts = [f"{what} {', '.join(ids)}" for what, ids in self._parts() if ids]
+        parts += [f"{robot} not started ({why})" for robot, why in self.failed.items()]
+        return "; ".join(parts) or "no change"
+
+    def _parts(self) -> list[tuple[str, list[str]]]:
+        return [("added", self.added), ("removed", self.removed), ("restarted", self.replaced)]
+
+
+def retire_words(robot: str, why: str) -> str:
+    """The message of the terminal event of a mission in flight when its robot leaves the fleet."""
+    return f"robot {robot} {why}: this edge node no longer follows the mission (the robot may still carry it out)"
+
+
+class Fleet:
+    """The robots of one process (see the module docstring). `link` is the process's ROS link; each robot
+    that joins later gets its port from `link.grow`."""
+
+    def __init__(
+        self,
+        model: Model,
+        link: RosLink,
+        *,
+        distro: str,
+        broker: LocalBroker | None = None,
+        on_halt: Callable[[str, str], None] | None = None,
+    ) -> None:
+        self.model = model
+        self.link = link
+        self.distro = distro
+        self.broker = broker
+        self.on_halt = on_halt  # (robot, why): a robot's bus stopped serving its broker
+        self.on_added: list[Callable[[Engine], None]] = []  # a robot started serving (hooks: presence, metrics)
+        self.on_removed: list[Callable[[str], None]] = []  # a robot stopped serving (its id)
+        self._lock = threading.RLock()
+        self._engines: dict[str, Engine] = {}
+        self._origin: dict[str, str] = {}
+        self._links: dict[str, RosLink] = {}  # the grown link of a robot that joined at run time
+        self._closed = False
+
+    # -- reading -------------------------------------------------------------------------------------------
+
+    def engines(self) -> list[Engine]:
+        with self._lock:
+            return list(self._engines.values())
+
+    def robots(self, origin: str | None = None) -> dict[str, RuntimeConfig]:
+        """The configuration of each robot served (of one origin), by id."""
+        with self._lock:
+            return {r: e.config for r, e in self._engines.items() if origin is None or self._origin[r] == origin}
+
+    def origin(self, robot: str) -> str | None:
+        with self._lock:
+            return self._origin.get(robot)
+
+    # -- changing ------------------------------------------------------------------------------------------
+
+    def start(self, configs: Sequence[RuntimeConfig], origin: str = "file") -> None:
+        """Serve the robots whose ports `link` has already (the start of the process): all or none."""
+        with self._lock:
+            try:
+                for config in configs:
+                    self._serve(config, self.link.ports[config.robot], origin)
+            except BaseException:
+                for robot in list(self._engines):
+                    self._engines.pop(robot).stop()
+                raise
+
+    def add(self, config: RuntimeConfig, origin: str) -> Engine:
+        """Start serving one more robot; raises `FleetError` when it is served already or cannot start (then
+        nothing of it is left)."""
+        with self._lock:
+            self._check_open()
+            if config.robot in self._engines:
+                raise FleetError(config.robot, "served already")
+            return self._grow([config], origin)[config.robot]
+
+    def remove(self, robot: str, why: str = "was removed from the edge node's fleet") -> bool:
+        """Stop serving `robot` (see the module docstring); False when it was not served."""
+        with self._lock:
+            engine = self._engines.pop(robot, None)
+            if engine is None:
+                return False
+            self._origin.pop(robot, None)
+            try:
+                engine.stop(retire=retire_words(robot, why))
+            finally:
+                self._release(robot)
+            log.info("robot %s: no longer served (%s)", robot, why)
+        self._tell(self.on_removed, robot)
+        return True
+
+    def replace(self, config: RuntimeConfig, origin: str) -> Engine:
+        """Restart one robot with new settings (the others are not touched)."""
+        with self._lock:
+            self.remove(config.robot, "restarts with changed settings")
+            return self.add(config, origin)
+
+    def apply(self, configs: Sequence[RuntimeConfig], origin: str) -> Changes:
+        """Make the robots of `origin` be `configs`: the ones gone leave, the changed ones restart, the new
+        ones join (together, on one ROS node). A robot that cannot start is reported in `Changes.failed`; the
+        others are served all the same. A robot served from another origin is left as it is."""
+        changes = Changes()
+        with self._lock:
+            self._check_open()
+            mine = self.robots(origin)
+            wanted = {c.robot: c for c in configs}
+            for robot in mine:
+                if robot not in wanted:
+                    self.remove(robot)
+                    changes.removed.append(robot)
+            fresh: list[RuntimeConfig] = []
+            for robot, config in wanted.items():
+                other = self._origin.get(robot)
+                if other is not None and other != origin:
+                    changes.failed[robot] = f"served already (its {other})"
+                elif robot not in mine:
+                    fresh.append(config)
+                elif mine[robot] != config:
+                    self.remove(robot, "restarts with changed settings")
+                    fresh.append(config)
+                    changes.replaced.append(robot)
+            started = self._start_all(fresh, origin, changes.failed)
+            changes.added += [r for r in started if r not in changes.replaced]
+            changes.replaced = [r for r in changes.replaced if r in started]
+        return changes
+
+    def stop(self) -> None:
+        """The process stops: every robot goes offline (missions left to the robot, followed again by the next
+        run, ledger.py), then the ports close. No change is taken afterwards."""
+        with self._lock:
+            self._closed = True
+            engines, self._engines = dict(self._engines), {}
+            for engine in engines.values():
+                engine.stop()
+            for robot in engines:
+                self._release(robot)
+            self._origin.clear()
+
+    # -- inside --------------------------------------------------------------------------------------------
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise FleetError("", "the edge node is stopping")
+
+    def _start_all(self, configs: Sequence[RuntimeConfig], origin: str, failed: dict[str, str]) -> list[str]:
+        """Start `configs` on one grown link; when that fails, one by one, so that one robot that cannot start
+        keeps none of the others from starting."""
+        if not configs:
+            return []
+        try:
+            return list(self._grow(configs, origin))
+        except FleetError as exc:
+            if len(configs) == 1:
+                failed[configs[0].robot] = exc.why
+                return []
+        started = []
+        for config in configs:
+            try:
+                self._grow([config], origin)
+                started.append(config.robot)
+            except FleetError as exc:
+                failed[config.robot] = exc.why
+        return started
+
+    def _grow(self, configs: Sequence[RuntimeConfig], origin: str) -> dict[str, Engine]:
+        """Ports for `configs` on a link of their own, then their engines; on a failure nothing is left."""
+        from td2adaptor.runtime.bus.bus import BusError
+        from td2adaptor.runtime.bus.security import SecurityError
+        from td2adaptor.runtime.ros.port import PortError, RosSetupError
+
+        robots = ", ".join(c.robot for c in configs)
+        if self.link.grow is None:
+            raise FleetError(robots, "this ROS link cannot take robots at run time")
+        started: dict[str, Engine] = {}
+        link: RosLink | None = None
+        try:
+            link = self.link.grow(configs)
+            for config in configs:
+                started[config.robot] = self._serve(config, link.ports[config.robot], origin)
+                self._links[config.robot] = link
+        except Exception as exc:
+            for robot in started:
+                self._engines.pop(robot).stop()
+                self._origin.pop(robot, None)
+                self._links.pop(robot, None)
+            if link is not None:
+                link.close()
+            if not isinstance(exc, (RosSetupError, SecurityError, BusError, PortError, OSError)):
+                log.exception("robot %s: could not start", robots)
+                raise FleetError(robots, "could not start (the edge node's log says why)") from None
+            raise FleetError(robots, str(exc)) from None
+        for engine in started.values():
+            log.info("robot %s: served from now on (%s)", engine.config.robot, origin)
+            self._tell(self.on_added, engine)
+        return started
+
+    def _serve(self, config: RuntimeConfig, port: RobotPort, origin: str) -> Engine:
+        engine = serve(self.model, port, config, broker=self.broker, distro=self.distro)
+        self._engines[config.robot] = engine
+        self._origin[config.robot] = origin
+        if self.on_halt is not None:
+            engine.on_halt.append(partial(self.on_halt, config.robot))
+            if engine.failure is not None:  # halted before the hook was in place
+                self.on_halt(config.robot, engine.failure)
+        return engine
+
+    def _release(self, robot: str) -> None:
+        """Close the robot's port, and its grown link once no robot of it is left."""
+        link = self._links.pop(robot, None)
+        if link is None:
+            self.link.release(robot)
+            return
+        link.release(robot)
+        if not link.ports:  # the last robot that joined with it
+            link.close()
+
+    @staticmethod
+    def _tell(hooks: Sequence[Callable[..., None]], arg: object) -> None:
+        for hook in list(hooks):
+            try:
+                hook(arg)
+            except Exception:  # a hook must not keep the fleet from changing
+                log.exception("a fleet hook failed")

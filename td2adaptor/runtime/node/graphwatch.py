@@ -1,0 +1,248 @@
+"""`td2adaptor run --discover`: serve every robot of the Thing Model that shows up in the ROS graph.
+
+A robot is a namespace under which the graph shows the model's interfaces (`Signature`): a server for every
+service and action the model names under `{{robotName}}`, or, for a model without any, a publisher of every
+topic it subscribes to there. The edge node's own clients and subscriptions never count (servers and
+publishers only). Every `period` the watcher reads the graph once and hands the robots it saw, with those
+gone for less than `grace` seconds, to the fleet (`Fleet.apply`, origin "discovery"): a new robot joins,
+one gone for `grace` leaves (its missions in flight end, its TD is cleared, its status goes `offline`).
+
+Reading the graph: on ROS 2 with rclpy's graph API on a node of the edge node's own context (no executor:
+graph queries need none): the service names once, then, for each namespace that has them all, whether each
+has a server (`count_services`); a robot served already is checked by its first interface only (a robot's
+servers go together when its process ends). On ROS 1 one `getSystemState` of the master over XML-RPC, whose
+service list names servers only. A robot that cannot be started (a namespace the package refuses) is
+retried after `RETRY` seconds, not every period.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+import threading
+import time
+import xmlrpc.client
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from td2adaptor.model import Model, Role
+from td2adaptor.model.events import ALL_ROBOTS, ROBOT_ID
+from td2adaptor.runtime.config import ConfigError, RuntimeConfig
+from td2adaptor.runtime.node.fleet import Fleet
+
+log = logging.getLogger("td2adaptor.runtime.fleet")
+
+PERIOD = 0.5  # seconds between two readings of the graph
+RETRY = 30.0  # seconds before a robot that could not be started is tried again
+CALLER_ID = "/td2adaptor_discovery"
+
+
+@dataclass(frozen=True)
+class Signature:
+    """What shows a robot of the model in a graph: paths under its namespace (without the leading '/')."""
+
+    services: tuple[str, ...]  # served by the robot
+    actions: tuple[str, ...]  # ROS 2 action servers
+    published: tuple[str, ...]  # topics the robot publishes (used only when the model has no service or action)
+
+    @property
+    def empty(self) -> bool:
+        return not (self.services or self.actions or self.published)
+
+
+def signature(model: Model) -> Signature:
+    """The model's namespaced interfaces (raises `ConfigError` when there is none: robots cannot be told apart)."""
+    services = sorted({s.ros_name.path for c in model.components for s in c.services if s.ros_name.namespaced})
+    actions = sorted({a.ros_name.path for c in model.components for a in c.actions if a.ros_name.namespaced})
+    published = sorted(
+        {
+            t.ros_name.path
+            for c in model.components
+            for t in c.topics
+            if t.ros_name.namespaced and t.role is Role.SUBSCRIBER
+        }
+    )
+    sig = Signature(tuple(services), tuple(actions), () if services or actions else tuple(published))
+    if sig.empty:
+        raise ConfigError(
+            "discovery needs a Thing Model whose ROS names live under {{robotName}} (the robot's namespace): "
+            "this one names none, so robots cannot be told apart in the ROS graph"
+        )
+    return sig
+
+
+def namespaces(names: Iterable[str], path: str) -> set[str]:
+    """The namespaces (without slashes around) under which `path` occurs among the graph `names`."""
+    tail = "/" + path
+    return {n[1 : -len(tail)] for n in names if n.endswith(tail) and len(n) > len(tail) + 1 and n.startswith("/")}
+
+
+def robot_id(namespace: str) -> str | None:
+    """The robot id of a namespace: itself, with '/' between levels as '.'; None when that is no robot id."""
+    rid = namespace.strip("/").replace("/", ".")
+    return rid if ROBOT_ID.match(rid) and rid != ALL_ROBOTS else None
+
+
+class Graph(Protocol):
+    def robots(self, sig: Signature, known: set[str]) -> set[str]:
+        """The namespaces that show `sig` now; `known` ones (served already) may be checked more cheaply."""
+        ...
+
+
+class Ros2Graph:
+    """The ROS 2 graph as `node` (an rclpy node, not spun) sees it."""
+
+    def __init__(self, node: Any) -> None:
+        self.node = node
+
+    def robots(self, sig: Signature, known: set[str]) -> set[str]:
+        if sig.services or sig.actions:
+            names = [n for n, _ in self.node.get_service_names_and_types()]
+            paths = [*sig.services, *(f"{a}/_action/send_goal" for a in sig.actions)]
+            count = self.node.count_services
+        else:
+            names = [n for n, _ in self.node.get_topic_names_and_types()]
+            paths = list(sig.published)
+            count = self.node.count_publishers
+        candidates = set.intersection(*(namespaces(names, p) for p in paths))
+        found = set()
+        for ns in candidates:
+            wanted = paths[:1] if ns in known else paths
+            if all(count(f"/{ns}/{p}") > 0 for p in wanted):
+                found.add(ns)
+        return found
+
+
+class Ros1Graph:
+    """The ROS 1 graph as its master knows it (XML-RPC, no rospy needed)."""
+
+    def __init__(self, master_uri: str, timeout: float = 2.0) -> None:
+        self.master_uri = master_uri
+        self.timeout = timeout
+
+    def robots(self, sig: Signature, known: set[str]) -> set[str]:
+        transport = _TimeoutTransport(self.timeout)
+        master: Any = xmlrpc.client.ServerProxy(self.master_uri, transport=transport)
+        code, message, state = master.getSystemState(CALLER_ID)
+        if code != 1:
+            raise OSError(f"the ROS 1 master refused getSystemState: {message}")
+        publishers, _subscribers, services = state
+        if sig.services:
+            names, paths = [n for n, _ in services], list(sig.services)
+        else:  # ROS 1 has no actions here: the topics the robot publishes
+            names, paths = [n for n, nodes in publishers if nodes], list(sig.published)
+        if not paths:
+            return set()
+        return set.intersection(*(namespaces(names, p) for p in paths))
+
+
+class _TimeoutTransport(xmlrpc.client.Transport):
+    def __init__(self, timeout: float) -> None:
+        super().__init__()
+        self.timeout = timeout
+
+    def make_connection(self, host: Any) -> Any:
+        conn = super().make_connection(host)
+        conn.timeout = self.timeout
+        return conn
+
+
+class Discovery:
+    """Keeps the fleet's discovered robots what `graph` shows (see the module docstring)."""
+
+    def __init__(
+        self,
+        fleet: Fleet,
+        graph: Graph,
+        sig: Signature,
+        make_config: Callable[[str, str], RuntimeConfig],
+        *,
+        grace: float,
+        period: float = PERIOD,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.fleet = fleet
+        self.graph = graph
+        self.sig = sig
+        self.make_config = make_config  # (robot id, namespace) -> its configuration
+        self.grace = grace
+        self.period = period
+        self.clock = clock
+        self.scans = 0
+        self._seen: dict[str, tuple[str, float]] = {}  # robot id -> (namespace, when last seen)
+        self._failed: dict[str, float] = {}  # robot id -> when it may be tried again
+        self._graph_failing = False
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._run, name="fleet-discovery", daemon=True)
+        self._thread.start()
+
+    def stop(self, timeout: float = 10.0) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout)
+            self._thread = None
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                self.scan()
+            except Exception:  # a bug must not end discovery for good
+                log.exception("discovery: a scan failed")
+            self._stop.wait(self.period)
+
+    def scan(self) -> None:
+        """One reading of the graph, applied to the fleet."""
+        now = self.clock()
+        known = {ns for ns, _ in self._seen.values()}
+        try:
+            present = self.graph.robots(self.sig, known)
+        except OSError as exc:  # the ROS 1 master is away: nobody is taken as gone for that
+            if not self._graph_failing:
+                log.warning("discovery: the ROS graph cannot be read (%s); trying again", exc)
+            self._graph_failing = True
+            return
+        if self._graph_failing:
+            log.info("discovery: the ROS graph can be read again")
+        self._graph_failing = False
+        self.scans += 1
+        for ns in present:
+            rid = robot_id(ns)
+            if rid is not None:
+                self._seen[rid] = (ns, now)
+        self._seen = {r: (ns, t) for r, (ns, t) in self._seen.items() if now - t <= self.grace}
+        served = self.fleet.robots("discovery")
+        others = {c.ros_namespace.strip("/") for r, c in self.fleet.robots().items() if r not in served}
+        wanted: dict[str, RuntimeConfig] = {}
+        for rid, (ns, _) in self._seen.items():
+            if self._failed.get(rid, now) > now or ns in others or self.fleet.origin(rid) not in (None, "discovery"):
+                continue  # to be tried again later, or served already from the fleet file or an admin request
+            try:
+                wanted[rid] = self.make_config(rid, ns)
+            except ConfigError as exc:
+                log.error("discovery: robot %s (namespace /%s) not served: %s", rid, ns, exc)
+                self._failed[rid] = now + RETRY
+        if set(wanted) == set(served):
+            return
+        changes = self.fleet.apply(list(wanted.values()), "discovery")
+        for rid, why in changes.failed.items():
+            log.error("discovery: robot %s not served, tried again in %g s: %s", rid, RETRY, why)
+            self._failed[rid] = now + RETRY
+        for rid in changes.added:
+            self._failed.pop(rid, None)
+        if changes.added or changes.removed:
+            log.info("discovery: %s", changes.describe())
+
+
+def ros2_graph(graph_node: Callable[[int | None], Any], domain: int | None) -> Graph:
+    return Ros2Graph(graph_node(domain))
+
+
+def ros1_graph(master_uri: str | None, env: Mapping[str, str]) -> Graph:
+    uri = master_uri or env.get("ROS_MASTER_URI") or "http://localhost:11311"
+    if not re.match(r"^https?://", uri):
+        raise ConfigError(f"ROS master URI {uri!r} must be http://host:port")
+    return Ros1Graph(uri)
