@@ -12,6 +12,7 @@ killed mid-goal → failure within the timeout.
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import time
