@@ -110,6 +110,12 @@ if TYPE_CHECKING:
     show_default=True,
     help="What the edge node logs (stderr).",
 )
+@click.option(
+    "--metrics",
+    envvar="TD2ADAPTOR_METRICS",
+    metavar="HOST:PORT",
+    help="Serve Prometheus metrics over HTTP on this address, e.g. 127.0.0.1:9464 (default: none).",
+)
 def run(
     source: str,
     interfaces: tuple[Path, ...],
@@ -143,6 +149,7 @@ def run(
     allow_insecure: bool | None,
     allow_anonymous_broker: bool | None,
     log_level: str,
+    metrics: str | None,
 ) -> None:
     """Run the edge node of a robot (or a fleet): bus events in, ROS calls out, feedback back.
 
@@ -217,10 +224,11 @@ def run(
         )
     from td2adaptor.runtime.bus.bus import BusError
     from td2adaptor.runtime.bus.security import SecurityError
+    from td2adaptor.runtime.node.metrics import MetricsError
     from td2adaptor.runtime.ros.port import PortError, RosSetupError, StalePackage
 
     options = RosOptions(int(ros), package, package_paths, prefixes, ros1_python)
-    node = EdgeNode(result.model, configs, options, defaults=defaults)
+    node = EdgeNode(result.model, configs, options, defaults=defaults, metrics=metrics)
 
     def interrupt(_signum: int, _frame: Any) -> None:
         raise KeyboardInterrupt  # SIGTERM while starting: undo what was opened, like Ctrl-C
@@ -248,9 +256,9 @@ def run(
         given += ["--package-name", exc.package] if exc.package != result.model.package_name else []
         command = shlex.join(["td2adaptor", "gen", source, "-b", backend, *given])
         _fail("run", f"{exc}; regenerate it with `{command} -o DIR` (DIR: where it is kept) and build it again")
-    except (RosSetupError, SecurityError, BusError, PortError) as exc:  # the user's to fix: one clear line
+    except (RosSetupError, SecurityError, BusError, PortError, MetricsError) as exc:  # the user's to fix: one line
         node.stop()
-        _fail("run", str(exc))
+        _fail("run", str(exc))  # a robot another process serves too (OwnerConflict): exit 1, saying which
     finally:
         signal.signal(signal.SIGTERM, previous)
     watched = None

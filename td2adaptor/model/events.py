@@ -13,7 +13,7 @@ Topic scheme (every level but the robot id is a validated identifier, so no leve
     td2adaptor/<robot>/<Component>/<action>/query      query a ROS action's goal                    (in)
     td2adaptor/<robot>/<Component>/<action>/cancel     cancel a ROS action's goal                   (in)
     td2adaptor/<robot>/error                           error events                                 (out)
-    td2adaptor/<robot>/status                          online/offline, retained, last will          (out)
+    td2adaptor/<robot>/status                          online/offline, presence, owner; retained, will (out)
     td2adaptor/<robot>/td                              the robot's Thing Description, retained      (out)
 
 The last one is no event: the edge node publishes there the robot's TD (what `td2adaptor expose` writes) as
@@ -97,6 +97,7 @@ ERROR_CODES = (
     "id-reused",
     "no-id-or-time",
     "retained",
+    "absent",
 )
 
 
@@ -522,12 +523,54 @@ def _error_payload() -> dict[str, Any]:
     }
 
 
+#: the robot's ROS side as its edge node sees it (status `robot`): every server of its affordances there, some,
+#: or none
+PRESENCE_WORDS = ("present", "partial", "absent")
+
+
 def _status_payload() -> dict[str, Any]:
+    text = {"type": "string", "maxLength": 256}
     return {
         "type": "object",
         "properties": {
-            "state": {"type": "string", "enum": ["online", "offline"]},
+            "state": {
+                "description": "online: the edge node serves the robot; offline: it stopped, or died (the will).",
+                "type": "string",
+                "enum": ["online", "offline"],
+            },
             "thing": {"description": "Title of the Thing this adaptor serves.", "type": "string"},
+            "robot": {
+                "description": "While online: whether the servers of the robot's actions are on ROS (present), "
+                "some of them (partial) or none (absent: an invoke is refused at once).",
+                "type": "string",
+                "enum": list(PRESENCE_WORDS),
+            },
+            "missing": {
+                "description": "The actions whose ROS server is not there (at most 32).",
+                "type": "array",
+                "maxItems": 32,
+                "items": text,
+            },
+            "owner": {
+                "description": "The edge-node process that serves (or last served) the robot.",
+                "type": "object",
+                "properties": {
+                    "host": text,
+                    "pid": {"type": "integer", "minimum": 0},
+                    "started": {"description": "When the process started (RFC 3339).", **text},
+                    "node": {"description": "A random id of the process, new at every start.", **text},
+                },
+                "required": ["host", "pid", "started", "node"],
+                "additionalProperties": False,
+            },
+            "missions": {"description": "Missions in flight.", "type": "integer", "minimum": 0},
+            "lastError": {
+                "description": "The last error event the edge node published for this robot.",
+                "type": "object",
+                "properties": {"code": text, "message": {"type": "string", "maxLength": 1024}, "time": text},
+                "required": ["code", "message", "time"],
+                "additionalProperties": False,
+            },
         },
         "required": ["state"],
         "additionalProperties": False,
@@ -654,7 +697,8 @@ def build_catalog(model: Model, distro: str = "ros2") -> EventCatalog:
         None,
         None,
         "Status",
-        "Whether the adaptor is connected (retained; the broker publishes offline as the last will).",
+        "Whether the adaptor is connected and the robot's ROS side there (retained; the broker publishes offline as "
+        "the last will).",
         payload=_status_payload(),
         required=_OUT_REQUIRED,
     )

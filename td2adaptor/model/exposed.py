@@ -157,6 +157,38 @@ def _only_nosec(security: Mapping[str, Any]) -> bool:
     return all(isinstance(d, Mapping) and d.get("scheme") == "nosec" for d in security.values())
 
 
+#: the property that tells whether the robot is there: its edge node's status (named otherwise when the robot
+#: has a property of that name)
+PRESENCE_PROPERTY = "presence"
+
+
+def _free(name: str, taken: Mapping[str, Any]) -> str:
+    """`name`, or `td2adaptor` + Name when `taken` has it already."""
+    return name if name not in taken else f"td2adaptor{name[:1].upper()}{name[1:]}"
+
+
+def _presence(data: Mapping[str, Any], forms: list[dict[str, Any]]) -> dict[str, Any]:
+    """The robot's presence as a property a WoT consumer reads and observes: the retained status event itself
+    (the TD's `status` event: `data` is its schema, of which the property names only the payload, the rest being
+    the envelope the event describes already), which the broker's will turns `offline` when the edge node dies
+    (MQTT gives a connection one will, so the property is that topic rather than one of its own)."""
+    payload = data["properties"]["payload"]
+    return {
+        "title": "Presence",
+        "description": "Whether the robot can be used now: the retained status event, whose payload says state "
+        "online (its edge node serves it) or offline (the node stopped or died); while online, robot present, "
+        "partial or absent (its ROS side: the servers of its actions; an action invoked while its server is not "
+        "there is answered at once with an absent error), the owner process, the missions in flight and the last "
+        "error.",
+        "type": "object",
+        "properties": {"payload": payload},
+        "required": ["payload"],
+        "readOnly": True,
+        "observable": True,
+        "forms": forms,
+    }
+
+
 def thing_id(model: Model, robot: str) -> str:
     """The exposed Thing's id: the TD's own with the robot id appended, else a URN of package and robot."""
     if model.thing.id:
@@ -226,6 +258,9 @@ def exposed_td(
             event["data"] = {k: v for k, v in data.items() if k not in ("title", "description")}
             event["forms"] = [form(spec.topic(robot, root), ["subscribeevent", "unsubscribeevent"], retain=True)]
             events[spec.kind.value] = event
+            ops = ["readproperty", "observeproperty", "unobserveproperty"]
+            status_forms = [form(spec.topic(robot, root), ops, retain=True)]
+            properties[_free(PRESENCE_PROPERTY, properties)] = _presence(event["data"], status_forms)
             continue
         data = dict(td_schema(wot_data(spec)))
         if spec.kind is Kind.PROPERTY and spec.affordance:

@@ -97,6 +97,7 @@ class RuntimeConfig:
     directory_ttl: int = 600  # seconds the directory keeps the TD without a refresh (0: until it is deleted)
     directory_token: str | None = field(default=None, repr=False)  # Bearer token for the directory, if it wants one
     directory_ca_file: str | None = None  # CA bundle for an https directory with a private CA
+    presence_period: float = 1.0  # seconds between looks at the robot's ROS side (its status `robot`); 0: none
     # the fleet's (every robot of the process has the same; not compared: changing them restarts no robot)
     fleet: str | None = field(default=None, compare=False)  # the fleet's name in admin topics (default: package)
     fleet_admin_key: str | None = field(default=None, repr=False, compare=False)  # signs admin requests
@@ -138,6 +139,8 @@ class RuntimeConfig:
                 "directory_token (TD2ADAPTOR_DIRECTORY_TOKEN) must be 1-8192 printable ASCII characters without "
                 "blanks, as a Bearer token is (not shown)"
             )
+        if not 0 <= self.presence_period < float("inf"):
+            raise ConfigError("presence_period must be >= 0 seconds (0: the robot's ROS side is not watched)")
         if self.directory_ttl < 0:
             raise ConfigError("directory_ttl must be >= 0 (0: the directory keeps the TD until it is deleted)")
         if self.fleet is not None and (not ROBOT_ID.match(self.fleet) or self.fleet == ALL_ROBOTS):

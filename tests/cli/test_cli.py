@@ -272,8 +272,11 @@ def test_expose_writes_the_td_of_one_robot(runner: CliRunner, tmp_path: Path) ->
     # property events at QoS 0 (run's property_qos): the observe forms say so
     qos0 = runner.invoke(cli, ["expose", TD, *IFACE, *args, "--property-qos", "0"])
     assert qos0.exit_code == 0, qos0.output
-    observe = [f for p in json.loads(qos0.output)["properties"].values() for f in p["forms"] if "mqv:filter" in f]
+    properties = json.loads(qos0.output)["properties"]
+    presence = properties.pop("presence")  # the robot's status: always QoS 1
+    observe = [f for p in properties.values() for f in p["forms"] if "mqv:filter" in f]
     assert observe and {f["mqv:qos"] for f in observe} == {"0"}
+    assert presence["forms"][0]["mqv:qos"] == "1"
     # a broker that wants a password (run with TD2ADAPTOR_MQTT_USERNAME): the nosec TD says basic (issue 30)
     assert td["security"] == ["nosec_sc"]
     basic = runner.invoke(cli, ["expose", TD, *IFACE, *args, "--basic"])

@@ -1,10 +1,11 @@
 // A standard WoT consumer (Eclipse Thingweb node-wot with its MQTT binding) using a robot as a Thing, through
 // the WoT Scripting API only: it fetches the robot's Thing Description where the edge node keeps it (retained
 // on td2adaptor/<robot>/td) and consumes it exactly as published; reads, observes and writes properties with
-// their own data; invokes gotoRun with the goal's fields (plus the optional correlationId the TD declares)
-// and follows it to its terminal outcome; invokes a second run, queries it and cancels it while it runs;
-// sends a goal the robot's message cannot hold and receives the error event; then ends its observation and
-// its subscription to the error event (the TD's one form for both operations) and receives nothing more there.
+// their own data, and the robot's presence (its retained status); invokes gotoRun with the goal's fields (plus
+// the optional correlationId the TD declares) and follows it to its terminal outcome; invokes a second run,
+// queries it and cancels it while it runs; sends a goal the robot's message cannot hold and receives the
+// error event; then ends its observation and its subscription to the error event (the TD's one form for both
+// operations) and receives nothing more there.
 // One JSON line per observation on stdout; exits 0 when all is seen, 1 on an error or after 25 s.
 //   NODE_PATH=<node_modules> node nodewot_client.js BROKER_URL ROBOT
 // With WOT_USERNAME and WOT_PASSWORD set, it logs in to the broker with them: to fetch the TD, and as the
@@ -79,6 +80,8 @@ async function main() {
   });
   await thing.writeProperty("door", { data: 0.75 });
   emit("written", { data: 0.75 });
+  // is the robot there? its retained status, read as a property
+  emit("presence", await (await thing.readProperty("presence")).value());
 
   // events: progress and outcome of procedures, answers to queries and cancels, errors
   const feedback = waiter([]);

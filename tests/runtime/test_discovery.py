@@ -225,3 +225,30 @@ def test_a_directory_that_fails_is_reported_and_the_robot_is_served(
     assert f"PUT {url}/things/" in line and expected in line, line
     assert token not in caplog.text
     assert directory.thing(thing_id(robot)) is None
+
+
+def test_the_registration_says_whether_the_robot_is_there(
+    directory: TddServer, broker: Mosquitto, model: Model
+) -> None:
+    """The robot's ROS side (its status `robot`, issue 32) is registered with its TD and registered again when
+    it changes: a directory query can find the robots that are there now."""
+    robot, thing = "rb1_disco_presence", thing_id("rb1_disco_presence")
+    port = SimPort(model, sim())
+    port.watched = True  # `down` is the robot's ROS side gone
+    engine = serve(
+        model, port, config(broker.url, robot, directory=directory.url, directory_ttl=120, presence_period=0.1)
+    )
+
+    def presence() -> Any:
+        registered = directory.thing(thing) or {}
+        return next((v for k, v in registered.items() if k.endswith("presence")), None)
+
+    try:
+        assert until(lambda: presence() == "present", 30), directory.thing(thing)
+        port.down = True
+        assert until(lambda: presence() == "absent", 30), directory.thing(thing)
+        port.down = False
+        assert until(lambda: presence() == "present", 30), directory.thing(thing)
+    finally:
+        engine.stop()
+    assert thing not in directory.ids()

@@ -96,6 +96,11 @@ def test_node_wot_uses_the_robot_as_a_thing_through_the_scripting_api(broker: Mo
             assert list(Draft202012Validator(schemas[name]).iter_errors(value)) == [], (name, value)
     (read,) = values("read")
     assert isinstance(read["markers"], list) and "payload" not in read  # no envelope
+    # the robot's presence: its retained status, as the TD's presence property describes it
+    (presence,) = values("presence")
+    described = {k: v for k, v in json.loads(td)["properties"]["presence"].items() if k != "forms"}
+    assert list(Draft202012Validator(described).iter_errors(presence)) == [], presence
+    assert presence["payload"]["state"] == "online" and presence["payload"]["owner"]["pid"] == os.getpid()
     # the write reached the robot as the property's own data
     until(lambda: robot.door_command == 0.75, 5)
     # 1. followed to its terminal outcome, by the correlationId sent with the goal's fields

@@ -73,7 +73,19 @@ class Watch:
         self.app.client.on_message = stamped
 
     def statuses(self, robot: str) -> list[str]:
-        return [e["payload"]["state"] for t, e in self.app.events if t == f"td2adaptor/{robot}/status"]
+        """The robot's states, one per change: a status that says the state again is no new one (the status
+        also carries the robot's presence, missions and last error, issue 32), unless it is a status published
+        again (the same event: what a reconnection publishes), which counts."""
+        out: list[str] = []
+        seen: set[str] = set()
+        for t, e in self.app.events:
+            if t != f"td2adaptor/{robot}/status":
+                continue
+            state, again = e["payload"]["state"], e.get("id") in seen
+            seen.add(e.get("id"))
+            if again or out[-1:] != [state]:
+                out.append(state)
+        return out
 
     def status_at(self, robot: str, state: str, after: float) -> float | None:
         """When the first `state` status of `robot` came after `after`."""

@@ -337,6 +337,8 @@ def _acl(model: Model, catalog: EventCatalog, robots: list[str], fleet: str) -> 
             *command_filters(catalog, robot),
             *wot_command_filters(robot),
             *(s.topic(ALL_ROBOTS) for s in inbound),
+            # its own retained status, read before it serves the robot: is another process serving it? (owner)
+            catalog.find(Kind.STATUS).topic(robot),
         ]
         writes = [
             *(s.topic(robot) for s in outbound),

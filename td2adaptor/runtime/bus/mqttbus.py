@@ -46,6 +46,7 @@ from td2adaptor.runtime.bus.security import (
 
 log = logging.getLogger("td2adaptor.runtime.bus")
 
+_TAKEN_OVER = 142  # MQTT 5 DISCONNECT reason: Session taken over (node/owner.py)
 _AUTH_REFUSALS = {134, 135}  # Bad user name or password, Not authorized (paho maps 3.1.1's 4 and 5 onto them)
 MQTT_VERSIONS = ("5", "3.1.1")
 #: topics whose matching handlers a client remembers (then it forgets them all and starts again)
@@ -169,6 +170,10 @@ class MqttBus:
         self.verify = verify  # run on every connection before anything of it is handled: why not to serve, or None
         self.refused: str | None = None  # why this client stopped serving the broker (a connection failed `verify`)
         self.on_refused: Callable[[str], None] | None = None  # told `refused` when a reconnection fails `verify`
+        #: run on every reconnection (with `verify`, on a helper) before anything of it is handled: what took this
+        #: client's session over (another edge node serves the robot now: node/owner.py), or None; if something
+        #: did, this client stops serving
+        self.owned: Callable[[], str | None] | None = None
         self._retained: dict[str, tuple[bytes, int]] = {}  # topic -> (payload, QoS) of the last retained publish
         self._retained_inflight: dict[int, str] = {}  # QoS 1 retained publishes not acknowledged: paho resends them
         self._retain_lock = threading.RLock()  # orders retained publishes with their republication on reconnect
@@ -333,7 +338,8 @@ class MqttBus:
                 log.error("MQTT broker %s refused the connection: %s", self.address, reason.getName())
             return
         link = self._link
-        if self.verify is not None and link is not None:  # checked on a helper; held meanwhile
+        owned = self.owned is not None and self.connects > 0
+        if (self.verify is not None or owned) and link is not None:  # checked on a helper; held meanwhile
             self._held = []
             link.hold()
             sock = client.socket()
@@ -343,14 +349,20 @@ class MqttBus:
         if refusal is not None:
             self._stop_serving(client, refusal)
             return
+        taken = self._owned() if owned else None
+        if taken is not None:
+            self._taken_over(client, taken)
+            return
         self._accept(client, flags)
 
     def _check(self, link: Link, client: mqtt.Client, sock: Any, flags: Any) -> None:
-        """(Helper thread) `verify` the connection whose socket is `sock`; its verdict goes back to the loop."""
+        """(Helper thread) `verify` the connection whose socket is `sock`, and on a reconnection ask `owned`;
+        the verdicts go back to the loop."""
         refusal = self._verified()
-        link.loop.call_soon(lambda: self._checked(client, sock, flags, refusal))
+        taken = self._owned() if refusal is None and self.connects > 0 else None
+        link.loop.call_soon(lambda: self._checked(client, sock, flags, refusal, taken))
 
-    def _checked(self, client: mqtt.Client, sock: Any, flags: Any, refusal: str | None) -> None:
+    def _checked(self, client: mqtt.Client, sock: Any, flags: Any, refusal: str | None, taken: str | None) -> None:
         """(Serving thread) the check's verdict: stop serving the broker, or handle what was held and go on. A
         connection lost during its check is not served: its successor is checked in turn."""
         link = self._link
@@ -360,6 +372,9 @@ class MqttBus:
             self._stop_serving(client, refusal)
             return
         if client.socket() is not sock:
+            return
+        if taken is not None:
+            self._taken_over(client, taken)
             return
         held, self._held = self._held or [], None
         self._accept(client, flags)
@@ -407,6 +422,41 @@ class MqttBus:
             log.exception("checking the MQTT broker at %s failed", self.address)
             return f"the check of the MQTT broker at {self.address} failed (see the log), so it is not trusted"
 
+    def _owned(self) -> str | None:
+        """`owned`'s verdict; one that cannot be made lets the connection serve (the broker's own rules stand)."""
+        if self.owned is None:
+            return None
+        try:
+            return self.owned()
+        except Exception:  # noqa: BLE001 - the thread that runs it must live; the details go to the log
+            log.exception("checking who serves this robot on %s failed", self.address)
+            return None
+
+    def _taken_over(self, client: mqtt.Client, what: str) -> None:
+        """Another connection with this client id took the session over (a second edge node for the same robot,
+        started at the same moment as this one: node/owner.py): MQTT 5's "Session taken over", or `owned` said
+        so on reconnecting. Taking it back would push the two off the broker in turn for ever: this client stops
+        serving (no reconnection; the connection is dropped without acknowledging what it held, which the broker
+        then delivers to the other, whose reconnection also publishes its status again); `on_refused` is told."""
+        self.refused = (
+            f"stopped serving: another client connected to the MQTT broker at {self.address} with this client id "
+            f"({self.client_id}) and {what}: a second edge node for the same robot?"
+        )
+        self._connected = False
+        self._held = None  # never handled
+        log.error("%s", self.refused)
+        link = self._link
+        if link is None:
+            client.disconnect()
+        else:
+            link.drop()
+        if self.on_refused is not None:
+            refused, hook = self.refused, self.on_refused
+            if link is None:
+                self._tell_refused(hook, refused)
+            else:  # the hook may block (the engine halts): not on the serving thread
+                link.loop.run_blocking(lambda: self._tell_refused(hook, refused))
+
     def _stop_serving(self, client: mqtt.Client, why: str) -> None:
         """A connection failed `verify`: handle nothing from it, disconnect, and stay away from this broker
         (on the first connection `connect()` raises; on a later one `on_refused` is told, and the retained
@@ -450,6 +500,9 @@ class MqttBus:
         if self.connects == 0 and not self._connack.is_set():  # dropped before any CONNACK: fail fast
             self._dropped = reason.getName()
             self._connack.set()
+        if reason.value == _TAKEN_OVER and self._client is not None and self.refused is None:
+            self._taken_over(_client, "took its session over")
+            return
         if self._client is not None and reason.value != 0:
             log.warning("lost the MQTT broker %s (%s); reconnecting", self.address, reason.getName())
 

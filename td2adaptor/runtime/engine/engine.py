@@ -96,13 +96,14 @@ def _ledger(config: RuntimeConfig) -> Ledger:
         return Ledger(None, keep=keep)
 
 
-def status_event(config: RuntimeConfig, model: Model, state: str) -> Message:
-    """The retained online/offline status message (the offline one is the bus's will)."""
+def status_event(config: RuntimeConfig, model: Model, state: str, **extra: Any) -> Message:
+    """The retained online/offline status message (the offline one is the bus's will); `extra`: more members of
+    its payload (the robot's presence and owner, runtime/node/status.py)."""
     event = envelope(
         Kind.STATUS,
         robot=config.robot,
         source=config.event_source,
-        payload={"state": state, "thing": model.thing.title},
+        payload={"state": state, "thing": model.thing.title, **extra},
     )
     return Message(f"{config.topic_root}/{config.robot}/status", encode(event), retain=True)
 
@@ -132,6 +133,10 @@ class Engine:
         self.on_stop: list[Callable[[], None]] = []  # run first by stop() (e.g. leaving a TD directory)
         self.on_halt: list[Callable[[str], None]] = []  # told why, when the bus stops serving the broker (halt)
         self.failure: str | None = None  # why the bus stopped serving the broker, if it did
+        self.offline: Message | None = None  # the status stop() publishes (default: plain `offline`)
+        #: (the loop) why an invoke of this affordance cannot reach the robot now (its ROS server is not there,
+        #: runtime/node/presence.py), or None: such an invoke is answered at once instead of after a timeout
+        self.absent: Callable[[EventSpec], str | None] | None = None
         self.guard = _guard(config)
         self.ledger = _ledger(config)
         self.missions = MissionTable()  # which mission each component runs (missions.py)
@@ -225,7 +230,7 @@ class Engine:
         try:
             if self.td is not None:  # an empty retained message removes the TD from the broker
                 self.bus.publish(self.td.topic, b"", retain=True)
-            offline = status_event(self.config, self.model, "offline")
+            offline = self.offline or status_event(self.config, self.model, "offline")
             self.bus.publish(offline.topic, offline.payload, retain=True)
             self.bus.flush(timeout)
         except BusError as exc:
@@ -417,6 +422,11 @@ class Engine:
                 (("/time", why),) if why else (),
             )
             return
+        if spec.kind is Kind.INVOKE and self.absent is not None:
+            why = self.absent(spec)
+            if why is not None:
+                self._absent(spec, event, msg, why)
+                return
         component = self.model.component(spec.component or "")
         assert spec.affordance is not None
         procedure = component.procedure_of(spec.affordance)
@@ -556,6 +566,24 @@ class Engine:
             return
         assert self._procedures is not None
         self._procedures.start(mission, ended)
+
+    def _absent(self, spec: EventSpec, event: dict[str, Any], msg: Message, why: str) -> None:
+        """An invoke of an action whose ROS server is not there: not sent (it would wait for the server until
+        `call_timeout`), answered at once with an `absent` error and a terminal `failed` feedback (`reason:
+        unreachable`), as a call that found no server would end."""
+        action = spec.affordance or ""
+        correlation = event.get("correlation") or event.get("id")
+        self.outbox.count("absent")
+        topic = msg.origin or msg.topic
+        self.outbox.error("absent", why, topic=topic, affordance=action, correlation=correlation)
+        component = self.model.component(spec.component or "")
+        procedure = component.procedure_of(action)
+        kind = "goal" if any(a.name == action for a in component.actions) else "call"
+        kind = "procedure" if procedure is not None and procedure.run == action else kind
+        mission = Mission(spec.component or "", action, procedure or Procedure(action), correlation, {}, self.clock())
+        mission.done = True
+        mission.key = self._open(kind, spec, event, msg.topic)
+        self.outbox.feedback(mission, ProcedureStatus("failed", message=why, reason="unreachable"), terminal=True)
 
     def _busy(self, busy: Mission, mission: Mission, topic: str) -> None:
         """Refuse `mission`: its component runs `busy`, named by its mission id when the robot gave one (a refusal

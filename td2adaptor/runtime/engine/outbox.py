@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Mapping
+import time
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from td2adaptor.model.events import EventCatalog, EventSpec, Kind
@@ -40,6 +41,8 @@ class Outbox:
         self.ledger = ledger
         self.missions = missions
         self.stats: dict[str, int] = {}
+        self.last_error: tuple[str, str, float] | None = None  # code, message, time.time() (the robot's status)
+        self.on_end: list[Callable[[Mission, str], None]] = []  # told each mission's end and its state (metrics)
         self._lock = threading.Lock()
 
     def count(self, key: str, n: int = 1) -> None:
@@ -78,6 +81,7 @@ class Outbox:
         errors: tuple[tuple[str, str], ...] = (),
     ) -> None:
         log.warning("%s on %s: %s", code, topic, message)
+        self.last_error = (code, message, time.time())
         payload: dict[str, Any] = {"code": code, "message": message, "topic": topic}
         if raw is not None:
             payload["event"] = excerpt(raw)
@@ -119,6 +123,8 @@ class Outbox:
         spec = self.catalog.find(Kind.FEEDBACK, m.action)
         if m.key is None:
             self.publish(spec, event)
+            if terminal:
+                self._ended(m)
             return
         try:
             data = encode(event)
@@ -129,6 +135,14 @@ class Outbox:
         self.send(spec, data)
         if terminal:
             self.ledger.done(m.key)
+            self._ended(m)
+
+    def _ended(self, m: Mission) -> None:
+        for hook in self.on_end:
+            try:
+                hook(m, m.state or "")
+            except Exception:  # noqa: BLE001 - a hook must not cost the mission its end
+                log.exception("mission end hook failed")
 
     def _record(self, m: Mission, data: bytes, terminal: bool, changed: bool) -> None:
         """Put a feedback event in the ledger before it is published (see ledger.py): every state change and

@@ -105,8 +105,10 @@ def open_bus(
     clients (unless `allow_anonymous_broker`): the first one's `connect()` raises `SecurityError` if it does
     not, a later one stops serving that broker (`MqttBus.refused`, see `serve`).
     """
-    will = status_event(config, model, "offline")
-    birth = status_event(config, model, "online")
+    from td2adaptor.runtime.node.status import owner_fields
+
+    will = status_event(config, model, "offline", **owner_fields())  # the last owner: the process that died
+    birth = status_event(config, model, "online", **owner_fields(), missions=0)
     if config.bus == "local":
         return LocalBus(broker, config.mqtt_client_id, will=will, birth=birth, announce=announce)
     from td2adaptor.runtime.bus.mqttbus import MqttBus  # paho only when it is used
@@ -183,9 +185,13 @@ def serve(
         if isinstance(raw, MqttBus):
             raw.on_refused = engine.halt  # a reconnection the broker check refused: the engine halts
     engine.start()
+    from td2adaptor.runtime.node.status import watch
+
+    keeper = watch(engine, raw, port)  # the robot's status kept true: its ROS side, missions, last error
     registration = register(config, td)
     if registration is not None:
         engine.on_stop.append(registration.stop)
+        keeper.on_presence.append(registration.reflect)  # the directory says whether the robot is there
     return engine
 
 

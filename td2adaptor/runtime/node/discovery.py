@@ -35,6 +35,10 @@ from td2adaptor.runtime.bus.security import redact_url
 log = logging.getLogger("td2adaptor.runtime.discovery")
 
 DISCOVERY_CONTEXT = "https://www.w3.org/2022/wot/discovery"
+#: the registered TD's member that says whether the robot's ROS side is there (status.py), in td2adaptor's
+#: namespace: a directory's query can then find the robots that are there now
+PRESENCE_PREFIX, PRESENCE_NAMESPACE = "td2adaptor", "https://td2adaptor.dev/ns#"
+PRESENCE_TERM = f"{PRESENCE_PREFIX}:presence"
 TD_MEDIA_TYPE = "application/td+json"
 PUT_TIMEOUT = 30.0  # a directory may take its time to store a large TD (it turns it into RDF)
 DELETE_TIMEOUT = 5.0  # stopping waits at most this long for the directory
@@ -164,6 +168,7 @@ class Registration:
         self.last_error: str | None = None
         self.readable: bool | None = None  # whether the directory gave the TD back after the first PUT
         self._stop = threading.Event()
+        self._wake = threading.Event()  # set by stop() and by a presence to register now
         self._thread: threading.Thread | None = None
 
     @property
@@ -184,10 +189,21 @@ class Registration:
                 wait = self.ttl / 2 if self.ttl > 0 else None  # refresh before the directory lets it expire
             else:
                 wait = backoff(self.failures)
-            if wait is None:
-                self._stop.wait()
-            else:
-                self._stop.wait(wait)
+            self._wake.wait(wait)
+            self._wake.clear()
+
+    def reflect(self, presence: str | None) -> None:
+        """The robot's ROS side is `presence` now (`present`, `partial`, `absent`): registered again at once
+        with it (`td2adaptor:presence`), so that the directory says which robots are there."""
+        if presence is None or self.document.get(PRESENCE_TERM) == presence:
+            return
+        document = dict(self.document)  # a new one: the registering thread may be sending the old one
+        context = list(document["@context"])
+        if not any(isinstance(c, Mapping) and PRESENCE_PREFIX in c for c in context):
+            context.append({PRESENCE_PREFIX: PRESENCE_NAMESPACE})
+        document["@context"], document[PRESENCE_TERM] = context, presence
+        self.document = document
+        self._wake.set()
 
     def _register(self) -> bool:
         try:
@@ -252,6 +268,7 @@ class Registration:
         if self._stop.is_set():
             return
         self._stop.set()
+        self._wake.set()
         busy = False
         if self._thread is not None:
             self._thread.join(DELETE_TIMEOUT)  # a PUT under way may still land: remove it then too

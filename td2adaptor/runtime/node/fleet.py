@@ -25,6 +25,7 @@ from td2adaptor.runtime.bus.localbus import LocalBroker
 from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.engine.engine import Engine
 from td2adaptor.runtime.node.app import serve
+from td2adaptor.runtime.node.claims import check_fleet
 from td2adaptor.runtime.node.roslink import RosLink
 from td2adaptor.runtime.ros.port import RobotPort
 
@@ -230,6 +231,7 @@ class Fleet:
         started: dict[str, Engine] = {}
         link: RosLink | None = None
         try:
+            check_fleet(self.model, configs)  # none another live process serves (OwnerConflict: a BusError)
             link = self.link.grow(configs)
             for config in configs:
                 started[config.robot] = self._serve(config, link.ports[config.robot], origin)

@@ -26,6 +26,7 @@ from td2adaptor.runtime.bus.localbus import LocalBroker
 from td2adaptor.runtime.config import STAND_IN, RuntimeConfig
 from td2adaptor.runtime.engine.engine import Engine
 from td2adaptor.runtime.node.app import bus_security, td_broker
+from td2adaptor.runtime.node.claims import check_fleet
 from td2adaptor.runtime.node.fleet import Fleet
 from td2adaptor.runtime.node.roslink import RosLink, connect
 
@@ -59,8 +60,11 @@ class EdgeNode:
         *,
         broker: LocalBroker | None = None,
         defaults: Mapping[str, Any] | None = None,
+        metrics: str | None = None,
     ) -> None:
         self.model = model
+        self.metrics = metrics  # HOST:PORT to serve the Prometheus metrics on (metrics.py), or None
+        self._metrics_server: Any = None
         self.defaults = dict(defaults or {})  # the shared settings of robots that join later (config.load_defaults)
         self.configs = list(configs)
         self.options = options
@@ -83,6 +87,11 @@ class EdgeNode:
     def start(self) -> None:
         """Check the bus settings, connect to ROS, then to the bus; a failure closes what was opened."""
         self.check_bus()
+        check_fleet(self.model, self.configs)  # no robot another live process serves (OwnerConflict)
+        if self.metrics is not None:
+            from td2adaptor.runtime.node.metrics import serve_metrics
+
+            self._metrics_server = serve_metrics(self.metrics)  # MetricsError: the address cannot be served
         o = self.options
         self.link = connect(
             self.model,
@@ -176,6 +185,10 @@ class EdgeNode:
             self.fleet.stop()
         if self.link is not None:
             self.link.close()
+        server, self._metrics_server = self._metrics_server, None
+        if server is not None:
+            server.shutdown()
+            server.server_close()
 
     def describe(self) -> str:
         configs = list(self.fleet.robots().values()) if self.fleet is not None else self.configs
@@ -186,7 +199,8 @@ class EdgeNode:
         how = self.link.description if self.link is not None else f"ROS {self.options.ros}"
         directory = self.configs[0].directory if self.configs else self.defaults.get("directory")
         registered = f"; TDs registered with {redact_url(directory)}" if directory else ""
-        return f"serving {robots} on {bus} via {how}{registered}"
+        metrics = f"; metrics on http://{self.metrics}/metrics" if self.metrics else ""
+        return f"serving {robots} on {bus} via {how}{registered}{metrics}"
 
 
 def wait_for_signal(

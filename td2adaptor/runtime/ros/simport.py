@@ -219,6 +219,7 @@ class SimPort:
             for t in c.topics
         }
         self.down = False  # fault injection: every call fails as if the robot were gone
+        self.watched = False  # tests: the edge node watches `down` as the robot's presence (node/presence.py)
         self.delay = 0.0  # fault injection: seconds each call takes
         self.calls: list[tuple[str, str]] = []  # (component, action) in call order
         self._lock = threading.Lock()

@@ -1,0 +1,202 @@
+"""Is the robot's ROS side there? What the edge node sees of the servers of a robot's actions.
+
+A robot's edge node can be up while the robot is not (its ROS nodes stopped, crashed, or not started yet): the
+robot's status then says `online` and `robot: absent`, and an invoke is answered at once (engine.py, error
+`absent`) instead of after `call_timeout`. A `Probe` looks at the servers the way the port reaches them, cheaply
+(no call is made):
+
+* ROS 2 (a `GeneratedPort` on rclpy): each service client's `service_is_ready()` and each action client's
+  `server_is_ready()`, which read the node's graph cache (DDS discovery): a server that stops cleanly is gone at
+  once, one killed (SIGKILL, power) when DDS drops its participant (its lease: Fast DDS's default is 20 s);
+* the simulated robot (`SimPort`): its `down` switch, when the test sets `watched`;
+* ROS 1 (rospy here, or the bridge): the ROS 1 master's `getSystemState`, one XML-RPC call per master and
+  period for all its robots: each service has a provider, each actionlib server publishes its `status`; a
+  node that dies is gone once the master knows (a clean stop unregisters at once; a killed node stays
+  registered until something finds it dead, e.g. `rosnode cleanup`);
+* anything else: no probe; the status has no `robot` member and nothing is refused.
+
+`Presence` keeps what the last look saw. An action whose server has never been seen is refused only once the
+node has run longer than `grace` (its calls' own wait for a server): at start-up, discovery takes a moment,
+and an invoke then waits for the server as it always did.
+"""
+
+from __future__ import annotations
+
+import http.client
+import os
+import threading
+import time
+import xmlrpc.client
+from collections.abc import Callable, Iterable, Mapping
+from typing import Any
+
+from td2adaptor.model.events import PRESENCE_WORDS, EventSpec
+
+#: what a look at the robot's ROS side says: each action (TD affordance) and whether its server is there
+Probe = Callable[[], Mapping[str, bool]]
+PRESENT, PARTIAL, ABSENT = PRESENCE_WORDS
+
+
+def ros2_probe(port: Any, actions: Iterable[str]) -> Probe | None:
+    """The look at a ROS 2 `GeneratedPort`'s servers: its generated components hold each service client as
+    `_<action>` and each ROS action client as `_act_<action>` (`.client`: rclpy's client); None when it has
+    none of `actions`."""
+    wanted = set(actions)
+    checks: dict[str, Callable[[], bool]] = {}
+    for component in getattr(port, "components", {}).values():
+        for attr, value in vars(component).items():
+            client: Any = getattr(value, "client", None)
+            server_ready = getattr(client, "server_is_ready", None)
+            service_ready = getattr(client, "service_is_ready", None)
+            if attr.startswith("_act_") and callable(server_ready):
+                checks[attr[len("_act_") :]] = server_ready
+            elif attr.startswith("_") and callable(service_ready):
+                checks[attr[1:]] = service_ready
+    checks = {name: check for name, check in checks.items() if name in wanted}
+    if not checks:
+        return None
+
+    def look() -> dict[str, bool]:
+        return {name: bool(check()) for name, check in checks.items()}
+
+    return look
+
+
+def sim_probe(port: Any, actions: Iterable[str]) -> Probe:
+    """The simulated robot's `down` switch: every action's server gone, or every one there."""
+    names = list(actions)
+    return lambda: dict.fromkeys(names, not port.down)
+
+
+#: seconds one look at a ROS 1 master may take; and how long its answer serves every robot on that master
+MASTER_TIMEOUT, MASTER_FRESH = 2.0, 0.2
+_masters: dict[str, tuple[float, frozenset[str], frozenset[str]] | None] = {}
+_masters_lock = threading.Lock()
+
+
+class _TimeoutTransport(xmlrpc.client.Transport):
+    """XML-RPC over HTTP that gives up after `MASTER_TIMEOUT` (the standard transport waits for ever)."""
+
+    def make_connection(self, host: Any) -> http.client.HTTPConnection:
+        connection = super().make_connection(host)
+        connection.timeout = MASTER_TIMEOUT
+        return connection
+
+
+def master_state(uri: str, clock: Callable[[], float] = time.monotonic) -> tuple[frozenset[str], frozenset[str]] | None:
+    """The services that have a provider and the topics that have a publisher on the ROS 1 master at `uri`
+    (`getSystemState`, shared by every robot of that master for `MASTER_FRESH`); None when it does not answer."""
+    with _masters_lock:
+        known = _masters.get(uri)
+        if known is not None and clock() - known[0] < MASTER_FRESH:
+            return known[1], known[2]
+    answer: Any = None
+    try:
+        with xmlrpc.client.ServerProxy(uri, transport=_TimeoutTransport()) as master:
+            answer = master.getSystemState("/td2adaptor_presence")
+    except (OSError, xmlrpc.client.Error):
+        answer = None
+    try:
+        code, _message, (publishers, _subscribers, services) = answer
+        served = frozenset(str(name) for name, providers in services if providers)
+        published = frozenset(str(name) for name, nodes in publishers if nodes)
+    except (TypeError, ValueError):  # no answer, or not the master's
+        code = 0
+    if code != 1:
+        with _masters_lock:
+            _masters.pop(uri, None)
+        return None
+    with _masters_lock:
+        _masters[uri] = (clock(), served, published)
+    return served, published
+
+
+def ros1_probe(model: Any, namespace: str, master: str, actions: Iterable[str]) -> Probe | None:
+    """The look at a ROS 1 robot through its master (whatever reaches it: rospy here or the bridge): each
+    service of `actions` has a provider, each actionlib server publishes its `status`. A master that does not
+    answer: every server is gone (the robot's ROS side cannot be reached)."""
+    wanted = set(actions)
+    services: dict[str, str] = {}
+    servers: dict[str, str] = {}
+    for component in model.components:
+        for service in component.services:
+            if service.name in wanted:
+                services[service.name] = "/" + service.ros_name.resolve(namespace).lstrip("/")
+        for action in component.actions:
+            if action.name in wanted:
+                servers[action.name] = "/" + action.ros_name.resolve(namespace).lstrip("/") + "/status"
+    if not services and not servers:
+        return None
+
+    def look() -> dict[str, bool]:
+        state = master_state(master)
+        if state is None:
+            return dict.fromkeys([*services, *servers], False)
+        served, published = state
+        ready = {name: ros in served for name, ros in services.items()}
+        ready.update({name: topic in published for name, topic in servers.items()})
+        return ready
+
+    return look
+
+
+def probe_of(port: Any, actions: Iterable[str], model: Any = None, config: Any = None) -> Probe | None:
+    """How to look at `port`'s robot (see the module docstring); None when it cannot be told. `model` and
+    `config` (the robot's `RuntimeConfig`): for a ROS 1 robot, its names and its master."""
+    from td2adaptor.runtime.ros.simport import SimPort
+
+    if isinstance(port, SimPort):
+        return sim_probe(port, actions) if port.watched else None
+    distro = getattr(port, "distro", None)
+    if distro == "ros2":
+        return ros2_probe(port, actions)
+    if distro == "ros1" and model is not None and config is not None:
+        master = config.ros_master_uri or os.environ.get("ROS_MASTER_URI")
+        return ros1_probe(model, config.ros_namespace, master, actions) if master else None
+    return None
+
+
+class Presence:
+    """What the last look saw (`update`) and what follows from it: the status word, the missing actions, and
+    whether an invoke of an action is refused (`absent`). Used on the engine's loop only."""
+
+    def __init__(self, robot: str, grace: float, clock: Callable[[], float] = time.monotonic) -> None:
+        self.robot = robot
+        self.grace = grace
+        self.clock = clock
+        self.started = clock()
+        self.ready: dict[str, bool] | None = None  # None: not looked yet
+        self._seen: set[str] = set()  # actions whose server was there once
+        self._gone: dict[str, float] = {}  # since when each missing action's server is gone (the loop's clock)
+
+    def update(self, ready: Mapping[str, bool]) -> None:
+        now = self.clock()
+        self.ready = dict(ready)
+        for name, there in ready.items():
+            if there:
+                self._seen.add(name)
+                self._gone.pop(name, None)
+            else:
+                self._gone.setdefault(name, now)
+
+    def word(self) -> str | None:
+        """`present`, `partial` or `absent`; None before the first look."""
+        if self.ready is None:
+            return None
+        there = sum(self.ready.values())
+        return PRESENT if there == len(self.ready) else ABSENT if there == 0 else PARTIAL
+
+    def missing(self) -> list[str]:
+        return sorted(name for name, there in (self.ready or {}).items() if not there)
+
+    def absent(self, spec: EventSpec) -> str | None:
+        """(the engine's gate) Why an invoke of `spec`'s action is not sent now, or None."""
+        name = spec.affordance
+        if self.ready is None or name is None or self.ready.get(name, True):
+            return None
+        if name not in self._seen and self.clock() - self.started < self.grace:
+            return None  # not discovered yet at start-up: the call waits for its server as before
+        return (
+            f"not sent: the ROS server of {name} is not there (robot {self.robot}'s ROS side is "
+            f"{self.word()}); the robot's status says when it is back"
+        )

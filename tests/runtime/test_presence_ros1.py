@@ -1,0 +1,114 @@
+"""Presence on real ROS 1 (Debian's rospy and rosmaster, issue 32): the edge node looks at the robot through its
+master, whatever reaches the robot (here the ROS 1 bridge): the simulated RB-1 stopped is `absent` and an invoke
+is answered at once; started again, it is `present`. Real mosquitto."""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import td2adaptor
+from td2adaptor.backends.rospy import generator as backend
+from td2adaptor.diagnostics import Diagnostics
+from td2adaptor.generation.backend import GenOptions
+from td2adaptor.runtime import RuntimeConfig, serve
+from td2adaptor.runtime.ros.bridge import Ros1Bridge
+from td2adaptor.runtime.ros.genport import Layout
+from tests.conftest import EXAMPLE
+from tests.ros1 import harness
+from tests.ros1.harness import Master
+from tests.runtime.broker import Mosquitto
+from tests.runtime.client import AppClient
+from tests.runtime.edge import until
+from tests.runtime.rb1 import GOAL, rb1_model, terminal
+
+PKG = "robotnik_rb_1_adaptor"
+ROBOT = "pres_ros1"
+
+
+@pytest.fixture(scope="module")
+def ros1() -> None:
+    problem = harness.ros1_problem()
+    if problem:
+        if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
+            pytest.skip(problem)
+        pytest.fail(problem)
+
+
+@pytest.fixture(scope="module")
+def package_src(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Path:
+    result = td2adaptor.compile(EXAMPLE / "td.json", interfaces=[EXAMPLE / "interfaces"])
+    assert result.model is not None
+    root = tmp_path_factory.mktemp("rospy")
+    for rel, data in backend.generate(result.model, GenOptions(), Diagnostics()):
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        (root / rel).write_bytes(data)
+    return root / PKG / "src"
+
+
+@pytest.fixture(scope="module")
+def master(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Iterator[Master]:
+    with harness.rosmaster(tmp_path_factory.mktemp("ros1-home")) as m:
+        yield m
+
+
+def test_a_ros1_robot_is_absent_when_its_nodes_stop_and_present_again(
+    master: Master, package_src: Path, broker: Mosquitto
+) -> None:
+    interfaces = harness.interfaces_dir()
+    model = rb1_model()
+    bridge = Ros1Bridge(
+        Layout.of(model),
+        PKG,
+        [(ROBOT, ROBOT)],
+        python=harness.SYSTEM_PYTHON,
+        pythonpath=[interfaces, package_src],
+        master_uri=master.uri,
+        timeout=10.0,
+        environ=master.env(),
+    )
+    bridge.start()
+    app = AppClient(broker, [f"td2adaptor/{ROBOT}/#"])
+
+    def status() -> dict[str, Any]:
+        with app.cond:
+            found = [e["payload"] for t, e in app.events if t == f"td2adaptor/{ROBOT}/status" and "payload" in e]
+        return found[-1] if found else {}
+
+    config = RuntimeConfig(
+        robot=ROBOT,
+        bus=broker.url,
+        ros_master_uri=master.uri,
+        poll_period=0.05,
+        property_period=0,
+        call_timeout=10.0,
+        presence_period=0.2,
+        state_dir="",
+    )
+    engine = serve(model, bridge.port(ROBOT), config, distro="ros1")
+    try:
+        with harness.run_sim(master, interfaces, ROBOT, "--duration", "0.3"):
+            assert until(lambda: status().get("robot") == "present", 20.0), status()
+            app.send(f"td2adaptor/{ROBOT}/GoToComponent/gotoRun", {"correlation": "there", "payload": GOAL})
+            app.wait(terminal("feedback", "there"), timeout=20)
+        assert until(lambda: status().get("robot") == "absent", 10.0), status()
+        assert "gotoRun" in status()["missing"]
+        sent = time.monotonic()
+        app.send(f"td2adaptor/{ROBOT}/GoToComponent/gotoRun", {"correlation": "gone", "payload": GOAL})
+        app.wait(terminal("feedback", "gone"), timeout=15)
+        assert time.monotonic() - sent < 3.0  # at once, not after call_timeout (10 s)
+        codes = [
+            e["payload"]["code"] for _, e in app.events if e.get("type") == "error" and e.get("correlation") == "gone"
+        ]
+        assert codes == ["absent"]
+        with harness.run_sim(master, interfaces, ROBOT, "--duration", "0.3"):
+            assert until(lambda: status().get("robot") == "present", 20.0), status()
+    finally:
+        engine.stop()
+        bridge.close()
+        app.close()
