@@ -1,6 +1,10 @@
 """Finding backends: every package under `td2adaptor/backends/` is one, and so is every entry point of the
 `td2adaptor.backends` group another distribution installs (`name = "module"`). Adding a backend is adding a
 folder; nothing here lists them.
+
+A backend's own diagnostic codes join the catalogue when its module is imported (it calls
+`td2adaptor.diagnostics.catalogue.register` and names the stage `DIAGNOSTICS`); `diagnostic_stages` imports
+them all, for `td2adaptor explain` and the generated documentation.
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from importlib.metadata import EntryPoint
 
+    from td2adaptor.diagnostics.catalogue import Stage
     from td2adaptor.generation.backend import Backend
 
 ENTRY_POINT_GROUP = "td2adaptor.backends"
@@ -62,6 +67,13 @@ def _may_declare(group: str) -> bool:
     return False
 
 
+def builtin() -> list[str]:
+    """The backends td2adaptor ships (its folders), in `all` order: what docs/diagnostics.md documents."""
+    import td2adaptor.backends as package
+
+    return [name for name, module in modules().items() if module == f"{package.__name__}.{name}"]
+
+
 @cache
 def modules() -> dict[str, str]:
     """Backend name → module, in the order `--backend all` runs them (each backend's ORDER, then name)."""
@@ -93,6 +105,17 @@ def available() -> list[str]:
             continue
         out.append(name)
     return out
+
+
+def diagnostic_stages(names: list[str] | None = None) -> tuple[Stage, ...]:
+    """The stages of the backends' own codes (of `names`, or of every available backend), each imported so
+    that its codes are in the catalogue; in `all` order."""
+    found = []
+    for name in available() if names is None else names:
+        stage = getattr(load(name), "DIAGNOSTICS", None)
+        if stage is not None:
+            found.append(stage)
+    return tuple(found)
 
 
 def load(name: str) -> Backend:

@@ -197,8 +197,10 @@ def explain(codes: tuple[str, ...], fmt: str) -> None:
     """Show what diagnostic codes mean: severity, meaning, hint (all of them: docs/diagnostics.md)."""
     import json
 
+    from td2adaptor.backends.registry import diagnostic_stages
     from td2adaptor.diagnostics.explain import explain_json, explain_text, unknown_codes
 
+    diagnostic_stages()  # every installed backend's own codes join the catalogue
     unknown = unknown_codes(codes)
     if unknown:
         click.echo(f"unknown diagnostic code(s): {', '.join(unknown)} (all codes: docs/diagnostics.md)", err=True)

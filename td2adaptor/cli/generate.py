@@ -30,12 +30,12 @@ _OUTPUT_CODES = frozenset({"GEN801", "GEN802", "GEN806"})
 
 
 def _backend_of(code: str) -> str | None:
-    """The backend whose own code `code` is (`rclpy backend: ...` in the catalogue, or the mROS stage)."""
+    """The backend whose own code `code` is (`rclpy backend: ...` in the catalogue, or a backend's own stage)."""
     from td2adaptor.diagnostics.catalogue import lookup
 
     entry = lookup(code)
-    if entry.stage.prefix == "MROS9":
-        return "mros"
+    if entry.stage.backend is not None:
+        return entry.stage.backend
     first, _, rest = entry.meaning.partition(" ")
     return first if rest.startswith("backend") else None
 

@@ -5,7 +5,8 @@ document it is about; file/line/column are attached later from the document's so
 need to know about text positions.
 
 Every code is listed in `catalogue` (severity, meaning, hint); `Diagnostics.add` refuses a code that is not,
-so a new code cannot go undocumented. `python -m td2adaptor.diagnostics.docs` writes docs/diagnostics.md.
+so a new code cannot go undocumented; a backend adds its own codes (`catalogue.register`).
+`python -m td2adaptor.cli.docs` writes docs/diagnostics.md.
 """
 
 from __future__ import annotations

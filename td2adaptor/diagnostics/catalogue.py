@@ -1,8 +1,12 @@
 """Every diagnostic code td2adaptor reports: its severity, what it means and, where one helps, a hint.
 
-One list, so that a code cannot be reported without being documented (`Diagnostics.add` refuses unknown
+One catalogue, so that a code cannot be reported without being documented (`Diagnostics.add` refuses unknown
 codes), `docs/diagnostics.md` is generated from it and `td2adaptor explain CODE` can print an entry. A test
 checks that the codes here are exactly the codes the source reports.
+
+The stages of the pipeline are listed here; a backend declares its own stage and codes beside its code and
+adds them with `register` when its package is imported (`backends/mros/diagnostics.py`; a plug-in backend
+the same way), so that this layer never has to know which backends exist.
 
 The hints here are general advice for the documentation; the hint a diagnostic carries is the one its call
 site gives (often more specific), so reported output does not depend on this file.
@@ -26,6 +30,7 @@ class Stage:
     prefix: str
     title: str
     modules: str
+    backend: str | None = None  # the backend whose own codes these are (a backend's stage, see `register`)
 
 
 @dataclass(frozen=True)
@@ -66,7 +71,6 @@ STAGES: tuple[Stage, ...] = (
     Stage("SCF1", "Scaffolding a TD from a robot", "scaffold, cli/scaffold"),
     Stage("GEN8", "Generation", "compiler/build, generation, backends/rclpy, backends/rospy, backends/events"),
     Stage("CFG9", "Project configuration", "generation/targets, api"),
-    Stage("MROS9", "mROS backend", "backends/mros"),
 )
 
 _ENTRIES: tuple[Entry, ...] = (
@@ -409,82 +413,59 @@ _ENTRIES: tuple[Entry, ...] = (
     Entry("CFG905", (_E,), "unknown key in a target table"),
     Entry("CFG906", (_E,), "a target's tds pattern matches no file"),
     Entry("CFG907", (_E,), "no TD given and no configuration file found", "give a TD or add a td2adaptor.toml"),
-    # -- MROS9: mROS backend -----------------------------------------------------------------------------
-    Entry(
-        "MROS900",
-        (_E, _W),
-        "TD action: mROS 1 has no services",
-        "pass --partial to skip the actions, or use the rospy backend",
-        "warning under --partial, which skips the actions: one warning lists them",
-    ),
-    Entry("MROS901", (_W,), "node name longer than mROS allows; the td2a_pub/td2a_sub default is used"),
-    Entry("MROS902", (_E,), "topic name longer than mROS's 48 characters"),
-    Entry("MROS903", (_W,), "a namespaced topic leaves no room for a robot namespace"),
-    Entry("MROS904", (_E,), "type name longer than mROS's 49 characters"),
-    Entry("MROS905", (_W,), "more topics/publishers/subscribers than mROS's default tables; the table is raised"),
-    Entry("MROS906", (_W,), "latched publisher requested; mROS 1 cannot latch"),
-    Entry(
-        "MROS907",
-        (_E, _W),
-        "TD action bound to a ROS action: mROS has no actions",
-        "pass --partial to skip it, or use the rospy backend (ROS 1 actions on actionlib; rclpy for ROS 2)",
-        "warning under --partial, which skips the actions: one warning lists them",
-    ),
-    Entry("MROS910", (_E,), "message larger than the largest allowed pool block", "raise mros.max_pool_block"),
-    Entry("MROS911", (_I,), "unbounded strings/sequences: pool sized with the assumed capacities"),
-    Entry("MROS912", (_E,), "invalid mros.* option"),
-    Entry(
-        "MROS913",
-        (_W,),
-        "a subscribed message is sized below what robots usually publish (e.g. a laser scan's ranges)",
-        "--option mros.capacity.<pkg>/msg/<Type>.<field>=N",
-    ),
-    Entry(
-        "MROS914",
-        (_E,),
-        "a ROS 1 publisher's TCPROS header (with the full message definition) overruns mROS's subscriber buffer",
-        "raise MROS_PACKET_MAXSIZE_RES_TCPROS in the mROS tree and state it: --option mros.tcpros_header_max=N",
-    ),
-    Entry(
-        "MROS915",
-        (_E,),
-        "a rospy subscriber's TCPROS header (with the full message definition) overruns mROS's publisher buffer",
-        "raise MROS_PACKET_MAXSIZE_REQ_TCPROS in the mROS tree and state it: --option mros.tcpros_header_max=N",
-    ),
-    Entry(
-        "MROS916",
-        (_E,),
-        "an XML-RPC request mROS sends for a topic does not fit its packet buffer (the topic never registers)",
-        "raise MROS_PACKET_MAXSIZE_REQ_REGISTER_* in the mROS tree and state it: --option mros.xmlrpc_packet_max=N",
-    ),
-    Entry(
-        "MROS917",
-        (_W,),
-        "a TCPROS header fits the stated mROS limit only as counted without comments (a lower bound)",
-        "pass the types' .msg files with -I to check the exact size",
-    ),
-    Entry("MROS920", (_W,), "field or constant name unusable in C++: renamed with a trailing '_'"),
-    Entry("MROS921", (_W,), "package or message name unusable in C++: the namespace/class is renamed"),
-    Entry("MROS922", (_E,), "component or affordance name unusable in C++ identifiers"),
-    Entry(
-        "MROS923",
-        (_W, _E),
-        "component name reserved in C++ (renamed), or generated C++ names collide",
-        None,
-        "error when the generated names collide",
-    ),
-    Entry("MROS930", (_W,), "no property bound to a topic: only a README is generated"),
-    Entry("MROS931", (_E,), "a topic's message type ROS 1 cannot use (not found, or for ROS 2 only)"),
-    Entry("MROS932", (_E,), "field type ROS 1 lacks, e.g. wstring"),
-    Entry("MROS933", (_W,), "constant C++ cannot hold (non-finite float) or of an unknown type: left out"),
 )
 
-CATALOGUE: Mapping[str, Entry] = MappingProxyType({e.code: e for e in _ENTRIES})
+_BY_CODE: dict[str, Entry] = {e.code: e for e in _ENTRIES}
+_STAGES: list[Stage] = list(STAGES)  # the pipeline's stages, then each registered backend's, in that order
+
+#: code → entry of every code known in this process: the pipeline's, and those of every backend registered
+CATALOGUE: Mapping[str, Entry] = MappingProxyType(_BY_CODE)
+
+
+def register(stage: Stage, entries: tuple[Entry, ...]) -> Stage:
+    """Add a backend's own stage and codes (once per process; again with the same ones is a no-op).
+
+    ValueError (a bug of the backend, never bad input) for a stage without a backend or without codes, a
+    prefix another stage's codes would share, or a code outside the prefix or already known.
+    """
+    if any(s == stage for s in _STAGES):
+        if any(_BY_CODE.get(e.code) != e for e in entries):
+            raise ValueError(f"stage {stage.prefix} is already registered with other codes")
+        return stage
+    problem = _stage_problem(stage, entries)
+    if problem:
+        raise ValueError(f"cannot register diagnostic stage {stage.prefix!r}: {problem}")
+    _STAGES.append(stage)
+    _BY_CODE.update((e.code, e) for e in entries)
+    return stage
+
+
+def _stage_problem(stage: Stage, entries: tuple[Entry, ...]) -> str | None:
+    if not stage.backend:
+        return "a registered stage names its backend"
+    if not entries:
+        return "it has no codes"
+    for other in _STAGES:
+        if other.prefix.startswith(stage.prefix) or stage.prefix.startswith(other.prefix):
+            return f"its prefix overlaps {other.prefix!r} ({other.title})"
+    for entry in entries:
+        if not entry.code.startswith(stage.prefix):
+            return f"{entry.code} does not start with the prefix"
+        if entry.code in _BY_CODE:
+            return f"{entry.code} is already known"
+    if len({e.code for e in entries}) != len(entries):
+        return "a code is listed twice"
+    return None
+
+
+def stages() -> tuple[Stage, ...]:
+    """Every stage known in this process: the pipeline's (`STAGES`), then the registered backends'."""
+    return tuple(_STAGES)
 
 
 def stage_of(code: str) -> Stage:
-    """The stage a code belongs to: the longest matching prefix (`MROS9` before a hypothetical `M`)."""
-    matches = [s for s in STAGES if code.startswith(s.prefix)]
+    """The stage a code belongs to: the longest matching prefix (`TD25` before a hypothetical `TD2`)."""
+    matches = [s for s in _STAGES if code.startswith(s.prefix)]
     if not matches:
         raise KeyError(f"no stage for diagnostic code {code!r}")
     return max(matches, key=lambda s: len(s.prefix))
@@ -508,6 +489,8 @@ def meanings(prefix: str) -> dict[str, str]:
     return {code: e.meaning for code, e in CATALOGUE.items() if code.startswith(prefix)}
 
 
-def by_stage() -> list[tuple[Stage, list[Entry]]]:
-    """The entries grouped by stage, in pipeline order; codes in each group in code order."""
-    return [(s, sorted((e for e in _ENTRIES if stage_of(e.code) is s), key=lambda e: e.code)) for s in STAGES]
+def by_stage(chosen: tuple[Stage, ...] | None = None) -> list[tuple[Stage, list[Entry]]]:
+    """The entries grouped by stage (every known stage, or the `chosen` ones), in pipeline order then the
+    backends' in registration order; codes in each group in code order."""
+    wanted = [s for s in _STAGES if chosen is None or s in chosen]
+    return [(s, sorted((e for e in _BY_CODE.values() if stage_of(e.code) is s), key=lambda e: e.code)) for s in wanted]

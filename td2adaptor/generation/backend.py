@@ -5,6 +5,11 @@ and `generate(model: Model, options: GenOptions, diags: Diagnostics) -> Generate
 to disk (`generation.emit` does), never see dialects (only the model), and must be deterministic: same model
 and options, same bytes.
 
+A backend that reports codes of its own (not the shared GEN8xx ones) declares them: a `Stage` with
+`backend=NAME` and its `Entry`s, given to `td2adaptor.diagnostics.catalogue.register` when the backend's
+package is imported (before anything reports them), and the stage it returns named `DIAGNOSTICS`. They join
+the catalogue, `td2adaptor explain` and, for the backends td2adaptor ships, docs/diagnostics.md.
+
 A backend may also provide `finish(tree: GeneratedTree) -> GeneratedTree`: `build` calls it once per output
 directory with the trees of every TD merged (e.g. to add an index of the packages), and writes what it
 returns. It must not depend on the order of the TDs.

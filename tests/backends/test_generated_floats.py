@@ -18,13 +18,10 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import pytest
-
-from td2adaptor.backends.rospy import generator as rospy_backend
-from td2adaptor.diagnostics import Diagnostics, Severity
-from td2adaptor.generation.backend import GenOptions
+from tests import generated
 from tests.ros1 import harness
 from tests.ros2.common import build_rclpy
+from tests.tools import require_ok
 
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain
 
@@ -117,22 +114,10 @@ def test_rclpy_construct_refuses_floats_ros_2_cannot_hold(ros2_domain: int, tmp_
 
 
 def test_rospy_construct_refuses_floats_ros_1_cannot_hold(tmp_path: Path) -> None:
-    problem = harness.ros1_problem()
-    if problem:
-        if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
-            pytest.skip(problem)
-        pytest.fail(problem)
-    import td2adaptor
-
+    require_ok(harness.ros1_problem())
     path = tmp_path / "td.json"
     path.write_text(json.dumps(TD), encoding="utf-8")
-    result = td2adaptor.compile(path, interfaces=[])
-    assert result.model is not None
-    diags = Diagnostics()
-    for rel, data in rospy_backend.generate(result.model, GenOptions(), diags):
-        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
-        (tmp_path / rel).write_bytes(data)
-    assert not [d for d in diags if d.severity is Severity.ERROR]
+    generated.generate("rospy", path, tmp_path)
     code = f"from {PACKAGE} import ValuesComponent\ncomponent = ValuesComponent('checks')\n" + CHECKS
     environ = dict(os.environ, PYTHONPATH=str(tmp_path / PACKAGE / "src"))
     out = subprocess.run([harness.SYSTEM_PYTHON, "-c", code], env=environ, capture_output=True, text=True, timeout=60)

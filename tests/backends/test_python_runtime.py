@@ -18,6 +18,7 @@ import pytest
 
 from tests.conftest import REPO
 from tests.ros2.common import require_ros2
+from tests.tools import require
 
 VENV_BIN = Path(sys.executable).parent
 BACKENDS = REPO / "td2adaptor" / "backends"
@@ -43,8 +44,8 @@ def _package(tmp: Path, *runtime: Path) -> Path:
 
 def pyright() -> Path:
     """The pinned pyright, installed by .ci/setup-pyright.sh when node and npm are there."""
-    if shutil.which("node") is None or shutil.which("npm") is None:
-        pytest.skip("node/npm not installed: pyright (from npm) cannot run")
+    require("node", "apt install nodejs")
+    require("npm", "apt install npm")
     if not PYRIGHT.exists():
         setup = _run(["bash", REPO / ".ci" / "setup-pyright.sh"], REPO)
         assert setup.returncode == 0, setup.stderr

@@ -1,4 +1,5 @@
-"""The diagnostic catalogue: exactly the codes the source reports, severities as reported, docs current."""
+"""The diagnostic catalogue: exactly the codes the source reports, severities as reported, docs current; a
+backend's own codes (declared in its folder, registered on import) are part of it."""
 
 from __future__ import annotations
 
@@ -9,10 +10,17 @@ from pathlib import Path
 
 import pytest
 
+from td2adaptor.backends import registry
+from td2adaptor.cli.docs import DEFAULT_PATH, documented, main
 from td2adaptor.diagnostics import Diagnostic, Diagnostics, Severity, catalogue
-from td2adaptor.diagnostics.catalogue import CATALOGUE, STAGES, lookup, meanings, stage_of
-from td2adaptor.diagnostics.docs import DEFAULT_PATH, main, render
+from td2adaptor.diagnostics.catalogue import CATALOGUE, STAGES, Entry, Stage, lookup, meanings, register, stage_of
+from td2adaptor.diagnostics.docs import render
 from tests.conftest import REPO
+
+#: td2adaptor's own codes: the pipeline's and those of the backends it ships (a plug-in a test installed may
+#: have added its own to this process's catalogue; tests/backends/toy checks those)
+DOCUMENTED = documented()
+OWN = {code: entry for code, entry in CATALOGUE.items() if entry.stage in DOCUMENTED}
 
 PACKAGE = REPO / "td2adaptor"
 CODE = re.compile(r"[A-Z]{2,4}[0-9]{3}")
@@ -28,9 +36,16 @@ def _sources() -> Iterator[tuple[Path, ast.Module]]:
 
 
 def _code_literals(tree: ast.AST) -> Iterator[ast.Constant]:
+    """Every code written in the source, but where a backend declares its codes (`Entry("MROS900", ...)`)."""
+    declared = {
+        id(node.args[0])
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Call) and getattr(node.func, "id", "") == "Entry" and node.args
+    }
     for node in ast.walk(tree):
         if isinstance(node, ast.Constant) and isinstance(node.value, str) and CODE.fullmatch(node.value):
-            yield node
+            if id(node) not in declared:
+                yield node
 
 
 def _stated_severity(call: ast.Call) -> Severity | None:
@@ -46,8 +61,8 @@ def _stated_severity(call: ast.Call) -> Severity | None:
 
 def test_catalogue_lists_exactly_the_codes_the_source_reports() -> None:
     used = {str(node.value) for _, tree in _sources() for node in _code_literals(tree)}
-    assert sorted(used - set(CATALOGUE)) == [], "reported but not in the catalogue"
-    assert sorted(set(CATALOGUE) - used) == [], "in the catalogue but never reported"
+    assert sorted(used - set(OWN)) == [], "reported but not in the catalogue"
+    assert sorted(set(OWN) - used) == [], "in the catalogue but never reported"
 
 
 def test_reported_severities_are_catalogued() -> None:
@@ -67,7 +82,7 @@ def test_reported_severities_are_catalogued() -> None:
     assert checked > 150, "the scan no longer sees the diagnostic calls"
 
 
-@pytest.mark.parametrize("entry", CATALOGUE.values(), ids=list(CATALOGUE))
+@pytest.mark.parametrize("entry", OWN.values(), ids=list(OWN))
 def test_entries_are_well_formed(entry: catalogue.Entry) -> None:
     assert CODE.fullmatch(entry.code) and entry.code.startswith(stage_of(entry.code).prefix)
     assert entry.meaning and "\n" not in entry.meaning and not entry.meaning.endswith(".")
@@ -77,8 +92,9 @@ def test_entries_are_well_formed(entry: catalogue.Entry) -> None:
 
 
 def test_stages_and_views() -> None:
-    assert len({s.prefix for s in STAGES}) == len(STAGES)
-    assert all(any(stage_of(c) is s for c in CATALOGUE) for s in STAGES), "a stage without codes"
+    stages = documented()
+    assert len({s.prefix for s in stages}) == len(stages)
+    assert all(any(stage_of(c) is s for c in OWN) for s in stages), "a stage without codes"
     assert set(meanings("TD25")) == {"TD251", "TD252", "TD253"}
     assert lookup("mros900").code == "MROS900"
     with pytest.raises(KeyError, match="not in td2adaptor.diagnostics.catalogue"):
@@ -99,15 +115,40 @@ def test_unknown_codes_are_refused() -> None:
 
 def test_docs_are_current(capsys: pytest.CaptureFixture[str]) -> None:
     assert DEFAULT_PATH == REPO / "docs" / "diagnostics.md"
-    assert main(["--check"]) == 0, "run: python -m td2adaptor.diagnostics.docs"
-    text = render()
-    assert all(f"| `{code}` |" in text for code in CATALOGUE)
-    assert text.count("\n## ") == len(STAGES)
+    assert main(["--check"]) == 0, "run: python -m td2adaptor.cli.docs"
+    text = render(documented())
+    assert all(f"| `{code}` |" in text for code in OWN)
+    assert text.count("\n## ") == len(documented())
 
 
 def test_docs_check_reports_a_stale_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "diagnostics.md"
     assert main(["--check", "--output", str(out)]) == 1
     assert "is not current" in capsys.readouterr().err
-    assert main(["--output", str(out)]) == 0 and out.read_text(encoding="utf-8") == render()
+    assert main(["--output", str(out)]) == 0 and out.read_text(encoding="utf-8") == render(documented())
     assert main(["--check", "--output", str(out)]) == 0
+
+
+def test_a_backend_declares_its_own_codes_in_its_folder() -> None:
+    """The catalogue's module names no backend; the mROS codes are the mros backend's, registered on import."""
+    assert not any(s.backend for s in STAGES) and not any(s.prefix.startswith("MROS") for s in STAGES)
+    (mros,) = registry.diagnostic_stages(["mros"])
+    assert mros.backend == "mros" and lookup("MROS900").stage is mros and mros in documented()
+    assert "MROS9" not in (REPO / "td2adaptor" / "diagnostics" / "catalogue.py").read_text(encoding="utf-8")
+
+
+def test_registering_a_stage_is_checked() -> None:
+    """A backend's stage names its backend, has codes, keeps to its prefix and clashes with nothing."""
+    warn = (Severity.WARNING,)
+    cases = {
+        "names its backend": (Stage("QQ1", "q", "q"), (Entry("QQ100", warn, "m"),)),
+        "has no codes": (Stage("QQ1", "q", "q", backend="q"), ()),
+        "overlaps 'TD0'": (Stage("TD", "q", "q", backend="q"), (Entry("TD099", warn, "m"),)),
+        "does not start with the prefix": (Stage("QQ1", "q", "q", backend="q"), (Entry("QQ200", warn, "m"),)),
+    }
+    for problem, (stage, entries) in cases.items():
+        with pytest.raises(ValueError, match=problem):
+            register(stage, entries)
+    assert not any(c.startswith("QQ") for c in CATALOGUE)
+    (mros,) = registry.diagnostic_stages(["mros"])
+    assert register(mros, tuple(e for c, e in CATALOGUE.items() if c.startswith("MROS"))) is mros  # again: no-op

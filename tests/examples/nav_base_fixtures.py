@@ -17,11 +17,8 @@ from typing import Any
 
 import pytest
 
-import td2adaptor
-from td2adaptor.backends.registry import load as load_backend
-from td2adaptor.diagnostics import Diagnostics, Severity
-from td2adaptor.generation.backend import GenOptions
 from td2adaptor.support import ros2build
+from tests import generated
 from tests.examples.nav_base import BASES, EXAMPLE, FEEDBACK_RATE, INTERFACES, PACKAGE, SPEED
 from tests.ros2 import env
 from tests.ros2.build import CACHE, COLCON_HOME
@@ -39,17 +36,11 @@ def nav_prefix(ros2_domain: int) -> Path:
 @pytest.fixture(scope="session")
 def nav_adaptor(nav_prefix: Path, tmp_path_factory: pytest.TempPathFactory) -> ModuleType:
     """The rclpy adaptor of examples/nav_base/td.json, generated and imported from its source."""
-    result = td2adaptor.compile(EXAMPLE / "td.json", interfaces=[INTERFACES])
-    assert result.model is not None, [d.message for d in result.diagnostics]
-    diags = Diagnostics()
-    tree = load_backend("rclpy").generate(result.model, GenOptions(), diags)
-    assert not [d for d in diags if d.severity is Severity.ERROR], [d.message for d in diags]
-    src = tmp_path_factory.mktemp("nav-base-rclpy")
-    for rel, data in tree:
-        path = src / rel
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_bytes(data)
-    sys.path.insert(0, str(src / PACKAGE))
+    _, package = generated.generate(
+        "rclpy", EXAMPLE / "td.json", tmp_path_factory.mktemp("nav-base-rclpy"), interfaces=[INTERFACES]
+    )
+    assert package.name == PACKAGE
+    sys.path.insert(0, str(package))
     return importlib.import_module(PACKAGE)
 
 

@@ -8,7 +8,6 @@ serves several bases, and every test drives a base of its own. The client code r
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -17,10 +16,7 @@ from typing import Any
 
 import pytest
 
-import td2adaptor
-from td2adaptor.backends.registry import load as load_backend
-from td2adaptor.diagnostics import Diagnostics, Severity
-from td2adaptor.generation.backend import GenOptions
+from tests import generated
 from tests.examples.nav_base import EXAMPLE, INTERFACES, PACKAGE
 from tests.ros1 import harness
 from tests.ros1.harness import Master, Sim
@@ -28,15 +24,6 @@ from tests.ros1.harness import Master, Sim
 SIM = EXAMPLE / "sim" / "ros1.py"
 BASES = tuple(f"nav1_{i}" for i in range(6))
 SPEED = 2.0
-
-
-@pytest.fixture(scope="module")
-def ros1() -> None:
-    problem = harness.ros1_problem()
-    if problem:
-        if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
-            pytest.skip(problem)
-        pytest.fail(problem)
 
 
 @pytest.fixture(scope="module")
@@ -56,22 +43,11 @@ def genpy(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Path:
 @pytest.fixture(scope="module")
 def package(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The rospy package of examples/nav_base/td.json; its directory."""
-    result = td2adaptor.compile(EXAMPLE / "td.json", interfaces=[INTERFACES])
-    assert result.model is not None, [d.message for d in result.diagnostics]
-    diags = Diagnostics()
-    tree = load_backend("rospy").generate(result.model, GenOptions(), diags)
-    assert not [d for d in diags if d.severity is Severity.ERROR], [d.message for d in diags]
-    root = tmp_path_factory.mktemp("nav-rospy")
-    for rel, data in tree:
-        (root / rel).parent.mkdir(parents=True, exist_ok=True)
-        (root / rel).write_bytes(data)
-    return root / PACKAGE
-
-
-@pytest.fixture(scope="module")
-def master(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Iterator[Master]:
-    with harness.rosmaster(tmp_path_factory.mktemp("nav-ros1-home")) as m:
-        yield m
+    _, package = generated.generate(
+        "rospy", EXAMPLE / "td.json", tmp_path_factory.mktemp("nav-rospy"), interfaces=[INTERFACES]
+    )
+    assert package.name == PACKAGE
+    return package
 
 
 @pytest.fixture(scope="module")

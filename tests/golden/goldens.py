@@ -4,7 +4,11 @@ Two kinds of golden:
 
 * a *configuration* (pyproject.toml's `[tool.td2adaptor]`, or a case's `td2adaptor.toml`): its targets are
   built in memory with `td2adaptor.compiler.build.build` and each output directory must hold exactly the
-  generated files and the manifest, byte for byte and with the same executable bits — nothing more;
+  generated files and the manifest, byte for byte and with the same executable bits — nothing more. A case
+  records a file that is a byte copy of a backend's `verbatim/` source by hash only: the manifest keeps its
+  sha256 and `.golden-verbatim.txt` says which source it is (`generated/`, the example users read and
+  build, keeps every file). A case may install plug-in backends for itself: each line of its `plugins.txt`
+  is a folder (relative to the case) put on the path while it is made, as `pip install` would;
 * a *diagnostics snapshot*: the td2adaptor command of `snapshot.toml`, run in a scratch copy of the snapshot's
   folder (so it can never write into the repository), its normalised transcript against `expected.txt`.
 """
@@ -12,6 +16,7 @@ Two kinds of golden:
 from __future__ import annotations
 
 import difflib
+import hashlib
 import os
 import shutil
 import stat
@@ -20,10 +25,12 @@ import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from functools import cache
 from pathlib import Path
 
 from click.testing import CliRunner
 
+from td2adaptor.backends import registry
 from td2adaptor.cli.main import EXIT_INTERNAL, cli
 from td2adaptor.compiler.build import build
 from td2adaptor.diagnostics import Diagnostics, Severity
@@ -43,6 +50,8 @@ SNAPSHOTS = HERE / "diagnostics"
 CASE_FILE = "td2adaptor.toml"
 SNAPSHOT_FILE = "snapshot.toml"
 EXPECTED = "expected.txt"
+PLUGINS_FILE = "plugins.txt"
+VERBATIM_INDEX = ".golden-verbatim.txt"  # a hidden name: no generated file can have it (emit refuses them)
 COMMAND = ".venv/bin/python -m tests.golden --refresh"
 ADVICE = f"run `{COMMAND}` and review git diff"
 
@@ -94,14 +103,15 @@ def compare(golden: Golden, *, refresh: bool = False) -> Report:
 def _configuration(golden: Golden, refresh: bool) -> Report:
     report = Report(golden.name)
     diags = Diagnostics()
-    loaded = config.load(golden.path, diags)
-    trees = build(loaded.targets, diags, use_cache=False) if loaded is not None else None
+    with installed(golden.path.parent):
+        loaded = config.load(golden.path, diags)
+        trees = build(loaded.targets, diags, use_cache=False) if loaded is not None else None
     report.errors = [f"{d.location}: {d.code}: {d.message}" for d in diags if d.severity is Severity.ERROR]
     if loaded is None or trees is None or report.errors:
         return report
     expected: dict[Path, dict[str, tuple[bytes, bool]]] = {}
     for root, tree in trees.items():
-        expected[root] = _files(tree)
+        expected[root] = _files(tree, by_hash=golden.name != "generated")
     for output in sorted({t.output for t in loaded.targets}):
         for child in sorted(output.iterdir()) if output.is_dir() else []:
             if child not in expected:
@@ -114,11 +124,75 @@ def _configuration(golden: Golden, refresh: bool) -> Report:
     return report
 
 
-def _files(tree: GeneratedTree) -> dict[str, tuple[bytes, bool]]:
-    """Every file a backend directory must hold: (content, executable), the manifest included."""
+@contextmanager
+def installed(case: Path) -> Iterator[None]:
+    """The plug-in backends a case names in its `plugins.txt` installed (on the path, the registry asked
+    again) while it is made; uninstalled after, so that no other golden sees them."""
+    listed = case / PLUGINS_FILE
+    lines = listed.read_text(encoding="utf-8").splitlines() if listed.is_file() else []
+    sites = [str((case / line.strip()).resolve()) for line in lines if line.strip()]
+    if not sites:
+        yield
+        return
+    sys.path[:0] = sites
+    registry.modules.cache_clear()
+    try:
+        yield
+    finally:
+        for site in sites:
+            sys.path.remove(site)
+        registry.modules.cache_clear()
+
+
+def _sha(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+@cache
+def verbatim_sources() -> dict[str, str]:
+    """sha256 → repository path of every file a backend copies into its output unchanged (its `verbatim/`;
+    a `ruff.toml` there is the repository's lint setting for the folder, not output)."""
+    found: dict[str, str] = {}
+    for path in sorted((REPO / "td2adaptor" / "backends").glob("*/verbatim/**/*")):
+        if path.name == "ruff.toml" and path.parent.name == "verbatim":
+            continue
+        if path.is_file() and not TOOL_CACHES.intersection(path.parts) and path.suffix != ".pyc":
+            found.setdefault(_sha(path.read_bytes()), path.relative_to(REPO).as_posix())
+    return found
+
+
+def _files(tree: GeneratedTree, *, by_hash: bool = False) -> dict[str, tuple[bytes, bool]]:
+    """Every file a backend directory must hold: (content, executable), the manifest included. `by_hash`:
+    a byte copy of a verbatim source is left out, named in the verbatim index instead (its hash is the
+    manifest's)."""
     files = {rel: (data, rel in tree.executable) for rel, data in tree}
     files[MANIFEST] = (_manifest_bytes(tree), False)
+    if by_hash:
+        sources = verbatim_sources()
+        copies = {rel: sources[_sha(data)] for rel, (data, _) in files.items() if _sha(data) in sources}
+        lines = [f"{rel} = {source}{' (executable)' * files[rel][1]}\n" for rel, source in sorted(copies.items())]
+        for rel in copies:
+            del files[rel]
+        if lines:
+            files[VERBATIM_INDEX] = ("".join(lines).encode(), False)
     return files
+
+
+def verbatim_index(root: Path) -> dict[str, str]:
+    """A case's output directory's verbatim index: generated path → the repository path of its source."""
+    path = root / VERBATIM_INDEX
+    lines = path.read_text(encoding="utf-8").splitlines() if path.is_file() else []
+    return {rel: source.removesuffix(" (executable)") for rel, _, source in (line.partition(" = ") for line in lines)}
+
+
+def materialize(root: Path, into: Path) -> Path:
+    """A case's output directory whole, as td2adaptor writes it: a copy with every verbatim file put back."""
+    shutil.copytree(root, into, ignore=shutil.ignore_patterns(VERBATIM_INDEX, *TOOL_CACHES))
+    for rel, source in verbatim_index(root).items():
+        target = into / rel
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(REPO / source, target)
+    return into
 
 
 # what tools leave beside the files and git ignores (.gitignore): not part of a golden
@@ -171,6 +245,9 @@ def _rewrite(root: Path, tree: GeneratedTree | None, files: dict[str, tuple[byte
     if rep is None:
         raise RuntimeError(f"cannot write {root}: {[d.message for d in diags]}")
     write(tree, root, rep)
+    for rel, (data, _) in files.items():
+        if rel not in tree.files and rel != MANIFEST:  # the verbatim index: the golden's own
+            (root / rel).write_bytes(data)
     for rel, path in _on_disk(root).items():
         if rel not in files:
             path.unlink()

@@ -1,16 +1,25 @@
 """Every golden is current: generated/ (the RB-1 example), each case's expected/ tree, each diagnostics
 snapshot. And the machinery behind `python -m tests.golden` notices every kind of difference and repairs it.
+This is the one test of generated/ against td2adaptor's output.
+
+A case keeps no byte copy of a backend's verbatim source (its hash is in the manifest, its source named in
+the verbatim index); the rule that makes that safe, that a backend copies its verbatim files unchanged, is
+checked here: every verbatim source is copied by some case, and each copy's hash is the source's.
 
 On a failure: run `.venv/bin/python -m tests.golden --refresh` and review git diff.
 """
 
 from __future__ import annotations
 
+import hashlib
 import shutil
 from pathlib import Path
 
 import pytest
 
+from td2adaptor.backends import registry
+from td2adaptor.generation.emit import MANIFEST, read_manifest
+from tests.conftest import REPO
 from tests.golden import __main__ as golden_cli
 from tests.golden.goldens import (
     ADVICE,
@@ -18,11 +27,15 @@ from tests.golden.goldens import (
     CASES,
     EXPECTED,
     SNAPSHOTS,
+    VERBATIM_INDEX,
     Golden,
     compare,
     expected_codes,
     goldens,
+    materialize,
     transcript,
+    verbatim_index,
+    verbatim_sources,
 )
 
 ALL = goldens()
@@ -44,6 +57,54 @@ def test_the_cases_and_snapshots_are_all_found() -> None:
     # a folder without its case file or snapshot file would be silently skipped
     assert all((d / CASE_FILE).is_file() for d in CASES.iterdir() if d.is_dir())
     assert all((d / EXPECTED).is_file() for d in SNAPSHOTS.iterdir() if d.is_dir())
+
+
+def test_every_backend_has_golden_output() -> None:
+    """Derived from the registry: generated/ holds each shipped backend's output, and some case each backend's
+    (a plug-in's too, installed by its case)."""
+    shipped = registry.builtin()
+    assert sorted(p.name for p in (REPO / "generated").iterdir() if p.is_dir()) == sorted(shipped)
+    in_cases = {p.name for p in CASES.glob("*/expected/*") if p.is_dir()}
+    assert set(shipped) <= in_cases and "toy" in in_cases
+
+
+def _case_roots() -> list[Path]:
+    return sorted(p for p in CASES.glob("*/expected/*") if p.is_dir())
+
+
+def test_no_case_keeps_a_copy_of_a_verbatim_source() -> None:
+    sources = verbatim_sources()
+    copies = [
+        p.relative_to(CASES).as_posix()
+        for p in CASES.rglob("*")
+        if p.is_file() and hashlib.sha256(p.read_bytes()).hexdigest() in sources
+    ]
+    assert copies == []
+
+
+def test_verbatim_files_are_copied_unchanged() -> None:
+    """Each file a case records by hash has its source's bytes (the manifest's sha256 is the source's), and
+    every verbatim source of every shipped backend is copied by some case: a backend that changed one on the
+    way out would leave it unlisted (and its generated file stored whole), which fails here."""
+    listed: set[str] = set()
+    for root in _case_roots():
+        manifest = read_manifest(root)
+        for rel, source in verbatim_index(root).items():
+            assert manifest[rel] == hashlib.sha256((REPO / source).read_bytes()).hexdigest(), f"{root}/{rel}"
+            assert not (root / rel).exists()
+            listed.add(source)
+    assert sorted(set(verbatim_sources().values()) - listed) == []
+
+
+def test_a_materialized_case_is_what_td2adaptor_writes(tmp_path: Path) -> None:
+    """`materialize` puts the verbatim files back: every file of the manifest, with its hash."""
+    root = CASES / "std_robot" / "expected" / "rospy"
+    out = materialize(root, tmp_path / "rospy")
+    manifest = read_manifest(out)
+    on_disk = {p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file()} - {MANIFEST}
+    assert on_disk == set(manifest) and verbatim_index(root)
+    for rel, sha in manifest.items():
+        assert hashlib.sha256((out / rel).read_bytes()).hexdigest() == sha, rel
 
 
 @pytest.mark.parametrize("folder", SNAPSHOT_FOLDERS, ids=[f.name for f in SNAPSHOT_FOLDERS])
@@ -90,7 +151,10 @@ def test_every_kind_of_difference_is_found_and_repaired(case: Golden) -> None:
     pkg = out / "rospy" / "diffbot_adaptor"
     readme = pkg / "README.md"
     readme.write_text(readme.read_text() + "edited\n")  # edited
-    (pkg / "src" / "diffbot_adaptor" / "errors.py").unlink()  # removed
+    (pkg / "src" / "diffbot_adaptor" / "components.py").unlink()  # removed
+    (pkg / "src" / "diffbot_adaptor" / "errors.py").write_text("# a verbatim copy, kept by hash only\n")
+    index = out / "rospy" / VERBATIM_INDEX
+    index.write_text(index.read_text().replace("errors.py = ", "errors.py = ./"))  # a source renamed
     (pkg / "notes.txt").write_text("not generated\n")  # foreign file, not in the manifest
     (pkg / "scripts" / "edge_node").chmod(0o644)  # lost its executable bit
     (out / "mros" / "diffbot_adaptor").mkdir(parents=True)  # a backend the case does not generate
@@ -100,7 +164,9 @@ def test_every_kind_of_difference_is_found_and_repaired(case: Golden) -> None:
     report = compare(case)
     assert _kinds(report.differences, out) == {
         ("M", "rospy/diffbot_adaptor/README.md"),
-        ("A", "rospy/diffbot_adaptor/src/diffbot_adaptor/errors.py"),
+        ("A", "rospy/diffbot_adaptor/src/diffbot_adaptor/components.py"),
+        ("D", "rospy/diffbot_adaptor/src/diffbot_adaptor/errors.py"),
+        ("M", f"rospy/{VERBATIM_INDEX}"),
         ("D", "rospy/diffbot_adaptor/notes.txt"),
         ("M", "rospy/diffbot_adaptor/scripts/edge_node"),
         ("D", "mros/diffbot_adaptor/app.cpp"),
@@ -108,6 +174,7 @@ def test_every_kind_of_difference_is_found_and_repaired(case: Golden) -> None:
     compare(case, refresh=True)
     assert compare(case).current
     assert not (out / "mros").exists() and not (pkg / "notes.txt").exists()
+    assert not (pkg / "src" / "diffbot_adaptor" / "errors.py").exists()
     assert (pkg / "scripts" / "edge_node").stat().st_mode & 0o100
 
 

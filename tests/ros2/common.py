@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 import queue
 import subprocess
 import tempfile
@@ -13,14 +12,14 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import pytest
-
 import td2adaptor
 from td2adaptor.backends.registry import load as load_backend
 from td2adaptor.compiler.pipeline import Result
 from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GenOptions
+from tests import generated
 from tests.ros2 import env
+from tests.tools import missing
 
 EXAMPLE = env.REPO / "examples" / "robotnik_rb1"
 PACKAGE = "robotnik_rb_1_adaptor"
@@ -29,13 +28,10 @@ SIM_DURATION = 1.0
 
 
 def require_ros2() -> None:
-    """Skip without the `ros2` extra; in CI (which installs it) a missing ROS 2 is a failure, not a skip."""
+    """The `ros2` extra, by the one policy (tests/tools.py: a skip here, a failure in CI)."""
     if env.ros2_available():
         return
-    message = "ROS 2 Jazzy wheels not installed (bash .ci/setup-ros2.sh, or pip install -e '.[ros2]')"
-    if os.environ.get("CI"):
-        pytest.fail(message)
-    pytest.skip(message)
+    missing("ROS 2 Jazzy wheels not installed (bash .ci/setup-ros2.sh, or pip install -e '.[ros2]')")
 
 
 def generate_rclpy(td: Path, out: Path, *, package_name: str | None = None) -> Path:
@@ -53,10 +49,7 @@ def build_rclpy(
     diags = Diagnostics()
     tree = load_backend("rclpy").generate(result.model, GenOptions(package_name=package_name), diags)
     assert not [d for d in diags if d.severity is Severity.ERROR], [d.message for d in diags]
-    for rel, data in tree:
-        path = out / rel
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_bytes(data)
+    generated.write(tree, out)
     return result, out / (package_name or result.model.package_name)
 
 

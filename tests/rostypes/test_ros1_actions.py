@@ -8,7 +8,6 @@ messages genaction wrote), so nothing here is a hard-coded number.
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import pytest
@@ -17,6 +16,7 @@ from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.rostypes import TypeRegistry
 from td2adaptor.rostypes.names import hidden_action_part, ros1_action_messages, ros1_name
 from tests.ros1 import harness
+from tests.tools import require_ok
 
 #: actions whose genpy modules Debian ships (python3-actionlib, python3-move-base-msgs)
 DEBIAN_ACTIONS = ("actionlib/TwoInts", "actionlib/Test", "actionlib/TestRequest", "move_base_msgs/MoveBase")
@@ -38,11 +38,7 @@ print(json.dumps(out))
 @pytest.fixture(scope="module")
 def debian() -> dict[str, list[str]]:
     """ROS 1 type → [md5, full text] of every message of DEBIAN_ACTIONS, as Debian's genpy modules have them."""
-    problem = harness.ros1_problem()
-    if problem:
-        if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
-            pytest.skip(problem)
-        pytest.fail(problem)
+    require_ok(harness.ros1_problem())
     out = harness.run_system_python(_DUMP, *DEBIAN_ACTIONS)
     assert out.returncode == 0, f"Debian's action messages are not importable (run .ci/setup-ros1.sh):\n{out.stderr}"
     found: dict[str, list[str]] = json.loads(out.stdout)

@@ -3,12 +3,11 @@ more server certificates of that CA with other names or validity dates (`server_
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 
-import pytest
+from tests.tools import require
 
 
 @dataclass(frozen=True)
@@ -28,8 +27,7 @@ _EC = ("-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes")
 
 
 def make_certs(root: Path) -> Certs:
-    if shutil.which("openssl") is None:
-        pytest.fail("openssl is not installed: run `SUDO= bash .ci/setup-mqtt.sh`")
+    require("openssl", "run `SUDO= bash .ci/setup-mqtt.sh`")
     root.mkdir(parents=True, exist_ok=True)
     _run(
         "req",

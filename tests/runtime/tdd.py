@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import subprocess
 import time
 import urllib.error
@@ -24,21 +23,19 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
-import pytest
-
 from tests.conftest import REPO
 from tests.runtime.broker import free_port
+from tests.tools import missing, require
 
 VENV = REPO / ".cache" / "tdd" / "venv"
 SETUP = "bash .ci/setup-tdd.sh"
 
 
 def require_tdd() -> Path:
-    """The directory's environment, or a skip saying how to get it."""
+    """The directory's environment, or (tests/tools.py) a skip saying how to get it."""
     if not (VENV / "bin" / "flask").is_file() or not (VENV / "bin" / "oxigraph").is_file():
-        pytest.skip(f"no Thing Description Directory installed in {VENV.relative_to(REPO)} ({SETUP})")
-    if shutil.which("node") is None:
-        pytest.skip("Domus TDD needs node (apt install nodejs)")
+        missing(f"no Thing Description Directory installed in {VENV.relative_to(REPO)} ({SETUP})")
+    require("node", "apt install nodejs")
     return VENV
 
 

@@ -14,7 +14,9 @@ from typing import Any
 
 import pytest
 
-pytest.importorskip("rclpy", reason="needs the ROS 2 wheels (bash .ci/setup-ros2.sh)")
+from tests.tools import require_module
+
+require_module("rclpy", "the ROS 2 wheels: bash .ci/setup-ros2.sh")
 
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 

@@ -23,9 +23,6 @@ from typing import Any
 import pytest
 from jsonschema import Draft202012Validator  # type: ignore[import-untyped, unused-ignore]
 
-import td2adaptor
-from td2adaptor.backends.registry import load as load_backend
-from td2adaptor.diagnostics import Diagnostics, Severity
 from td2adaptor.generation.backend import GenOptions
 from td2adaptor.model import Model
 from td2adaptor.model.events import Kind, build_catalog
@@ -34,6 +31,7 @@ from td2adaptor.runtime import RuntimeConfig, serve
 from td2adaptor.runtime.events import EventValidator
 from td2adaptor.runtime.ros.bridge import Ros1Bridge
 from td2adaptor.runtime.ros.genport import Layout
+from tests import generated
 from tests.conftest import REPO
 from tests.lowering.test_actions import INTERFACES, action_td
 from tests.ros1 import harness
@@ -53,28 +51,14 @@ BUILD_ACTIONS = REPO / "tests" / "ros1" / "build_actions.py"
 
 
 @pytest.fixture(scope="module")
-def ros1() -> None:
-    problem = harness.ros1_problem()
-    if problem:
-        if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
-            pytest.skip(problem)
-        pytest.fail(problem)
-
-
-@pytest.fixture(scope="module")
 def build(ros1: None, tmp_path_factory: pytest.TempPathFactory) -> tuple[Model, Path, Path]:
     """The model, the generated rospy package's src/ and the genpy modules of tests/data/actions."""
     base = tmp_path_factory.mktemp("fibo-ros1")
     td = base / "td.json"
     td.write_text(json.dumps(action_td()), encoding="utf-8")
-    result = td2adaptor.compile(td, interfaces=[INTERFACES])
-    assert result.model is not None, [d.message for d in result.diagnostics]
-    diags = Diagnostics()
-    tree = load_backend("rospy").generate(result.model, GenOptions(partial=True), diags)
-    assert not [d for d in diags if d.severity is Severity.ERROR], [d.message for d in diags]
-    for rel, data in tree:
-        (base / "pkg" / rel).parent.mkdir(parents=True, exist_ok=True)
-        (base / "pkg" / rel).write_bytes(data)
+    model, package = generated.generate(
+        "rospy", td, base / "pkg", interfaces=[INTERFACES], options=GenOptions(partial=True)
+    )
     modules = base / "genpy"
     built = subprocess.run(
         [harness.SYSTEM_PYTHON, str(BUILD_ACTIONS), str(INTERFACES), str(modules)],
@@ -83,13 +67,7 @@ def build(ros1: None, tmp_path_factory: pytest.TempPathFactory) -> tuple[Model, 
         timeout=120,
     )
     assert built.returncode == 0, built.stderr
-    return result.model, base / "pkg" / result.model.package_name / "src", modules
-
-
-@pytest.fixture(scope="module")
-def master(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Iterator[Master]:
-    with harness.rosmaster(tmp_path_factory.mktemp("ros1-home")) as m:
-        yield m
+    return model, package / "src", modules
 
 
 def robot_process(master: Master, modules: Path, namespace: str) -> Process:

@@ -21,15 +21,12 @@ from typing import Any
 import pytest
 from click.testing import CliRunner
 
-import td2adaptor
-from td2adaptor.backends.rospy import generator as backend
 from td2adaptor.cli.main import cli
-from td2adaptor.diagnostics import Diagnostics
-from td2adaptor.generation.backend import GenOptions
 from td2adaptor.runtime import LocalBroker, PortCallFailed, PortTimeout, PortUnavailable, RuntimeConfig, serve
 from td2adaptor.runtime.ros.bridge import Ros1Bridge
 from td2adaptor.runtime.ros.genport import Layout
 from td2adaptor.runtime.ros.port import RosSetupError
+from tests import generated
 from tests.conftest import EXAMPLE
 from tests.ros1 import harness
 from tests.ros1.harness import Master, Sim
@@ -43,35 +40,17 @@ ROBOT = "edge_ros1"
 
 
 @pytest.fixture(scope="module")
-def ros1() -> None:
-    problem = harness.ros1_problem()
-    if problem:
-        if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
-            pytest.skip(problem)
-        pytest.fail(problem)
-
-
-@pytest.fixture(scope="module")
 def package_src(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Path:
     """The RB-1 rospy package generated into a temporary directory; its src/ (to import from)."""
-    result = td2adaptor.compile(EXAMPLE / "td.json", interfaces=[EXAMPLE / "interfaces"])
-    assert result.model is not None
-    root = tmp_path_factory.mktemp("rospy")
-    for rel, data in backend.generate(result.model, GenOptions(), Diagnostics()):
-        (root / rel).parent.mkdir(parents=True, exist_ok=True)
-        (root / rel).write_bytes(data)
-    return root / PKG / "src"
+    _, package = generated.generate(
+        "rospy", EXAMPLE / "td.json", tmp_path_factory.mktemp("rospy"), interfaces=[EXAMPLE / "interfaces"]
+    )
+    return package / "src"
 
 
 @pytest.fixture(scope="module")
 def interfaces(ros1: None) -> Path:
     return harness.interfaces_dir()
-
-
-@pytest.fixture(scope="module")
-def master(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Iterator[Master]:
-    with harness.rosmaster(tmp_path_factory.mktemp("ros1-home")) as m:
-        yield m
 
 
 @pytest.fixture(scope="module")

@@ -15,12 +15,10 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import subprocess
 from pathlib import Path
 from typing import Any
 
-import pytest
 from jsonschema import Draft202012Validator  # type: ignore[import-untyped, unused-ignore]
 
 from td2adaptor.model import Model
@@ -34,6 +32,7 @@ from tests.conftest import REPO
 from tests.runtime.broker import Mosquitto
 from tests.runtime.edge import until
 from tests.runtime.rb1 import rb1_model, sim
+from tests.tools import missing, require
 
 NODE_WOT = "0.8.16"
 CACHE = REPO / ".cache" / "node-wot"
@@ -45,8 +44,9 @@ def node_modules() -> Path:
     """node-wot's node_modules, as .ci/setup-nodewot.sh (run by .ci/setup.sh --test) installs them."""
     modules = CACHE / "node_modules"
     wanted = [modules / "@node-wot" / name / "package.json" for name in ("core", "binding-mqtt")]
-    if shutil.which("node") is None or not all(p.is_file() for p in wanted):
-        pytest.fail(f"node-wot {NODE_WOT} is not installed: run `bash .ci/setup-nodewot.sh` (or .ci/setup.sh --test)")
+    require("node", "apt install nodejs")
+    if not all(p.is_file() for p in wanted):
+        missing(f"node-wot {NODE_WOT} is not installed: run `bash .ci/setup-nodewot.sh` (or .ci/setup.sh --test)")
     installed = json.loads(wanted[1].read_text(encoding="utf-8"))["version"]
     assert installed == NODE_WOT, f"node-wot {installed} in {CACHE}, the tests pin {NODE_WOT}: run .ci/setup-nodewot.sh"
     return modules

@@ -19,8 +19,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-import pytest
-
 from td2adaptor.model.exposed import exposed_td
 from td2adaptor.runtime import RuntimeConfig, serve
 from td2adaptor.runtime.ros.simport import SimPort
@@ -29,6 +27,7 @@ from tests.conftest import REPO
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.rb1 import GOAL, rb1_model, sim
+from tests.tools import missing
 
 WOTPY = REPO / ".cache" / "wotpy" / "bin" / "python"
 CLIENT = Path(__file__).parent / "wotpy_client.py"
@@ -50,7 +49,7 @@ def _line(proc: subprocess.Popen[str], deadline: float) -> dict[str, Any]:
 
 def test_wotpy_consumes_the_published_td_and_gets_notifications(broker: Mosquitto) -> None:
     if not WOTPY.is_file():
-        pytest.skip(f"wotpy is not installed in {WOTPY.parent.parent} (run bash .ci/setup-wotpy.sh)")
+        missing(f"wotpy is not installed in {WOTPY.parent.parent} (run bash .ci/setup-wotpy.sh)")
     model = rb1_model()
     config = RuntimeConfig(robot=ROBOT, bus=broker.url, poll_period=0.05, property_period=0.1, state_dir="")
     engine = serve(model, SimPort(model, sim(0.3)), config)

@@ -4,21 +4,16 @@ is answered at once; started again, it is `present`. Real mosquitto."""
 
 from __future__ import annotations
 
-import os
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-import td2adaptor
-from td2adaptor.backends.rospy import generator as backend
-from td2adaptor.diagnostics import Diagnostics
-from td2adaptor.generation.backend import GenOptions
 from td2adaptor.runtime import RuntimeConfig, serve
 from td2adaptor.runtime.ros.bridge import Ros1Bridge
 from td2adaptor.runtime.ros.genport import Layout
+from tests import generated
 from tests.conftest import EXAMPLE
 from tests.ros1 import harness
 from tests.ros1.harness import Master
@@ -32,29 +27,12 @@ ROBOT = "pres_ros1"
 
 
 @pytest.fixture(scope="module")
-def ros1() -> None:
-    problem = harness.ros1_problem()
-    if problem:
-        if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
-            pytest.skip(problem)
-        pytest.fail(problem)
-
-
-@pytest.fixture(scope="module")
 def package_src(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Path:
-    result = td2adaptor.compile(EXAMPLE / "td.json", interfaces=[EXAMPLE / "interfaces"])
-    assert result.model is not None
-    root = tmp_path_factory.mktemp("rospy")
-    for rel, data in backend.generate(result.model, GenOptions(), Diagnostics()):
-        (root / rel).parent.mkdir(parents=True, exist_ok=True)
-        (root / rel).write_bytes(data)
-    return root / PKG / "src"
-
-
-@pytest.fixture(scope="module")
-def master(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Iterator[Master]:
-    with harness.rosmaster(tmp_path_factory.mktemp("ros1-home")) as m:
-        yield m
+    _, package = generated.generate(
+        "rospy", EXAMPLE / "td.json", tmp_path_factory.mktemp("rospy"), interfaces=[EXAMPLE / "interfaces"]
+    )
+    assert package.name == PKG
+    return package / "src"
 
 
 def test_a_ros1_robot_is_absent_when_its_nodes_stop_and_present_again(

@@ -9,7 +9,6 @@ from __future__ import annotations
 import copy
 import json
 import os
-import shutil
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
@@ -28,6 +27,7 @@ from tests.conftest import REPO
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.rb1 import rb1_model, sim
+from tests.tools import require
 
 ROBOT = "rb1_conform"
 BINDING_SCHEMA = wot_corpus.SHARED_WOT / "bindings" / "mqtt.schema.json"
@@ -114,8 +114,7 @@ def playground(td: dict[str, Any], tmp_path: Path) -> dict[str, Any]:
             f"needs npm {wot_corpus.PLAYGROUND_PACKAGE}@{wot_corpus.NPM_VERSIONS[wot_corpus.PLAYGROUND_PACKAGE]}"
             f" ({wot_corpus.SETUP})"
         )
-    if shutil.which("node") is None:
-        pytest.skip("the Playground validator needs node (apt install nodejs)")
+    require("node", "apt install nodejs")
     path = tmp_path / "td.json"
     path.write_text(json.dumps(td), encoding="utf-8")
     env = {**os.environ, "NODE_PATH": str(wot_corpus.NPM_MODULES)}

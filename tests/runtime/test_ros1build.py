@@ -8,7 +8,6 @@ with the built RB-1 service type on a private rosmaster. Every ROS 1 action test
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -41,15 +40,6 @@ for package in sys.argv[1:]:
                 out[cls._type] = cls._md5sum
 print(json.dumps(out))
 """
-
-
-@pytest.fixture(scope="module")
-def ros1() -> None:
-    problem = harness.ros1_problem()
-    if problem:
-        if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
-            pytest.skip(problem)
-        pytest.fail(problem)
 
 
 def _build(src: Path, cache: Path) -> subprocess.CompletedProcess[str]:

@@ -11,6 +11,7 @@ import pytest
 
 from td2adaptor.support.ros2build import BuildError, packages_in
 from tests.conftest import EXAMPLE
+from tests.ros2.common import require_ros2
 
 
 def _run(*args: str) -> subprocess.CompletedProcess[str]:
@@ -65,7 +66,7 @@ def _tiny_package(root: Path) -> Path:
 
 
 def test_a_build_shows_progress_on_a_terminal_and_is_quiet_in_a_log(tmp_path: Path) -> None:
-    pytest.importorskip("rclpy", reason="needs the ROS 2 wheels (bash .ci/setup-ros2.sh)")
+    require_ros2()
     import os
     import pty
 
@@ -98,7 +99,7 @@ def test_a_build_shows_progress_on_a_terminal_and_is_quiet_in_a_log(tmp_path: Pa
 def test_relative_paths_as_the_readme_writes_them(tmp_path: Path) -> None:
     # `ros2build examples/robotnik_rb1/interfaces .cache/ros2-interfaces`: colcon runs in the build folder, so
     # relative paths once built nothing there, marked the build done and printed a prefix that did not exist
-    pytest.importorskip("rclpy", reason="needs the ROS 2 wheels (bash .ci/setup-ros2.sh)")
+    require_ros2()
     _tiny_package(tmp_path)
     proc = subprocess.run(
         [sys.executable, "-m", "td2adaptor.support.ros2build", "interfaces", "cache"],
@@ -116,7 +117,7 @@ def test_relative_paths_as_the_readme_writes_them(tmp_path: Path) -> None:
 def test_an_interface_package_this_environment_lacks_is_named_before_building(tmp_path: Path) -> None:
     """A robot's action using trajectory_msgs (an arm's, say) when the ros2 extra has no such wheel: one line
     naming the package and the wheel, before any CMake run (which used to fail with a page of its output)."""
-    pytest.importorskip("rclpy", reason="needs the ROS 2 wheels (bash .ci/setup-ros2.sh)")
+    require_ros2()
     src = _tiny_package(tmp_path)
     (src / "tiny_msgs" / "action").mkdir()
     (src / "tiny_msgs" / "action" / "Move.action").write_text(

@@ -5,17 +5,15 @@ model and `run` says which command makes the package again, with one line and ex
 from __future__ import annotations
 
 import copy
-import importlib.util
 import json
 import sys
 from pathlib import Path
 from typing import Any
 
-import pytest
-
 from tests.runtime.edge import RunProcess
+from tests.tools import require_module
 
-pytestmark = pytest.mark.skipif(importlib.util.find_spec("rclpy") is None, reason="needs rclpy (the ros2 extra)")
+require_module("rclpy", "the ros2 extra: bash .ci/setup-ros2.sh")
 
 PACKAGE = "stale_bot_adaptor"
 

@@ -28,17 +28,6 @@ ROBOT = "scaf_ros1"
 
 
 @pytest.fixture(scope="module")
-def master(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Master]:
-    problem = harness.ros1_problem()
-    if problem:
-        if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
-            pytest.skip(problem)
-        pytest.fail(problem)
-    with harness.rosmaster(tmp_path_factory.mktemp("ros1-home")) as m:
-        yield m
-
-
-@pytest.fixture(scope="module")
 def sim(master: Master) -> Iterator[Sim]:
     with harness.run_sim(master, harness.interfaces_dir(), ROBOT, "--duration", "0.5") as s:
         yield s

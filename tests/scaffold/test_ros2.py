@@ -252,19 +252,11 @@ def _fibonacci(td: Path, out: Path, order: int) -> list[int]:
     import rclpy
     from rclpy.context import Context
 
-    from td2adaptor.backends.registry import load as load_backend
-    from td2adaptor.diagnostics import Diagnostics, Severity
-    from td2adaptor.generation.backend import GenOptions
+    from tests import generated
 
-    result = td2adaptor.compile(td, interfaces=[ACTIONS])
-    assert result.model is not None
-    diags = Diagnostics()
-    for rel, data in load_backend("rclpy").generate(result.model, GenOptions(), diags):
-        (out / rel).parent.mkdir(parents=True, exist_ok=True)
-        (out / rel).write_bytes(data)
-    assert not [d for d in diags if d.severity is Severity.ERROR], [d.message for d in diags]
-    sys.path.insert(0, str(out / result.model.package_name))
-    adaptor: Any = importlib.import_module(result.model.package_name)
+    model, package = generated.generate("rclpy", td, out, interfaces=[ACTIONS])
+    sys.path.insert(0, str(package))
+    adaptor: Any = importlib.import_module(model.package_name)
     context = Context()
     rclpy.init(context=context)
     node: Any = rclpy.create_node("scaffold_fibo_client", context=context)

@@ -1,4 +1,5 @@
-"""ROS 1 message types as C++98 classes for mROS: names, field codecs, wire sizes and traits.
+"""ROS 1 message types as C++98 classes for mROS: names, field codecs, wire sizes and traits (the C/C++
+names every such backend shares are `_cxx.names`', re-exported here: `PRIMITIVES`, `CPP_KEYWORDS`, `comment`).
 
 Everything the message-header templates print is computed here: C++ names (with deterministic mangling of
 names C++ cannot use), the codec of each field (the `td2a::wire` helper that reads/writes it), the exact
@@ -13,62 +14,29 @@ import re
 from collections.abc import Iterable
 from dataclasses import dataclass
 
+from td2adaptor.backends._cxx.names import C_MACROS, c_macro_like, mangle
+from td2adaptor.backends._cxx.names import CPP_KEYWORDS as CPP_KEYWORDS
+from td2adaptor.backends._cxx.names import PRIMITIVES as PRIMITIVES
+from td2adaptor.backends._cxx.names import comment as comment
 from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.generation import textsafe as ts
 from td2adaptor.model import ArrayKind, Constant, FieldType, MessageDef, TypeTable
 
-#: ROS 1 primitive → (C++ type, wire size). `bool` is uint8_t on the wire and in memory (as gencpp does).
-PRIMITIVES: dict[str, tuple[str, int]] = {
-    "bool": ("uint8_t", 1),
-    "byte": ("int8_t", 1),
-    "char": ("uint8_t", 1),
-    "int8": ("int8_t", 1),
-    "uint8": ("uint8_t", 1),
-    "int16": ("int16_t", 2),
-    "uint16": ("uint16_t", 2),
-    "int32": ("int32_t", 4),
-    "uint32": ("uint32_t", 4),
-    "int64": ("int64_t", 8),
-    "uint64": ("uint64_t", 8),
-    "float32": ("float", 4),
-    "float64": ("double", 8),
-}
 #: ROS 1 `time`/`duration`: two 32-bit words, as small classes of the support header.
 TIME_TYPES: dict[str, str] = {"time": "td2a::Time", "duration": "td2a::Duration"}
-
-#: C++ keywords and alternative tokens (C++98 to C++20, so code stays valid for newer compilers too).
-CPP_KEYWORDS = frozenset(
-    """alignas alignof and and_eq asm auto bitand bitor bool break case catch char char8_t char16_t char32_t
-    class compl concept const consteval constexpr constinit const_cast continue co_await co_return co_yield
-    decltype default delete do double dynamic_cast else enum explicit export extern false float for friend
-    goto if inline int long mutable namespace new noexcept not not_eq nullptr operator or or_eq private
-    protected public register reinterpret_cast requires return short signed sizeof static static_assert
-    static_cast struct switch template this thread_local throw true try typedef typeid typename union
-    unsigned using virtual void volatile wchar_t while xor xor_eq""".split()
+#: Macros that the TOPPERS or mROS headers may define, besides the C library's (`_cxx.names.C_MACROS`): a
+#: member or class called so gets a trailing '_' (see `macro_like`).
+TOPPERS_MACROS = frozenset(
+    """E_OK E_SYS E_NOSPT E_RSFN E_RSATR E_PAR E_ID E_CTX E_MACV E_OACV E_ILUSE E_NOMEM E_NOID E_NORES E_OBJ
+    E_NOEXS E_QOVR E_RLWAI E_TMOUT E_DLT E_CLS E_WBLK E_BOVR""".split()
 )
-#: Macros that the C library, GCC (GNU modes), TOPPERS or mROS headers may define and that would silently
-#: replace a name: a member or class called so gets a trailing '_' (see `macro_like`).
-MACRO_LIKE = frozenset(
-    """linux unix i386 major minor makedev errno stdin stdout stderr assert offsetof setjmp va_arg va_start
-    va_end NULL EOF TRUE FALSE BUFSIZ FILENAME_MAX FOPEN_MAX L_tmpnam TMP_MAX SEEK_SET SEEK_CUR SEEK_END
-    CHAR_BIT SCHAR_MIN SCHAR_MAX UCHAR_MAX CHAR_MIN CHAR_MAX MB_LEN_MAX SHRT_MIN SHRT_MAX USHRT_MAX INT_MIN
-    INT_MAX UINT_MAX LONG_MIN LONG_MAX ULONG_MAX LLONG_MIN LLONG_MAX ULLONG_MAX SIZE_MAX PTRDIFF_MIN
-    PTRDIFF_MAX WCHAR_MIN WCHAR_MAX WINT_MIN WINT_MAX SIG_ATOMIC_MIN SIG_ATOMIC_MAX HUGE_VAL HUGE_VALF
-    HUGE_VALL INFINITY NAN FP_NAN FP_INFINITE FP_ZERO FP_NORMAL FP_SUBNORMAL EDOM ERANGE EILSEQ EINVAL
-    ENOMEM EAGAIN EBUSY EEXIST ENOENT EIO EPERM EINTR ENOSPC ETIMEDOUT RAND_MAX EXIT_SUCCESS EXIT_FAILURE
-    CLOCKS_PER_SEC E_OK E_SYS E_NOSPT E_RSFN E_RSATR E_PAR E_ID E_CTX E_MACV E_OACV E_ILUSE E_NOMEM E_NOID
-    E_NORES E_OBJ E_NOEXS E_QOVR E_RLWAI E_TMOUT E_DLT E_CLS E_WBLK E_BOVR""".split()
-)
-_MACRO_PATTERN = re.compile(
-    r"(?:U?INT(?:8|16|32|64|MAX|PTR|_LEAST(?:8|16|32|64)|_FAST(?:8|16|32|64))_(?:MIN|MAX)"
-    r"|U?INT(?:8|16|32|64|MAX)_C|M_[A-Z0-9_]+|(?:FLT|DBL|LDBL)_[A-Z0-9_]+"
-    r"|(?:TA|TMAX|TMIN|TNFY|TKERNEL|TOPPERS|TSK|TTS|TTW|LOG|MROS|ROS|TD2A)_[A-Z0-9_]*|_[A-Z_][A-Za-z0-9_]*)"
-)
+MACRO_LIKE = C_MACROS | TOPPERS_MACROS
+_MACRO_PATTERN = re.compile(r"(?:TA|TMAX|TMIN|TNFY|TKERNEL|TOPPERS|TSK|TTS|TTW|LOG|MROS|ROS|TD2A)_[A-Z0-9_]*")
 
 
 def macro_like(name: str) -> bool:
     """Whether `name` may be a macro of the headers the generated code includes (or is reserved in C++)."""
-    return name in MACRO_LIKE or _MACRO_PATTERN.fullmatch(name) is not None
+    return name in TOPPERS_MACROS or _MACRO_PATTERN.fullmatch(name) is not None or c_macro_like(name)
 
 
 #: Namespaces the generated code and mROS already use: a ROS package may not become one of them.
@@ -149,33 +117,12 @@ class MessageView:
     comment: str  # the type's name for comments
 
 
-def comment(text: str) -> str:
-    """TD or definition text for inside a C/C++ comment: `c_comment`, then no comment delimiter or trigraph
-    may re-form (`c_comment` turns `\\` into `/`, so `*\\` would otherwise become `*/`)."""
-    out = ts.c_comment(text)
-    while True:
-        fixed = out.replace("*/", "* /").replace("/*", "/ *").replace("??", "? ?")
-        if fixed == out:
-            return out
-        out = fixed
-
-
 def _upper_key(package: str, short: str) -> str:
     return f"{package}_{short}".upper()
 
 
 def _mangle(name: str, reserved: Iterable[str], taken: set[str]) -> str:
-    """`name`, or the first of `name_`, `name_m`, `name_m2`, ... that is neither reserved, macro-like nor taken
-    (macro patterns are upper case, so a lower-case suffix always gets out of them)."""
-    reserved_set = set(reserved)
-    candidates = [name, name + "_", name + "_m"]
-    n = 2
-    while True:
-        for out in candidates:
-            if out not in reserved_set and out not in taken and not macro_like(out):
-                return out
-        candidates = [f"{name}_m{n}"]
-        n += 1
+    return mangle(name, reserved, taken, macro_like)
 
 
 class TypeViews:

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import subprocess
 from pathlib import Path
 from typing import Any
@@ -24,6 +23,7 @@ from referencing.jsonschema import DRAFT202012
 from tests.backends.events.test_events import BAD, GOOD, tree_of
 from tests.conftest import REPO
 from tests.runtime.rb1 import rb1_catalog, rb1_model
+from tests.tools import missing, require
 
 MODELINA = "5.10.1"
 MODULES = REPO / ".cache" / "modelina" / "node_modules"
@@ -32,11 +32,10 @@ GOLDEN = sorted((REPO / "tests" / "golden" / "cases").glob("*/expected/events/*/
 
 
 def _modelina() -> Path:
-    if shutil.which("node") is None:
-        pytest.skip("node is not installed (apt install nodejs), so AsyncAPI Modelina cannot run")
+    require("node", "apt install nodejs")
     manifest = MODULES / "@asyncapi" / "modelina" / "package.json"
     if not manifest.is_file():
-        pytest.skip(f"AsyncAPI Modelina is not installed in {MODULES.relative_to(REPO)} (bash .ci/setup-modelina.sh)")
+        missing(f"AsyncAPI Modelina is not installed in {MODULES.relative_to(REPO)} (bash .ci/setup-modelina.sh)")
     assert json.loads(manifest.read_text(encoding="utf-8"))["version"] == MODELINA
     return MODULES
 

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import subprocess
 from pathlib import Path
 from typing import Any
@@ -23,6 +22,7 @@ from referencing.jsonschema import DRAFT7
 from tests.backends.events.test_events import BAD, GOOD, tree_of
 from tests.conftest import REPO
 from tests.runtime.rb1 import rb1_catalog, rb1_model
+from tests.tools import missing, require
 from tests.wot_corpus import SETUP
 
 PARSER = "3.6.3"
@@ -31,11 +31,10 @@ CHECK = Path(__file__).parent / "asyncapi_check.js"
 
 
 def _parser() -> Path:
-    if shutil.which("node") is None:
-        pytest.skip("node is not installed (apt install nodejs), so the AsyncAPI parser cannot run")
+    require("node", "apt install nodejs")
     manifest = MODULES / "@asyncapi" / "parser" / "package.json"
     if not manifest.is_file():
-        pytest.skip(f"@asyncapi/parser is not installed in {MODULES} (run {SETUP})")
+        missing(f"@asyncapi/parser is not installed in {MODULES} (run {SETUP})")
     assert json.loads(manifest.read_text(encoding="utf-8"))["version"] == PARSER
     return MODULES
 

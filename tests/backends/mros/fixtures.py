@@ -14,11 +14,10 @@ from td2adaptor.backends.mros.types import Capacities, TypeViews
 from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.rostypes.registry import TypeRegistry
 from tests.backends.mros import apps, build, wire
+from tests.tools import needs, require
 
-needs_host = pytest.mark.skipif(not build.have(build.HOST_CXX), reason="g++ not installed (.ci/setup-mros.sh)")
-needs_arm = pytest.mark.skipif(
-    not build.have(build.ARM_CXX), reason="arm-none-eabi-g++ not installed (.ci/setup-mros.sh)"
-)
+needs_host = needs(build.HOST_CXX, ".ci/setup-mros.sh")
+needs_arm = needs(build.ARM_CXX, ".ci/setup-mros.sh")
 
 
 @pytest.fixture(scope="session")
@@ -60,8 +59,7 @@ def wire_harness(
     generated: dict[str, tuple[apps.App, Path]], feature_views: TypeViews, shared_root: Path
 ) -> Iterator[wire.Harness]:
     """The wire-format harness of the feature application, built once per session, running."""
-    if not build.have(build.HOST_CXX):
-        pytest.skip("g++ not installed (.ci/setup-mros.sh)")
+    require(build.HOST_CXX, ".ci/setup-mros.sh")
     app_dir = generated["features"][1]
     source = wire.harness_source(feature_views)
     key = "wire-" + build.digest(build.app_sources(app_dir / "include"), source)

@@ -24,6 +24,7 @@ from td2adaptor.generation.backend import GenOptions
 from tests.backends.mros import apps
 from tests.conftest import EXAMPLE
 from tests.ros1 import harness
+from tests.tools import require_ok
 
 RB1 = EXAMPLE / "td.json"
 #: Debian's ROS 1 packages install the .msg files of the standard interfaces here (share/<pkg>/msg/)
@@ -49,9 +50,7 @@ print(json.dumps(out))
 
 
 def test_header_sizes_are_what_rospy_sends(tmp_path: Path) -> None:
-    problem = harness.ros1_problem()
-    if problem:
-        pytest.skip(problem)
+    require_ok(harness.ros1_problem())
     topic = "/rb1_base/robot_local_control/state"
     args = json.dumps([(module, cls, topic) for module, cls, _ in TYPES])
     env = harness.ros_env("http://127.0.0.1:1", tmp_path, harness.interfaces_dir())

@@ -19,10 +19,20 @@ from typing import Any
 import pytest
 
 from tests.backends.mros import apps, build, fixtures, real_tree
+from tests.tools import require_ok
 
 shared_root = fixtures.shared_root
 
-pytestmark = pytest.mark.skipif(real_tree.problem() is not None, reason=str(real_tree.problem()))
+
+@pytest.fixture(scope="module", autouse=True)
+def _real_tree() -> None:
+    """The tree is reference material beside the repository (skipped without it, as the README says); the
+    tools that build it are required (tests/tools.py)."""
+    tree = real_tree.tree_problem()
+    if tree is not None:
+        pytest.skip(tree)
+    require_ok(real_tree.problem())
+
 
 APPS = {"rb1": apps.rb1, "features": apps.features}
 #: code of the user's own, next to the feature application (the README's way: make TD2A_USER_CXXOBJS=...):

@@ -18,8 +18,9 @@ import pytest
 
 import td2adaptor
 from td2adaptor.backends.rospy import generator as backend
-from td2adaptor.diagnostics import Diagnostics, Severity
+from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.generation.backend import GenOptions
+from tests import generated
 from tests.backends import goal_scenarios
 from tests.conftest import REPO
 from tests.ros1 import harness
@@ -33,27 +34,13 @@ STEP = 0.05  # seconds between two feedback messages of the server
 
 
 @pytest.fixture(scope="module")
-def ros1() -> None:
-    problem = harness.ros1_problem()
-    if problem:
-        if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
-            pytest.skip(problem)
-        pytest.fail(problem)
-
-
-@pytest.fixture(scope="module")
 def package(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The fibo_action golden TD's rospy package (a ROS action and a property), generated; its directory."""
-    result = td2adaptor.compile(CASE / "td.json", interfaces=[INTERFACES])
-    assert result.model is not None, [d.message for d in result.diagnostics]
-    diags = Diagnostics()
-    tree = backend.generate(result.model, GenOptions(), diags)
-    assert not [d for d in diags if d.severity is Severity.ERROR], [d.message for d in diags]
-    root = tmp_path_factory.mktemp("rospy-actions")
-    for rel, data in tree:
-        (root / rel).parent.mkdir(parents=True, exist_ok=True)
-        (root / rel).write_bytes(data)
-    return root / PKG
+    _, package = generated.generate(
+        "rospy", CASE / "td.json", tmp_path_factory.mktemp("rospy-actions"), interfaces=[INTERFACES]
+    )
+    assert package.name == PKG
+    return package
 
 
 @pytest.fixture(scope="module")
@@ -68,12 +55,6 @@ def interfaces(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Path:
     )
     assert built.returncode == 0, built.stderr
     return out
-
-
-@pytest.fixture(scope="module")
-def master(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Iterator[Master]:
-    with harness.rosmaster(tmp_path_factory.mktemp("ros1-home")) as m:
-        yield m
 
 
 @pytest.fixture(scope="module")

@@ -8,15 +8,11 @@ from __future__ import annotations
 import json
 import os
 import subprocess
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-import td2adaptor
-from td2adaptor.backends.rospy import generator as backend
-from td2adaptor.diagnostics import Diagnostics
-from td2adaptor.generation.backend import GenOptions
+from tests import generated
 from tests.conftest import EXAMPLE
 from tests.ros1 import harness
 from tests.ros1.harness import Master
@@ -25,36 +21,18 @@ PKG = "robotnik_rb_1_adaptor"
 
 
 @pytest.fixture(scope="module")
-def ros1() -> None:
-    problem = harness.ros1_problem()
-    if problem:
-        if os.environ.get("TD2ADAPTOR_SKIP_ROS1"):
-            pytest.skip(problem)
-        pytest.fail(problem)
-
-
-@pytest.fixture(scope="module")
 def package(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Path:
     """The RB-1 rospy package, generated into a temporary directory; returns the package directory."""
-    result = td2adaptor.compile(EXAMPLE / "td.json", interfaces=[EXAMPLE / "interfaces"])
-    assert result.model is not None
-    tree = backend.generate(result.model, GenOptions(), Diagnostics())
-    root = tmp_path_factory.mktemp("rospy")
-    for rel, data in tree:
-        (root / rel).parent.mkdir(parents=True, exist_ok=True)
-        (root / rel).write_bytes(data)
-    return root / PKG
+    _, package = generated.generate(
+        "rospy", EXAMPLE / "td.json", tmp_path_factory.mktemp("rospy"), interfaces=[EXAMPLE / "interfaces"]
+    )
+    assert package.name == PKG
+    return package
 
 
 @pytest.fixture(scope="module")
 def interfaces(ros1: None) -> Path:
     return harness.interfaces_dir()
-
-
-@pytest.fixture(scope="module")
-def master(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Iterator[Master]:
-    with harness.rosmaster(tmp_path_factory.mktemp("ros1-home")) as m:
-        yield m
 
 
 @pytest.fixture(scope="module")
