@@ -38,7 +38,9 @@ function setConnection(word) {
 }
 
 function snapshot(item) {
+  const changed = state.readOnly !== item.readOnly;
   state.readOnly = item.readOnly;
+  if (changed && state.td) renderRobot();
   $("mode").hidden = !item.readOnly;
   document.body.dataset.readOnly = String(item.readOnly);
   state.robots.clear();

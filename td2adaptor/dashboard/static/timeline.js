@@ -83,7 +83,7 @@ export class Timeline {
     }
     if (name === "error") {
       const paths = (data.errors || []).map((e) => `${e.path}: ${e.message}`).join("; ");
-      const text = `refused (${data.code}): ${data.message}${paths ? ` [${paths}]` : ""}`;
+      const text = `refused (${data.code}): ${data.message}${paths && !String(data.message).includes(paths) ? ` [${paths}]` : ""}`;
       this.entry(card, "error", { text, code: data.code }, t, correlation && this.aliases.has(correlation) ? null : "refused");
       return;
     }
