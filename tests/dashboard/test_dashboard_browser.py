@@ -162,7 +162,8 @@ def post(url: str, body: Any, headers: dict[str, str] | None = None) -> tuple[in
         with urllib.request.urlopen(request, timeout=10) as answer:
             return answer.status, json.loads(answer.read())
     except urllib.error.HTTPError as exc:
-        text = exc.read()
+        with exc:
+            text = exc.read()
         return exc.code, json.loads(text) if text.startswith(b"{") else {"text": text.decode()}
 
 
@@ -180,6 +181,7 @@ def test_the_server_answers_only_its_own_pages(broker: Mosquitto) -> None:
             )
             with pytest.raises(urllib.error.HTTPError) as refused:
                 urllib.request.urlopen(request, timeout=10)
+            refused.value.close()
             assert refused.value.code == 415
             assert post(url, {"value": {"data": 1.0}}, {"Host": "evil.example"})[0] == 400
             assert post(f"{dash.url}api/robots/r1/actions/nothing", {"op": "invoke"})[0] == 404
