@@ -51,6 +51,7 @@ def test_robots_appear_and_a_mission_runs_from_the_generated_form(broker: Mosqui
         with dashboard(broker.url) as dash, chromium() as driver:
             driver.get(dash.url)
             wait(driver, lambda d: robot_state(d, "r1") == "online" and robot_state(d, "r2") == "online", what="robots")
+            assert not css(driver, "#mode")[0].is_displayed()  # not read-only
             # one robot's view: its properties live, its actions as forms from their input schemas
             css(driver, '#robots li[data-robot="r1"]')[0].click()
             wait(driver, lambda d: css(d, '[data-prop="availability"] [data-pointer="/robot_id"]'), what="values")

@@ -28,7 +28,7 @@ export class FleetMap {
   }
 
   draw() {
-    const size = 300, pad = 24;
+    const size = 300, pad = 48;
     const all = [...this.poses.values()];
     if (all.length === 0) return false;
     let [x0, x1, y0, y1] = [Infinity, -Infinity, Infinity, -Infinity];
@@ -49,6 +49,9 @@ export class FleetMap {
       }
       const [px, py] = at(x, y);
       mark.setAttribute("transform", `translate(${px.toFixed(1)},${py.toFixed(1)})`);
+      const label = mark.querySelector("text"); // on the side with room for it
+      label.setAttribute("x", px > size * 0.6 ? -8 : 8);
+      label.setAttribute("text-anchor", px > size * 0.6 ? "end" : "start");
       mark.dataset.x = x; mark.dataset.y = y;
       mark.dataset.selected = String(robot === this.selected);
       const line = mark.querySelector("line");
