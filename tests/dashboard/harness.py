@@ -147,13 +147,19 @@ class RobotProcess:
 
 def serve_robot(url: str, robot: str, duration: float = 1.0, env: Mapping[str, str] | None = None) -> Any:
     """A simulated RB-1 behind an edge node in this process (`Engine.stop()` ends it)."""
+    return serve_sim_robot(url, robot, duration, env)[0]
+
+
+def serve_sim_robot(url: str, robot: str, duration: float = 1.0, env: Mapping[str, str] | None = None) -> Any:
+    """(the edge node's engine, the simulated RB-1 behind it)."""
     from td2adaptor.runtime import RuntimeConfig, serve
     from td2adaptor.runtime.ros.simport import SimPort
     from tests.runtime.rb1 import rb1_model, sim
 
     model = rb1_model()
     config = RuntimeConfig(robot=robot, bus=url, poll_period=0.05, property_period=0.1, state_dir="")
-    return serve(model, SimPort(model, sim(duration)), config, env=env)
+    robot_sim = sim(duration)
+    return serve(model, SimPort(model, robot_sim), config, env=env), robot_sim
 
 
 def fill(form: Any, values: Mapping[str, str]) -> None:

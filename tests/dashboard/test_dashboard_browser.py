@@ -24,6 +24,7 @@ from tests.dashboard.harness import (
     dashboard,
     fill,
     serve_robot,
+    serve_sim_robot,
     wait,
 )
 from tests.runtime.broker import Mosquitto
@@ -74,6 +75,9 @@ def test_robots_appear_and_a_mission_runs_from_the_generated_form(broker: Mosqui
             # the edge node of r2 killed: its will says offline, and the page says so
             r2.kill()
             wait(driver, lambda d: robot_state(d, "r2") == "offline", what="r2 offline")
+            # r1 stopped cleanly: its TD cleared, it leaves the list
+            r1.stop()
+            wait(driver, lambda d: not css(d, '#robots li[data-robot="r1"]'), what="r1 gone")
     finally:
         r2.kill()
         r1.stop()
@@ -89,9 +93,11 @@ def invoke_form(driver: Any, action: str) -> Any:
     return css(driver, f'form[data-form="invoke:{action}"]')[0]
 
 
-def test_a_running_mission_is_queried_and_cancelled_from_its_timeline(broker: Mosquitto) -> None:
+def test_a_running_mission_is_queried_and_cancelled_from_its_timeline_and_a_property_written(
+    broker: Mosquitto,
+) -> None:
     chromium_or_skip()
-    r1 = serve_robot(broker.url, "r1", duration=30.0)
+    r1, robot = serve_sim_robot(broker.url, "r1", duration=30.0)
     try:
         with dashboard(broker.url) as dash, chromium() as driver:
             open_robot(driver, dash.url, "r1")
@@ -110,6 +116,11 @@ def test_a_running_mission_is_queried_and_cancelled_from_its_timeline(broker: Mo
                 e.get_attribute("data-state") for e in card.find_elements(By.CSS_SELECTOR, '[data-kind="state"]')
             ]
             assert answers[0] in ("queued", "running") and answers[-1] == "cancelled", answers
+            # the door's writeproperty form, generated from the property's schema
+            form = css(driver, 'form[data-form="write:door"]')[0]
+            fill(form, {"/data": "0.75"})
+            form.find_element(By.CSS_SELECTOR, 'button[type="submit"]').click()
+            assert until(lambda: robot.door_command == 0.75, 10), robot.door_command
     finally:
         r1.stop()
 
