@@ -255,3 +255,84 @@ def test_no_secret_reaches_the_page_from_a_broker_with_credentials(tmp_path: Pat
     finally:
         r1.stop()
         broker.stop()
+
+
+SCHEMA = {
+    "type": "object",
+    "properties": {
+        "mode": {"type": "string", "enum": ["fast", "careful"]},
+        "speed": {"type": "number", "minimum": 0, "maximum": 2},
+        "count": {"type": "integer", "minimum": 1, "maximum": 10},
+        "loop": {"type": "boolean"},
+        "kind": {"const": "goal"},
+        "label": {"type": "string", "maxLength": 4},
+        "waypoints": {
+            "type": "array",
+            "maxItems": 2,
+            "items": {"type": "object", "properties": {"x": {"type": "number"}, "tag": {"type": "string"}}},
+        },
+        "correlationId": {"type": "string"},
+    },
+    "required": ["mode", "kind"],
+}
+
+
+def test_the_form_generator_covers_enums_ranges_booleans_constants_and_nested_arrays(broker: Mosquitto) -> None:
+    """schemaform.js in the browser on a schema with every kind the TDs use: fields by JSON pointer, the value it
+    collects (empty fields left out), and the page's refusals (out of range, not whole, too long, missing)."""
+    chromium_or_skip()
+    with dashboard(broker.url) as dash, chromium() as driver:
+        driver.get(dash.url)
+        wait(driver, lambda d: d.execute_script("return document.readyState") == "complete", what="the page")
+        driver.execute_async_script(
+            """const [schema, done] = arguments;
+            import("/static/schemaform.js").then(({ schemaForm }) => {
+              window.sent = [];
+              const submit = async (value) => { window.sent.push(value); return null; };
+              const form = schemaForm(schema, { label: "go", name: "probe", submit });
+              document.body.prepend(form);
+              done();
+            });""",
+            SCHEMA,
+        )
+        form = css(driver, 'form[data-form="probe"]')[0]
+        names = [e.get_attribute("name") for e in form.find_elements(By.CSS_SELECTOR, "[name]")]
+        assert {"/mode", "/speed", "/count", "/loop", "/kind", "/label"} <= set(names), names
+        assert "/waypoints/0/x" in names and "/correlationId" not in names  # the page sets correlationId itself
+        submit = form.find_element(By.CSS_SELECTOR, 'button[type="submit"]')
+
+        def send(values: dict[str, str]) -> str:
+            fill(form, values)
+            submit.click()
+            wait(driver, lambda _: form.get_attribute("data-result") is not None, what="the form's verdict")
+            verdict = str(form.get_attribute("data-result"))
+            driver.execute_script("arguments[0].removeAttribute('data-result')", form)
+            return verdict
+
+        assert send({"/speed": "3", "/count": "2.5", "/label": "toolong"}) == "refused-by-page"
+        problems = form.find_element(By.CSS_SELECTOR, ".problems").text
+        for words in (
+            "/mode: is required",
+            "/speed: must be ≤ 2",
+            "/count: must be a whole number",
+            "/label: takes at",
+        ):
+            assert words in problems, problems
+        from selenium.webdriver.support.ui import Select
+
+        Select(form.find_element(By.CSS_SELECTOR, '[name="/mode"]')).select_by_visible_text('"careful"')
+        Select(form.find_element(By.CSS_SELECTOR, '[name="/loop"]')).select_by_visible_text("true")
+        form.find_element(By.CSS_SELECTOR, 'button[data-add="/waypoints"]').click()
+        assert send({"/speed": "1.5", "/count": "3", "/label": "ab", "/waypoints/0/x": "-2", "/waypoints/1/tag": "b"})
+        sent = driver.execute_script("return window.sent")
+        assert sent == [
+            {
+                "mode": "careful",
+                "speed": 1.5,
+                "count": 3,
+                "loop": True,
+                "kind": "goal",
+                "label": "ab",
+                "waypoints": [{"x": -2}, {"tag": "b"}],
+            }
+        ], sent
