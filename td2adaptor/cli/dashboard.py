@@ -25,6 +25,18 @@ from td2adaptor.cli.common import EXIT_OK, _fail, cli
 )
 @click.option("--topic-root", default="td2adaptor", show_default=True, help="First level of the robots' topics.")
 @click.option(
+    "--directory",
+    help="W3C WoT Thing Description Directory (http(s)://host:port[/path]) to list robots from as well as the bus "
+    "(token: TD2ADAPTOR_DIRECTORY_TOKEN).",
+)
+@click.option(
+    "--directory-period",
+    type=click.FloatRange(min=0.1),
+    default=10.0,
+    show_default=True,
+    help="Seconds between two readings of the directory's listing.",
+)
+@click.option(
     "--mqtt-version", type=click.Choice(["5", "3.1.1"]), help="MQTT protocol version (default: 5, or the environment)."
 )
 @click.option("--allow-insecure", is_flag=True, help="Allow a plain connection to a broker not on this machine.")
@@ -34,6 +46,8 @@ def dashboard(
     read_only: bool,
     allow_remote: bool,
     topic_root: str,
+    directory: str | None,
+    directory_period: float,
     mqtt_version: str | None,
     allow_insecure: bool,
 ) -> None:
@@ -58,6 +72,8 @@ def dashboard(
             read_only=read_only,
             allow_remote=allow_remote,
             topic_root=topic_root,
+            directory=directory,
+            directory_period=directory_period,
         )
         serve_dashboard(options, lambda line: click.echo(f"td2adaptor dashboard: {line}", err=True))
     except (DashboardError, SecurityError, ConfigError, BusError) as exc:

@@ -39,6 +39,7 @@ class Subscriber(Protocol):
 class Robot:
     id: str
     td: dict[str, Any] | None = None
+    source: str = "bus"  # where its TD came from: "bus" (retained) or "directory"
     title: str = ""
     status: dict[str, Any] | None = None
     last_error: dict[str, Any] | None = None
@@ -54,6 +55,7 @@ class Robot:
             "id": self.id,
             "title": self.title,
             "hasTd": self.td is not None,
+            "source": self.source,
             "status": self.status,
             "lastError": self.last_error,
             "pose": self.pose,
@@ -110,6 +112,8 @@ class Fleet:
         self._routes: dict[str, tuple[str, str, str]] = {}  # topic -> (robot, "property" | "event", name)
         self._subscribed: set[str] = set()
         self._statuses: dict[str, dict[str, Any]] = {}  # robot -> its last status, also while it has no TD
+        self._bus_tds: set[str] = set()  # robots whose TD is retained on the bus
+        self._directory: dict[str, dict[str, Any]] = {}  # robot -> its TD in the directory's last listing
         self._bus: Subscriber | None = None
         self._to_subscribe: queue.Queue[str | None] = queue.Queue()
         self._subscriber: threading.Thread | None = None
@@ -148,21 +152,43 @@ class Fleet:
         td = _json(msg.payload) if msg.payload else None
         with self._lock:
             if not isinstance(td, dict):
-                if robot_id in self.robots:
+                self._bus_tds.discard(robot_id)
+                if robot_id in self._directory:
+                    self._take(robot_id, self._directory[robot_id], "directory")
+                elif robot_id in self.robots:
                     self._forget(robot_id)
                 return
-            robot = self.robots.setdefault(robot_id, Robot(robot_id))
-            robot.td = td
-            robot.status = self._statuses.get(robot_id)
-            robot.title = str(td.get("title") or robot_id)
-            robot.topics = affordances(td, f"{self.root}/{robot_id}/")
-            robot.pose_at = find_pose(td)
-            for topic, name in robot.topics.properties.items():
-                self._route(topic, (robot_id, "property", name))
-            for topic, name in robot.topics.events.items():
-                if topic != f"{self.root}/{robot_id}/status":
-                    self._route(topic, (robot_id, "event", name))
-            self._fleet_news(robot)
+            self._bus_tds.add(robot_id)
+            self._take(robot_id, td, "bus")
+
+    def directory_tds(self, tds: dict[str, dict[str, Any]]) -> None:
+        """The robots a TD directory lists now (robot id -> TD); a robot's TD on the bus wins over these."""
+        with self._lock:
+            gone = set(self._directory) - set(tds)
+            self._directory = dict(tds)
+            for robot_id, td in tds.items():
+                robot = self.robots.get(robot_id)
+                if robot_id not in self._bus_tds and (robot is None or robot.td != td):
+                    self._take(robot_id, td, "directory")
+            for robot_id in gone - self._bus_tds:
+                if robot_id in self.robots:
+                    self._forget(robot_id)
+
+    def _take(self, robot_id: str, td: dict[str, Any], source: str) -> None:
+        """`td` as the robot's TD (under the lock)."""
+        robot = self.robots.setdefault(robot_id, Robot(robot_id))
+        robot.td = td
+        robot.source = source
+        robot.status = self._statuses.get(robot_id)
+        robot.title = str(td.get("title") or robot_id)
+        robot.topics = affordances(td, f"{self.root}/{robot_id}/")
+        robot.pose_at = find_pose(td)
+        for topic, name in robot.topics.properties.items():
+            self._route(topic, (robot_id, "property", name))
+        for topic, name in robot.topics.events.items():
+            if topic != f"{self.root}/{robot_id}/status":
+                self._route(topic, (robot_id, "event", name))
+        self._fleet_news(robot)
 
     def _route(self, topic: str, route: tuple[str, str, str]) -> None:
         self._routes[topic] = route

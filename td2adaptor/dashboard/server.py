@@ -4,14 +4,17 @@ SIGINT/SIGTERM (uvicorn handles both and closes the event streams)."""
 from __future__ import annotations
 
 import ipaddress
+import os
 import socket
 from collections.abc import Callable
 from dataclasses import dataclass
 
 from td2adaptor.dashboard.app import create_app
 from td2adaptor.dashboard.connection import BusSettings, open_dashboard_bus
+from td2adaptor.dashboard.directory import DirectoryReader
 from td2adaptor.dashboard.fleet import Fleet
-from td2adaptor.runtime.bus.security import is_loopback
+from td2adaptor.runtime.bus.security import is_loopback, redact_url
+from td2adaptor.runtime.config import check_directory_url, from_env
 
 __all__ = ["DashboardError", "DashboardOptions", "Listen", "parse_listen", "serve_dashboard"]
 
@@ -41,6 +44,8 @@ class DashboardOptions:
     read_only: bool = False
     allow_remote: bool = False
     topic_root: str = "td2adaptor"
+    directory: str | None = None  # a TD directory to list robots from as well
+    directory_period: float = 10.0  # seconds between two readings of its listing
 
 
 def parse_listen(text: str) -> Listen:
@@ -87,20 +92,40 @@ def serve_dashboard(options: DashboardOptions, say: Callable[[str], None]) -> No
             "anyone who reaches it could watch (and, unless --read-only, command) the robots; put it behind an "
             "authenticating proxy and pass --allow-remote, or listen on 127.0.0.1"
         )
+    reader_url = None
+    if options.directory is not None:
+        try:
+            reader_url = check_directory_url(options.directory)
+        except ValueError as exc:
+            raise DashboardError(str(exc)) from None
     bus = open_dashboard_bus(options.bus)
     fleet = Fleet(options.topic_root)
     fleet.attach(bus)
     bus.connect()
     sock = None
+    reader = None
     try:
+        if reader_url is not None:
+            values = from_env(os.environ)
+            reader = DirectoryReader(
+                reader_url,
+                fleet,
+                token=values.get("directory_token"),
+                ca_file=values.get("directory_ca_file"),
+                period=options.directory_period,
+            )
+            reader.start()
         sock = _bind(options.listen)
         port = int(sock.getsockname()[1])
         app = create_app(fleet, bus, read_only=options.read_only, hosts=_hosts(options.listen))
         config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off", timeout_graceful_shutdown=2)
         mode = ", read-only" if options.read_only else ""
-        say(f"serving {options.listen.url(port)} (bus {bus.address}{mode}); SIGINT/SIGTERM stops")
+        listed = f", directory {redact_url(reader_url)}" if reader_url else ""
+        say(f"serving {options.listen.url(port)} (bus {bus.address}{listed}{mode}); SIGINT/SIGTERM stops")
         uvicorn.Server(config).run(sockets=[sock])
     finally:
+        if reader is not None:
+            reader.stop()
         fleet.close()
         bus.close()
         if sock is not None:

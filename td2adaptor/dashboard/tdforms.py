@@ -45,7 +45,9 @@ def _ops(form: Mapping[str, Any]) -> list[str]:
 
 
 def _forms(affordance: Any) -> list[Mapping[str, Any]]:
+    """An affordance's forms (one form alone: a TD a directory gave back as JSON-LD framed from RDF)."""
     forms = affordance.get("forms") if isinstance(affordance, Mapping) else None
+    forms = [forms] if isinstance(forms, Mapping) else forms
     return [f for f in forms if isinstance(f, Mapping)] if isinstance(forms, list) else []
 
 
