@@ -5,6 +5,8 @@ bus connection's refusals, which never show a password."""
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 from typing import Any
 
 import pytest
@@ -17,6 +19,7 @@ from td2adaptor.dashboard.tdforms import affordances
 from td2adaptor.model.exposed import exposed_td
 from td2adaptor.runtime.bus.security import SecurityError
 from tests.conftest import REPO
+from tests.runtime.broker import free_port
 from tests.runtime.rb1 import rb1_model
 
 
@@ -85,3 +88,26 @@ def test_listen_addresses() -> None:
     for bad in ("8080", "localhost:", "host:http", "h:70000"):
         with pytest.raises(DashboardError):
             parse_listen(bad)
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (["--bus", "mqtt://viewer:S3cret-3@127.0.0.1:1883"], "carries credentials"),
+        (["--bus", "mqtt://127.0.0.1:1", "--listen", "0.0.0.0:0"], "not a loopback address"),
+        (["--bus", "mqtt://127.0.0.1:1", "--listen", "8080"], "give HOST:PORT"),
+        (["--bus", "mqtt://127.0.0.1:1", "--directory", "http://u:S3cret-3@tdd:5000"], "carries credentials"),
+        (["--bus", f"mqtt://127.0.0.1:{free_port()}"], "cannot reach the MQTT broker"),
+    ],
+)
+def test_the_command_refuses_in_one_line_without_a_traceback_or_the_password(args: list[str], words: str) -> None:
+    proc = subprocess.run(
+        [sys.executable, "-m", "td2adaptor", "dashboard", *args],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert proc.returncode == 1, proc.stderr
+    assert words in proc.stderr and "Traceback" not in proc.stderr and "S3cret-3" not in proc.stderr, proc.stderr
+    assert proc.stderr.startswith("td2adaptor dashboard: ") and len(proc.stderr.strip().splitlines()) == 1
