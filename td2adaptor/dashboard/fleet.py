@@ -3,9 +3,11 @@
 Fed by the MQTT client's thread: a robot appears with its retained TD on `<root>/<robot>/td` and disappears
 when the TD is cleared (a clean stop); its retained status (`<root>/<robot>/status`, the broker's will after a
 crash) and its last error (`<root>/<robot>/error`) come on their own topics; property values and events on the
-topics its TD names (subscribed as TDs arrive, from a thread of their own: a subscription waits for the
-broker's answer, which the MQTT thread delivers). Each page is a `Watcher`: fleet news for every robot, values
-and events for the one robot it shows; values coalesce (the latest wins), events never do.
+topics its TD names (td2adaptor's TDs put them under `<root>/<robot>/wot-thing/`, subscribed from the start, so
+that a page cannot invoke before the answers are heard; a TD naming others gets them subscribed as it arrives,
+from a thread of their own: a subscription waits for the broker's answer, which the MQTT thread delivers).
+Each page is a `Watcher`: fleet news for every robot, values and events for the one robot it shows; values
+coalesce (the latest wins), events never do.
 """
 
 from __future__ import annotations
@@ -23,7 +25,8 @@ import orjson
 
 from td2adaptor.dashboard.pose import Pose, PosePath, find_pose, read_pose
 from td2adaptor.dashboard.tdforms import Affordances, affordances
-from td2adaptor.runtime.bus.bus import Handler, Message
+from td2adaptor.model.wot import WOT_LEVEL
+from td2adaptor.runtime.bus.bus import Handler, Message, topic_matches
 
 log = logging.getLogger("td2adaptor.dashboard")
 
@@ -117,6 +120,7 @@ class Fleet:
         self._bus: Subscriber | None = None
         self._to_subscribe: queue.Queue[str | None] = queue.Queue()
         self._subscriber: threading.Thread | None = None
+        self._wot = f"{root}/+/{WOT_LEVEL}/#"  # where td2adaptor's TDs put their affordances' topics
 
     # -- the bus ---------------------------------------------------------------------------------------------
 
@@ -126,6 +130,7 @@ class Fleet:
         bus.subscribe(f"{self.root}/+/td", self._on_td)
         bus.subscribe(f"{self.root}/+/status", self._on_status)
         bus.subscribe(f"{self.root}/+/error", self._on_error)
+        bus.subscribe(self._wot, self._on_affordance)  # what a new TD names is heard at once, without a SUBACK
         self._subscriber = threading.Thread(target=self._subscribe_loop, name="dashboard-subscribe", daemon=True)
         self._subscriber.start()
 
@@ -192,7 +197,7 @@ class Fleet:
 
     def _route(self, topic: str, route: tuple[str, str, str]) -> None:
         self._routes[topic] = route
-        if topic not in self._subscribed:
+        if topic not in self._subscribed and not topic_matches(self._wot, topic):
             self._subscribed.add(topic)
             self._to_subscribe.put(topic)
 
