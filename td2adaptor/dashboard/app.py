@@ -103,13 +103,15 @@ def create_app(fleet: Fleet, bus: Publisher, *, read_only: bool = False, hosts: 
         async def stream() -> AsyncIterator[bytes]:
             try:
                 yield _sse(snapshot)
-                while True:
+                while not fleet.closing:
                     try:
                         await asyncio.wait_for(ready.wait(), KEEPALIVE)
                     except asyncio.TimeoutError:
                         yield b": idle\n\n"
                         continue
                     ready.clear()
+                    if fleet.closing:
+                        return
                     items = watcher.take()
                     if items:
                         yield _sse({"k": "batch", "items": items})

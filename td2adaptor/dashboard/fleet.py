@@ -112,6 +112,7 @@ class Fleet:
         self.robots: dict[str, Robot] = {}
         self._lock = threading.RLock()
         self._watchers: list[Watcher] = []
+        self.closing = False  # the server is stopping: streams end
         self._routes: dict[str, tuple[str, str, str]] = {}  # topic -> (robot, "property" | "event", name)
         self._subscribed: set[str] = set()
         self._statuses: dict[str, dict[str, Any]] = {}  # robot -> its last status, also while it has no TD
@@ -279,6 +280,14 @@ class Fleet:
                 snapshot["values"] = dict(robot.values)
                 snapshot["events"] = list(robot.events)
         return watcher, snapshot
+
+    def shutdown(self) -> None:
+        """The server is stopping: every page's stream ends (the browser reconnects to whatever comes next)."""
+        with self._lock:
+            self.closing = True
+            watchers = list(self._watchers)
+        for watcher in watchers:
+            watcher.push({"k": "bye"})
 
     def unwatch(self, watcher: Watcher) -> None:
         with self._lock:

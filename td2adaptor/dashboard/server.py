@@ -5,9 +5,12 @@ from __future__ import annotations
 
 import ipaddress
 import os
+import signal
 import socket
 from collections.abc import Callable
 from dataclasses import dataclass
+from types import FrameType
+from typing import Any
 
 from td2adaptor.dashboard.app import create_app
 from td2adaptor.dashboard.connection import BusSettings, open_dashboard_bus
@@ -81,6 +84,29 @@ def _bind(listen: Listen) -> socket.socket:
     return sock
 
 
+class _Server:
+    """uvicorn's server, which first ends the pages' event streams (they never end on their own, and uvicorn
+    waits for open requests) and then returns from `run` instead of dying of the signal it caught (uvicorn
+    raises it again once stopped): the bus is closed cleanly and the command says it stopped."""
+
+    def __init__(self, config: Any, closing: Callable[[], None]) -> None:
+        import uvicorn
+
+        class Server(uvicorn.Server):
+            def handle_exit(self, sig: int, frame: FrameType | None) -> None:
+                closing()
+                super().handle_exit(sig, frame)
+
+        self.server = Server(config)
+
+    def run(self, sockets: list[socket.socket]) -> None:
+        previous = signal.signal(signal.SIGTERM, lambda _sig, _frame: None)  # what uvicorn raises again
+        try:
+            self.server.run(sockets=sockets)
+        finally:
+            signal.signal(signal.SIGTERM, previous)
+
+
 def serve_dashboard(options: DashboardOptions, say: Callable[[str], None]) -> None:
     """Run until interrupted. Raises `DashboardError`, `SecurityError`, `ConfigError` or `BusError` (each says
     what to change) before anything is served."""
@@ -122,7 +148,7 @@ def serve_dashboard(options: DashboardOptions, say: Callable[[str], None]) -> No
         mode = ", read-only" if options.read_only else ""
         listed = f", directory {redact_url(reader_url)}" if reader_url else ""
         say(f"serving {options.listen.url(port)} (bus {bus.address}{listed}{mode}); SIGINT/SIGTERM stops")
-        uvicorn.Server(config).run(sockets=[sock])
+        _Server(config, fleet.shutdown).run(sockets=[sock])
     finally:
         if reader is not None:
             reader.stop()

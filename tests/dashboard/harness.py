@@ -63,10 +63,10 @@ class Dashboard:
             if self.proc.poll() is None:
                 self.proc.kill()
                 self.proc.wait(5)
-            self.log.close()
 
     def close(self) -> None:
         self.stop()
+        self.log.close()
         os.unlink(self.log.name)
 
 

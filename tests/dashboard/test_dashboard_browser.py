@@ -78,6 +78,9 @@ def test_robots_appear_and_a_mission_runs_from_the_generated_form(broker: Mosqui
             # r1 stopped cleanly: its TD cleared, it leaves the list
             r1.stop()
             wait(driver, lambda d: not css(d, '#robots li[data-robot="r1"]'), what="r1 gone")
+            # SIGTERM with the page's stream open: the stream ends, the command says so and exits 0
+            assert dash.stop() == 0 and dash.output().endswith("td2adaptor dashboard: stopped\n"), dash.output()
+            wait(driver, lambda d: css(d, "#connection")[0].text != "live", what="the page seeing it")
     finally:
         r2.kill()
         r1.stop()
