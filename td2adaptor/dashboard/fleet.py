@@ -32,6 +32,8 @@ log = logging.getLogger("td2adaptor.dashboard")
 
 #: events of one robot the server keeps, so that a page opened (or switched back) later shows the missions
 EVENTS_KEPT = 300
+#: news one page may have pending before the oldest are dropped (values coalesce anyway)
+PENDING_KEPT = 10000
 
 
 class Subscriber(Protocol):
@@ -81,6 +83,8 @@ class Watcher:
             empty = not self._ordered and not self._latest
             if key is None:
                 self._ordered.append(item)
+                if len(self._ordered) > PENDING_KEPT:  # a page that does not read: it keeps the latest
+                    del self._ordered[: len(self._ordered) - PENDING_KEPT]
             else:
                 self._latest[key] = item
         if empty:

@@ -111,3 +111,52 @@ def test_the_command_refuses_in_one_line_without_a_traceback_or_the_password(arg
     assert proc.returncode == 1, proc.stderr
     assert words in proc.stderr and "Traceback" not in proc.stderr and "S3cret-3" not in proc.stderr, proc.stderr
     assert proc.stderr.startswith("td2adaptor dashboard: ") and len(proc.stderr.strip().splitlines()) == 1
+
+
+class Subscriptions:
+    """Where a `Fleet` subscribes (what it is fed is given to its handlers by the test, as the bus would)."""
+
+    def __init__(self) -> None:
+        self.handlers: dict[str, Any] = {}
+
+    def subscribe(self, pattern: str, handler: Any, *, qos: int = 1) -> None:
+        self.handlers[pattern] = handler
+
+
+def test_a_page_gets_every_event_the_latest_value_and_at_most_what_it_can_hold(monkeypatch: pytest.MonkeyPatch) -> None:
+    import json as js
+
+    from td2adaptor.dashboard import fleet as fleet_module
+    from td2adaptor.runtime.bus.bus import Message
+
+    bus = Subscriptions()
+    fleet = fleet_module.Fleet()
+    fleet.attach(bus)
+    try:
+        td = exposed_td(rb1_model(), robot="r1", broker="mqtt://127.0.0.1:1883")
+        status = {"type": "status", "payload": {"state": "online", "presence": "robot-absent", "owner": "p1"}}
+        bus.handlers["td2adaptor/+/status"](Message("td2adaptor/r1/status", js.dumps(status).encode(), True))
+        bus.handlers["td2adaptor/+/td"](Message("td2adaptor/r1/td", js.dumps(td).encode(), True))
+        woken: list[int] = []
+        watcher, snapshot = fleet.watch("r1", lambda: woken.append(1))
+        # the status as the robot says it, whatever its members (presence and owner are news to this page)
+        assert snapshot["robots"][0]["status"]["presence"] == "robot-absent"
+        wot = bus.handlers["td2adaptor/+/wot-thing/#"]
+        prop = "td2adaptor/r1/wot-thing/PoseMarkerComponent/poseMarker"
+        feedback = "td2adaptor/r1/wot-thing/GoToComponent/gotoRun/feedback"
+        for seq in (1, 2, 3):
+            wot(Message(prop, js.dumps({"markers": [{"id": seq}]}).encode()))
+            wot(Message(feedback, js.dumps({"state": "running", "seq": seq, "terminal": False}).encode()))
+        wot(Message("td2adaptor/r1/wot-thing/Nothing/here", b"{}"))  # no TD names it: dropped
+        items = watcher.take()
+        assert [i["data"]["seq"] for i in items if i["k"] == "event"] == [1, 2, 3]
+        assert [i["value"] for i in items if i["k"] == "value"] == [{"markers": [{"id": 3}]}]
+        assert len(items) == 4 and woken == [1]
+        monkeypatch.setattr(fleet_module, "PENDING_KEPT", 5)
+        for seq in range(20):
+            wot(Message(feedback, js.dumps({"state": "running", "seq": seq, "terminal": False}).encode()))
+        assert [i["data"]["seq"] for i in watcher.take()] == [15, 16, 17, 18, 19]
+        bus.handlers["td2adaptor/+/td"](Message("td2adaptor/r1/td", b"", True))  # a clean stop clears it
+        assert watcher.take() == [{"k": "gone", "robot": "r1"}] and fleet.summaries() == []
+    finally:
+        fleet.close()
