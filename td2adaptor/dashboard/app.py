@@ -16,9 +16,8 @@ from typing import Any, Protocol
 import orjson
 from starlette.applications import Starlette
 from starlette.middleware import Middleware
-from starlette.middleware.trustedhost import TrustedHostMiddleware
 from starlette.requests import Request
-from starlette.responses import FileResponse, JSONResponse, Response, StreamingResponse
+from starlette.responses import FileResponse, JSONResponse, PlainTextResponse, Response, StreamingResponse
 from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
@@ -62,6 +61,24 @@ class _Headers:
             await send(message)
 
         await self.app(scope, receive, send_with)
+
+
+class _Hosts:
+    """Only requests for one of `hosts` (the Host header's name, an IPv6 address in brackets too; "*": any): a
+    page of another site whose name was pointed at this address (DNS rebinding) is refused."""
+
+    def __init__(self, app: ASGIApp, hosts: Sequence[str]) -> None:
+        self.app = app
+        self.hosts = frozenset(h.lower() for h in hosts)
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] == "http" and "*" not in self.hosts:
+            header = dict(scope.get("headers", [])).get(b"host", b"").decode("latin-1").lower()
+            name = header[1:].partition("]")[0] if header.startswith("[") else header.partition(":")[0]
+            if name not in self.hosts:
+                await PlainTextResponse("Invalid host header", status_code=400)(scope, receive, send)
+                return
+        await self.app(scope, receive, send)
 
 
 def _refuse(status: int, words: str) -> JSONResponse:
@@ -184,5 +201,5 @@ def create_app(fleet: Fleet, bus: Publisher, *, read_only: bool = False, hosts: 
         Route("/api/robots/{robot}/properties/{name}", write, methods=["POST"]),
         Mount("/static", StaticFiles(directory=STATIC), name="static"),
     ]
-    middleware = [Middleware(_Headers), Middleware(TrustedHostMiddleware, allowed_hosts=list(hosts))]
+    middleware = [Middleware(_Headers), Middleware(_Hosts, hosts=list(hosts))]
     return Starlette(routes=routes, middleware=middleware)

@@ -67,7 +67,7 @@ def _hosts(listen: Listen) -> list[str]:
             return ["*"]
     except ValueError:
         pass
-    return sorted({listen.host, "localhost", "127.0.0.1"} if listen.loopback else {listen.host})
+    return sorted({listen.host, "localhost", "127.0.0.1", "::1"} if listen.loopback else {listen.host})
 
 
 def _bind(listen: Listen) -> socket.socket:

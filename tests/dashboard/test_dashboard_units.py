@@ -7,6 +7,9 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
+import urllib.error
+import urllib.request
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -160,3 +163,26 @@ def test_a_page_gets_every_event_the_latest_value_and_at_most_what_it_can_hold(m
         assert watcher.take() == [{"k": "gone", "robot": "r1"}] and fleet.summaries() == []
     finally:
         fleet.close()
+
+
+def test_the_page_is_served_on_ipv6_loopback_and_answers_only_its_own_host_names(tmp_path: Path) -> None:
+    from tests.dashboard.harness import dashboard
+    from tests.runtime.broker import Mosquitto
+
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    try:
+        with dashboard(broker.url, "--listen", "[::1]:0") as dash:
+            assert dash.url.startswith("http://[::1]:"), dash.url
+            port = dash.url.rsplit(":", 1)[1].strip("/")
+            for host, status in ((f"[::1]:{port}", 200), (f"localhost:{port}", 200), ("evil.example", 400)):
+                request = urllib.request.Request(f"{dash.url}api/fleet", headers={"Host": host})
+                try:
+                    with urllib.request.urlopen(request, timeout=10) as answer:
+                        got = answer.status
+                except urllib.error.HTTPError as exc:
+                    exc.close()
+                    got = exc.code
+                assert got == status, host
+    finally:
+        broker.stop()
