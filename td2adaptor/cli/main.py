@@ -1,7 +1,8 @@
 """The `td2adaptor` command line: the click group with every command registered, and the console entry point.
 
 Commands live by stage: frontend.py (validate, types, instantiate, migrate, explain), generate.py (gen, check),
-runtime.py (run, demo), fleet.py (fleet status), dashboard.py (dashboard); common.py holds the group and what they share.
+runtime.py (run, demo), fleet.py (fleet status), dashboard.py (dashboard); common.py holds the group and what
+they share.
 """
 
 from __future__ import annotations
