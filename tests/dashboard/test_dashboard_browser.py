@@ -339,3 +339,40 @@ def test_the_form_generator_covers_enums_ranges_booleans_constants_and_nested_ar
                 "waypoints": [{"x": -2}, {"tag": "b"}],
             }
         ], sent
+
+
+def test_the_list_says_when_the_edge_node_is_up_but_the_robot_is_absent(broker: Mosquitto) -> None:
+    """The status as the edge node words it (runtime/node/status.py: the robot's presence, the owner process,
+    missions, last error), published by the runtime's own `status_event`: the page shows each as it changes."""
+    chromium_or_skip()
+    from td2adaptor.model.exposed import exposed_td
+    from td2adaptor.runtime import RuntimeConfig
+    from td2adaptor.runtime.engine.engine import status_event
+    from td2adaptor.support.jsondump import dump
+    from tests.runtime.client import AppClient
+    from tests.runtime.rb1 import rb1_model
+
+    model = rb1_model()
+    config = RuntimeConfig(robot="r9", bus=broker.url)
+    owner = {"host": "edge-7", "pid": 4242, "started": "2026-11-27T20:00:00Z", "node": "n1"}
+    app = AppClient(broker, ["td2adaptor/r9/status"])
+    try:
+        app.client.publish("td2adaptor/r9/td", dump(exposed_td(model, robot="r9", broker=broker.url)), 1, True)
+
+        def status(**members: Any) -> None:
+            message = status_event(config, model, "online", **members)
+            app.client.publish(message.topic, message.payload, 1, True).wait_for_publish(10)
+
+        error = {"code": "busy", "message": "the component is running another procedure", "time": "2026-11-27T20:01Z"}
+        status(robot="absent", owner=owner, missions=0, lastError=error)
+        with dashboard(broker.url) as dash, chromium() as driver:
+            driver.get(dash.url)
+            wait(driver, lambda d: robot_state(d, "r9") == "absent", what="absent")
+            item = css(driver, '#robots li[data-robot="r9"]')[0]
+            assert "owner: host edge-7 pid 4242" in item.text and "busy: the component is running" in item.text
+            status(robot="present", owner=owner, missions=1)
+            wait(driver, lambda d: robot_state(d, "r9") == "online", what="present again")
+            assert "missions: 1" in css(driver, '#robots li[data-robot="r9"]')[0].text
+    finally:
+        app.client.publish("td2adaptor/r9/td", b"", 1, True).wait_for_publish(10)
+        app.close()

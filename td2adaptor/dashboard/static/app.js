@@ -112,12 +112,28 @@ function showValue(name, value, t) {
   }
 }
 
+// The status in one word: offline; online with the robot's ROS side absent or partial (the edge node is up, the
+// robot is not all there); online; unknown (no status yet).
 function statusWord(robot) {
-  return robot?.status?.state ?? "unknown";
+  const status = robot?.status;
+  if (!status?.state) return "unknown";
+  if (status.state === "online" && typeof status.robot === "string" && status.robot !== "present") return status.robot;
+  return status.state;
 }
 
 function fields(obj, skip = []) {
   return Object.entries(obj || {}).filter(([k, v]) => !skip.includes(k) && v !== null && v !== undefined);
+}
+
+// a status member as text, whatever it holds (an owner process, a list of missing actions, ...)
+function describe(value) {
+  if (Array.isArray(value)) return value.map(describe).join(", ");
+  if (value && typeof value === "object") return Object.entries(value).map(([k, v]) => `${k} ${describe(v)}`).join(" ");
+  return String(value);
+}
+
+function lastError(robot) {
+  return robot?.lastError || robot?.status?.lastError || null;
 }
 
 function renderFleet() {
@@ -129,8 +145,10 @@ function renderFleet() {
     const word = statusWord(robot);
     const li = el("li", { "data-robot": robot.id, "data-state": word, "aria-selected": String(robot.id === state.selected) });
     li.append(el("strong", { text: robot.id }), " ", el("span", { class: "badge status-word", "data-state": word, text: word }));
-    li.append(el("span", { class: "fields", text: [robot.title, ...fields(robot.status, ["state", "time"]).map(([k, v]) => `${k}: ${typeof v === "object" ? JSON.stringify(v) : v}`)].join(" · ") }));
-    if (robot.lastError) li.append(el("span", { class: "error", text: `${robot.lastError.code}: ${robot.lastError.message}` }));
+    const shown = fields(robot.status, ["state", "time", "lastError"]).map(([k, v]) => `${k}: ${describe(v)}`);
+    li.append(el("span", { class: "fields", text: [robot.title, ...shown].join(" · ") }));
+    const error = lastError(robot);
+    if (error) li.append(el("span", { class: "error", text: `${error.code}: ${error.message}` }));
     li.addEventListener("click", () => select(robot.id));
     return li;
   });
@@ -146,8 +164,9 @@ function renderStatus() {
   const word = robot ? statusWord(robot) : "gone";
   dl.dataset.state = word;
   dl.append(el("dt", { text: "status" }), el("dd", {}, el("span", { class: "badge", "data-state": word, text: word })));
-  for (const [k, v] of fields(robot?.status, ["state"])) dl.append(el("dt", { text: k }), el("dd", { text: typeof v === "object" ? JSON.stringify(v) : String(v) }));
-  if (robot?.lastError) dl.append(el("dt", { text: "last error" }), el("dd", { class: "error", text: `${robot.lastError.code}: ${robot.lastError.message}` }));
+  for (const [k, v] of fields(robot?.status, ["state", "lastError"])) dl.append(el("dt", { text: k }), el("dd", { text: describe(v) }));
+  const error = lastError(robot);
+  if (error) dl.append(el("dt", { text: "last error" }), el("dd", { class: "error", text: `${error.code}: ${error.message}` }));
 }
 
 function select(robot) {
