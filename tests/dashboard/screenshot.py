@@ -5,7 +5,9 @@ the robots are on the map and rb1_base_a has had a mission:
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -34,15 +36,22 @@ def main() -> None:
                     env=dict(os.environ),
                     stdout=subprocess.DEVNULL,
                     stderr=subprocess.DEVNULL,
+                    start_new_session=True,  # its edge nodes and simulations with it, in one process group
                 )
                 wait(driver, lambda d: len(css(d, "#map g.robot")) >= 3, 240, "three robots on the map")
                 wait(driver, lambda d: css(d, '#timeline li[data-terminal="true"]'), 240, "a finished mission")
                 wait(driver, lambda d: css(d, '#timeline li[data-terminal="false"][data-mission]'), 240, "a new one")
                 driver.save_screenshot(str(out))
         finally:
-            if demo is not None:
-                demo.terminate()
-                demo.wait(30)
+            if demo is not None:  # the demo, its edge nodes and simulations, while the broker is still there
+                os.killpg(demo.pid, signal.SIGTERM)
+                try:
+                    demo.wait(30)
+                except subprocess.TimeoutExpired:
+                    pass
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(demo.pid, signal.SIGKILL)
+                demo.wait(10)
             broker.stop()
     print(f"{out}: {out.stat().st_size} bytes")
 
