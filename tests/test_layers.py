@@ -35,17 +35,18 @@ STANDS_ON: dict[str, tuple[str, ...]] = {
     "backends": ("generation",),  # one folder per output kind, and the registry that finds them
     "compiler": ("lowering", "backends"),  # drives it all: compile (with its result cache) and the build
     "runtime": ("model",),  # the edge node: bus events to ROS calls (tests/runtime/test_layers.py: its inside)
+    "dashboard": ("runtime",),  # the operator's web page of a fleet on the bus (`td2adaptor dashboard`)
     "scaffold": ("rostypes",),  # the other way: from a running robot, a bag or a listing to a TD
     "api": ("compiler",),  # generate and check for build scripts
     "__init__": ("api",),  # the library's names (load, validate, compile, generate, check), loaded on first use
-    "cli": ("__init__", "runtime", "scaffold"),  # the command line
+    "cli": ("__init__", "runtime", "scaffold", "dashboard"),  # the command line
     "__main__": ("cli",),  # python -m td2adaptor
 }
 
 #: what each lower layer must not import (packages above it in the pipeline, or beside it as doors); the
 #: compiler drives generation since the build moved there, so it is no longer one of them
 FORBIDDEN = ("td2adaptor.backends", "td2adaptor.generation", "td2adaptor.cli")
-LAYERS = ("frontend", "rostypes", "lowering", "model", "runtime", "scaffold", "diagnostics", "support")
+LAYERS = ("frontend", "rostypes", "lowering", "model", "runtime", "scaffold", "diagnostics", "support", "dashboard")
 
 
 def _name(path: Path, root: Path) -> str:
@@ -313,6 +314,7 @@ _DESCRIBED = (
     "scaffold",
     "support",
     "cli",
+    "dashboard",
 )
 
 

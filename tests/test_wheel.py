@@ -73,6 +73,8 @@ def test_wheel_installs_and_validates_outside_the_repo(tmp_path: Path) -> None:
     assert (installed / "frontend" / "schemas" / "td-1.1.schema.json").is_file()
     assert (installed / "rostypes" / "interfaces" / "std_srvs" / "srv" / "Trigger.srv").is_file()
     assert (installed / "py.typed").is_file()
+    for page in ("index.html", "app.js", "schemaform.js", "style.css"):  # the dashboard's page: no build step
+        assert (installed / "dashboard" / "static" / page).is_file(), page
     # the interface-build helper is part of the wheel and works from it (a folder with no package: one line)
     (work / "empty").mkdir()
     build = subprocess.run(

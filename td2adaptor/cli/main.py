@@ -1,7 +1,8 @@
 """The `td2adaptor` command line: the click group with every command registered, and the console entry point.
 
 Commands live by stage: frontend.py (validate, types, instantiate, migrate, explain), generate.py (gen, check),
-runtime.py (run, demo), fleet.py (fleet status); common.py holds the group and what they share.
+runtime.py (run, demo), fleet.py (fleet status), dashboard.py (dashboard); common.py holds the group and what
+they share.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from collections.abc import Sequence
 
 import click
 
-from td2adaptor.cli import fleet, frontend, generate, runtime, scaffold  # noqa: F401 - registers the commands
+from td2adaptor.cli import dashboard, fleet, frontend, generate, runtime, scaffold  # noqa: F401 - registers the commands
 from td2adaptor.cli.common import EXIT_INTERNAL, cli
 
 __all__ = ["cli", "main"]
