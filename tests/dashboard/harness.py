@@ -16,10 +16,9 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-import pytest
-
 from tests.conftest import REPO
 from tests.runtime.edge import until
+from tests.tools import missing
 
 CHROMIUM = next((p for p in (shutil.which("chromium"), "/usr/bin/chromium") if p and os.access(p, os.X_OK)), None)
 CHROMEDRIVER = next(
@@ -29,8 +28,9 @@ SERVING = re.compile(r"serving (http://\S+/) ")
 
 
 def chromium_or_skip() -> tuple[str, str]:
+    """The browser and its driver (tests.tools' policy: skipped with the reason here, failed in CI)."""
     if CHROMIUM is None or CHROMEDRIVER is None:
-        pytest.skip("headless Chromium is not installed (Debian: chromium chromium-driver; .ci/setup-browser.sh)")
+        missing("headless Chromium is not installed (Debian: chromium chromium-driver; .ci/setup-browser.sh)")
     return CHROMIUM, CHROMEDRIVER
 
 
