@@ -62,7 +62,15 @@ def test_rb1_services_procedures_and_topics(rb1: Model) -> None:
     assert [s.name for s in goto.services] == ["gotoRun", "gotoCancel", "gotoQuery"]
     every = frozenset({"run", "query", "cancel"})  # each response carries a procedures_msgs state
     assert goto.procedures == (
-        Procedure("gotoRun", "gotoQuery", "gotoCancel", ("state", "header", "id"), stateful=every),
+        Procedure(
+            "gotoRun",
+            "gotoQuery",
+            "gotoCancel",
+            ("state", "header", "id"),
+            stateful=every,
+            # where the mission id goes in the query's and the cancel's request (the lowering's one rule)
+            slots=(("query", ("header", "id")), ("cancel", ("header", "id"))),
+        ),
     )
     assert [s.procedure_role for s in goto.services] == [
         ProcedureRole.RUN,

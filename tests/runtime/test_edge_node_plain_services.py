@@ -28,7 +28,7 @@ from td2adaptor.model.events import Kind, build_catalog
 from td2adaptor.runtime import LocalBroker, RuntimeConfig, serve
 from td2adaptor.runtime.events import EventValidator
 from td2adaptor.runtime.node.roslink import RosLink, connect
-from td2adaptor.runtime.ros.genport import GeneratedPort, _takes_mission_id
+from td2adaptor.runtime.ros.genport import GeneratedPort
 from tests.lowering.test_procedures import INTERFACES, STATES, procedure_td
 from tests.runtime.edge import check_mission, until
 from tests.runtime.rb1 import LocalApp, terminal
@@ -195,8 +195,8 @@ def test_one_shot_invoke_the_robot_refuses_fails_with_its_words(
 def test_a_cancel_without_a_mission_id_is_called_without_one(link: RosLink, robot: PlainRobot) -> None:
     port = link.ports[ROBOT]
     assert isinstance(port, GeneratedPort)
-    task = port.components["TaskComponent"]
-    assert _takes_mission_id(task.call_taskQuery) and not _takes_mission_id(task.call_taskCancel)
+    # the lowering's mission-id slots (model Procedure.slots), as the port reads them: the query's request has one
+    assert ("TaskComponent", "taskQuery") in port.layout.ids and ("TaskComponent", "taskCancel") not in port.layout.ids
     started = port.start("TaskComponent", "taskRun", {"float64_value": 60.0}, 15.0)
     assert started.mission_id is not None
     # the id cannot travel: the Trigger is called as it is (a mission_id= here was the TypeError)
