@@ -67,8 +67,9 @@ def test_the_network_threads_of_a_fleet_process_do_not_grow_with_its_robots(brok
 
 def test_publishes_from_many_threads_are_written_at_once(broker: Mosquitto) -> None:
     """Eight threads publish one message at a time, each waiting for a subscriber to get it before the next,
-    while messages keep arriving for the bus: every one arrives within a second (a lost wake-up of the serving
-    thread would leave one unwritten until the next keep-alive, 30 s), in each thread's order."""
+    while messages keep arriving for the bus: every one arrives within 3 s (a lost wake-up of the serving thread
+    would leave one unwritten until the next keep-alive, 30 s; a loaded machine pauses a whole second at times),
+    in each thread's order."""
     app = AppClient(broker, ["many/out/#"])
     bus = MqttBus(parse_broker_url(broker.url), client_id="many-threads", keepalive=30)
     got: list[bytes] = []
@@ -90,7 +91,7 @@ def test_publishes_from_many_threads_are_written_at_once(broker: Mosquitto) -> N
                 if not app.cond.wait_for(lambda n=n: n in [e["n"] for t, e in app.events if t == topic], 5.0):
                     failures.append(f"thread {k}: message {n} not written within 5 s")
                     return
-            if time.monotonic() - start > 1.0:
+            if time.monotonic() - start > 3.0:
                 failures.append(f"thread {k}: message {n} took {time.monotonic() - start:.2f} s")
 
     def inbound() -> None:

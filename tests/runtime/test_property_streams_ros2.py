@@ -187,7 +187,9 @@ def test_a_throttled_property_publishes_the_latest_and_never_withholds_the_last(
         engine.stop()
         app.close()
     got = xs(app, topic)
-    assert got[0] == 0.0 and got[-1] == float(count - 1)
+    # the first goes out at once, before the first interval ends (the latest of what came meanwhile: on a loaded
+    # machine messages 0 and 1 can arrive together, and then 1 is the latest)
+    assert got[0] < interval / 0.01 and got[-1] == float(count - 1), got
     assert got == sorted(set(got)), "in order, each once"
     # at most one event per interval (plus the first, at once)
     assert len(got) <= 2 + math.ceil(sent["took"] / interval), (got, sent)
