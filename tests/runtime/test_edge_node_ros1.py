@@ -32,7 +32,7 @@ from tests.ros1 import harness
 from tests.ros1.harness import Master, Sim
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
-from tests.runtime.edge import CLASS_NAME, RunProcess, check_mission, until
+from tests.runtime.edge import CLASS_NAME, RunProcess, check_mission, feedback, until
 from tests.runtime.rb1 import GOAL, LocalApp, check_outbound, rb1_model, terminal
 
 PKG = "robotnik_rb_1_adaptor"
@@ -304,7 +304,12 @@ def test_rosrun_edge_node_serves_a_robot_over_mosquitto(
         goal = {"procedure": {"goals": [{"pose": {"x": 3.0, "y": 3.0, "theta": 0.0}}]}}
         app.send(f"td2adaptor/{ROBOT}/GoToComponent/gotoRun", {"correlation": "cli", "payload": goal})
         app.wait(terminal("feedback", "cli"), timeout=20)
-        check_mission(app.events, "cli", ["queued", "running", "finished"])
+        # `running` is what a query sees while the robot moves: on a loaded machine the first query can come after
+        # the simulated robot's short move has ended
+        states = [e["payload"]["state"] for e in feedback(app.events, "cli")]
+        check_mission(
+            app.events, "cli", ["queued", "running", "finished"] if "running" in states else ["queued", "finished"]
+        )
         # SIGTERM to the whole process group, bridge included, as roslaunch or systemd stop a node: a clean
         # stop, with no property read reported as failed on the way out. The group's members get the signal
         # in no set order; the bridge first (and a moment of polling before the node's turn) is the worst case.
