@@ -91,12 +91,14 @@ def main() -> None:
             handle.publish_feedback(FibonacciFeedback(sequence=[i]))
         handle.set_succeeded(FibonacciResult(sequence=[order]), "done")
 
-    # actionlib reads the queue size when a server is made, as a name relative to the node's namespace (here
-    # the root): set for the burst server, taken away again for servers made later on this master
+    # actionlib reads the queue size when a server starts (ActionServer.initialize, from start()), as a name
+    # relative to the node's namespace (here the root): set for the burst server's start, taken away again for
+    # servers started later on this master (taken away before start, the burst server had actionlib's 50, and
+    # on a loaded machine a burst outran it: 8 of 1,000 lost in the rospy publisher's queue)
     rospy.set_param("actionlib_server_pub_queue_size", 5000)
     burst = actionlib.ActionServer(f"/{namespace}/burst", FibonacciAction, burst_goal, auto_start=False)
-    rospy.delete_param("actionlib_server_pub_queue_size")
     burst.start()
+    rospy.delete_param("actionlib_server_pub_queue_size")
     print("ready", flush=True)
     rospy.spin()
 

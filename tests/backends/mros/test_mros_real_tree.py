@@ -24,10 +24,10 @@ from tests.tools import require_ok
 shared_root = fixtures.shared_root
 
 
-@pytest.fixture(scope="module", autouse=True)
+@pytest.fixture(scope="session", autouse=True)
 def _real_tree() -> None:
     """The tree is reference material beside the repository (skipped without it, as the README says); the
-    tools that build it are required (tests/tools.py)."""
+    tools that build it are required (tests/tools.py). Session-scoped: checked before `built`, which is."""
     tree = real_tree.tree_problem()
     if tree is not None:
         pytest.skip(tree)
