@@ -88,6 +88,9 @@ class Fleet:
         self.on_halt = on_halt  # (robot, why): a robot's bus stopped serving its broker
         self.on_added: list[Callable[[Engine], None]] = []  # a robot started serving (hooks: presence, metrics)
         self.on_removed: list[Callable[[str], None]] = []  # a robot stopped serving (its id)
+        #: the check before robots join: none another live process serves (raises `OwnerConflict`); a shared
+        #: fleet (node/share.py) decides that from the members and statuses it follows instead
+        self.check: Callable[[Sequence[RuntimeConfig]], None] = partial(check_fleet, model)
         self._lock = threading.RLock()
         self._engines: dict[str, Engine] = {}
         self._origin: dict[str, str] = {}
@@ -231,7 +234,7 @@ class Fleet:
         started: dict[str, Engine] = {}
         link: RosLink | None = None
         try:
-            check_fleet(self.model, configs)  # none another live process serves (OwnerConflict: a BusError)
+            self.check(configs)  # none another live process serves (OwnerConflict: a BusError)
             link = self.link.grow(configs)
             for config in configs:
                 started[config.robot] = self._serve(config, link.ports[config.robot], origin)
