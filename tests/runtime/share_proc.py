@@ -7,6 +7,7 @@ tests) by whichever process runs it: the tests count runs across processes from 
 
 from __future__ import annotations
 
+import logging
 import os
 import signal
 import sys
@@ -42,6 +43,8 @@ class LoggedPort(SimPort):
 
 
 def main() -> None:
+    logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    logging.getLogger("td2adaptor.runtime.share").setLevel(logging.INFO)
     url, state_dir, count, runs = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
     keepalive = int(sys.argv[5]) if len(sys.argv) > 5 else 2
     LoggedPort.runs_fd = os.open(runs, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o600)

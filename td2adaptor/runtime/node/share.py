@@ -29,6 +29,7 @@ import hashlib
 import logging
 import secrets
 import threading
+import time
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -49,6 +50,9 @@ log = logging.getLogger("td2adaptor.runtime.share")
 ORIGIN = "file"
 #: takeovers a member record keeps (`fleet status` shows them)
 TAKEOVERS_KEPT = 20
+#: seconds a robot handed over to another live member waits for it; then any member `assign` names may take it
+#: (the members it was handed over to learnt meanwhile that it is no longer its: another member joined)
+HANDOVER_WAIT = 2.0
 
 
 def members_topic(root: str, fleet: str, node: str = "+") -> str:
@@ -87,6 +91,7 @@ class Status:
     state: str
     owner: Owner | None
     handover: str | None  # the member it was handed over to, if it was
+    seen: float = 0.0  # when it came (time.monotonic())
 
 
 def read_status(payload: bytes) -> Status | None:
@@ -100,7 +105,7 @@ def read_status(payload: bytes) -> Status | None:
     state = body.get("state")
     handover = body.get("handover")
     to = handover.get("node") if isinstance(handover, Mapping) else None
-    return Status(state if isinstance(state, str) else "", Owner.from_json(body.get("owner")), to)
+    return Status(state if isinstance(state, str) else "", Owner.from_json(body.get("owner")), to, time.monotonic())
 
 
 def _now() -> str:
@@ -139,6 +144,7 @@ class Share:
         self._statuses: dict[str, Status] = {}  # robot -> its retained status
         self._candidates: dict[str, RuntimeConfig] = {}
         self._wake = threading.Event()
+        self._changing = threading.RLock()  # one reconciliation at a time (the share's thread, a reload)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._joined = _now()
@@ -232,6 +238,10 @@ class Share:
 
     def reconcile(self) -> Changes:
         """Release what is no longer ours (hand-over), then claim what is ours and free."""
+        with self._changing:
+            return self._reconcile()
+
+    def _reconcile(self) -> Changes:
         with self._lock:
             live = {*self._members, self.me.node}
             candidates = dict(self._candidates)
@@ -276,8 +286,12 @@ class Share:
         owner = status.owner
         if owner.node == self.me.node or status.handover == self.me.node:
             return True
+        if status.handover is not None and status.handover not in live:
+            return True  # handed over to a member that is gone since
+        if status.handover is not None and time.monotonic() - status.seen > HANDOVER_WAIT:
+            return True  # handed over to a member that does not take it (it is no longer its)
         if owner.node in live:
-            return False  # its owner serves it still: it hands it over first
+            return False  # its owner serves it still (or it was handed over to another): it hands it over first
         return owner.node in gone or not lives(owner)  # the owner died (or a stale record of this host)
 
     def _release(self, robot: str, winner: str | None) -> None:
@@ -304,9 +318,7 @@ class Share:
         """Note a robot this process took from another one (the member record and `fleet status` show it)."""
         if status is None or status.owner is None or status.owner.node == self.me.node:
             return
-        how = "handover" if status.handover == self.me.node else ("takeover" if status.state == "online" else "free")
-        if how == "free":
-            return
+        how = "handover" if status.handover == self.me.node else "takeover"  # else its owner stopped or died
         entry = {"robot": robot, "from": status.owner.to_json(), "how": how, "time": _now()}
         self.takeovers.append(entry)
         log.info("robot %s: taken over from %s (%s)", robot, status.owner.describe(), how)

@@ -1,0 +1,299 @@
+"""Several edge-node processes share one fleet through the broker (issue 32, node/share.py): real mosquitto, real
+processes (tests/runtime/share_proc.py, their robots simulated), a real kill -9.
+
+* three processes share 30 robots: each robot served by exactly one, 10 each;
+* one is killed (SIGKILL) under 1 mission per second per robot: its robots are served again within 5 s, no
+  mission runs twice (every process writes each mission it starts to one file), an invoke sent again under its
+  id after the takeover is answered, not run, and the statuses, TDs and member records agree afterwards;
+* a process that joins later takes its share, handed over without any robot going `offline`.
+"""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import threading
+import time
+import uuid
+from collections import Counter
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import paho.mqtt.client as mqtt
+
+from td2adaptor.runtime.events import now_rfc3339
+from tests.runtime.broker import Mosquitto
+from tests.runtime.client import AppClient
+from tests.runtime.edge import until
+
+ROBOTS = 30
+INVOKE = "td2adaptor/{robot}/GoToComponent/gotoRun"
+
+
+class Watcher(AppClient):
+    """Records every event with the time it arrived."""
+
+    def __init__(self, broker: Mosquitto) -> None:
+        self.times: list[float] = []
+        super().__init__(broker, ["td2adaptor/#"])
+
+    def _on_message(self, c: mqtt.Client, u: Any, msg: mqtt.MQTTMessage) -> None:
+        with self.cond:
+            self.times.append(time.monotonic())
+        super()._on_message(c, u, msg)
+
+    def timed(self) -> list[tuple[float, str, dict[str, Any]]]:
+        with self.cond:
+            return [(t, topic, e) for t, (topic, e) in zip(self.times, self.events, strict=False)]
+
+    def statuses(self) -> Iterator[tuple[float, str, dict[str, Any]]]:
+        for t, topic, e in self.timed():
+            parts = topic.split("/")
+            if len(parts) == 3 and parts[2] == "status" and not parts[1].startswith("."):
+                yield t, parts[1], e.get("payload", {})
+
+    def owners(self) -> dict[str, tuple[str, int | None]]:
+        """Each robot's last status: (state, owner pid)."""
+        out: dict[str, tuple[str, int | None]] = {}
+        for _t, robot, p in self.statuses():
+            out[robot] = (p.get("state", ""), (p.get("owner") or {}).get("pid"))
+        return out
+
+    def terminals(self) -> dict[str, list[dict[str, Any]]]:
+        out: dict[str, list[dict[str, Any]]] = {}
+        for _t, _topic, e in self.timed():
+            if e.get("type") == "feedback" and e.get("payload", {}).get("terminal"):
+                out.setdefault(str(e.get("correlation")), []).append(e["payload"])
+        return out
+
+
+class Load:
+    """One invoke per robot per second, each with its own id and a goal x no other invoke has."""
+
+    def __init__(self, broker: Mosquitto, robots: list[str]) -> None:
+        self.client = AppClient(broker, ["test/nothing"])
+        self.robots = robots
+        self.sent: dict[str, tuple[str, str, dict[str, Any]]] = {}  # id -> (robot, topic, event)
+        self._stop = threading.Event()
+        self._n = 0
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            began = time.monotonic()
+            for robot in self.robots:
+                self._n += 1
+                event_id = uuid.uuid4().hex
+                event = {
+                    "id": event_id,
+                    "time": now_rfc3339(),
+                    "correlation": event_id,
+                    "payload": {"procedure": {"goals": [{"pose": {"x": 1.0 + self._n / 10000, "y": 3.0}}]}},
+                }
+                topic = INVOKE.format(robot=robot)
+                self.sent[event_id] = (robot, topic, event)
+                self.client.send(topic, event)
+            self._stop.wait(max(0.0, 1.0 - (time.monotonic() - began)))
+
+    def stop(self) -> None:
+        if self._stop.is_set():
+            return
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(10)
+        self.client.close()
+
+
+class Procs:
+    def __init__(self, broker: Mosquitto, tmp: Path) -> None:
+        self.broker = broker
+        self.tmp = tmp
+        self.runs = tmp / "runs.txt"
+        self.procs: list[subprocess.Popen[str]] = []
+        self.files: list[Any] = []
+
+    def start(self) -> subprocess.Popen[str]:
+        log = open(self.tmp / f"proc{len(self.procs)}.log", "w")  # noqa: SIM115 - the child's, closed in close()
+        self.files.append(log)
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "tests.runtime.share_proc", self.broker.url, str(self.tmp / "state"), str(ROBOTS)]
+            + [str(self.runs)],
+            stdout=subprocess.PIPE,
+            stderr=log,
+            text=True,
+        )
+        self.procs.append(proc)
+        assert proc.stdout is not None
+        assert proc.stdout.readline().startswith("ready"), self.logs()
+        return proc
+
+    def logs(self) -> str:
+        return "\n".join((self.tmp / f"proc{i}.log").read_text()[-3000:] for i in range(len(self.procs)))
+
+    def runs_of(self) -> Counter[str]:
+        """How often each goal x was started, over every process."""
+        lines = self.runs.read_text().splitlines() if self.runs.exists() else []
+        return Counter(" ".join(line.split()[:2]) for line in lines)
+
+    def close(self) -> None:
+        for proc in self.procs:
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGTERM)
+        for proc in self.procs:
+            try:
+                proc.wait(30)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+            if proc.stdout is not None:
+                proc.stdout.close()
+        for f in self.files:
+            f.close()
+
+
+def shares(watcher: Watcher, pids: set[int]) -> Counter[int | None]:
+    owners = watcher.owners()
+    return Counter(pid for state, pid in owners.values() if state == "online" and pid in pids)
+
+
+def served_by(watcher: Watcher, pids: set[int]) -> bool:
+    owners = watcher.owners()
+    return len(owners) == ROBOTS and all(s == "online" and p in pids for s, p in owners.values())
+
+
+def retained(broker: Mosquitto, pattern: str) -> dict[str, dict[str, Any]]:
+    """The retained messages under `pattern`, read by a fresh client."""
+    reader = AppClient(broker, [pattern])
+    try:
+        time.sleep(0.5)  # retained messages come right after the SUBACK, which the client waited for
+        return {t: e for t, e in list(reader.events)}
+    finally:
+        reader.close()
+
+
+def test_three_processes_share_30_robots_and_a_killed_ones_robots_are_taken_over_in_5_s(tmp_path: Path) -> None:
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    procs = Procs(broker, tmp_path)
+    watcher = Watcher(broker)
+    robots = [f"rb_{i:02d}" for i in range(ROBOTS)]
+    load = Load(broker, robots)
+    try:
+        started = [procs.start() for _ in range(3)]
+        pids = {p.pid for p in started}
+        assert until(lambda: served_by(watcher, pids) and set(shares(watcher, pids).values()) == {10}, 60), (
+            watcher.owners(),
+            procs.logs(),
+        )
+        load.start()
+        time.sleep(3)
+        victim = started[0]
+        theirs = [r for r, (_s, pid) in watcher.owners().items() if pid == victim.pid]
+        assert len(theirs) == 10
+        killed = time.monotonic()
+        victim.kill()
+        victim.wait()
+        survivors = pids - {victim.pid}
+        assert until(lambda: served_by(watcher, survivors), 20), (watcher.owners(), procs.logs())
+        back: dict[str, float] = {}
+        for t, robot, p in watcher.statuses():
+            if robot in theirs and t > killed and p.get("state") == "online" and p["owner"]["pid"] in survivors:
+                back.setdefault(robot, t - killed)
+        takeover = sorted(back.values())
+        print(f"takeover after kill -9: max {takeover[-1]:.2f} s, median {takeover[len(takeover) // 2]:.2f} s")
+        assert len(takeover) == 10 and takeover[-1] <= 5.0, takeover
+        time.sleep(3)  # missions go on, now on the survivors
+        load.stop()
+        # invokes the dead process had taken, sent again under their ids: answered from the ledger, never run
+        before_kill = [i for i, (robot, _t, e) in load.sent.items() if robot in theirs][:20]
+        terminals_before = {i: len(watcher.terminals().get(i, [])) for i in before_kill}
+        resender = AppClient(broker, ["test/nothing"])
+        for event_id in before_kill:
+            _robot, topic, event = load.sent[event_id]
+            resender.send(topic, event)
+        resender.close()
+        assert until(lambda: all(len(watcher.terminals().get(i, [])) > terminals_before[i] for i in before_kill), 15)
+        # every invoke ends, once, and no mission ran twice
+        assert until(lambda: set(load.sent) <= set(watcher.terminals()), 30), (
+            len(set(load.sent) - set(watcher.terminals())),
+            procs.logs(),
+        )
+        ends = watcher.terminals()
+        outcomes = {i: {(p["state"], p.get("seq")) for p in ends[i]} for i in load.sent}
+        assert all(len(o) == 1 for o in outcomes.values()), [o for o in outcomes.values() if len(o) > 1][:5]
+        runs = procs.runs_of()
+        assert runs and max(runs.values()) == 1, [k for k, n in runs.items() if n > 1]
+        states = Counter(next(iter(o))[0] for o in outcomes.values())
+        print(f"{len(load.sent)} invokes: {dict(states)}; {sum(runs.values())} missions run")
+        print(Counter(p.get("message", "")[:90] for o in ends.values() for p in o if p["state"] != "finished"))
+        # afterwards: statuses, TDs and member records agree
+        assert set(shares(watcher, survivors).values()) == {15}
+        tds = retained(broker, "td2adaptor/+/td")
+        assert sorted(t.split("/")[1] for t, e in tds.items() if e) == robots
+        members = retained(broker, "td2adaptor/.fleet/shared/members/+")
+        records = [e for e in members.values() if e.get("owner")]
+        assert {r["owner"]["pid"] for r in records} == survivors
+        served = [r for rec in records for r in rec["robots"]]
+        assert sorted(served) == robots
+        took = {t["robot"] for rec in records for t in rec["takeovers"] if t["how"] == "takeover"}
+        assert took == set(theirs)
+    finally:
+        load.stop()
+        watcher.close()
+        procs.close()
+        broker.stop()
+
+
+def test_a_process_that_joins_later_takes_its_share_without_a_robot_going_offline(tmp_path: Path) -> None:
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    procs = Procs(broker, tmp_path)
+    watcher = Watcher(broker)
+    robots = [f"rb_{i:02d}" for i in range(ROBOTS)]
+    load = Load(broker, robots)
+    try:
+        first = [procs.start() for _ in range(2)]
+        pids = {p.pid for p in first}
+        assert until(lambda: served_by(watcher, pids) and set(shares(watcher, pids).values()) == {15}, 60)
+        load.start()
+        time.sleep(2)
+        joined = time.monotonic()
+        late = procs.start()
+        pids.add(late.pid)
+        assert until(lambda: served_by(watcher, pids) and set(shares(watcher, pids).values()) == {10}, 30), (
+            watcher.owners(),
+            procs.logs(),
+        )
+        time.sleep(2)
+        load.stop()
+        assert until(lambda: set(load.sent) <= set(watcher.terminals()), 30)
+        # never offline; each handed-over robot online again (the new owner) soon after the hand-over
+        assert all(p.get("state") == "online" for _t, _r, p in watcher.statuses())
+        handed: dict[str, float] = {}
+        dark: dict[str, float] = {}
+        for t, robot, p in watcher.statuses():
+            if t < joined:
+                continue
+            if p.get("handover"):
+                handed.setdefault(robot, t)
+            elif robot in handed and robot not in dark and p["owner"]["pid"] == late.pid:
+                dark[robot] = t - handed[robot]
+        assert len(handed) == 10 and set(dark) == set(handed), (handed, dark)
+        print(f"hand-over: the new owner online {max(dark.values()):.2f} s at most after the old one let go")
+        assert max(dark.values()) < 3.0
+        runs = procs.runs_of()
+        assert max(runs.values()) == 1
+        ends = watcher.terminals()
+        assert all(len({(p["state"], p.get("seq")) for p in ends[i]}) == 1 for i in load.sent)
+        words = [p.get("message", "") for i in load.sent for p in ends[i] if "handed over" in p.get("message", "")]
+        assert all(f"process {late.pid}" in w for w in words), words
+    finally:
+        load.stop()
+        watcher.close()
+        procs.close()
+        broker.stop()
