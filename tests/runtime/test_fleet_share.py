@@ -24,6 +24,7 @@ from typing import Any
 import paho.mqtt.client as mqtt
 
 from td2adaptor.runtime.events import now_rfc3339
+from td2adaptor.runtime.node.share import assign
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.edge import until
@@ -110,27 +111,38 @@ class Load:
 
 
 class Procs:
-    def __init__(self, broker: Mosquitto, tmp: Path) -> None:
+    """The processes of one shared fleet of `robots` simulated robots (tests/runtime/share_proc.py)."""
+
+    def __init__(self, broker: Mosquitto, tmp: Path, robots: int = ROBOTS) -> None:
         self.broker = broker
         self.tmp = tmp
+        self.robots = robots
         self.runs = tmp / "runs.txt"
         self.procs: list[subprocess.Popen[str]] = []
         self.files: list[Any] = []
 
     def start(self) -> subprocess.Popen[str]:
-        log = open(self.tmp / f"proc{len(self.procs)}.log", "w")  # noqa: SIM115 - the child's, closed in close()
-        self.files.append(log)
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "tests.runtime.share_proc", self.broker.url, str(self.tmp / "state"), str(ROBOTS)]
-            + [str(self.runs)],
-            stdout=subprocess.PIPE,
-            stderr=log,
-            text=True,
-        )
-        self.procs.append(proc)
-        assert proc.stdout is not None
-        assert proc.stdout.readline().startswith("ready"), self.logs()
-        return proc
+        return self.start_many(1)[0]
+
+    def start_many(self, count: int) -> list[subprocess.Popen[str]]:
+        """`count` processes started together (each waits a moment for the others before it takes its share)."""
+        started = []
+        for _ in range(count):
+            log = open(self.tmp / f"proc{len(self.procs)}.log", "w")  # noqa: SIM115 - the child's, closed in close()
+            self.files.append(log)
+            proc = subprocess.Popen(
+                [sys.executable, "-m", "tests.runtime.share_proc", self.broker.url, str(self.tmp / "state")]
+                + [str(self.robots), str(self.runs)],
+                stdout=subprocess.PIPE,
+                stderr=log,
+                text=True,
+            )
+            self.procs.append(proc)
+            started.append(proc)
+        for proc in started:
+            assert proc.stdout is not None
+            assert proc.stdout.readline().startswith("ready"), self.logs()
+        return started
 
     def logs(self) -> str:
         return "\n".join((self.tmp / f"proc{i}.log").read_text()[-3000:] for i in range(len(self.procs)))
@@ -161,9 +173,9 @@ def shares(watcher: Watcher, pids: set[int]) -> Counter[int | None]:
     return Counter(pid for state, pid in owners.values() if state == "online" and pid in pids)
 
 
-def served_by(watcher: Watcher, pids: set[int]) -> bool:
+def served_by(watcher: Watcher, pids: set[int], robots: int = ROBOTS) -> bool:
     owners = watcher.owners()
-    return len(owners) == ROBOTS and all(s == "online" and p in pids for s, p in owners.values())
+    return len(owners) == robots and all(s == "online" and p in pids for s, p in owners.values())
 
 
 def retained(broker: Mosquitto, pattern: str) -> dict[str, dict[str, Any]]:
@@ -176,6 +188,20 @@ def retained(broker: Mosquitto, pattern: str) -> dict[str, dict[str, Any]]:
         reader.close()
 
 
+def test_the_assignment_is_the_same_everywhere_fair_and_moves_little() -> None:
+    robots = [f"rb_{i:02d}" for i in range(ROBOTS)]
+    for seed in range(20):
+        members = [f"{seed:02d}{m}" * 4 for m in "abc"]
+        plan = assign(robots, members)
+        assert plan == assign(list(reversed(robots)), list(reversed(members)))  # order does not matter
+        assert sorted(Counter(plan.values()).values()) == [10, 10, 10]
+        after = assign(robots, members[1:])  # the first one died
+        assert sorted(Counter(after.values()).values()) == [15, 15]
+        others_moved = [r for r in robots if plan[r] != members[0] and after[r] != plan[r]]
+        assert len(others_moved) <= 4, others_moved
+        assert sorted(Counter(assign(robots[:31], [*members, "late"]).values()).values()) == [7, 7, 8, 8]
+
+
 def test_three_processes_share_30_robots_and_a_killed_ones_robots_are_taken_over_in_5_s(tmp_path: Path) -> None:
     broker = Mosquitto(tmp_path / "broker")
     broker.start()
@@ -184,7 +210,7 @@ def test_three_processes_share_30_robots_and_a_killed_ones_robots_are_taken_over
     robots = [f"rb_{i:02d}" for i in range(ROBOTS)]
     load = Load(broker, robots)
     try:
-        started = [procs.start() for _ in range(3)]
+        started = procs.start_many(3)
         pids = {p.pid for p in started}
         assert until(lambda: served_by(watcher, pids) and set(shares(watcher, pids).values()) == {10}, 60), (
             watcher.owners(),
@@ -257,7 +283,7 @@ def test_a_process_that_joins_later_takes_its_share_without_a_robot_going_offlin
     robots = [f"rb_{i:02d}" for i in range(ROBOTS)]
     load = Load(broker, robots)
     try:
-        first = [procs.start() for _ in range(2)]
+        first = procs.start_many(2)
         pids = {p.pid for p in first}
         assert until(lambda: served_by(watcher, pids) and set(shares(watcher, pids).values()) == {15}, 60)
         load.start()
@@ -297,3 +323,61 @@ def test_a_process_that_joins_later_takes_its_share_without_a_robot_going_offlin
         watcher.close()
         procs.close()
         broker.stop()
+
+
+def test_the_same_over_a_site_broker_bridged_to_a_central_one(tmp_path: Path) -> None:
+    """The processes on the site's mosquitto, the application on a central one, bridged (`td2adaptor/#` both
+    ways): the application at the centre sees the shares, the takeover and every mission's end."""
+    central = Mosquitto(tmp_path / "central")
+    central.start()
+    site = Mosquitto(tmp_path / "site")
+    with site.conf.open("a", encoding="utf-8") as conf:
+        conf.write(
+            "connection central\n"
+            f"address 127.0.0.1:{central.port}\n"
+            "topic td2adaptor/# both 1\n"
+            "cleansession false\n"
+            "restart_timeout 1\n"
+        )
+    site.start()
+    robots = 10
+    procs = Procs(site, tmp_path, robots)
+    watcher = Watcher(central)
+    load = Load(central, [f"rb_{i:02d}" for i in range(robots)])
+    try:
+        started = procs.start_many(2)
+        pids = {p.pid for p in started}
+        assert until(lambda: served_by(watcher, pids, robots) and set(shares(watcher, pids).values()) == {5}, 60), (
+            watcher.owners(),
+            procs.logs(),
+        )
+        load.start()
+        time.sleep(3)
+        victim = started[0]
+        theirs = [r for r, (_s, pid) in watcher.owners().items() if pid == victim.pid]
+        killed = time.monotonic()
+        victim.kill()
+        victim.wait()
+        survivors = pids - {victim.pid}
+        assert until(lambda: served_by(watcher, survivors, robots), 20), (watcher.owners(), procs.logs())
+        back = {
+            robot: t - killed
+            for t, robot, p in reversed(list(watcher.statuses()))
+            if robot in theirs and t > killed and p.get("state") == "online" and p["owner"]["pid"] in survivors
+        }
+        print(f"takeover seen at the central broker: max {max(back.values()):.2f} s")
+        assert len(back) == 5 and max(back.values()) <= 5.0, back
+        time.sleep(2)
+        load.stop()
+        assert until(lambda: set(load.sent) <= set(watcher.terminals()), 30)
+        ends = watcher.terminals()
+        assert all(len({(p["state"], p.get("seq")) for p in ends[i]}) == 1 for i in load.sent)
+        assert max(procs.runs_of().values()) == 1
+        members = retained(central, "td2adaptor/.fleet/shared/members/+")  # the will's clearing crossed too
+        assert {e["owner"]["pid"] for e in members.values() if e.get("owner")} == survivors, members
+    finally:
+        load.stop()
+        watcher.close()
+        procs.close()
+        site.stop()
+        central.stop()

@@ -188,10 +188,8 @@ class EdgeNode:
         """A robot's bus stopped serving its broker (it failed the check every connection passes): the node
         does not go on half-served; `run` stops it and exits with `reason`. In a shared fleet a robot another
         member took over (its session taken) only leaves this process; the share gives out the robots again."""
-        if self.shared is not None and "took its session over" in reason and self.fleet is not None:
-            log.warning("robot %s: %s; no longer served here", robot, reason)
-            threading.Thread(target=self.fleet.remove, args=(robot, "was taken over"), daemon=True).start()
-            return
+        if self.shared is not None and "took its session over" in reason:
+            return  # the share lets the robot go (share.py)
         if self.failure is None:
             self.failure = f"robot {robot}: {reason}"
         self.halted.set()

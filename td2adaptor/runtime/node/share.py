@@ -50,9 +50,13 @@ log = logging.getLogger("td2adaptor.runtime.share")
 ORIGIN = "file"
 #: takeovers a member record keeps (`fleet status` shows them)
 TAKEOVERS_KEPT = 20
-#: seconds a robot handed over to another live member waits for it; then any member `assign` names may take it
-#: (the members it was handed over to learnt meanwhile that it is no longer its: another member joined)
-HANDOVER_WAIT = 2.0
+#: seconds a robot handed over to another live member waits for it, from when this process found it is its own;
+#: then this process takes it (the member it was handed over to learnt meanwhile that it is no longer its: another
+#: member joined). Two claims at once are settled by the broker: the robot's session is taken over, and the
+#: process that lost it lets the robot go (`_lost`)
+HANDOVER_WAIT = 5.0
+#: what a robot's bus says when another connection took its session over (owner.taken_by, mqttbus.py)
+TAKEN_OVER = "took its session over"
 
 
 def members_topic(root: str, fleet: str, node: str = "+") -> str:
@@ -66,18 +70,20 @@ def _score(member: str, robot: str) -> int:
 
 def assign(robots: Iterable[str], members: Iterable[str]) -> dict[str, str]:
     """Robot -> the member that serves it. Rendezvous hashing (each robot ranks the members by a hash of both)
-    with a bound: no member gets more than ceil(robots / members), so the shares differ by one at most. The
-    same inputs give the same answer in every process."""
+    with a bound: every member gets floor(robots / members) robots, some one more, so the shares differ by one
+    at most. The same inputs give the same answer in every process."""
     ranked = sorted(set(members))
     wanted = sorted(set(robots))
     if not ranked:
         return {}
-    cap = -(-len(wanted) // len(ranked))
+    least, extra = divmod(len(wanted), len(ranked))  # `extra` members serve one robot more
     load = dict.fromkeys(ranked, 0)
     out: dict[str, str] = {}
     for robot in wanted:
         for member in sorted(ranked, key=lambda m: _score(m, robot), reverse=True):
-            if load[member] < cap:
+            if load[member] < least or (load[member] == least and extra > 0):
+                if load[member] == least:
+                    extra -= 1
                 out[robot] = member
                 load[member] += 1
                 break
@@ -91,7 +97,6 @@ class Status:
     state: str
     owner: Owner | None
     handover: str | None  # the member it was handed over to, if it was
-    seen: float = 0.0  # when it came (time.monotonic())
 
 
 def read_status(payload: bytes) -> Status | None:
@@ -105,7 +110,7 @@ def read_status(payload: bytes) -> Status | None:
     state = body.get("state")
     handover = body.get("handover")
     to = handover.get("node") if isinstance(handover, Mapping) else None
-    return Status(state if isinstance(state, str) else "", Owner.from_json(body.get("owner")), to, time.monotonic())
+    return Status(state if isinstance(state, str) else "", Owner.from_json(body.get("owner")), to)
 
 
 def _now() -> str:
@@ -145,6 +150,9 @@ class Share:
         self._candidates: dict[str, RuntimeConfig] = {}
         self._wake = threading.Event()
         self._changing = threading.RLock()  # one reconciliation at a time (the share's thread, a reload)
+        self._waiting: dict[str, float] = {}  # robot -> since when it is ours but handed over to another member
+        self._taken: set[str] = set()  # robots whose session another member took: let go at the next round
+        fleet.on_added.append(self._watch)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._joined = _now()
@@ -248,6 +256,10 @@ class Share:
             statuses = dict(self._statuses)
             gone = set(self._gone)
         plan = assign(candidates, live)
+        with self._lock:
+            lost, self._taken = self._taken, set()
+        for robot in lost:  # another member holds its session now: its status is that member's, not ours to touch
+            self.fleet.remove(robot, "was taken over by another process of the fleet")
         served = self.fleet.robots(ORIGIN)
         released: list[str] = []
         for robot in served:
@@ -264,9 +276,10 @@ class Share:
                 wanted.append(config)
                 continue
             status = statuses.get(robot)
-            if self._free(status, live, gone):
+            if self._free(robot, status, live, gone):
                 wanted.append(config)
                 taken.append((robot, status))
+        self._waiting = {r: t for r, t in self._waiting.items() if plan.get(r) == self.me.node and r not in served}
         changes = self.fleet.apply(wanted, ORIGIN)
         changes.removed += released
         for robot, status in taken:
@@ -279,20 +292,34 @@ class Share:
                 hook(changes)
         return changes
 
-    def _free(self, status: Status | None, live: set[str], gone: set[str]) -> bool:
-        """May this process claim a robot whose retained status is `status`?"""
+    def _free(self, robot: str, status: Status | None, live: set[str], gone: set[str]) -> bool:
+        """May this process claim `robot`, whose retained status is `status`?"""
         if status is None or status.state != "online" or status.owner is None:
             return True
         owner = status.owner
         if owner.node == self.me.node or status.handover == self.me.node:
             return True
-        if status.handover is not None and status.handover not in live:
-            return True  # handed over to a member that is gone since
-        if status.handover is not None and time.monotonic() - status.seen > HANDOVER_WAIT:
-            return True  # handed over to a member that does not take it (it is no longer its)
+        if status.handover is not None:  # its owner let it go, to another member
+            if status.handover not in live:
+                return True  # which is gone since
+            since = self._waiting.setdefault(robot, time.monotonic())
+            return time.monotonic() - since > HANDOVER_WAIT  # which does not take it: it is no longer its
         if owner.node in live:
-            return False  # its owner serves it still (or it was handed over to another): it hands it over first
+            return False  # its owner serves it still: it hands it over first
         return owner.node in gone or not lives(owner)  # the owner died (or a stale record of this host)
+
+    def _watch(self, engine: Any) -> None:
+        """(Fleet.on_added) Hear when another member takes the robot's session: the robot is let go."""
+        robot = engine.config.robot
+
+        def halted(reason: str) -> None:
+            if TAKEN_OVER in reason:
+                log.warning("robot %s: %s", robot, reason)
+                with self._lock:
+                    self._taken.add(robot)
+                self._wake.set()
+
+        engine.on_halt.append(halted)
 
     def _release(self, robot: str, winner: str | None) -> None:
         """Hand `robot` over to `winner`: missions end naming it, the TD stays, the status stays online."""
