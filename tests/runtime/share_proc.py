@@ -1,5 +1,6 @@
 """One edge-node process of a shared fleet (node/share.py), its robots simulated (`SimPort`), so a test can run
-three and kill one: `python -m tests.runtime.share_proc URL STATE_DIR ROBOTS RUNS_FILE [KEEPALIVE]`.
+three and kill one: `python -m tests.runtime.share_proc URL STATE_DIR ROBOTS RUNS_FILE [own]`; `own`: a state
+directory of its own under STATE_DIR, as a process on another host has.
 
 Every mission a robot starts is appended to RUNS_FILE as `<robot> <x>` (the goal's x, unique per invoke in the
 tests) by whichever process runs it: the tests count runs across processes from it. SIGTERM stops it cleanly.
@@ -46,7 +47,8 @@ def main() -> None:
     logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     logging.getLogger("td2adaptor.runtime.share").setLevel(logging.INFO)
     url, state_dir, count, runs = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
-    keepalive = int(sys.argv[5]) if len(sys.argv) > 5 else 2
+    if sys.argv[5:] == ["own"]:  # another host: no state directory shared with the others
+        state_dir = os.path.join(state_dir, str(os.getpid()))
     LoggedPort.runs_fd = os.open(runs, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o600)
     model = rb1_model()
     settings = {"bus": url, "poll_period": 0.05, "property_period": 0, "presence_period": 0, "state_dir": state_dir}
@@ -63,7 +65,7 @@ def main() -> None:
 
     fleet = Fleet(model, RosLink(grow=grow), distro="ros2")
     template = robot_config(defaults, "stand-in")
-    share = Share(fleet, share_bus(template, model, name=FLEET, keepalive=keepalive), name=FLEET, root="td2adaptor")
+    share = Share(fleet, share_bus(template, model, name=FLEET, keepalive=2), name=FLEET, root="td2adaptor")
     done = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: done.set())
     share.start(candidates)

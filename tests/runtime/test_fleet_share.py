@@ -113,10 +113,11 @@ class Load:
 class Procs:
     """The processes of one shared fleet of `robots` simulated robots (tests/runtime/share_proc.py)."""
 
-    def __init__(self, broker: Mosquitto, tmp: Path, robots: int = ROBOTS) -> None:
+    def __init__(self, broker: Mosquitto, tmp: Path, robots: int = ROBOTS, *, hosts: bool = False) -> None:
         self.broker = broker
         self.tmp = tmp
         self.robots = robots
+        self.hosts = hosts  # each process a state directory of its own, as on several hosts
         self.runs = tmp / "runs.txt"
         self.procs: list[subprocess.Popen[str]] = []
         self.files: list[Any] = []
@@ -132,7 +133,7 @@ class Procs:
             self.files.append(log)
             proc = subprocess.Popen(
                 [sys.executable, "-m", "tests.runtime.share_proc", self.broker.url, str(self.tmp / "state")]
-                + [str(self.robots), str(self.runs)],
+                + [str(self.robots), str(self.runs), *(["own"] if self.hosts else [])],
                 stdout=subprocess.PIPE,
                 stderr=log,
                 text=True,
@@ -171,6 +172,10 @@ class Procs:
 def shares(watcher: Watcher, pids: set[int]) -> Counter[int | None]:
     owners = watcher.owners()
     return Counter(pid for state, pid in owners.values() if state == "online" and pid in pids)
+
+
+def shares_pid(watcher: Watcher, robot: str) -> int | None:
+    return watcher.owners()[robot][1]
 
 
 def served_by(watcher: Watcher, pids: set[int], robots: int = ROBOTS) -> bool:
@@ -300,16 +305,18 @@ def test_a_process_that_joins_later_takes_its_share_without_a_robot_going_offlin
         assert until(lambda: set(load.sent) <= set(watcher.terminals()), 30)
         # never offline; each handed-over robot online again (the new owner) soon after the hand-over
         assert all(p.get("state") == "online" for _t, _r, p in watcher.statuses())
-        handed: dict[str, float] = {}
-        dark: dict[str, float] = {}
+        handed: dict[str, tuple[float, str]] = {}  # robot -> (when, to which member) of its last hand-over
+        dark: dict[str, float] = {}  # robot -> seconds from its hand-over to the new owner's online status
         for t, robot, p in watcher.statuses():
             if t < joined:
                 continue
             if p.get("handover"):
-                handed.setdefault(robot, t)
-            elif robot in handed and robot not in dark and p["owner"]["pid"] == late.pid:
-                dark[robot] = t - handed[robot]
-        assert len(handed) == 10 and set(dark) == set(handed), (handed, dark)
+                handed[robot] = (t, p["handover"]["node"])
+                dark.pop(robot, None)
+            elif robot in handed and p["owner"]["node"] == handed[robot][1]:
+                dark.setdefault(robot, t - handed[robot][0])
+        to_late = [r for r, (_t, _to) in handed.items() if shares_pid(watcher, r) == late.pid]
+        assert len(to_late) == 10 and set(dark) == set(handed), (handed, dark)
         print(f"hand-over: the new owner online {max(dark.values()):.2f} s at most after the old one let go")
         assert max(dark.values()) < 3.0
         runs = procs.runs_of()
@@ -381,3 +388,50 @@ def test_the_same_over_a_site_broker_bridged_to_a_central_one(tmp_path: Path) ->
         procs.close()
         site.stop()
         central.stop()
+
+
+def test_on_several_hosts_the_next_owner_learns_from_the_broker_what_the_dead_one_admitted(tmp_path: Path) -> None:
+    """The processes keep their state directories apart, as on several hosts: what the killed one admitted
+    reaches the next owner through the broker (node/admitted.py). Its invokes sent again are answered, not run;
+    its missions in flight end with one terminal event each; no mission runs twice."""
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    robots = 10
+    procs = Procs(broker, tmp_path, robots, hosts=True)
+    watcher = Watcher(broker)
+    load = Load(broker, [f"rb_{i:02d}" for i in range(robots)])
+    try:
+        started = procs.start_many(2)
+        pids = {p.pid for p in started}
+        assert until(lambda: served_by(watcher, pids, robots) and set(shares(watcher, pids).values()) == {5}, 60)
+        load.start()
+        time.sleep(3)
+        victim = started[0]
+        theirs = [r for r, (_s, pid) in watcher.owners().items() if pid == victim.pid]
+        victim.kill()
+        victim.wait()
+        assert until(lambda: served_by(watcher, pids - {victim.pid}, robots), 20), procs.logs()
+        before_kill = [i for i, (robot, _t, _e) in list(load.sent.items()) if robot in theirs]
+        time.sleep(2)
+        load.stop()
+        terminals_before = {i: len(watcher.terminals().get(i, [])) for i in before_kill}
+        resender = AppClient(broker, ["test/nothing"])
+        for event_id in before_kill:
+            _robot, topic, event = load.sent[event_id]
+            resender.send(topic, event)
+        resender.close()
+        assert until(lambda: set(load.sent) <= set(watcher.terminals()), 30), procs.logs()
+        assert until(lambda: all(len(watcher.terminals()[i]) > terminals_before[i] for i in before_kill), 15), [
+            i for i in before_kill if len(watcher.terminals()[i]) <= terminals_before[i]
+        ]
+        runs = procs.runs_of()
+        assert max(runs.values()) == 1, [k for k, n in runs.items() if n > 1]
+        ends = watcher.terminals()
+        assert all(len({(p["state"], p.get("seq")) for p in ends[i]}) == 1 for i in load.sent)
+        admitted = retained(broker, "td2adaptor/.fleet/shared/admitted/+/+")
+        assert {e["id"] for e in admitted.values() if e} >= set(load.sent)  # what a third owner would learn
+    finally:
+        load.stop()
+        watcher.close()
+        procs.close()
+        broker.stop()

@@ -91,6 +91,7 @@ class Fleet:
         #: the check before robots join: none another live process serves (raises `OwnerConflict`); a shared
         #: fleet (node/share.py) decides that from the members and statuses it follows instead
         self.check: Callable[[Sequence[RuntimeConfig]], None] = partial(check_fleet, model)
+        self.prepare: Callable[[Engine], None] | None = None  # each engine, before it serves (share.py)
         self._lock = threading.RLock()
         self._engines: dict[str, Engine] = {}
         self._origin: dict[str, str] = {}
@@ -256,7 +257,7 @@ class Fleet:
         return started
 
     def _serve(self, config: RuntimeConfig, port: RobotPort, origin: str) -> Engine:
-        engine = serve(self.model, port, config, broker=self.broker, distro=self.distro)
+        engine = serve(self.model, port, config, broker=self.broker, distro=self.distro, prepare=self.prepare)
         self._engines[config.robot] = engine
         self._origin[config.robot] = origin
         if self.on_halt is not None:

@@ -19,8 +19,9 @@ client id.
 * **No command twice.** The new owner takes the robot's MQTT session (the same client id), so a command the
   dead owner had received but not acknowledged is delivered to it again; the robot's replay guard and mission
   ledger (state_dir, engine/replay.py and ledger.py) answer a command id seen before instead of running it,
-  and end the dead owner's missions in flight with one terminal event. That holds where the processes share
-  the state directory (processes on one machine, the default); docs/fleet.md says what it means across hosts.
+  and follow the dead owner's missions in flight again or end them, with one terminal event each. Across hosts,
+  which do not share a state directory, the owner publishes what it admitted on the broker and the next owner
+  learns it before it serves (node/admitted.py).
 """
 
 from __future__ import annotations
@@ -40,7 +41,16 @@ import orjson
 
 from td2adaptor.runtime.bus.bus import Bus, Message
 from td2adaptor.runtime.config import RuntimeConfig
-from td2adaptor.runtime.engine.engine import status_event
+from td2adaptor.runtime.engine.engine import Engine, status_event
+from td2adaptor.runtime.node.admitted import (
+    AckedPort,
+    Book,
+    Recorder,
+    RecordingGuard,
+    RecordingLedger,
+    admitted_topic,
+    seed,
+)
 from td2adaptor.runtime.node.fleet import Changes, Fleet
 from td2adaptor.runtime.node.owner import Owner, lives, this_process
 
@@ -55,6 +65,8 @@ TAKEOVERS_KEPT = 20
 #: member joined). Two claims at once are settled by the broker: the robot's session is taken over, and the
 #: process that lost it lets the robot go (`_lost`)
 HANDOVER_WAIT = 5.0
+#: seconds between two sweeps of the admitted invokes no copy of which could still be fresh (admitted.py)
+SWEEP_PERIOD = 10.0
 #: what a robot's bus says when another connection took its session over (owner.taken_by, mqttbus.py)
 TAKEN_OVER = "took its session over"
 
@@ -153,6 +165,9 @@ class Share:
         self._waiting: dict[str, float] = {}  # robot -> since when it is ours but handed over to another member
         self._taken: set[str] = set()  # robots whose session another member took: let go at the next round
         fleet.on_added.append(self._watch)
+        fleet.prepare = self._prepare
+        self.book = Book()  # every robot's admitted invokes, as the broker has them
+        self._swept = 0.0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._joined = _now()
@@ -176,6 +191,7 @@ class Share:
         self._candidates = {c.robot: c for c in candidates}
         self.bus.subscribe(members_topic(self.root, self.name), self._on_member)
         self.bus.subscribe(f"{self.root}/+/status", self._on_status)
+        self.bus.subscribe(admitted_topic(self.root, self.name), self.book.take)
         self.bus.connect()
         self.bus.subscribe(f"{members_topic(self.root, self.name)}/+", lambda _m: None)  # the retained ones are in
         self._publish_record()
@@ -240,6 +256,7 @@ class Share:
             self._wake.clear()
             try:
                 self.reconcile()
+                self._sweep()
             except Exception:  # one failed round must not end the share: the next wake tries again
                 log.exception("fleet %s: sharing the robots failed", self.name)
             self._wake.wait(1.0)
@@ -307,6 +324,30 @@ class Share:
         if owner.node in live:
             return False  # its owner serves it still: it hands it over first
         return owner.node in gone or not lives(owner)  # the owner died (or a stale record of this host)
+
+    def _prepare(self, engine: Engine) -> None:
+        """(Fleet.prepare) Before the robot is served: what its earlier owners admitted, then record what this
+        process admits (admitted.py)."""
+        config = engine.config
+        recorder = Recorder(
+            self.bus, self.root, self.name, config.robot, self.me.node, config.freshness_window + config.clock_skew
+        )
+        learnt = seed(engine, self.book.of(config.robot), recorder)
+        if learnt:
+            log.info("robot %s: %d invokes its earlier owners admitted are known", config.robot, learnt)
+        engine.guard = RecordingGuard(engine.guard, recorder)  # type: ignore[assignment]
+        engine.ledger = RecordingLedger(engine.ledger, recorder)  # type: ignore[assignment]
+        engine.outbox.ledger = engine.ledger
+        engine.port = AckedPort(engine.port, recorder.acknowledged, config.robot)
+
+    def _sweep(self) -> None:
+        """Clear the entries of the robots served here that no copy of their invoke could still be fresh for."""
+        now = time.time()
+        if now - self._swept < SWEEP_PERIOD:
+            return
+        self._swept = now
+        for robot, key in self.book.expired(set(self.fleet.robots(ORIGIN)), now):
+            self.bus.publish(admitted_topic(self.root, self.name, robot, key), b"", retain=True)
 
     def _watch(self, engine: Any) -> None:
         """(Fleet.on_added) Hear when another member takes the robot's session: the robot is let go."""
