@@ -76,7 +76,7 @@ def case(robots: int, processes: int) -> dict[str, object]:
                 "run twice": sum(1 for n in runs.values() if n > 1),
                 "states": dict(Counter(e[0]["state"] for e in ends.values())),
                 "why": dict(
-                    Counter(e[0].get("message", "")[:100] for e in ends.values() if e[0]["state"] != "finished")
+                    Counter(_why(e[0].get("message", "")) for e in ends.values() if e[0]["state"] != "finished")
                 ),
             }
         finally:
@@ -84,6 +84,18 @@ def case(robots: int, processes: int) -> dict[str, object]:
             watcher.close()
             procs.close()
             broker.stop()
+
+
+def _why(message: str) -> str:
+    """A failure's kind: `busy` (the robot's last mission was not over: load), `handed over`, `not known` (a
+    mission followed again on another process's simulated robot, which does not know its id), or the message."""
+    if "is busy with" in message:
+        return "busy"
+    if "handed over" in message:
+        return "handed over"
+    if message.startswith("no procedure with id"):
+        return "not known"
+    return message[:80]
 
 
 def main() -> None:

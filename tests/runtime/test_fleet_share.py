@@ -5,7 +5,8 @@ processes (tests/runtime/share_proc.py, their robots simulated), a real kill -9.
 * one is killed (SIGKILL) under 1 mission per second per robot: its robots are served again within 5 s, no
   mission runs twice (every process writes each mission it starts to one file), an invoke sent again under its
   id after the takeover is answered, not run, and the statuses, TDs and member records agree afterwards;
-* a process that joins later takes its share, handed over without any robot going `offline`.
+* a process that joins later takes its share, handed over without any robot going `offline`, and hands it back
+  when it stops;
 """
 
 from __future__ import annotations
@@ -323,8 +324,16 @@ def test_a_process_that_joins_later_takes_its_share_without_a_robot_going_offlin
         assert max(runs.values()) == 1
         ends = watcher.terminals()
         assert all(len({(p["state"], p.get("seq")) for p in ends[i]}) == 1 for i in load.sent)
-        words = [p.get("message", "") for i in load.sent for p in ends[i] if "handed over" in p.get("message", "")]
-        assert all(f"process {late.pid}" in w for w in words), words
+        # a mission in flight at its hand-over is the next owner's to follow: no terminal event says it was cut
+        assert not [p for i in load.sent for p in ends[i] if "handed over" in p.get("message", "")]
+        # the late process stops (SIGTERM): it hands its robots back before it leaves, again never offline
+        stopped = time.monotonic()
+        late.send_signal(signal.SIGTERM)
+        assert late.wait(30) == 0
+        pids.discard(late.pid)
+        assert until(lambda: served_by(watcher, pids) and set(shares(watcher, pids).values()) == {15}, 30)
+        after = [p for t, _r, p in watcher.statuses() if t > stopped]
+        assert after and all(p.get("state") == "online" for p in after), [p for p in after if p["state"] != "online"]
     finally:
         load.stop()
         watcher.close()

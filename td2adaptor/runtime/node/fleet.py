@@ -135,15 +135,16 @@ class Fleet:
                 raise FleetError(config.robot, "served already")
             return self._grow([config], origin)[config.robot]
 
-    def remove(self, robot: str, why: str = "was removed from the edge node's fleet") -> bool:
-        """Stop serving `robot` (see the module docstring); False when it was not served."""
+    def remove(self, robot: str, why: str = "was removed from the edge node's fleet", *, retire: bool = True) -> bool:
+        """Stop serving `robot` (see the module docstring); False when it was not served. `retire=False`: its
+        missions in flight are left to the next owner of the robot (a hand-over, share.py), as at a stop."""
         with self._lock:
             engine = self._engines.pop(robot, None)
             if engine is None:
                 return False
             self._origin.pop(robot, None)
             try:
-                engine.stop(retire=retire_words(robot, why))
+                engine.stop(retire=retire_words(robot, why) if retire else None)
             finally:
                 self._release(robot)
             log.info("robot %s: no longer served (%s)", robot, why)

@@ -199,11 +199,20 @@ class Share:
         self._thread.start()
 
     def stop(self) -> None:
-        """Leave: no more changes; the record is cleared (the robots go offline with the fleet's stop)."""
+        """Leave: no more changes; each robot is handed over to the member that serves it without this process
+        (no `offline` in between), then the record is cleared. Alone, the robots go offline with the fleet."""
         self._stop.set()
         self._wake.set()
         if self._thread is not None:
             self._thread.join(30)
+        with self._changing:
+            with self._lock:
+                others = set(self._members) - {self.me.node}
+                candidates = dict(self._candidates)
+            plan = assign(candidates, others)
+            for robot in self.fleet.robots(ORIGIN):
+                if plan.get(robot) is not None:
+                    self._release(robot, plan[robot])
         try:
             self.bus.publish(members_topic(self.root, self.name, self.me.node), b"", retain=True)
             self.bus.flush(5)
@@ -363,7 +372,8 @@ class Share:
         engine.on_halt.append(halted)
 
     def _release(self, robot: str, winner: str | None) -> None:
-        """Hand `robot` over to `winner`: missions end naming it, the TD stays, the status stays online."""
+        """Hand `robot` over to `winner`: its missions in flight are left to it (the ledger, or the admitted
+        entries on another host: admitted.py), the TD stays, the status stays online."""
         with self._lock:
             record = self._members.get(winner or "")
         who = _describe(record, winner)
@@ -380,7 +390,10 @@ class Share:
                 missions=0,
                 handover={"node": winner, "to": who, "time": _now()},
             )
-        self.fleet.remove(robot, f"was handed over to {who}" if winner is not None else "is no longer in the fleet")
+        if winner is None:
+            self.fleet.remove(robot, "is no longer in the fleet")
+        else:
+            self.fleet.remove(robot, f"was handed over to {who}", retire=False)
 
     def _took(self, robot: str, status: Status | None) -> None:
         """Note a robot this process took from another one (the member record and `fleet status` show it)."""
