@@ -11,6 +11,7 @@ processes (tests/runtime/share_proc.py, their robots simulated), a real kill -9.
 
 from __future__ import annotations
 
+import json
 import signal
 import subprocess
 import sys
@@ -274,6 +275,16 @@ def test_three_processes_share_30_robots_and_a_killed_ones_robots_are_taken_over
         assert sorted(served) == robots
         took = {t["robot"] for rec in records for t in rec["takeovers"] if t["how"] == "takeover"}
         assert took == set(theirs)
+        shown = subprocess.run(
+            [sys.executable, "-m", "td2adaptor", "fleet", "status", "--bus", broker.url, "--json", "--members"],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert shown.returncode == 0, shown.stderr
+        listed = json.loads(shown.stdout)
+        assert sorted(m["owner"]["pid"] for m in listed) == sorted(survivors)
+        assert {t["robot"] for m in listed for t in m["takeovers"] if t["from"]["pid"] == victim.pid} == set(theirs)
     finally:
         load.stop()
         watcher.close()
@@ -444,3 +455,20 @@ def test_on_several_hosts_the_next_owner_learns_from_the_broker_what_the_dead_on
         watcher.close()
         procs.close()
         broker.stop()
+
+
+def test_run_share_says_what_it_needs() -> None:
+    """`run --share` on an in-process bus, or with --discover, is refused in one line, before anything starts."""
+    from tests.conftest import EXAMPLE
+
+    base = [sys.executable, "-m", "td2adaptor", "run", str(EXAMPLE / "td.json"), "-I", str(EXAMPLE / "interfaces")]
+    local = subprocess.run([*base, "--robot", "r1", "--share"], capture_output=True, text=True, timeout=120)
+    assert local.returncode == 1 and "--share needs one MQTT bus for the whole fleet" in local.stderr, local.stderr
+    both = subprocess.run(
+        [*base, "--robot", "r1", "--bus", "mqtt://127.0.0.1:1", "--share", "--discover"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert both.returncode == 1 and "--share and --discover cannot be combined" in both.stderr, both.stderr
+    assert "Traceback" not in local.stderr + both.stderr
