@@ -65,7 +65,9 @@ def main() -> None:
 
     fleet = Fleet(model, RosLink(grow=grow), distro="ros2")
     template = robot_config(defaults, "stand-in")
-    share = Share(fleet, share_bus(template, model, name=FLEET, keepalive=2), name=FLEET, root="td2adaptor")
+    keepalive = int(os.environ.get("SHARE_KEEPALIVE", template.share_keepalive))
+    bus = share_bus(template, model, name=FLEET, keepalive=keepalive)
+    share = Share(fleet, bus, name=FLEET, root="td2adaptor", timeout=template.share_timeout)
     done = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: done.set())
     share.start(candidates)

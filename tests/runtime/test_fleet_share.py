@@ -49,7 +49,9 @@ class Watcher(AppClient):
 
     def timed(self) -> list[tuple[float, str, dict[str, Any]]]:
         with self.cond:
-            return [(t, topic, e) for t, (topic, e) in zip(self.times, self.events, strict=False)]
+            return [
+                (t, topic, e) for t, (topic, e) in zip(self.times, self.events, strict=False) if isinstance(e, dict)
+            ]
 
     def statuses(self) -> Iterator[tuple[float, str, dict[str, Any]]]:
         for t, topic, e in self.timed():
@@ -79,6 +81,7 @@ class Load:
         self.client = AppClient(broker, ["test/nothing"])
         self.robots = robots
         self.sent: dict[str, tuple[str, str, dict[str, Any]]] = {}  # id -> (robot, topic, event)
+        self.sent_at: dict[str, float] = {}  # id -> when it was sent (time.monotonic())
         self._stop = threading.Event()
         self._n = 0
         self._thread = threading.Thread(target=self._run, daemon=True)
@@ -100,6 +103,7 @@ class Load:
                 }
                 topic = INVOKE.format(robot=robot)
                 self.sent[event_id] = (robot, topic, event)
+                self.sent_at[event_id] = time.monotonic()
                 self.client.send(topic, event)
             self._stop.wait(max(0.0, 1.0 - (time.monotonic() - began)))
 
@@ -472,3 +476,64 @@ def test_run_share_says_what_it_needs() -> None:
     )
     assert both.returncode == 1 and "--share and --discover cannot be combined" in both.stderr, both.stderr
     assert "Traceback" not in local.stderr + both.stderr
+
+
+def test_a_process_that_hangs_is_noticed_by_its_keepalive_and_rejoins_without_a_fight(tmp_path: Path) -> None:
+    """SIGSTOP: the process's connections stay open, as when its host or network is gone, so only the member
+    connection's keepalive tells (1.5 x share_keepalive = 3 s, then the will): its robots are served again
+    within 5 s. SIGCONT: it finds its robots' sessions taken, lets them go, and takes a share again by hand-over;
+    in the end each robot has one owner and no mission ran twice."""
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    robots = 10
+    procs = Procs(broker, tmp_path, robots)
+    watcher = Watcher(broker)
+    load = Load(broker, [f"rb_{i:02d}" for i in range(robots)])
+    try:
+        started = procs.start_many(2)
+        pids = {p.pid for p in started}
+        assert until(lambda: served_by(watcher, pids, robots) and set(shares(watcher, pids).values()) == {5}, 60)
+        load.start()
+        time.sleep(2)
+        frozen, other = started
+        theirs = [r for r, (_s, pid) in watcher.owners().items() if pid == frozen.pid]
+        stopped = time.monotonic()
+        frozen.send_signal(signal.SIGSTOP)
+        try:
+            assert until(lambda: served_by(watcher, {other.pid}, robots), 20), (watcher.owners(), procs.logs())
+            back = {
+                robot: t - stopped
+                for t, robot, p in reversed(list(watcher.statuses()))
+                if robot in theirs and t > stopped and p.get("state") == "online" and p["owner"]["pid"] == other.pid
+            }
+            print(f"a hung process's robots served again after {min(back.values()):.2f}-{max(back.values()):.2f} s")
+            assert len(back) == 5 and 2.5 <= min(back.values()) and max(back.values()) <= 5.0, back
+        finally:
+            frozen.send_signal(signal.SIGCONT)
+        assert until(lambda: served_by(watcher, pids, robots) and set(shares(watcher, pids).values()) == {5}, 30), (
+            watcher.owners(),
+            procs.logs(),
+        )
+        time.sleep(2)
+        load.stop()
+        # known gap (docs/fleet.md): an invoke the hung process had taken from the broker (acknowledged) just before
+        # it froze, but not run, is run when it resumes, on a connection whose session is gone: it runs once, and
+        # its answer can be lost. Every other invoke is answered
+        window = {
+            i
+            for i, (robot, _t, _e) in load.sent.items()
+            if robot in theirs and stopped - 1.0 <= load.sent_at[i] <= stopped + 0.1
+        }
+        answered = lambda: set(load.sent) - window <= set(watcher.terminals())  # noqa: E731
+        assert until(answered, 30), (set(load.sent) - window - set(watcher.terminals()), procs.logs())
+        assert max(procs.runs_of().values()) == 1
+        ends = watcher.terminals()
+        assert all(len({(p["state"], p.get("seq")) for p in ends[i]}) == 1 for i in set(load.sent) & set(ends))
+        members = retained(broker, "td2adaptor/.fleet/shared/members/+")
+        records = [e for e in members.values() if e.get("owner")]
+        assert sorted(r for rec in records for r in rec["robots"]) == [f"rb_{i:02d}" for i in range(robots)]
+    finally:
+        load.stop()
+        watcher.close()
+        procs.close()
+        broker.stop()

@@ -152,7 +152,9 @@ class EdgeNode:
         template = robot_config(self.defaults, STAND_IN)
         name = template.fleet or self.model.package_name
         bus = share_bus(template, self.model, name=name, keepalive=template.share_keepalive)
-        shared = self.shared = Share(self.fleet, bus, name=name, root=template.topic_root)
+        shared = self.shared = Share(
+            self.fleet, bus, name=name, root=template.topic_root, timeout=template.share_timeout
+        )
         shared.start(candidates)
         self._extras.append(shared.stop)
         return shared

@@ -7,7 +7,10 @@ client id.
 * **Members.** Each process keeps a retained record on `<root>/.fleet/<fleet>/members/<node>` (its owner
   record, the robots it serves, the last takeovers) on a connection of its own whose will is the empty
   retained message there: when the process dies the broker clears its record, at once when the socket closes
-  (a killed process: the kernel closes it) and within 1.5 x `share_keepalive` when its host or network is gone.
+  (a killed process: the kernel closes it). When its host or network is gone the broker learns it only from
+  the keepalive, late (1.5 x keepalive, and mosquitto 2.0 looks only every 6 s), so each member also beats
+  (`<root>/.fleet/<fleet>/beats/<node>`, QoS 0, every `timeout` / 4) and one silent for `timeout` is taken
+  as gone by the others, by their own clocks.
 * **Who serves which robot.** Every process reads the same candidates (the fleet file's robots) and the same
   members, and computes the same answer (`assign`: rendezvous hashing with a bound on the load, so the shares
   differ by one robot at most and a member that leaves moves little but its own robots).
@@ -74,6 +77,11 @@ TAKEN_OVER = "took its session over"
 def members_topic(root: str, fleet: str, node: str = "+") -> str:
     """Where a member's record is retained (`+`: every member's)."""
     return f"{root}/.fleet/{fleet}/members/{node}"
+
+
+def beats_topic(root: str, fleet: str, node: str = "+") -> str:
+    """Where a member beats (QoS 0, not retained)."""
+    return f"{root}/.fleet/{fleet}/beats/{node}"
 
 
 def _score(member: str, robot: str) -> int:
@@ -144,6 +152,7 @@ class Share:
         name: str,
         root: str,
         settle: float = 1.0,
+        timeout: float = 3.0,
         me: Owner | None = None,
     ) -> None:
         self.fleet = fleet
@@ -151,6 +160,7 @@ class Share:
         self.name = name
         self.root = root
         self.settle = settle  # seconds to wait at start for members that start at the same moment
+        self.timeout = timeout  # seconds a member may be silent (no beat) before the others take its robots
         self.me = me or this_process()
         fleet.check = _no_check  # who may serve a robot is decided here, from the members and the statuses
         self.takeovers: deque[dict[str, Any]] = deque(maxlen=TAKEOVERS_KEPT)
@@ -158,6 +168,8 @@ class Share:
         self._lock = threading.Lock()
         self._members: dict[str, dict[str, Any]] = {}  # node -> its record
         self._gone: set[str] = set()  # members whose record was cleared (they stopped or died)
+        self._beats: dict[str, float] = {}  # node -> when it last beat (time.monotonic(), by this process's clock)
+        self._silent: set[str] = set()  # members taken as gone because they stopped beating
         self._statuses: dict[str, Status] = {}  # robot -> its retained status
         self._candidates: dict[str, RuntimeConfig] = {}
         self._wake = threading.Event()
@@ -192,11 +204,14 @@ class Share:
         self.bus.subscribe(members_topic(self.root, self.name), self._on_member)
         self.bus.subscribe(f"{self.root}/+/status", self._on_status)
         self.bus.subscribe(admitted_topic(self.root, self.name), self.book.take)
+        self.bus.subscribe(beats_topic(self.root, self.name), self._on_beat)
         self.bus.connect()
         self.bus.subscribe(f"{members_topic(self.root, self.name)}/+", lambda _m: None)  # the retained ones are in
         self._publish_record()
         self._thread = threading.Thread(target=self._run, name="td2adaptor-share", daemon=True)
         self._thread.start()
+        self._beater = threading.Thread(target=self._beat, name="td2adaptor-share-beat", daemon=True)
+        self._beater.start()
 
     def stop(self) -> None:
         """Leave: no more changes; each robot is handed over to the member that serves it without this process
@@ -207,7 +222,7 @@ class Share:
             self._thread.join(30)
         with self._changing:
             with self._lock:
-                others = set(self._members) - {self.me.node}
+                others = self._live() - {self.me.node}
                 candidates = dict(self._candidates)
             plan = assign(candidates, others)
             for robot in self.fleet.robots(ORIGIN):
@@ -242,6 +257,7 @@ class Share:
                     return
                 if node not in self._members:
                     log.info("fleet %s: member %s joined", self.name, node)
+                    self._beats.setdefault(node, time.monotonic())  # a `timeout` of grace for its first beat
                 self._members[node] = record
                 self._gone.discard(node)
         self._wake.set()
@@ -256,6 +272,34 @@ class Share:
                 self._statuses[robot] = status
         self._wake.set()
 
+    def _on_beat(self, message: Message) -> None:
+        node = message.topic.rsplit("/", 1)[1]
+        with self._lock:
+            self._beats[node] = time.monotonic()
+            back = node in self._silent
+        if back:
+            self._wake.set()
+
+    def _beat(self) -> None:
+        """(a thread of its own, so that a long change does not silence this process) Beat every timeout / 4."""
+        topic = beats_topic(self.root, self.name, self.me.node)
+        while not self._stop.wait(self.timeout / 4):
+            try:
+                self.bus.publish(topic, b"{}", qos=0)  # JSON, as everything else under the root
+            except Exception:  # noqa: BLE001 - not connected now: the others may take this process as gone
+                log.debug("fleet %s: beat not sent", self.name)
+
+    def _live(self) -> set[str]:
+        """(under the lock) The members whose record is there and that beat within `timeout`, and this one."""
+        now = time.monotonic()
+        live = {n for n in self._members if now - self._beats.get(n, now) <= self.timeout}
+        for node in set(self._members) - live - self._silent:
+            log.warning("fleet %s: member %s sent no beat for %g s: taken as gone", self.name, node, self.timeout)
+        for node in self._silent & live:
+            log.info("fleet %s: member %s beats again", self.name, node)
+        self._silent = set(self._members) - live
+        return live | {self.me.node}
+
     # -- the share's own thread ----------------------------------------------------------------------------
 
     def _run(self) -> None:
@@ -268,7 +312,7 @@ class Share:
                 self._sweep()
             except Exception:  # one failed round must not end the share: the next wake tries again
                 log.exception("fleet %s: sharing the robots failed", self.name)
-            self._wake.wait(1.0)
+            self._wake.wait(min(1.0, self.timeout / 4))  # also: a member that went silent
 
     def reconcile(self) -> Changes:
         """Release what is no longer ours (hand-over), then claim what is ours and free."""
@@ -277,10 +321,10 @@ class Share:
 
     def _reconcile(self) -> Changes:
         with self._lock:
-            live = {*self._members, self.me.node}
+            live = self._live()
             candidates = dict(self._candidates)
             statuses = dict(self._statuses)
-            gone = set(self._gone)
+            gone = self._gone | self._silent
         plan = assign(candidates, live)
         with self._lock:
             lost, self._taken = self._taken, set()
