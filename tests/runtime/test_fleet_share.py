@@ -189,6 +189,31 @@ def served_by(watcher: Watcher, pids: set[int], robots: int = ROBOTS) -> bool:
     return len(owners) == robots and all(s == "online" and p in pids for s, p in owners.values())
 
 
+def answered_or_sent_again(load: Load, watcher: Watcher, broker: Mosquitto, theirs: list[str], killed: float) -> None:
+    """Every invoke gets its terminal event. Known gap (docs/fleet.md): one the killed process had taken from the
+    broker in its last moment (acknowledged, not yet admitted) is lost; the application's resend under its id
+    runs it, once (the callers check the runs)."""
+    last_moment = {
+        i for i, (robot, _t, _e) in load.sent.items() if robot in theirs and killed - 0.5 <= load.sent_at[i] <= killed
+    }
+
+    def unanswered() -> set[str]:
+        return set(load.sent) - set(watcher.terminals())
+
+    assert until(lambda: unanswered() <= last_moment, 30), [
+        (load.sent[i][0], load.sent[i][0] in theirs, round(load.sent_at[i] - killed, 3)) for i in unanswered()
+    ]
+    lost = unanswered()
+    if lost:
+        print(f"{len(lost)} invoke(s) taken in the killed process's last moment: sent again")
+        again = AppClient(broker, ["test/nothing"])
+        for event_id in lost:
+            _robot, topic, event = load.sent[event_id]
+            again.send(topic, event)
+        again.close()
+        assert until(lambda: not unanswered(), 30), unanswered()
+
+
 def retained(broker: Mosquitto, pattern: str) -> dict[str, dict[str, Any]]:
     """The retained messages under `pattern`, read by a fresh client."""
     reader = AppClient(broker, [pattern])
@@ -256,10 +281,7 @@ def test_three_processes_share_30_robots_and_a_killed_ones_robots_are_taken_over
         resender.close()
         assert until(lambda: all(len(watcher.terminals().get(i, [])) > terminals_before[i] for i in before_kill), 15)
         # every invoke ends, once, and no mission ran twice
-        assert until(lambda: set(load.sent) <= set(watcher.terminals()), 30), (
-            len(set(load.sent) - set(watcher.terminals())),
-            procs.logs(),
-        )
+        answered_or_sent_again(load, watcher, broker, theirs, killed)
         ends = watcher.terminals()
         outcomes = {i: {(p["state"], p.get("seq")) for p in ends[i]} for i in load.sent}
         assert all(len(o) == 1 for o in outcomes.values()), [o for o in outcomes.values() if len(o) > 1][:5]
@@ -400,7 +422,7 @@ def test_the_same_over_a_site_broker_bridged_to_a_central_one(tmp_path: Path) ->
         assert len(back) == 5 and max(back.values()) <= 5.0, back
         time.sleep(2)
         load.stop()
-        assert until(lambda: set(load.sent) <= set(watcher.terminals()), 30)
+        answered_or_sent_again(load, watcher, central, theirs, killed)
         ends = watcher.terminals()
         assert all(len({(p["state"], p.get("seq")) for p in ends[i]}) == 1 for i in load.sent)
         assert max(procs.runs_of().values()) == 1
