@@ -356,7 +356,7 @@ def test_a_process_that_joins_later_takes_its_share_without_a_robot_going_offlin
         to_late = [r for r, (_t, _to) in handed.items() if shares_pid(watcher, r) == late.pid]
         assert len(to_late) == 10 and set(dark) == set(handed), (handed, dark)
         print(f"hand-over: the new owner online {max(dark.values()):.2f} s at most after the old one let go")
-        assert max(dark.values()) < 3.0
+        assert max(dark.values()) < 5.0  # commands wait in the session meanwhile; the status stays online
         runs = procs.runs_of()
         assert max(runs.values()) == 1
         ends = watcher.terminals()
