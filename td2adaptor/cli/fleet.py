@@ -20,12 +20,20 @@ def fleet() -> None:
 @click.option("--mqtt-version", type=click.Choice(["5", "3.1.1"]), default="5", show_default=True)
 @click.option("--tls-ca-file", help="CA certificate to trust an mqtts:// broker by (default: the system's).")
 @click.option("--timeout", type=float, default=5.0, show_default=True, help="Seconds to wait for the broker.")
-@click.option("--json", "as_json", is_flag=True, help="One JSON array instead of the table.")
+@click.option("--json", "as_json", is_flag=True, help="One JSON array of the robots instead of the tables.")
+@click.option("--members", "members_json", is_flag=True, help="With --json: the members of shared fleets instead.")
 def status(
-    bus: str, topic_root: str, mqtt_version: str, tls_ca_file: str | None, timeout: float, as_json: bool
+    bus: str,
+    topic_root: str,
+    mqtt_version: str,
+    tls_ca_file: str | None,
+    timeout: float,
+    as_json: bool,
+    members_json: bool,
 ) -> None:
     """List every robot: its edge node online or offline, its ROS side (present, partial, absent), the process
-    that serves it (or served it last), its missions in flight and its last error.
+    that serves it (or served it last), its missions in flight and its last error. Where processes share a fleet
+    (run --share): its members, the robots each serves, and the robots each took over from another process.
 
     Read from the retained status topics (td2adaptor/<robot>/status); the broker user and password, if it wants
     them, come from TD2ADAPTOR_MQTT_USERNAME and TD2ADAPTOR_MQTT_PASSWORD (never from the command line)."""
@@ -34,17 +42,22 @@ def status(
     from td2adaptor.runtime.node import fleetview
 
     try:
-        rows = fleetview.read_fleet(
+        view = fleetview.read_view(
             bus, root=topic_root, mqtt_version=mqtt_version, tls_ca_file=tls_ca_file, timeout=timeout
         )
     except (BusError, SecurityError) as exc:
         _fail("fleet status", str(exc))
+    rows = view.robots
     if as_json:
         from td2adaptor.support.jsondump import dump
 
-        click.echo(dump(fleetview.as_json(rows)), nl=False)
+        data = fleetview.members_json(view.members) if members_json else fleetview.as_json(rows)
+        click.echo(dump(data), nl=False)
     elif not rows:
         click.echo(f"no robot has a status under {topic_root}/ on this broker")
     else:
         click.echo(fleetview.table(rows), nl=False)
+    if view.members and not as_json:
+        click.echo("")
+        click.echo(fleetview.members_table(view.members), nl=False)
     sys.exit(EXIT_OK)

@@ -73,6 +73,13 @@ if TYPE_CHECKING:
     type=click.FloatRange(min=0),
     help="Seconds a discovered robot may be gone from the ROS graph before it is retired (default 10).",
 )
+@click.option(
+    "--share",
+    is_flag=True,
+    default=None,
+    help="Share the fleet file's robots with the other processes run with --share on the same broker and fleet: "
+    "each serves a fair share, and takes over a dead one's robots (docs/fleet.md, 'Several processes share a fleet').",
+)
 @click.option("--ros", type=click.Choice(["1", "2"]), default="2", show_default=True, help="ROS version.")
 @click.option("--package", help="Module name of the generated adaptor package (default: the TD's package name).")
 @click.option(
@@ -135,6 +142,7 @@ def run(
     config_file: Path | None,
     discover: bool,
     discover_grace: float | None,
+    share: bool | None,
     ros: str,
     package: str | None,
     package_paths: tuple[Path, ...],
@@ -195,6 +203,7 @@ def run(
         "allow_insecure": allow_insecure,
         "allow_anonymous_broker": allow_anonymous_broker,
         "discover_grace": discover_grace,
+        "share": share,
     }
     from td2adaptor.runtime.config import load_defaults, names_robots
     from td2adaptor.runtime.node.fleetfile import stamp
@@ -215,6 +224,11 @@ def run(
             signature(result.model)
     except ConfigError as exc:
         _fail("run", f"configuration: {exc}")
+    shared = bool(defaults.get("share"))
+    if shared and (defaults.get("bus", "local") == "local" or any(c.bus != defaults.get("bus") for c in configs)):
+        _fail("run", "--share needs one MQTT bus for the whole fleet: the processes that share it meet on its broker")
+    if shared and discover:
+        _fail("run", "--share and --discover cannot be combined: share the robots of a fleet file")
     logging.basicConfig(
         level=getattr(logging, log_level.upper()), format="%(asctime)s %(levelname)s %(name)s: %(message)s"
     )
@@ -228,7 +242,7 @@ def run(
     from td2adaptor.runtime.ros.port import PortError, RosSetupError, StalePackage
 
     options = RosOptions(int(ros), package, package_paths, prefixes, ros1_python)
-    node = EdgeNode(result.model, configs, options, defaults=defaults, metrics=metrics)
+    node = EdgeNode(result.model, [] if shared else configs, options, defaults=defaults, metrics=metrics)
 
     def interrupt(_signum: int, _frame: Any) -> None:
         raise KeyboardInterrupt  # SIGTERM while starting: undo what was opened, like Ctrl-C
@@ -239,7 +253,9 @@ def run(
         node.start()
         if discover:
             node.discover()
-        if defaults.get("bus", "local") != "local":
+        if shared:
+            node.share(configs)
+        elif defaults.get("bus", "local") != "local":  # a shared fleet takes no admin requests (each would act)
             try:
                 node.listen_admin()
             except (SecurityError, BusError) as exc:  # the robots are served all the same
@@ -265,7 +281,7 @@ def run(
     if config_file is not None and node.fleet is not None:
         from td2adaptor.runtime.node.fleetfile import FleetFile
 
-        watched = FleetFile(config_file, node.fleet, load, seen=seen)
+        watched = FleetFile(config_file, node.shared or node.fleet, load, seen=seen)
     reloads = "; SIGHUP or a change of the file reloads it" if watched is not None else ""
     click.echo(f"td2adaptor run: {node.describe()}{reloads}; SIGINT/SIGTERM stops", err=True)
     try:

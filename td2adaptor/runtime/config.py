@@ -102,6 +102,9 @@ class RuntimeConfig:
     fleet: str | None = field(default=None, compare=False)  # the fleet's name in admin topics (default: package)
     fleet_admin_key: str | None = field(default=None, repr=False, compare=False)  # signs admin requests
     discover_grace: float = field(default=10.0, compare=False)  # `run --discover`: a robot gone this long retires
+    share: bool = field(default=False, compare=False)  # `run --share`: serve a share of the fleet with other processes
+    share_keepalive: int = field(default=2, compare=False)  # the member connection's MQTT keepalive
+    share_timeout: float = field(default=3.0, compare=False)  # a member silent this long: its robots are taken over
 
     def __post_init__(self) -> None:
         if not ROBOT_ID.match(self.robot) or self.robot == ALL_ROBOTS:
@@ -149,6 +152,10 @@ class RuntimeConfig:
             raise ConfigError("fleet_admin_key (TD2ADAPTOR_FLEET_ADMIN_KEY) must be 16-4096 characters (not shown)")
         if not 0 <= self.discover_grace < float("inf"):
             raise ConfigError("discover_grace must be >= 0 seconds")
+        if not 1 <= self.share_keepalive <= 65535:
+            raise ConfigError("share_keepalive must be 1-65535 seconds")
+        if not 0.5 <= self.share_timeout <= 3600:
+            raise ConfigError("share_timeout must be 0.5-3600 seconds")
         if not self.topic_root or any(c in self.topic_root for c in "+#\x00") or self.topic_root.startswith("/"):
             raise ConfigError(f"topic_root {self.topic_root!r} is not a valid MQTT topic prefix")
 

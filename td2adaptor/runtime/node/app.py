@@ -159,11 +159,13 @@ def serve(
     broker: LocalBroker | None = None,
     env: Mapping[str, str] | None = None,
     distro: str | None = None,
+    prepare: Callable[[Engine], None] | None = None,
 ) -> Engine:
     """Connect and start serving (the robot's TD published, retained, with the online status, and registered
     with the configured TD directory); `Engine.stop()` ends it (and clears the TD, here and there). `distro`:
     the robot's ROS version ("ros1" or "ros2"), whose message layouts the events and the TD follow; by default
-    the one `port` declares in a `distro` attribute (a ROS 1 bridge's port says "ros1"), else "ros2".
+    the one `port` declares in a `distro` attribute (a ROS 1 bridge's port says "ros1"), else "ros2". `prepare`
+    is called with the engine before it starts.
 
     The engine's bus is wrapped in a `ThingBus`: WoT consumers of the published TD use the robot on its WoT
     topics, native clients on the envelope topics."""
@@ -179,6 +181,8 @@ def serve(
         correlation_ids=config.require_id_and_time,
     )
     engine = Engine(model, port, bus, config, catalog=catalog, td=td)
+    if prepare is not None:  # before it serves (a shared fleet: what the robot's last owner admitted, share.py)
+        prepare(engine)
     if config.bus != "local":
         from td2adaptor.runtime.bus.mqttbus import MqttBus
 

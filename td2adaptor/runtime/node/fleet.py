@@ -92,6 +92,10 @@ class Fleet:
         self.on_halt = on_halt  # (robot, why): a robot's bus stopped serving its broker
         self.on_added: list[Callable[[Engine], None]] = []  # a robot started serving (hooks: presence, metrics)
         self.on_removed: list[Callable[[str], None]] = []  # a robot stopped serving (its id)
+        #: the check before robots join: none another live process serves (raises `OwnerConflict`); a shared
+        #: fleet (node/share.py) decides that from the members and statuses it follows instead
+        self.check: Callable[[Sequence[RuntimeConfig]], None] = partial(check_fleet, model)
+        self.prepare: Callable[[Engine], None] | None = None  # each engine, before it serves (share.py)
         self._lock = threading.RLock()
         self._engines: dict[str, Engine] = {}
         self._origin: dict[str, str] = {}
@@ -135,15 +139,16 @@ class Fleet:
                 raise FleetError(config.robot, "served already")
             return self._grow([config], origin)[config.robot]
 
-    def remove(self, robot: str, why: str = "was removed from the edge node's fleet") -> bool:
-        """Stop serving `robot` (see the module docstring); False when it was not served."""
+    def remove(self, robot: str, why: str = "was removed from the edge node's fleet", *, retire: bool = True) -> bool:
+        """Stop serving `robot` (see the module docstring); False when it was not served. `retire=False`: its
+        missions in flight are left to the next owner of the robot (a hand-over, share.py), as at a stop."""
         with self._lock:
             engine = self._engines.pop(robot, None)
             if engine is None:
                 return False
             self._origin.pop(robot, None)
             try:
-                engine.stop(retire=retire_words(robot, why))
+                engine.stop(retire=retire_words(robot, why) if retire else None)
             finally:
                 self._release(robot)
             log.info("robot %s: no longer served (%s)", robot, why)
@@ -236,7 +241,7 @@ class Fleet:
         started: dict[str, Engine] = {}
         link: RosLink | None = None
         try:
-            check_fleet(self.model, configs)  # none another live process serves (OwnerConflict: a BusError)
+            self.check(configs)  # none another live process serves (OwnerConflict: a BusError)
             link = self.link.grow(configs)
             for config in configs:
                 started[config.robot] = self._serve(config, link.ports[config.robot], origin)
@@ -258,7 +263,7 @@ class Fleet:
         return started
 
     def _serve(self, config: RuntimeConfig, port: RobotPort, origin: str) -> Engine:
-        engine = serve(self.model, port, config, broker=self.broker, distro=self.distro)
+        engine = serve(self.model, port, config, broker=self.broker, distro=self.distro, prepare=self.prepare)
         self._engines[config.robot] = engine
         self._origin[config.robot] = origin
         if self.on_halt is not None:

@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Protocol
 
 from td2adaptor.runtime.config import ConfigError, RuntimeConfig
 from td2adaptor.runtime.node.fleet import Changes, Fleet, FleetError
@@ -21,6 +22,12 @@ from td2adaptor.runtime.node.fleet import Changes, Fleet, FleetError
 log = logging.getLogger("td2adaptor.runtime.fleet")
 
 Stamp = tuple[int, int, int] | None
+
+
+class Applies(Protocol):
+    """What a reading is applied to: the fleet, or its share (`run --share`, share.py) which serves part of it."""
+
+    def apply(self, configs: Sequence[RuntimeConfig], origin: str) -> Changes: ...
 
 
 def stamp(path: Path) -> Stamp:
@@ -36,7 +43,7 @@ class FleetFile:
     """Reloads `path` into `fleet` (see the module docstring); `load` reads it as at the start."""
 
     def __init__(
-        self, path: Path, fleet: Fleet, load: Callable[[], list[RuntimeConfig]], *, seen: Stamp | None = None
+        self, path: Path, fleet: Fleet | Applies, load: Callable[[], list[RuntimeConfig]], *, seen: Stamp | None = None
     ) -> None:
         self.path = path
         self.fleet = fleet

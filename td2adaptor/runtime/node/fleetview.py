@@ -2,7 +2,10 @@
 once on a connection of its own, as rows of a table.
 
 Nothing is asked of the edge nodes: what a robot's status says (status.py) is what the broker keeps, so the view
-also shows robots whose node died (`offline`, through the will) and the process that served them last.
+also shows robots whose node died (`offline`, through the will) and the process that served them last. Where
+processes share a fleet (`run --share`, share.py) their member records are retained too: the view lists the
+members, how many robots each serves, and the robots each took over from another process (a hand-over or the
+takeover of a dead one's robots).
 """
 
 from __future__ import annotations
@@ -68,6 +71,45 @@ def row_of(robot: str, payload: bytes) -> RobotRow:
     )
 
 
+@dataclass(frozen=True)
+class MemberRow:
+    """One process of a shared fleet, as its retained member record says."""
+
+    fleet: str
+    owner: Owner | None
+    joined: str
+    robots: tuple[str, ...]
+    takeovers: tuple[Mapping[str, Any], ...]
+
+    def cells(self) -> list[str]:
+        owner = f"{self.owner.pid}@{self.owner.host} since {self.owner.started}" if self.owner else "?"
+        return [self.fleet, owner, self.joined, str(len(self.robots)), str(len(self.takeovers))]
+
+
+def member_of(fleet: str, payload: bytes) -> MemberRow | None:
+    try:
+        record = orjson.loads(payload)
+    except orjson.JSONDecodeError:
+        return None
+    if not isinstance(record, Mapping):
+        return None
+    robots = record.get("robots")
+    takeovers = record.get("takeovers")
+    return MemberRow(
+        fleet,
+        Owner.from_json(record.get("owner")),
+        str(record.get("joined") or "?"),
+        tuple(str(r) for r in robots) if isinstance(robots, list) else (),
+        tuple(t for t in takeovers if isinstance(t, Mapping)) if isinstance(takeovers, list) else (),
+    )
+
+
+@dataclass(frozen=True)
+class FleetView:
+    robots: list[RobotRow]
+    members: list[MemberRow]
+
+
 def read_fleet(
     url: str,
     *,
@@ -77,8 +119,24 @@ def read_fleet(
     env: Mapping[str, str] | None = None,
     timeout: float = 5.0,
 ) -> list[RobotRow]:
-    """Every robot's row, by robot id, from the retained statuses under `root` on the broker at `url`; credentials
-    from `TD2ADAPTOR_MQTT_USERNAME` / `TD2ADAPTOR_MQTT_PASSWORD` in `env`. Raises `SecurityError` for a URL
+    """Every robot's row (see `read_view`)."""
+    return read_view(
+        url, root=root, mqtt_version=mqtt_version, tls_ca_file=tls_ca_file, env=env, timeout=timeout
+    ).robots
+
+
+def read_view(
+    url: str,
+    *,
+    root: str = "td2adaptor",
+    mqtt_version: str = "5",
+    tls_ca_file: str | None = None,
+    env: Mapping[str, str] | None = None,
+    timeout: float = 5.0,
+) -> FleetView:
+    """Every robot's row, by robot id, and every member of a shared fleet, from the retained statuses and member
+    records under `root` on the broker at `url`; credentials from `TD2ADAPTOR_MQTT_USERNAME` /
+    `TD2ADAPTOR_MQTT_PASSWORD` in `env`. Raises `SecurityError` for a URL
     that is no broker's, `BusError` when the broker cannot be reached or refuses (the message says which)."""
     from td2adaptor.runtime.bus.mqttbus import MqttBus
 
@@ -96,6 +154,7 @@ def read_fleet(
         connect_timeout=timeout,
     )
     got: dict[str, bytes] = {}
+    members: dict[tuple[str, str], bytes] = {}
     lock = threading.Lock()
 
     def take(message: Message) -> None:
@@ -104,28 +163,79 @@ def read_fleet(
             with lock:
                 got[parts[-2]] = message.payload
 
+    def member(message: Message) -> None:
+        parts = message.topic.split("/")  # <root>/.fleet/<fleet>/members/<node>
+        if message.payload:
+            with lock:
+                members[(parts[-3], parts[-1])] = message.payload
+
     bus.subscribe(f"{root}/+/status", take)
+    bus.subscribe(f"{root}/.fleet/+/members/+", member)
     try:
         bus.connect()
         bus.subscribe(f"{root}/+/status/+", lambda _m: None)  # acknowledged after every retained status came
         with lock:
-            seen = dict(got)
+            seen, joined = dict(got), dict(members)
     finally:
         bus.close()
-    return [row_of(robot, payload) for robot, payload in sorted(seen.items())]
+    rows = [row_of(robot, payload) for robot, payload in sorted(seen.items())]
+    found = [member_of(fleet, payload) for (fleet, _node), payload in sorted(joined.items())]
+    return FleetView(rows, sorted((m for m in found if m is not None), key=lambda m: (m.fleet, m.joined)))
 
 
 HEADER = ["ROBOT", "STATE", "ROBOT SIDE", "OWNER", "MISSIONS", "LAST ERROR"]
 
 
+MEMBER_HEADER = ["FLEET", "MEMBER PROCESS", "JOINED", "ROBOTS", "TAKEOVERS"]
+TAKEOVER_HEADER = ["ROBOT", "TAKEN BY", "FROM", "HOW", "WHEN"]
+
+
 def table(rows: Sequence[RobotRow]) -> str:
     """The rows as a plain-text table, columns aligned (the last one as long as it is)."""
-    lines = [HEADER, *(r.cells() for r in rows)]
-    widths = [max(len(line[i]) for line in lines) for i in range(len(HEADER) - 1)]
+    return _aligned([HEADER, *(r.cells() for r in rows)])
+
+
+def members_table(members: Sequence[MemberRow]) -> str:
+    """The members of shared fleets, then every takeover they remember (newest last)."""
+    out = _aligned([MEMBER_HEADER, *(m.cells() for m in members)])
+    took = []
+    for m in members:
+        by = f"{m.owner.pid}@{m.owner.host}" if m.owner else "?"
+        for t in m.takeovers:
+            was = Owner.from_json(t.get("from"))
+            took.append(
+                [
+                    str(t.get("robot")),
+                    by,
+                    f"{was.pid}@{was.host}" if was else "?",
+                    str(t.get("how")),
+                    str(t.get("time")),
+                ]
+            )
+    if took:
+        out += "\n" + _aligned([TAKEOVER_HEADER, *sorted(took, key=lambda r: r[4])])
+    return out
+
+
+def _aligned(lines: Sequence[Sequence[str]]) -> str:
+    widths = [max(len(line[i]) for line in lines) for i in range(len(lines[0]) - 1)]
     out = []
     for line in lines:
         out.append("  ".join([*(c.ljust(w) for c, w in zip(line, widths, strict=False)), line[-1]]).rstrip())
     return "\n".join(out) + "\n"
+
+
+def members_json(members: Sequence[MemberRow]) -> list[dict[str, Any]]:
+    return [
+        {
+            "fleet": m.fleet,
+            "owner": m.owner.to_json() if m.owner else None,
+            "joined": m.joined,
+            "robots": list(m.robots),
+            "takeovers": [dict(t) for t in m.takeovers],
+        }
+        for m in members
+    ]
 
 
 def as_json(rows: Sequence[RobotRow]) -> list[dict[str, Any]]:

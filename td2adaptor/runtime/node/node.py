@@ -33,6 +33,7 @@ from td2adaptor.runtime.node.roslink import RosLink, connect
 if TYPE_CHECKING:
     from td2adaptor.runtime.node.admin import Admin
     from td2adaptor.runtime.node.graphwatch import Discovery
+    from td2adaptor.runtime.node.share import Share
 
 log = logging.getLogger("td2adaptor.runtime")
 
@@ -76,6 +77,7 @@ class EdgeNode:
         self._extras: list[Callable[[], None]] = []  # discovery, admin requests: stopped first
         self.halted = threading.Event()  # set when a robot's bus stopped serving its broker (`failure` says why)
         self.failure: str | None = None
+        self.shared: Share | None = None  # `run --share`: this process's part of a fleet shared with others
 
     def check_bus(self) -> None:
         """Refuse a bus the TD's security does not allow before anything connects (raises `SecurityError`)."""
@@ -137,6 +139,26 @@ class EdgeNode:
         self._extras.append(discovery.stop)
         return discovery
 
+    def share(self, candidates: Sequence[RuntimeConfig]) -> Share:
+        """Serve this process's share of `candidates` with the other processes of the fleet on the broker
+        (node/share.py); raises `SecurityError` or `BusError` as a robot's connection would."""
+        from td2adaptor.runtime.config import robot_config
+        from td2adaptor.runtime.node.share import Share, share_bus
+
+        assert self.fleet is not None
+        for config in candidates:
+            td_broker(config)
+            bus_security(config, self.model)
+        template = robot_config(self.defaults, STAND_IN)
+        name = template.fleet or self.model.package_name
+        bus = share_bus(template, self.model, name=name, keepalive=template.share_keepalive)
+        shared = self.shared = Share(
+            self.fleet, bus, name=name, root=template.topic_root, timeout=template.share_timeout
+        )
+        shared.start(candidates)
+        self._extras.append(shared.stop)
+        return shared
+
     def listen_admin(self) -> Admin:
         """Take admin requests on the bus (node/admin.py); raises `SecurityError` or `BusError` as a robot's
         connection would."""
@@ -166,7 +188,10 @@ class EdgeNode:
 
     def _halt(self, robot: str, reason: str) -> None:
         """A robot's bus stopped serving its broker (it failed the check every connection passes): the node
-        does not go on half-served; `run` stops it and exits with `reason`."""
+        does not go on half-served; `run` stops it and exits with `reason`. In a shared fleet a robot another
+        member took over (its session taken) only leaves this process; the share gives out the robots again."""
+        if self.shared is not None and "took its session over" in reason:
+            return  # the share lets the robot go (share.py)
         if self.failure is None:
             self.failure = f"robot {robot}: {reason}"
         self.halted.set()
@@ -193,6 +218,8 @@ class EdgeNode:
     def describe(self) -> str:
         configs = list(self.fleet.robots().values()) if self.fleet is not None else self.configs
         robots = ", ".join(f"{c.robot} (namespace {c.ros_namespace or '/'})" for c in configs) or "no robot yet"
+        if self.shared is not None:
+            robots = f"its share of fleet {self.shared.name} (now {len(configs)} robots)"
         from td2adaptor.runtime.bus.security import redact_url
 
         bus = redact_url(self.defaults.get("bus", "local") if not self.configs else self.configs[0].bus)

@@ -1,0 +1,256 @@
+"""The invokes a robot's owner admitted, carried on the broker, so that a process on another host that takes the
+robot over (node/share.py) runs none of them again and ends the missions in flight.
+
+On one host the robot's replay guard and mission ledger (engine/replay.py, ledger.py, in `state_dir`) carry that
+from one owner to the next. Hosts do not share a state directory, so in a shared fleet each owner also publishes,
+for every invoke it admits, one retained **entry** on `<root>/.fleet/<fleet>/admitted/<robot>/<key>` (key: a
+hash of the invoke's id and topic): the id, topic, content digest and time the guard checked, and the ledger's
+record of its mission (state, mission id, the last feedback event published, phase), published again whenever
+the ledger writes it. The mission's start waits until the broker has acknowledged the entry (`AckedPort`), so an
+owner that dies can only have run an invoke whose entry the broker has.
+
+The next owner reads the entries (the share follows them all, `Book`) and `seed`s its engine with them before it
+serves: the guard learns the ids (a redelivered or resent invoke is answered, not run), the ledger the missions
+(followed again or ended `failed`, each with one terminal event, by the engine's recovery). Entries are cleared
+once no copy of their invoke could still be fresh (`sweep`: time + freshness window + clock skew).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import threading
+import time
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import orjson
+
+from td2adaptor.runtime.bus.bus import Bus, Message
+from td2adaptor.runtime.engine.replay import Verdict, parse_time
+
+log = logging.getLogger("td2adaptor.runtime.share")
+
+#: how long a mission's start waits for the broker to acknowledge its entry before it starts anyway (logged)
+ACK_TIMEOUT = 5.0
+
+
+def admitted_topic(root: str, fleet: str, robot: str = "+", key: str = "+") -> str:
+    return f"{root}/.fleet/{fleet}/admitted/{robot}/{key}"
+
+
+def entry_key(event_id: str, topic: str) -> str:
+    return hashlib.sha256(f"{event_id}\x00{topic}".encode()).hexdigest()[:24]
+
+
+class Book:
+    """Every robot's entries as the broker has them (the share's connection follows them all)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._entries: dict[str, dict[str, dict[str, Any]]] = {}  # robot -> key -> entry
+
+    def take(self, message: Message) -> None:
+        parts = message.topic.split("/")
+        robot, key = parts[-2], parts[-1]
+        with self._lock:
+            if not message.payload:
+                self._entries.get(robot, {}).pop(key, None)
+                return
+            try:
+                entry = orjson.loads(message.payload)
+            except orjson.JSONDecodeError:
+                return
+            if isinstance(entry, dict):
+                self._entries.setdefault(robot, {})[key] = entry
+
+    def of(self, robot: str) -> list[dict[str, Any]]:
+        with self._lock:
+            return sorted(self._entries.get(robot, {}).values(), key=lambda e: float(e.get("at") or 0))
+
+    def expired(self, robots: set[str], now: float) -> list[tuple[str, str]]:
+        """(robot, key) of the entries of `robots` that no copy of their invoke could still be fresh for."""
+        with self._lock:
+            return [
+                (robot, key)
+                for robot in robots
+                for key, entry in self._entries.get(robot, {}).items()
+                if float(entry.get("until") or 0) < now
+            ]
+
+
+def seed(engine: Any, entries: list[dict[str, Any]], recorder: Recorder) -> int:
+    """Teach `engine` (before it starts, and before `recorder` wraps its guard and ledger) the invokes the robot's
+    earlier owners admitted: the guard its ids, the ledger its missions (those it has already, from a shared state
+    directory, are left); `recorder` keeps their entries up to date from now on. How many it learnt."""
+    learnt = 0
+    for e in entries:
+        event_id, topic = e.get("id"), e.get("topic")
+        if not isinstance(event_id, str) or not isinstance(topic, str):
+            continue
+        if engine.ledger.latest(event_id, topic) is not None:
+            continue  # this host's ledger has it (the same state directory)
+        sent, digest = e.get("sent"), e.get("digest")
+        verdict = engine.guard.check(event_id, topic, sent if isinstance(sent, str) else None, digest)
+        if verdict is not Verdict.NEW:
+            continue  # expired, or known already
+        key = engine.ledger.open(
+            event_id=event_id,
+            topic=topic,
+            kind=str(e.get("kind") or "call"),
+            component=str(e.get("component") or ""),
+            action=str(e.get("action") or ""),
+            correlation=e.get("correlation"),
+        )
+        latest = e.get("latest")
+        if isinstance(latest, str):
+            engine.ledger.event(
+                key,
+                mission=e.get("mission"),
+                goal=e.get("goal"),
+                state=str(e.get("state") or ""),
+                seq=int(e.get("seq") or 0),
+                reserved=int(e.get("reserved") or 0),
+                latest=latest,
+                terminal=e.get("phase") in ("ending", "done"),
+            )
+        if e.get("phase") == "done":
+            engine.ledger.done(key)
+        else:
+            recorder.adopt(key, e)  # its end, when the engine's recovery gives it one, is recorded too
+        learnt += 1
+    return learnt
+
+
+class Recorder:
+    """One robot's entries, published as its engine's guard and ledger write (see the module docstring)."""
+
+    def __init__(self, bus: Bus, root: str, fleet: str, robot: str, owner: str, window: float) -> None:
+        self.bus = bus
+        self.root, self.fleet, self.robot, self.owner = root, fleet, robot, owner
+        self.window = window  # freshness window + clock skew: how long an entry is kept after its invoke's time
+        self._lock = threading.Lock()
+        self._checked: dict[tuple[str, str], tuple[str | None, str | None]] = {}  # (id, topic) -> (sent, digest)
+        self._entries: dict[str, dict[str, Any]] = {}  # ledger key -> entry
+
+    def checked(self, event_id: str, topic: str, sent: str | None, digest: str | None) -> None:
+        with self._lock:
+            self._checked[(event_id, topic)] = (sent, digest)
+
+    def opened(self, key: str, fields: Mapping[str, Any]) -> None:
+        event_id, topic = fields.get("event_id"), str(fields.get("topic"))
+        if not isinstance(event_id, str):
+            return  # no id: nothing a later owner could recognise
+        with self._lock:
+            sent, digest = self._checked.pop((event_id, topic), (None, None))
+        stamp = parse_time(sent) if sent else None
+        entry = {
+            "id": event_id,
+            "topic": topic,
+            "sent": sent,
+            "digest": digest,
+            "kind": fields.get("kind"),
+            "component": fields.get("component"),
+            "action": fields.get("action"),
+            "correlation": fields.get("correlation"),
+            "phase": "running",
+            "owner": self.owner,
+            "at": time.time(),
+            "until": (stamp if stamp is not None else time.time()) + self.window,
+        }
+        with self._lock:
+            self._entries[key] = entry
+        self._publish(entry)
+
+    def adopt(self, key: str, entry: Mapping[str, Any]) -> None:
+        with self._lock:
+            self._entries[key] = {**entry, "owner": self.owner}
+
+    def changed(self, key: str, **fields: Any) -> None:
+        with self._lock:
+            entry = self._entries.get(key)
+            if entry is None:
+                return
+            entry.update(fields)
+            entry = dict(entry)
+            if entry.get("phase") == "done":
+                self._entries.pop(key, None)
+        self._publish(entry)
+
+    def _publish(self, entry: Mapping[str, Any]) -> None:
+        topic = admitted_topic(self.root, self.fleet, self.robot, entry_key(str(entry["id"]), str(entry["topic"])))
+        try:
+            self.bus.publish(topic, orjson.dumps(entry), retain=True)
+        except Exception as exc:  # noqa: BLE001 - the robot is served all the same; a takeover may then run it again
+            log.warning(
+                "robot %s: the admitted invoke %s could not be recorded on the broker: %s", self.robot, entry["id"], exc
+            )
+
+    def acknowledged(self) -> bool:
+        """Wait until the broker has every entry published so far (a mission's start, on the call pool)."""
+        return self.bus.flush(ACK_TIMEOUT)
+
+
+class RecordingGuard:
+    """The engine's replay guard, telling `recorder` the time and digest of each new id."""
+
+    def __init__(self, guard: Any, recorder: Recorder) -> None:
+        self._guard = guard
+        self._recorder = recorder
+
+    def check(self, event_id: str | None, topic: str, sent: str | None, digest: str | None = None) -> Verdict:
+        verdict: Verdict = self._guard.check(event_id, topic, sent, digest)
+        if verdict is Verdict.NEW and event_id is not None:
+            self._recorder.checked(event_id, topic, sent, digest)
+        return verdict
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._guard, name)
+
+
+class RecordingLedger:
+    """The engine's mission ledger, publishing each invoke's entry as it writes the invoke's record."""
+
+    def __init__(self, ledger: Any, recorder: Recorder) -> None:
+        self._ledger = ledger
+        self._recorder = recorder
+
+    def open(self, **fields: Any) -> str:
+        key: str = self._ledger.open(**fields)
+        self._recorder.opened(key, fields)
+        return key
+
+    def event(self, key: str, **fields: Any) -> None:
+        self._ledger.event(key, **fields)
+        terminal = fields.pop("terminal", False)
+        self._recorder.changed(key, **fields, phase="ending" if terminal else "running")
+
+    def reserve(self, key: str, reserved: int) -> None:
+        self._ledger.reserve(key, reserved)
+        self._recorder.changed(key, reserved=reserved)
+
+    def done(self, key: str) -> None:
+        self._ledger.done(key)
+        self._recorder.changed(key, phase="done")
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._ledger, name)
+
+
+class AckedPort:
+    """The robot's port, whose procedure missions start only once the broker has their entries."""
+
+    def __init__(self, port: Any, acknowledged: Callable[[], bool], robot: str) -> None:
+        self._port = port
+        self._acknowledged = acknowledged
+        self._robot = robot
+
+    def start(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> Any:
+        if not self._acknowledged():
+            log.warning(
+                "robot %s: the broker did not acknowledge the admitted invoke in time; starting it", self._robot
+            )
+        return self._port.start(component, action, payload, timeout)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._port, name)

@@ -1,0 +1,495 @@
+"""Several edge-node processes share one fleet, coordinated through the broker (`run --share`, docs/fleet.md).
+
+Why the broker: it is the one thing every process already trusts and reaches, so no cluster of our own is
+needed. Three MQTT features carry it (docs/brokers.md): retained messages, the last will, and one session per
+client id.
+
+* **Members.** Each process keeps a retained record on `<root>/.fleet/<fleet>/members/<node>` (its owner
+  record, the robots it serves, the last takeovers) on a connection of its own whose will is the empty
+  retained message there: when the process dies the broker clears its record, at once when the socket closes
+  (a killed process: the kernel closes it). When its host or network is gone the broker learns it only from
+  the keepalive, late (1.5 x keepalive, and mosquitto 2.0 looks only every 6 s), so each member also beats
+  (`<root>/.fleet/<fleet>/beats/<node>`, QoS 0, every `timeout` / 4) and one silent for `timeout` is taken
+  as gone by the others, by their own clocks.
+* **Who serves which robot.** Every process reads the same candidates (the fleet file's robots) and the same
+  members, and computes the same answer (`assign`: rendezvous hashing with a bound on the load, so the shares
+  differ by one robot at most and a member that leaves moves little but its own robots).
+* **Hand-over.** A robot whose owner is no longer the one `assign` names is released by that owner first:
+  its missions in flight end with a terminal event that names the next owner, its TD stays retained, and its
+  status stays `online` with `handover` naming the next owner (no `offline` blip). The next owner claims it
+  only once the robot's retained status says it is free: handed over to it, `offline`, or owned by a process
+  that is no longer a member (it died). A robot's commands wait meanwhile in its persistent MQTT session.
+* **No command twice.** The new owner takes the robot's MQTT session (the same client id), so a command the
+  dead owner had received but not acknowledged is delivered to it again; the robot's replay guard and mission
+  ledger (state_dir, engine/replay.py and ledger.py) answer a command id seen before instead of running it,
+  and follow the dead owner's missions in flight again or end them, with one terminal event each. Across hosts,
+  which do not share a state directory, the owner publishes what it admitted on the broker and the next owner
+  learns it before it serves (node/admitted.py).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import secrets
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from typing import Any
+
+import orjson
+
+from td2adaptor.runtime.bus.bus import Bus, Message
+from td2adaptor.runtime.config import RuntimeConfig
+from td2adaptor.runtime.engine.engine import Engine, status_event
+from td2adaptor.runtime.node.admitted import (
+    AckedPort,
+    Book,
+    Recorder,
+    RecordingGuard,
+    RecordingLedger,
+    admitted_topic,
+    seed,
+)
+from td2adaptor.runtime.node.fleet import Changes, Fleet
+from td2adaptor.runtime.node.owner import Owner, lives, this_process
+
+log = logging.getLogger("td2adaptor.runtime.share")
+
+#: the origin of shared robots in the fleet (node/fleet.py): they come from the fleet file
+ORIGIN = "file"
+#: takeovers a member record keeps (`fleet status` shows them)
+TAKEOVERS_KEPT = 20
+#: seconds a robot handed over to another live member waits for it, from when this process found it is its own;
+#: then this process takes it (the member it was handed over to learnt meanwhile that it is no longer its: another
+#: member joined). Two claims at once are settled by the broker: the robot's session is taken over, and the
+#: process that lost it lets the robot go (`_lost`)
+HANDOVER_WAIT = 5.0
+#: seconds between two sweeps of the admitted invokes no copy of which could still be fresh (admitted.py)
+SWEEP_PERIOD = 10.0
+#: what a robot's bus says when another connection took its session over (owner.taken_by, mqttbus.py)
+TAKEN_OVER = "took its session over"
+
+
+def members_topic(root: str, fleet: str, node: str = "+") -> str:
+    """Where a member's record is retained (`+`: every member's)."""
+    return f"{root}/.fleet/{fleet}/members/{node}"
+
+
+def beats_topic(root: str, fleet: str, node: str = "+") -> str:
+    """Where a member beats (QoS 0, not retained)."""
+    return f"{root}/.fleet/{fleet}/beats/{node}"
+
+
+def _score(member: str, robot: str) -> int:
+    return int.from_bytes(hashlib.sha256(f"{member}\x00{robot}".encode()).digest()[:8], "big")
+
+
+def assign(robots: Iterable[str], members: Iterable[str]) -> dict[str, str]:
+    """Robot -> the member that serves it. Rendezvous hashing (each robot ranks the members by a hash of both)
+    with a bound: every member gets floor(robots / members) robots, some one more, so the shares differ by one
+    at most. The same inputs give the same answer in every process."""
+    ranked = sorted(set(members))
+    wanted = sorted(set(robots))
+    if not ranked:
+        return {}
+    least, extra = divmod(len(wanted), len(ranked))  # `extra` members serve one robot more
+    load = dict.fromkeys(ranked, 0)
+    out: dict[str, str] = {}
+    for robot in wanted:
+        for member in sorted(ranked, key=lambda m: _score(m, robot), reverse=True):
+            if load[member] < least or (load[member] == least and extra > 0):
+                if load[member] == least:
+                    extra -= 1
+                out[robot] = member
+                load[member] += 1
+                break
+    return out
+
+
+@dataclass(frozen=True)
+class Status:
+    """What a robot's retained status says about its owner."""
+
+    state: str
+    owner: Owner | None
+    handover: str | None  # the member it was handed over to, if it was
+
+
+def read_status(payload: bytes) -> Status | None:
+    try:
+        event = orjson.loads(payload)
+    except orjson.JSONDecodeError:
+        return None
+    body = event.get("payload") if isinstance(event, Mapping) else None
+    if not isinstance(body, Mapping):
+        return None
+    state = body.get("state")
+    handover = body.get("handover")
+    to = handover.get("node") if isinstance(handover, Mapping) else None
+    return Status(state if isinstance(state, str) else "", Owner.from_json(body.get("owner")), to)
+
+
+def _now() -> str:
+    return datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%fZ")[:-4] + "Z"
+
+
+class Share:
+    """This process's part in a shared fleet: keeps its member record, watches the other members and the
+    robots' statuses, and makes `fleet` serve exactly the robots `assign` gives it (see the module docstring).
+
+    `bus` is an unconnected bus of this process's own (`share_bus`); its will must clear the member record.
+    Changes run on a thread of their own, never on the bus's thread (a robot's connection needs that thread)."""
+
+    def __init__(
+        self,
+        fleet: Fleet,
+        bus: Bus,
+        *,
+        name: str,
+        root: str,
+        settle: float = 1.0,
+        timeout: float = 3.0,
+        me: Owner | None = None,
+    ) -> None:
+        self.fleet = fleet
+        self.bus = bus
+        self.name = name
+        self.root = root
+        self.settle = settle  # seconds to wait at start for members that start at the same moment
+        self.timeout = timeout  # seconds a member may be silent (no beat) before the others take its robots
+        self.me = me or this_process()
+        fleet.check = _no_check  # who may serve a robot is decided here, from the members and the statuses
+        self.takeovers: deque[dict[str, Any]] = deque(maxlen=TAKEOVERS_KEPT)
+        self.on_change: list[Callable[[Changes], None]] = []  # tests, logs: after each change of the share
+        self._lock = threading.Lock()
+        self._members: dict[str, dict[str, Any]] = {}  # node -> its record
+        self._gone: set[str] = set()  # members whose record was cleared (they stopped or died)
+        self._beats: dict[str, float] = {}  # node -> when it last beat (time.monotonic(), by this process's clock)
+        self._silent: set[str] = set()  # members taken as gone because they stopped beating
+        self._statuses: dict[str, Status] = {}  # robot -> its retained status
+        self._candidates: dict[str, RuntimeConfig] = {}
+        self._wake = threading.Event()
+        self._changing = threading.RLock()  # one reconciliation at a time (the share's thread, a reload)
+        self._waiting: dict[str, float] = {}  # robot -> since when it is ours but handed over to another member
+        self._taken: set[str] = set()  # robots whose session another member took: let go at the next round
+        fleet.on_added.append(self._watch)
+        fleet.prepare = self._prepare
+        self.book = Book()  # every robot's admitted invokes, as the broker has them
+        self._swept = 0.0
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._joined = _now()
+        self._last_record = b""
+
+    # -- the fleet file's side (node/fleetfile.py calls `apply` as it calls Fleet.apply) --------------------
+
+    def apply(self, configs: Sequence[RuntimeConfig], origin: str = ORIGIN) -> Changes:
+        """New candidates (the fleet file read again): this process serves its share of them."""
+        with self._lock:
+            self._candidates = {c.robot: c for c in configs}
+        return self.reconcile()
+
+    def robots(self, origin: str | None = None) -> dict[str, RuntimeConfig]:
+        return self.fleet.robots(origin)
+
+    # -- life cycle ----------------------------------------------------------------------------------------
+
+    def start(self, candidates: Sequence[RuntimeConfig]) -> None:
+        """Join: read the members and statuses, publish our record, wait `settle`, take our share."""
+        self._candidates = {c.robot: c for c in candidates}
+        self.bus.subscribe(members_topic(self.root, self.name), self._on_member)
+        self.bus.subscribe(f"{self.root}/+/status", self._on_status)
+        self.bus.subscribe(admitted_topic(self.root, self.name), self.book.take)
+        self.bus.subscribe(beats_topic(self.root, self.name), self._on_beat)
+        self.bus.connect()
+        self.bus.subscribe(f"{members_topic(self.root, self.name)}/+", lambda _m: None)  # the retained ones are in
+        self._publish_record()
+        self._thread = threading.Thread(target=self._run, name="td2adaptor-share", daemon=True)
+        self._thread.start()
+        self._beater = threading.Thread(target=self._beat, name="td2adaptor-share-beat", daemon=True)
+        self._beater.start()
+
+    def stop(self) -> None:
+        """Leave: no more changes; each robot is handed over to the member that serves it without this process
+        (no `offline` in between), then the record is cleared. Alone, the robots go offline with the fleet."""
+        self._stop.set()
+        self._wake.set()
+        if self._thread is not None:
+            self._thread.join(30)
+        with self._changing:
+            with self._lock:
+                others = self._live() - {self.me.node}
+                candidates = dict(self._candidates)
+            plan = assign(candidates, others)
+            for robot in self.fleet.robots(ORIGIN):
+                if plan.get(robot) is not None:
+                    self._release(robot, plan[robot])
+        try:
+            self.bus.publish(members_topic(self.root, self.name, self.me.node), b"", retain=True)
+            self.bus.flush(5)
+        except Exception:  # noqa: BLE001 - leaving: the will clears it when the connection closes uncleanly
+            log.warning("could not clear this process's member record")
+        self.bus.close()
+
+    def members(self) -> dict[str, dict[str, Any]]:
+        with self._lock:
+            return dict(self._members)
+
+    # -- what the broker tells (the bus's thread: only record and wake) ----------------------------------
+
+    def _on_member(self, message: Message) -> None:
+        node = message.topic.rsplit("/", 1)[1]
+        with self._lock:
+            if not message.payload:
+                if self._members.pop(node, None) is not None:
+                    log.info("fleet %s: member %s left", self.name, node)
+                self._gone.add(node)
+            else:
+                try:
+                    record = orjson.loads(message.payload)
+                except orjson.JSONDecodeError:
+                    return
+                if not isinstance(record, dict):
+                    return
+                if node not in self._members:
+                    log.info("fleet %s: member %s joined", self.name, node)
+                    self._beats.setdefault(node, time.monotonic())  # a `timeout` of grace for its first beat
+                self._members[node] = record
+                self._gone.discard(node)
+        self._wake.set()
+
+    def _on_status(self, message: Message) -> None:
+        robot = message.topic.split("/")[-2]
+        status = read_status(message.payload) if message.payload else None
+        with self._lock:
+            if status is None:
+                self._statuses.pop(robot, None)
+            else:
+                self._statuses[robot] = status
+        self._wake.set()
+
+    def _on_beat(self, message: Message) -> None:
+        node = message.topic.rsplit("/", 1)[1]
+        with self._lock:
+            self._beats[node] = time.monotonic()
+            back = node in self._silent
+        if back:
+            self._wake.set()
+
+    def _beat(self) -> None:
+        """(a thread of its own, so that a long change does not silence this process) Beat every timeout / 4."""
+        topic = beats_topic(self.root, self.name, self.me.node)
+        while not self._stop.wait(self.timeout / 4):
+            try:
+                self.bus.publish(topic, b"{}", qos=0)  # JSON, as everything else under the root
+            except Exception:  # noqa: BLE001 - not connected now: the others may take this process as gone
+                log.debug("fleet %s: beat not sent", self.name)
+
+    def _live(self) -> set[str]:
+        """(under the lock) The members whose record is there and that beat within `timeout`, and this one."""
+        now = time.monotonic()
+        live = {n for n in self._members if now - self._beats.get(n, now) <= self.timeout}
+        for node in set(self._members) - live - self._silent:
+            log.warning("fleet %s: member %s sent no beat for %g s: taken as gone", self.name, node, self.timeout)
+        for node in self._silent & live:
+            log.info("fleet %s: member %s beats again", self.name, node)
+        self._silent = set(self._members) - live
+        return live | {self.me.node}
+
+    # -- the share's own thread ----------------------------------------------------------------------------
+
+    def _run(self) -> None:
+        if self._stop.wait(self.settle):  # members that start at the same moment see each other first
+            return
+        while not self._stop.is_set():
+            self._wake.clear()
+            try:
+                self.reconcile()
+                self._sweep()
+            except Exception:  # one failed round must not end the share: the next wake tries again
+                log.exception("fleet %s: sharing the robots failed", self.name)
+            self._wake.wait(min(1.0, self.timeout / 4))  # also: a member that went silent
+
+    def reconcile(self) -> Changes:
+        """Release what is no longer ours (hand-over), then claim what is ours and free."""
+        with self._changing:
+            return self._reconcile()
+
+    def _reconcile(self) -> Changes:
+        with self._lock:
+            live = self._live()
+            candidates = dict(self._candidates)
+            statuses = dict(self._statuses)
+            gone = self._gone | self._silent
+        plan = assign(candidates, live)
+        with self._lock:
+            lost, self._taken = self._taken, set()
+        for robot in lost:  # another member holds its session now: its status is that member's, not ours to touch
+            self.fleet.remove(robot, "was taken over by another process of the fleet")
+        served = self.fleet.robots(ORIGIN)
+        released: list[str] = []
+        for robot in served:
+            winner = plan.get(robot)
+            if winner != self.me.node:
+                self._release(robot, winner)
+                released.append(robot)
+        wanted: list[RuntimeConfig] = []
+        taken: list[tuple[str, Status | None]] = []
+        for robot, config in candidates.items():
+            if plan.get(robot) != self.me.node:
+                continue
+            if robot in served and robot not in released:
+                wanted.append(config)
+                continue
+            status = statuses.get(robot)
+            if self._free(robot, status, live, gone):
+                wanted.append(config)
+                taken.append((robot, status))
+        self._waiting = {r: t for r, t in self._waiting.items() if plan.get(r) == self.me.node and r not in served}
+        changes = self.fleet.apply(wanted, ORIGIN)
+        changes.removed += released
+        for robot, status in taken:
+            if robot in changes.added:
+                self._took(robot, status)
+        if changes:
+            log.info("fleet %s: %s", self.name, changes.describe())
+            self._publish_record()
+            for hook in list(self.on_change):
+                hook(changes)
+        return changes
+
+    def _free(self, robot: str, status: Status | None, live: set[str], gone: set[str]) -> bool:
+        """May this process claim `robot`, whose retained status is `status`?"""
+        if status is None or status.state != "online" or status.owner is None:
+            return True
+        owner = status.owner
+        if owner.node == self.me.node or status.handover == self.me.node:
+            return True
+        if status.handover is not None:  # its owner let it go, to another member
+            if status.handover not in live:
+                return True  # which is gone since
+            since = self._waiting.setdefault(robot, time.monotonic())
+            return time.monotonic() - since > HANDOVER_WAIT  # which does not take it: it is no longer its
+        if owner.node in live:
+            return False  # its owner serves it still: it hands it over first
+        return owner.node in gone or not lives(owner)  # the owner died (or a stale record of this host)
+
+    def _prepare(self, engine: Engine) -> None:
+        """(Fleet.prepare) Before the robot is served: what its earlier owners admitted, then record what this
+        process admits (admitted.py)."""
+        config = engine.config
+        recorder = Recorder(
+            self.bus, self.root, self.name, config.robot, self.me.node, config.freshness_window + config.clock_skew
+        )
+        learnt = seed(engine, self.book.of(config.robot), recorder)
+        if learnt:
+            log.info("robot %s: %d invokes its earlier owners admitted are known", config.robot, learnt)
+        engine.guard = RecordingGuard(engine.guard, recorder)  # type: ignore[assignment]
+        engine.ledger = RecordingLedger(engine.ledger, recorder)  # type: ignore[assignment]
+        engine.outbox.ledger = engine.ledger
+        engine.port = AckedPort(engine.port, recorder.acknowledged, config.robot)
+
+    def _sweep(self) -> None:
+        """Clear the entries of the robots served here that no copy of their invoke could still be fresh for."""
+        now = time.time()
+        if now - self._swept < SWEEP_PERIOD:
+            return
+        self._swept = now
+        for robot, key in self.book.expired(set(self.fleet.robots(ORIGIN)), now):
+            self.bus.publish(admitted_topic(self.root, self.name, robot, key), b"", retain=True)
+
+    def _watch(self, engine: Any) -> None:
+        """(Fleet.on_added) Hear when another member takes the robot's session: the robot is let go."""
+        robot = engine.config.robot
+
+        def halted(reason: str) -> None:
+            if TAKEN_OVER in reason:
+                log.warning("robot %s: %s", robot, reason)
+                with self._lock:
+                    self._taken.add(robot)
+                self._wake.set()
+
+        engine.on_halt.append(halted)
+
+    def _release(self, robot: str, winner: str | None) -> None:
+        """Hand `robot` over to `winner`: its missions in flight are left to it (the ledger, or the admitted
+        entries on another host: admitted.py), the TD stays, the status stays online."""
+        with self._lock:
+            record = self._members.get(winner or "")
+        who = _describe(record, winner)
+        engine = next((e for e in self.fleet.engines() if e.config.robot == robot), None)
+        if engine is not None and winner is not None:
+            from td2adaptor.runtime.node.status import owner_fields
+
+            engine.td = None  # stays retained: the next owner publishes the same TD
+            engine.offline = status_event(
+                engine.config,
+                engine.model,
+                "online",
+                **owner_fields(),
+                missions=0,
+                handover={"node": winner, "to": who, "time": _now()},
+            )
+        if winner is None:
+            self.fleet.remove(robot, "is no longer in the fleet")
+        else:
+            self.fleet.remove(robot, f"was handed over to {who}", retire=False)
+
+    def _took(self, robot: str, status: Status | None) -> None:
+        """Note a robot this process took from another one (the member record and `fleet status` show it)."""
+        if status is None or status.owner is None or status.owner.node == self.me.node:
+            return
+        how = "handover" if status.handover == self.me.node else "takeover"  # else its owner stopped or died
+        entry = {"robot": robot, "from": status.owner.to_json(), "how": how, "time": _now()}
+        self.takeovers.append(entry)
+        log.info("robot %s: taken over from %s (%s)", robot, status.owner.describe(), how)
+
+    def _publish_record(self) -> None:
+        record = {
+            "owner": self.me.to_json(),
+            "fleet": self.name,
+            "joined": self._joined,
+            "robots": sorted(self.fleet.robots(ORIGIN)),
+            "takeovers": list(self.takeovers),
+        }
+        payload = orjson.dumps(record)
+        if payload == self._last_record:
+            return
+        self._last_record = payload
+        message = Message(members_topic(self.root, self.name, self.me.node), payload, retain=True)
+        self.bus.birth = message  # type: ignore[attr-defined]  # published again on every reconnection
+        self.bus.publish(message.topic, message.payload, retain=True)
+
+
+def _describe(record: Mapping[str, Any] | None, node: str | None) -> str:
+    owner = Owner.from_json(record.get("owner")) if record is not None else None
+    if owner is not None:
+        return owner.describe()
+    return f"member {node}" if node else "no member"
+
+
+def share_bus(template: RuntimeConfig, model: Any, *, name: str, keepalive: int, node: str | None = None) -> Any:
+    """The member connection: a clean session of its own, a short keepalive, a will that clears the record."""
+    from td2adaptor.runtime.bus.mqttbus import MqttBus
+    from td2adaptor.runtime.node.app import bus_security
+
+    address, security = bus_security(template, model)
+    node = node or this_process().node
+    return MqttBus(
+        address,
+        security,
+        client_id=f"td2adaptor-member-{name}-{node}-{secrets.token_hex(3)}",
+        will=Message(members_topic(template.topic_root, name, node), b"", retain=True),
+        clean_start=True,
+        session_expiry=0,
+        mqtt_version=template.mqtt_version,
+        keepalive=keepalive,
+    )
+
+
+def _no_check(_configs: Sequence[RuntimeConfig]) -> None:
+    """A shared fleet claims a robot only once its status says it is free (`Share._free`)."""

@@ -1,0 +1,81 @@
+"""One edge-node process of a shared fleet (node/share.py), its robots simulated (`SimPort`), so a test can run
+three and kill one: `python -m tests.runtime.share_proc URL STATE_DIR ROBOTS RUNS_FILE [own]`; `own`: a state
+directory of its own under STATE_DIR, as a process on another host has.
+
+Every mission a robot starts is appended to RUNS_FILE as `<robot> <x>` (the goal's x, unique per invoke in the
+tests) by whichever process runs it: the tests count runs across processes from it. SIGTERM stops it cleanly.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import signal
+import sys
+import threading
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from td2adaptor.runtime.config import RuntimeConfig, load_defaults, robot_config
+from td2adaptor.runtime.node.fleet import Fleet
+from td2adaptor.runtime.node.roslink import RosLink
+from td2adaptor.runtime.node.share import Share, share_bus
+from td2adaptor.runtime.ros.port import StartResult
+from td2adaptor.runtime.ros.simport import SimPort
+from tests.runtime.rb1 import rb1_model, sim
+
+FLEET = "shared"
+
+
+class LoggedPort(SimPort):
+    """A simulated robot that writes down each mission it starts (one line, one write: O_APPEND keeps lines
+    of several processes whole)."""
+
+    runs_fd = -1
+
+    def start(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> StartResult:
+        result = super().start(component, action, payload, timeout)
+        goals = payload.get("procedure", {}).get("goals", [{}])
+        x = goals[0].get("pose", {}).get("x") if goals else None
+        os.write(self.runs_fd, f"{self.robot} {x} {os.getpid()}\n".encode())
+        return result
+
+    robot = ""
+
+
+def main() -> None:
+    logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    logging.getLogger("td2adaptor.runtime.share").setLevel(logging.INFO)
+    url, state_dir, count, runs = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
+    if sys.argv[5:] == ["own"]:  # another host: no state directory shared with the others
+        state_dir = os.path.join(state_dir, str(os.getpid()))
+    LoggedPort.runs_fd = os.open(runs, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o600)
+    model = rb1_model()
+    settings = {"bus": url, "poll_period": 0.05, "property_period": 0, "presence_period": 0, "state_dir": state_dir}
+    defaults = load_defaults(env={}, overrides={**settings, "fleet": FLEET})
+    candidates = [robot_config(defaults, f"rb_{i:02d}") for i in range(count)]
+
+    def grow(configs: Sequence[RuntimeConfig]) -> RosLink:
+        ports = {}
+        for c in configs:
+            port = LoggedPort(model, sim(0.3))
+            port.robot = c.robot
+            ports[c.robot] = port
+        return RosLink(ports=dict(ports))
+
+    fleet = Fleet(model, RosLink(grow=grow), distro="ros2")
+    template = robot_config(defaults, "stand-in")
+    keepalive = int(os.environ.get("SHARE_KEEPALIVE", template.share_keepalive))
+    bus = share_bus(template, model, name=FLEET, keepalive=keepalive)
+    share = Share(fleet, bus, name=FLEET, root="td2adaptor", timeout=template.share_timeout)
+    done = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: done.set())
+    share.start(candidates)
+    print("ready", share.me.node, flush=True)
+    done.wait()
+    share.stop()
+    fleet.stop()
+
+
+if __name__ == "__main__":
+    main()
