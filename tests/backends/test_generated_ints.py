@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy
 
+from tests.backends.values_td import values_td
 from tests.ros2.common import build_rclpy
 
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain
@@ -25,26 +26,16 @@ pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain
 PACKAGE = "int_checks_bot_adaptor"
 
 
-def _property(name: str, ros_type: str) -> dict[str, Any]:
-    form = {"href": f"ros:{name}", "op": ["writeproperty"], "rosv:name": f"/{{{{robotName}}}}/{name}"}
-    return {"rosv:component": "ValuesComponent", "writeOnly": True, "forms": [{**form, "rosv:type": ros_type}]}
-
-
-TD = {
-    "@context": ["https://www.w3.org/2022/wot/td/v1.1", "https://td2adaptor.dev/ns/rosv/v1"],
-    "@type": "Thing",
-    "id": "urn:dev:wot:test:int-checks",
-    "title": "Int Checks Bot",
-    "securityDefinitions": {"nosec_sc": {"scheme": "nosec"}},
-    "security": ["nosec_sc"],
-    "properties": {
-        "small": _property("small", "std_msgs/msg/UInt8"),
-        "big": _property("big", "std_msgs/msg/Int64"),
-        "bytes": _property("bytes", "std_msgs/msg/UInt8MultiArray"),
-        "wide": _property("wide", "std_msgs/msg/UInt64MultiArray"),
-        "stamped": _property("stamped", "geometry_msgs/msg/PointStamped"),
+TD = values_td(
+    "int-checks",
+    {
+        "small": "std_msgs/msg/UInt8",
+        "big": "std_msgs/msg/Int64",
+        "bytes": "std_msgs/msg/UInt8MultiArray",
+        "wide": "std_msgs/msg/UInt64MultiArray",
+        "stamped": "geometry_msgs/msg/PointStamped",
     },
-}
+)
 
 
 def refused(call: Any, kind: type[Exception], *words: str) -> bool | str:

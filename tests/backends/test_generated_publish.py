@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from tests import generated
+from tests.backends.values_td import values_td
 from tests.ros1 import harness
 from tests.ros2.common import build_rclpy
 from tests.tools import require_ok
@@ -29,28 +30,18 @@ pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain
 PACKAGE = "publish_checks_bot_adaptor"
 
 
-def _property(name: str, ros_type: str) -> dict[str, Any]:
-    form = {"href": f"ros:{name}", "op": ["writeproperty"], "rosv:name": f"/{{{{robotName}}}}/{name}"}
-    return {"rosv:component": "ValuesComponent", "writeOnly": True, "forms": [{**form, "rosv:type": ros_type}]}
-
-
-TD = {
-    "@context": ["https://www.w3.org/2022/wot/td/v1.1", "https://td2adaptor.dev/ns/rosv/v1"],
-    "@type": "Thing",
-    "id": "urn:dev:wot:test:publish-checks",
-    "title": "Publish Checks Bot",
-    "securityDefinitions": {"nosec_sc": {"scheme": "nosec"}},
-    "security": ["nosec_sc"],
-    "properties": {
-        "level": _property("level", "std_msgs/msg/Float32"),
-        "samples": _property("samples", "std_msgs/msg/Float32MultiArray"),
-        "wide": _property("wide", "std_msgs/msg/Float64MultiArray"),
-        "twist": _property("twist", "geometry_msgs/msg/Twist"),
-        "small": _property("small", "std_msgs/msg/UInt8"),
-        "bytes": _property("bytes", "std_msgs/msg/UInt8MultiArray"),
-        "stamped": _property("stamped", "geometry_msgs/msg/PointStamped"),
+TD = values_td(
+    "publish-checks",
+    {
+        "level": "std_msgs/msg/Float32",
+        "samples": "std_msgs/msg/Float32MultiArray",
+        "wide": "std_msgs/msg/Float64MultiArray",
+        "twist": "geometry_msgs/msg/Twist",
+        "small": "std_msgs/msg/UInt8",
+        "bytes": "std_msgs/msg/UInt8MultiArray",
+        "stamped": "geometry_msgs/msg/PointStamped",
     },
-}
+)
 
 #: run with `component` (a ValuesComponent) in scope, in either interpreter; prints what happened to each
 #: publish as JSON: "sent" when nothing was raised, else the exception's class and words
