@@ -83,11 +83,19 @@ def to_plain(value: Any) -> Any:
         return {"secs": int(value.secs), "nsecs": int(value.nsecs)}
     if isinstance(slots, (list, tuple)) and slots and all(isinstance(s, str) for s in slots):
         return {s: to_plain(getattr(value, s)) for s in slots if not s.startswith("_")}  # genpy message
-    if hasattr(value, "tolist"):  # numpy arrays and scalars
+    if hasattr(value, "tolist"):  # numpy arrays and scalars, array.array (a rosidl sequence of numbers)
         return to_plain(value.tolist())
     if isinstance(value, (list, tuple)) or type(value).__name__ == "array":
+        if all(type(v) in _SCALARS for v in value):  # a sequence of integers or texts: as it is, no call each
+            return list(value)
+        if all(type(v) is float for v in value):  # of floats: only the ones not finite change
+            return [v if math.isfinite(v) else None for v in value]
         return [to_plain(v) for v in value]
     return str(value)
+
+
+#: the types `to_plain` gives back as they are (a float only when finite)
+_SCALARS = frozenset({int, str, bool, type(None)})
 
 
 def _port_error(exc: BaseException) -> PortError:
