@@ -115,6 +115,23 @@ def _port_error(exc: BaseException) -> PortError:
     return PortCallFailed(message, response=plain if isinstance(plain, Mapping) else None)
 
 
+def _unlocked(component: str, fn: Callable[[], Any]) -> Any:
+    """`fn()` with its errors as the port's (`GeneratedPort._guarded` without the component's lock)."""
+    try:
+        return fn()
+    except PortError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - every generated error becomes a port error
+        raise _mapped(component, exc) from exc
+
+
+def _mapped(component: str, exc: Exception) -> PortError:
+    """An error of a call into the generated package as the port's."""
+    if isinstance(exc, (TypeError, ValueError, KeyError)):  # bad payload for the message constructor
+        return PortCallFailed(f"{component}: {exc}")
+    return _port_error(exc)
+
+
 @dataclass(frozen=True)
 class Layout:
     """What the port needs to know of a model: its component classes, its procedure run actions and the
@@ -327,10 +344,8 @@ class GeneratedPort:
                 return fn()
         except PortError:
             raise
-        except (TypeError, ValueError, KeyError) as exc:  # bad payload for the message constructor
-            raise PortCallFailed(f"{component}: {exc}") from exc
         except Exception as exc:  # noqa: BLE001 - every generated error becomes a port error
-            raise _port_error(exc) from exc
+            raise _mapped(component, exc) from exc
 
     def start(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> StartResult:
         construct = self._method(component, api.CONSTRUCT_REQUEST(action))
@@ -398,6 +413,34 @@ class GeneratedPort:
     def start_goal(
         self, component: str, action: str, payload: Mapping[str, Any], timeout: float, listener: GoalListener
     ) -> str:
+        return self._start_goal(
+            component, action, payload, timeout, listener, lambda run: self._guarded(component, run)
+        )
+
+    def try_start_goal(
+        self, component: str, action: str, payload: Mapping[str, Any], timeout: float, listener: GoalListener
+    ) -> str | None:
+        """`start_goal` on ROS 2 when one of the component's `CALLS_PER_COMPONENT` is free at once (the generated
+        `start_X` itself returns at once); None otherwise, nothing sent (`QuickGoalStart`)."""
+        lock = self._locks.get(component)
+        if self.distro != "ros2" or lock is None or not lock.acquire(blocking=False):
+            return None
+        try:
+            return self._start_goal(
+                component, action, payload, timeout, listener, lambda run: _unlocked(component, run)
+            )
+        finally:
+            lock.release()
+
+    def _start_goal(
+        self,
+        component: str,
+        action: str,
+        payload: Mapping[str, Any],
+        timeout: float,
+        listener: GoalListener,
+        guarded: Callable[[Callable[[], Any]], Any],
+    ) -> str:
         construct = self._method(component, api.CONSTRUCT_GOAL(action))
         start = self._method(component, api.START(action))
         follower = GoalFollower(listener)
@@ -413,7 +456,7 @@ class GeneratedPort:
                 feedback_grace=self.feedback_grace,
             )
 
-        handle = self._guarded(component, run)
+        handle = guarded(run)
         if self.server_timeout is not None and hasattr(handle, "server_timeout"):
             handle.server_timeout = self.server_timeout  # before the ticker's first look: that is after an answer
         follower.ready(handle)
