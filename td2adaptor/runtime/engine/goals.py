@@ -191,8 +191,8 @@ class GoalRunner:
         chase.accepted, chase.goal, m.goal = True, goal, goal
         if chase.status == "unknown":
             chase.status = "accepted"
-        log.info("%s goal %s accepted", m.action, goal)
         self.ctx.outbox.feedback(m, ProcedureStatus("queued", "accepted", "goal accepted"), terminal=False)
+        log.info("%s goal %s accepted", m.action, goal)  # once the event is out: a log line is a write to stderr
 
     def _status(self, chase: Chase, status: str) -> None:
         if not chase.ended:
@@ -346,10 +346,10 @@ class GoalRunner:
             self._refuse(Kind.CANCEL, m.action, m.component, "call-failed", message, correlation)
             return
         word = "cancel requested" if canceling else "the server did not accept to cancel"
-        log.info("%s goal %s: %s", m.action, goal, word)
         status = goal_status(chase.status, False)
         status = ProcedureStatus(status.state, status.result, status.message or word, reason=status.reason)
         self.ctx.outbox.state(m.action, status, correlation, None, {"goal": goal})
+        log.info("%s goal %s: %s", m.action, goal, word)
 
     def query(self, spec: EventSpec, event: Mapping[str, Any]) -> None:
         """A query event: the followed goal's state, else how the last one ended (no call to the robot: the
