@@ -45,6 +45,25 @@ def test_to_plain_gives_json_with_the_robots_own_field_names() -> None:
     json.dumps(value, allow_nan=False)
 
 
+def test_to_plain_gives_sequences_of_numbers_as_lists_with_no_number_that_is_not_finite() -> None:
+    """The sequences' fast paths (integers or texts as they are, floats checked) give what the general one does."""
+    inf, nan = float("inf"), float("nan")
+    assert to_plain(array.array("i", range(5))) == [0, 1, 2, 3, 4]
+    assert to_plain([True, None, "a", 2**70]) == [True, None, "a", 2**70]
+    assert to_plain((0.5, inf, -inf, nan)) == [0.5, None, None, None]
+    assert to_plain([1, 2.5, inf, "a", None, [nan, 1.0], (Header(),)]) == [
+        1,
+        2.5,
+        None,
+        "a",
+        None,
+        [None, 1.0],
+        [{"seq": 7, "stamp": {"secs": 3, "nsecs": 4}, "frame_id": "map"}],
+    ]
+    copy = [1, 2]
+    assert to_plain(copy) is not copy  # a new list: the message's own is never handed on
+
+
 def test_layout_of_the_rb1_and_its_json_round_trip() -> None:
     layout = Layout.of(rb1_model())
     assert layout.components[:3] == ("GoToComponent", "PickComponent", "PlaceComponent")

@@ -18,8 +18,15 @@ from td2adaptor.runtime.config import ConfigError, RuntimeConfig, load_config
 from td2adaptor.runtime.engine.goals import _running_word, goal_status
 from td2adaptor.runtime.node.roslink import make_port
 from td2adaptor.runtime.ros.bridge import Ros1Bridge
-from td2adaptor.runtime.ros.genport import FEEDBACK_GRACE, Layout
-from td2adaptor.runtime.ros.port import GOAL_STATES, GoalEnd, PortRejected, PortUnavailable
+from td2adaptor.runtime.ros.genport import CALLS_PER_COMPONENT, FEEDBACK_GRACE, Layout
+from td2adaptor.runtime.ros.port import (
+    GOAL_STATES,
+    GoalEnd,
+    PortCallFailed,
+    PortRejected,
+    PortUnavailable,
+    QuickGoalStart,
+)
 from td2adaptor.runtime.ros.procedures import read
 from tests.runtime.edge import GoalEvents
 
@@ -207,3 +214,34 @@ def test_action_server_timeout_reaches_the_goal_handle(tmp_path: Path) -> None:
     for bad in ("-1", "nan", "inf", "x"):
         with pytest.raises(ConfigError, match="action_server_timeout"):
             load_config(path, env={"TD2ADAPTOR_ACTION_SERVER_TIMEOUT": bad})
+
+
+def test_a_ros2_goal_starts_without_waiting_only_while_a_call_of_its_component_is_free() -> None:
+    """`try_start_goal` (QuickGoalStart, so the engine may start the goal on its loop) sends the goal when one of
+    the component's CALLS_PER_COMPONENT is free at once, else says None and sends nothing; on ROS 1 always None
+    (the bridge's child starts goals on its own threads)."""
+    package = ModuleType("fake_adaptor")
+    package.CountComponent = _Component  # type: ignore[attr-defined]
+    config = RuntimeConfig(robot="r")
+    port = make_port(Layout(("CountComponent",)), package, config, "ros2", node=object())
+    try:
+        assert isinstance(port, QuickGoalStart)
+        goal = port.try_start_goal("CountComponent", "count", {"order": 3}, 1.0, GoalEvents())
+        assert goal == _Handle.goal_id and port._follower("CountComponent", "count", goal) is not None
+        taken = port._locks["CountComponent"]
+        for _ in range(CALLS_PER_COMPONENT):  # every call of the component is in flight (waiting for the robot)
+            assert taken.acquire(blocking=False)
+        before = dict(port._goals)
+        assert port.try_start_goal("CountComponent", "count", {"order": 3}, 1.0, GoalEvents()) is None
+        assert port._goals == before  # nothing sent
+        taken.release()
+        assert port.try_start_goal("CountComponent", "count", {"order": 3}, 1.0, GoalEvents()) == _Handle.goal_id
+        with pytest.raises(PortCallFailed):  # a payload the goal message does not take: at once, as start_goal
+            port.try_start_goal("CountComponent", "nothing", {"order": 3}, 1.0, GoalEvents())
+    finally:
+        port.close()
+    ros1 = make_port(Layout(("CountComponent",)), package, config, "ros1", node=None)
+    try:
+        assert ros1.try_start_goal("CountComponent", "count", {"order": 3}, 1.0, GoalEvents()) is None
+    finally:
+        ros1.close()

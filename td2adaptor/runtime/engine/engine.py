@@ -46,6 +46,7 @@ from td2adaptor.runtime.engine.goals import GoalRunner
 from td2adaptor.runtime.engine.ledger import Ledger, Record
 from td2adaptor.runtime.engine.missions import Mission, MissionTable
 from td2adaptor.runtime.engine.outbox import Outbox
+from td2adaptor.runtime.engine.precheck import FastCheck
 from td2adaptor.runtime.engine.procedure import DEFAULT_MISSION_PATH, ProcedureRunner, answer, requested
 from td2adaptor.runtime.engine.replay import ReplayGuard, Verdict, digest, time_problem
 from td2adaptor.runtime.engine.streams import PropertyStreams, streams
@@ -128,6 +129,7 @@ class Engine:
         self.config = config
         self.catalog = catalog or build_catalog(model)
         self.validator = EventValidator(self.catalog)
+        self.check = FastCheck(self.catalog, self.validator)  # valid events proved so in Rust (precheck.py)
         self.clock = clock
         self.td = td  # the robot's TD as the bus announces it on connecting: cleared on stop
         self.on_stop: list[Callable[[], None]] = []  # run first by stop() (e.g. leaving a TD directory)
@@ -365,7 +367,7 @@ class Engine:
         if len(msg.payload) > self.config.max_event_bytes:
             event, problem = None, Problem("too-large", f"events are limited to {self.config.max_event_bytes} bytes")
         else:
-            event, problem = self.validator.parse(spec, robot, msg.payload)
+            event, problem = self.check.parse(spec, robot, msg.payload)
         if problem is not None or event is None:
             assert problem is not None
             self.outbox.count("invalid")

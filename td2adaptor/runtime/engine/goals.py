@@ -15,8 +15,10 @@ current state, or with the end of the last goal. Every decision that fails a goa
 No thread waits for a goal. The port tells what happens to it through a `GoalListener` (ros/port.py), from
 the ROS client library's threads; each of those calls only posts the news to the loop, which owns the goal's
 machine (`Chase`): its status, whether it was accepted, its feedback held back by `feedback_period`, its
-timers (the mission timeout, the held feedback's) and its end. Calls into the robot's side (start, cancel,
-forget) go to the robot's lane of the call pool and come back as posted callbacks too. The generated package
+timers (the mission timeout, the held feedback's) and its end. A goal is started on the loop itself when the
+port can do so without waiting (`QuickGoalStart`: ROS 2's generated `start_X` returns at once), else on the
+robot's lane of the call pool; the other calls into the robot's side (cancel, forget) go to the lane, and what
+comes of them is posted back as callbacks too. The generated package
 keeps the goal's feedback (one buffer) and tells it in order; the loop's queue keeps that order.
 """
 
@@ -33,7 +35,7 @@ from td2adaptor.model.events import GOAL_WORDS, EventSpec, Kind
 from td2adaptor.runtime.engine.context import RobotContext
 from td2adaptor.runtime.engine.missions import Mission
 from td2adaptor.runtime.loop import Timer
-from td2adaptor.runtime.ros.port import GoalEnd, GoalPort, PortCallFailed, PortError
+from td2adaptor.runtime.ros.port import GoalEnd, GoalPort, PortCallFailed, PortError, QuickGoalStart
 from td2adaptor.runtime.ros.procedures import ProcedureStatus
 from td2adaptor.runtime.ros.words import INTERNAL, describe
 
@@ -153,20 +155,28 @@ class GoalRunner:
         wait = max(0.0, m.started + ctx.config.mission_timeout - ctx.clock())
         chase.deadline = ctx.loop.call_later(wait, self._give_up, chase)
         listener = _Told(self, chase)
+        args = (m.component, m.action, m.payload, ctx.config.call_timeout, listener)
 
-        def send() -> None:
+        def send(start: Callable[..., str | None]) -> bool:
+            """Start the goal with `start`; whether it did (False: `try_start_goal` would have waited)."""
             try:
-                goal = port.start_goal(m.component, m.action, m.payload, ctx.config.call_timeout, listener)
+                goal = start(*args)
             except PortError as exc:
                 ctx.loop.post(self._done, chase, GoalEnd("lost", message=str(exc), error=exc))
-                return
+                return True
             except Exception:  # the last line of defence: report, never crash
                 log.exception("mission %s failed internally", m.action)
                 ctx.loop.post(self._done, chase, GoalEnd("lost", message=INTERNAL, error=PortCallFailed(INTERNAL)))
-                return
+                return True
+            if goal is None:
+                return False
             ctx.loop.post(self._sent, chase, goal)
+            return True
 
-        ctx.lane.submit(send)
+        # here on the loop when the port can start it without waiting (one hand-off fewer before the goal is
+        # sent), else on the robot's lane of the call pool
+        if not (isinstance(port, QuickGoalStart) and send(port.try_start_goal)):
+            ctx.lane.submit(lambda: void(send(port.start_goal)))
 
     def _sent(self, chase: Chase, goal: str) -> None:
         """start_goal returned the goal's id."""
@@ -181,8 +191,8 @@ class GoalRunner:
         chase.accepted, chase.goal, m.goal = True, goal, goal
         if chase.status == "unknown":
             chase.status = "accepted"
-        log.info("%s goal %s accepted", m.action, goal)
         self.ctx.outbox.feedback(m, ProcedureStatus("queued", "accepted", "goal accepted"), terminal=False)
+        log.info("%s goal %s accepted", m.action, goal)  # once the event is out: a log line is a write to stderr
 
     def _status(self, chase: Chase, status: str) -> None:
         if not chase.ended:
@@ -336,10 +346,10 @@ class GoalRunner:
             self._refuse(Kind.CANCEL, m.action, m.component, "call-failed", message, correlation)
             return
         word = "cancel requested" if canceling else "the server did not accept to cancel"
-        log.info("%s goal %s: %s", m.action, goal, word)
         status = goal_status(chase.status, False)
         status = ProcedureStatus(status.state, status.result, status.message or word, reason=status.reason)
         self.ctx.outbox.state(m.action, status, correlation, None, {"goal": goal})
+        log.info("%s goal %s: %s", m.action, goal, word)
 
     def query(self, spec: EventSpec, event: Mapping[str, Any]) -> None:
         """A query event: the followed goal's state, else how the last one ended (no call to the robot: the
@@ -370,6 +380,10 @@ class GoalRunner:
     ) -> None:
         topic = self.ctx.topic(kind, action, component)
         self.ctx.outbox.error(code, message, topic=topic, affordance=action, correlation=correlation)
+
+
+def void(_value: object) -> None:
+    """Nothing (a lane task returns nothing)."""
 
 
 def _wanted(event: Mapping[str, Any]) -> Any:

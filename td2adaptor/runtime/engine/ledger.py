@@ -26,12 +26,12 @@ import logging
 import sqlite3
 import threading
 import time
-import uuid
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 from td2adaptor.runtime.engine.replay import open_store
+from td2adaptor.runtime.events import new_id
 
 log = logging.getLogger("td2adaptor.runtime")
 
@@ -116,7 +116,7 @@ class Ledger:
         correlation: str | None,
     ) -> str:
         """Record an invoke the node took; its key."""
-        key = uuid.uuid4().hex
+        key = new_id()  # unique as a UUID's 32 hex digits, without a system call (os.urandom) per invoke
         now = self.clock()
         if now >= self._next_prune:
             self._next_prune = now + 60.0

@@ -83,11 +83,19 @@ def to_plain(value: Any) -> Any:
         return {"secs": int(value.secs), "nsecs": int(value.nsecs)}
     if isinstance(slots, (list, tuple)) and slots and all(isinstance(s, str) for s in slots):
         return {s: to_plain(getattr(value, s)) for s in slots if not s.startswith("_")}  # genpy message
-    if hasattr(value, "tolist"):  # numpy arrays and scalars
+    if hasattr(value, "tolist"):  # numpy arrays and scalars, array.array (a rosidl sequence of numbers)
         return to_plain(value.tolist())
     if isinstance(value, (list, tuple)) or type(value).__name__ == "array":
+        if all(type(v) in _SCALARS for v in value):  # a sequence of integers or texts: as it is, no call each
+            return list(value)
+        if all(type(v) is float for v in value):  # of floats: only the ones not finite change
+            return [v if math.isfinite(v) else None for v in value]
         return [to_plain(v) for v in value]
     return str(value)
+
+
+#: the types `to_plain` gives back as they are (a float only when finite)
+_SCALARS = frozenset({int, str, bool, type(None)})
 
 
 def _port_error(exc: BaseException) -> PortError:
@@ -105,6 +113,23 @@ def _port_error(exc: BaseException) -> PortError:
     if "NoMessage" in names:
         return NoValue(message)
     return PortCallFailed(message, response=plain if isinstance(plain, Mapping) else None)
+
+
+def _unlocked(component: str, fn: Callable[[], Any]) -> Any:
+    """`fn()` with its errors as the port's (`GeneratedPort._guarded` without the component's lock)."""
+    try:
+        return fn()
+    except PortError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - every generated error becomes a port error
+        raise _mapped(component, exc) from exc
+
+
+def _mapped(component: str, exc: Exception) -> PortError:
+    """An error of a call into the generated package as the port's."""
+    if isinstance(exc, (TypeError, ValueError, KeyError)):  # bad payload for the message constructor
+        return PortCallFailed(f"{component}: {exc}")
+    return _port_error(exc)
 
 
 @dataclass(frozen=True)
@@ -319,10 +344,8 @@ class GeneratedPort:
                 return fn()
         except PortError:
             raise
-        except (TypeError, ValueError, KeyError) as exc:  # bad payload for the message constructor
-            raise PortCallFailed(f"{component}: {exc}") from exc
         except Exception as exc:  # noqa: BLE001 - every generated error becomes a port error
-            raise _port_error(exc) from exc
+            raise _mapped(component, exc) from exc
 
     def start(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> StartResult:
         construct = self._method(component, api.CONSTRUCT_REQUEST(action))
@@ -390,6 +413,34 @@ class GeneratedPort:
     def start_goal(
         self, component: str, action: str, payload: Mapping[str, Any], timeout: float, listener: GoalListener
     ) -> str:
+        return self._start_goal(
+            component, action, payload, timeout, listener, lambda run: self._guarded(component, run)
+        )
+
+    def try_start_goal(
+        self, component: str, action: str, payload: Mapping[str, Any], timeout: float, listener: GoalListener
+    ) -> str | None:
+        """`start_goal` on ROS 2 when one of the component's `CALLS_PER_COMPONENT` is free at once (the generated
+        `start_X` itself returns at once); None otherwise, nothing sent (`QuickGoalStart`)."""
+        lock = self._locks.get(component)
+        if self.distro != "ros2" or lock is None or not lock.acquire(blocking=False):
+            return None
+        try:
+            return self._start_goal(
+                component, action, payload, timeout, listener, lambda run: _unlocked(component, run)
+            )
+        finally:
+            lock.release()
+
+    def _start_goal(
+        self,
+        component: str,
+        action: str,
+        payload: Mapping[str, Any],
+        timeout: float,
+        listener: GoalListener,
+        guarded: Callable[[Callable[[], Any]], Any],
+    ) -> str:
         construct = self._method(component, api.CONSTRUCT_GOAL(action))
         start = self._method(component, api.START(action))
         follower = GoalFollower(listener)
@@ -405,7 +456,7 @@ class GeneratedPort:
                 feedback_grace=self.feedback_grace,
             )
 
-        handle = self._guarded(component, run)
+        handle = guarded(run)
         if self.server_timeout is not None and hasattr(handle, "server_timeout"):
             handle.server_timeout = self.server_timeout  # before the ticker's first look: that is after an answer
         follower.ready(handle)

@@ -216,3 +216,17 @@ class GoalPort(Protocol):
     def forget_goal(self, component: str, action: str, goal: str) -> None:
         """The caller no longer follows the goal: its listener is told nothing more (the goal goes on)."""
         ...
+
+
+@runtime_checkable
+class QuickGoalStart(Protocol):
+    """A `GoalPort` that can often send a goal without waiting for anything (ROS 2's generated `start_X` returns
+    at once): the engine then starts the goal on its loop, one thread hand-off fewer before the goal is sent,
+    and on the call pool only when this says it would have to wait."""
+
+    def try_start_goal(
+        self, component: str, action: str, payload: Mapping[str, Any], timeout: float, listener: GoalListener
+    ) -> str | None:
+        """`start_goal` when it can be done without blocking (no lock to wait for, no reply to wait for); None
+        when it cannot, and nothing was sent: the caller calls `start_goal` from a thread that may wait."""
+        ...

@@ -289,6 +289,12 @@ class SimPort:
             raise PortUnavailable(f"the action server of {action} is not available")
         return self.actions.start(payload, listener)
 
+    def try_start_goal(
+        self, component: str, action: str, payload: Mapping[str, Any], timeout: float, listener: GoalListener
+    ) -> str | None:
+        """`start_goal`, which never waits here (`QuickGoalStart`)."""
+        return self.start_goal(component, action, payload, timeout, listener)
+
     def request_cancel(self, component: str, action: str, goal: str, timeout: float, on_done: CancelDone) -> None:
         if self.actions is None:
             on_done(False, PortCallFailed("the simulation has no ROS actions"))
