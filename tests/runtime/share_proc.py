@@ -4,16 +4,24 @@ directory of its own under STATE_DIR, as a process on another host has.
 
 Every mission a robot starts is appended to RUNS_FILE as `<robot> <x>` (the goal's x, unique per invoke in the
 tests) by whichever process runs it: the tests count runs across processes from it. SIGTERM stops it cleanly.
+
+With `SHARE_TD` (a TD whose security is `basic`) and `SHARE_PASSWORDS` (JSON: robot id -> password) in the
+environment, each robot connects as its own broker user (its id), as under the ACL `gen -b events` writes, and
+the process's own connection (member record, beats, admitted entries) as the first robot's user: the user of
+its top-level settings (test_fleet_share_acl.py).
 """
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 import signal
 import sys
 import threading
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 from td2adaptor.runtime.config import RuntimeConfig, load_defaults, robot_config
@@ -22,7 +30,7 @@ from td2adaptor.runtime.node.roslink import RosLink
 from td2adaptor.runtime.node.share import Share, share_bus
 from td2adaptor.runtime.ros.port import StartResult
 from td2adaptor.runtime.ros.simport import SimPort
-from tests.runtime.rb1 import rb1_model, sim
+from tests.runtime.rb1 import compile_td, rb1_model, sim
 
 FLEET = "shared"
 
@@ -50,10 +58,16 @@ def main() -> None:
     if sys.argv[5:] == ["own"]:  # another host: no state directory shared with the others
         state_dir = os.path.join(state_dir, str(os.getpid()))
     LoggedPort.runs_fd = os.open(runs, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o600)
-    model = rb1_model()
     settings = {"bus": url, "poll_period": 0.05, "property_period": 0, "presence_period": 0, "state_dir": state_dir}
+    robots = [f"rb_{i:02d}" for i in range(count)]
+    passwords: dict[str, str] = json.loads(os.environ.get("SHARE_PASSWORDS", "{}"))
+    model = compile_td(Path(os.environ["SHARE_TD"])) if "SHARE_TD" in os.environ else rb1_model()
+    if passwords:  # the top-level settings' user: the first robot's
+        settings |= {"username": robots[0], "password": passwords[robots[0]]}
     defaults = load_defaults(env={}, overrides={**settings, "fleet": FLEET})
-    candidates = [robot_config(defaults, f"rb_{i:02d}") for i in range(count)]
+    candidates = [robot_config(defaults, robot) for robot in robots]
+    if passwords:  # each robot its own user
+        candidates = [replace(c, username=c.robot, password=passwords[c.robot]) for c in candidates]
 
     def grow(configs: Sequence[RuntimeConfig]) -> RosLink:
         ports = {}

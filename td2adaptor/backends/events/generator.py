@@ -326,7 +326,9 @@ def _acl(model: Model, catalog: EventCatalog, robots: list[str], fleet: str) -> 
     node's envelope patterns, that robot's WoT topics (forge its feedback, errors and property values, read its
     commands), and no pattern can tell the two apart. Without robot ids (`events.robots`), one block for the
     stand-in `<robot>` shows what each robot needs. The fleet's admin requests (`td2adaptor run`, docs/fleet.md):
-    every edge node reads them and writes their answers; the `fleet-admin` user writes them and reads the answers."""
+    every edge node reads them and writes their answers; the `fleet-admin` user writes them and reads the answers.
+    `run --share`: every edge node may keep a member record, beat, record admitted invokes and read every robot's
+    status (node/share.py), since a process's member connection has its top-level user, a robot's."""
     inbound = [s for s in catalog.specs if s.kind.inbound]
     outbound = [s for s in catalog.specs if not s.kind.inbound]
 
@@ -345,10 +347,21 @@ def _acl(model: Model, catalog: EventCatalog, robots: list[str], fleet: str) -> 
             *(t for s in outbound if (t := wot_topic(s, robot))),
             td_topic(robot),
         ]
-        return {"id": robot, "reads": [*reads, admin_request], "writes": [*writes, admin_answer]}
+        return {
+            "id": robot,
+            "reads": [*reads, admin_request, *share_reads],
+            "writes": [*writes, admin_answer, *share_writes],
+        }
 
     admin_request = f"{TOPIC_ROOT}/{ADMIN_LEVEL}/{fleet}/request"
     admin_answer = f"{TOPIC_ROOT}/{ADMIN_LEVEL}/{fleet}/answer"
+    # `run --share` (runtime/node/share.py): the member connection, under the user of the fleet file's top-level
+    # settings (a robot's), keeps its record and will on members/<node>, beats on beats/<node>, records each
+    # admitted invoke on admitted/<robot>/<key> for whichever robot the process serves, and reads every robot's
+    # status (is it free?). Node names and the robots a process serves change at run time: `+`, not names.
+    share = f"{TOPIC_ROOT}/{ADMIN_LEVEL}/{fleet}"
+    share_writes = [f"{share}/members/+", f"{share}/beats/+", f"{share}/admitted/+/+"]
+    share_reads = [f"{share}/members/#", f"{share}/beats/+", f"{share}/admitted/+/+", f"{TOPIC_ROOT}/+/status"]
 
     env = environment(TEMPLATES, trim=True)
     return env.get_template("mosquitto.acl.j2").render(

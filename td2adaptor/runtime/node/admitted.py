@@ -28,6 +28,7 @@ import orjson
 
 from td2adaptor.runtime.bus.bus import Bus, Message
 from td2adaptor.runtime.engine.replay import Verdict, parse_time
+from td2adaptor.runtime.ros.port import PortUnavailable
 
 log = logging.getLogger("td2adaptor.runtime.share")
 
@@ -49,6 +50,7 @@ class Book:
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self._entries: dict[str, dict[str, dict[str, Any]]] = {}  # robot -> key -> entry
+        self._before: dict[str, dict[str, dict[str, Any]]] = {}  # robot -> key -> the entry of its owner before
 
     def take(self, message: Message) -> None:
         parts = message.topic.split("/")
@@ -56,13 +58,25 @@ class Book:
         with self._lock:
             if not message.payload:
                 self._entries.get(robot, {}).pop(key, None)
+                self._before.get(robot, {}).pop(key, None)
                 return
             try:
                 entry = orjson.loads(message.payload)
             except orjson.JSONDecodeError:
                 return
             if isinstance(entry, dict):
-                self._entries.setdefault(robot, {})[key] = entry
+                old = self._entries.setdefault(robot, {}).get(key)
+                if old is not None and old.get("owner") != entry.get("owner"):
+                    self._before.setdefault(robot, {})[key] = old
+                self._entries[robot][key] = entry
+
+    def theirs(self, robot: str, key: str, me: str) -> dict[str, Any] | None:
+        """The last entry of `key` that an owner other than `me` published, as far as the broker has told."""
+        with self._lock:
+            for entry in (self._entries.get(robot, {}).get(key), self._before.get(robot, {}).get(key)):
+                if entry is not None and entry.get("owner") != me:
+                    return entry
+        return None
 
     def of(self, robot: str) -> list[dict[str, Any]]:
         with self._lock:
@@ -125,13 +139,18 @@ def seed(engine: Any, entries: list[dict[str, Any]], recorder: Recorder) -> int:
 class Recorder:
     """One robot's entries, published as its engine's guard and ledger write (see the module docstring)."""
 
-    def __init__(self, bus: Bus, root: str, fleet: str, robot: str, owner: str, window: float) -> None:
+    def __init__(
+        self, bus: Bus, root: str, fleet: str, robot: str, owner: str, window: float, book: Book | None = None
+    ) -> None:
         self.bus = bus
+        self.book = book
+        self.lost = False  # the robot's session is another process's now: nothing more is recorded (`withdraw`)
         self.root, self.fleet, self.robot, self.owner = root, fleet, robot, owner
         self.window = window  # freshness window + clock skew: how long an entry is kept after its invoke's time
         self._lock = threading.Lock()
         self._checked: dict[tuple[str, str], tuple[str | None, str | None]] = {}  # (id, topic) -> (sent, digest)
         self._entries: dict[str, dict[str, Any]] = {}  # ledger key -> entry
+        self._opened: set[str] = set()  # ledger keys of the invokes admitted here (not learnt from an earlier owner)
 
     def checked(self, event_id: str, topic: str, sent: str | None, digest: str | None) -> None:
         with self._lock:
@@ -160,6 +179,7 @@ class Recorder:
         }
         with self._lock:
             self._entries[key] = entry
+            self._opened.add(key)
         self._publish(entry)
 
     def adopt(self, key: str, entry: Mapping[str, Any]) -> None:
@@ -175,10 +195,29 @@ class Recorder:
             entry = dict(entry)
             if entry.get("phase") == "done":
                 self._entries.pop(key, None)
+                self._opened.discard(key)
         self._publish(entry)
 
+    def withdraw(self) -> None:
+        """The robot's session was lost before a mission started (`AckedPort`): its next owner may have run the
+        invoke already, whose entry this process's own overwrote. Put back the entry of each invoke admitted here
+        that another owner admitted too, as it published it last, and record nothing more."""
+        with self._lock:
+            self.lost = True
+            keys = [entry_key(str(e["id"]), str(e["topic"])) for k, e in self._entries.items() if k in self._opened]
+        for key in keys:
+            theirs = None if self.book is None else self.book.theirs(self.robot, key, self.owner)
+            if theirs is not None:
+                self._send(admitted_topic(self.root, self.fleet, self.robot, key), theirs)
+
     def _publish(self, entry: Mapping[str, Any]) -> None:
-        topic = admitted_topic(self.root, self.fleet, self.robot, entry_key(str(entry["id"]), str(entry["topic"])))
+        if self.lost:
+            return
+        self._send(
+            admitted_topic(self.root, self.fleet, self.robot, entry_key(str(entry["id"]), str(entry["topic"]))), entry
+        )
+
+    def _send(self, topic: str, entry: Mapping[str, Any]) -> None:
         try:
             self.bus.publish(topic, orjson.dumps(entry), retain=True)
         except Exception as exc:  # noqa: BLE001 - the robot is served all the same; a takeover may then run it again
@@ -238,17 +277,36 @@ class RecordingLedger:
 
 
 class AckedPort:
-    """The robot's port, whose procedure missions start only once the broker has their entries."""
+    """The robot's port, whose procedure missions start only once the broker has their entries, and never once
+    the robot's session was taken over (`taken`): a process that hung and resumes reads the commands the broker
+    wrote into its socket meanwhile before the "Session taken over" behind them, and the next owner got them too.
+    The broker's round trip for the entry gives the robot's connection the time to read that."""
 
-    def __init__(self, port: Any, acknowledged: Callable[[], bool], robot: str) -> None:
+    def __init__(
+        self,
+        port: Any,
+        acknowledged: Callable[[], bool],
+        robot: str,
+        taken: Callable[[], bool] = lambda: False,
+        withdraw: Callable[[], None] = lambda: None,
+    ) -> None:
         self._port = port
         self._acknowledged = acknowledged
         self._robot = robot
+        self._taken = taken
+        self._withdraw = withdraw
 
     def start(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> Any:
         if not self._acknowledged():
             log.warning(
                 "robot %s: the broker did not acknowledge the admitted invoke in time; starting it", self._robot
+            )
+        if self._taken():
+            log.warning("robot %s: its connection was lost before the invoke started: not run here", self._robot)
+            self._withdraw()
+            raise PortUnavailable(
+                "the edge node lost its connection to the broker, and another one of the fleet may serve the robot "
+                "now: not run here"
             )
         return self._port.start(component, action, payload, timeout)
 

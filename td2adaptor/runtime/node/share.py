@@ -169,6 +169,7 @@ class Share:
         self._members: dict[str, dict[str, Any]] = {}  # node -> its record
         self._gone: set[str] = set()  # members whose record was cleared (they stopped or died)
         self._beats: dict[str, float] = {}  # node -> when it last beat (time.monotonic(), by this process's clock)
+        self._beat_at = time.monotonic()  # when this process's beat thread last ran (`_stood_still`)
         self._silent: set[str] = set()  # members taken as gone because they stopped beating
         self._statuses: dict[str, Status] = {}  # robot -> its retained status
         self._candidates: dict[str, RuntimeConfig] = {}
@@ -208,6 +209,7 @@ class Share:
         self.bus.connect()
         self.bus.subscribe(f"{members_topic(self.root, self.name)}/+", lambda _m: None)  # the retained ones are in
         self._publish_record()
+        self._beat_at = time.monotonic()
         self._thread = threading.Thread(target=self._run, name="td2adaptor-share", daemon=True)
         self._thread.start()
         self._beater = threading.Thread(target=self._beat, name="td2adaptor-share-beat", daemon=True)
@@ -284,13 +286,27 @@ class Share:
         """(a thread of its own, so that a long change does not silence this process) Beat every timeout / 4."""
         topic = beats_topic(self.root, self.name, self.me.node)
         while not self._stop.wait(self.timeout / 4):
+            with self._lock:
+                self._stood_still()
+                self._beat_at = time.monotonic()
             try:
                 self.bus.publish(topic, b"{}", qos=0)  # JSON, as everything else under the root
             except Exception:  # noqa: BLE001 - not connected now: the others may take this process as gone
                 log.debug("fleet %s: beat not sent", self.name)
 
+    def _stood_still(self) -> None:
+        """(under the lock) This process stood still (SIGSTOP, a hung host) longer than `timeout` (its beat thread
+        did not run): the others' beats sent meanwhile wait unread in its socket, so their silence is its own.
+        Each member gets a `timeout` of grace from now, as at its first beat, rather than its robots taken."""
+        now = time.monotonic()
+        if now - self._beat_at > self.timeout:
+            log.warning("fleet %s: this process stood still for %.1f s", self.name, now - self._beat_at)
+            self._beats = dict.fromkeys(self._beats, now)
+            self._beat_at = now
+
     def _live(self) -> set[str]:
         """(under the lock) The members whose record is there and that beat within `timeout`, and this one."""
+        self._stood_still()
         now = time.monotonic()
         live = {n for n in self._members if now - self._beats.get(n, now) <= self.timeout}
         for node in set(self._members) - live - self._silent:
@@ -382,16 +398,20 @@ class Share:
         """(Fleet.prepare) Before the robot is served: what its earlier owners admitted, then record what this
         process admits (admitted.py)."""
         config = engine.config
-        recorder = Recorder(
-            self.bus, self.root, self.name, config.robot, self.me.node, config.freshness_window + config.clock_skew
-        )
+        window = config.freshness_window + config.clock_skew
+        recorder = Recorder(self.bus, self.root, self.name, config.robot, self.me.node, window, self.book)
         learnt = seed(engine, self.book.of(config.robot), recorder)
         if learnt:
             log.info("robot %s: %d invokes its earlier owners admitted are known", config.robot, learnt)
         engine.guard = RecordingGuard(engine.guard, recorder)  # type: ignore[assignment]
         engine.ledger = RecordingLedger(engine.ledger, recorder)  # type: ignore[assignment]
         engine.outbox.ledger = engine.ledger
-        engine.port = AckedPort(engine.port, recorder.acknowledged, config.robot)
+        raw = getattr(engine.bus, "bus", engine.bus)  # the robot's MQTT connection under its ThingBus
+
+        def taken() -> bool:  # its session maybe another member's: lost (taken over, or the broker dropped it)
+            return engine.failure is not None or not getattr(raw, "connected", True)
+
+        engine.port = AckedPort(engine.port, recorder.acknowledged, config.robot, taken, recorder.withdraw)
 
     def _sweep(self) -> None:
         """Clear the entries of the robots served here that no copy of their invoke could still be fresh for."""

@@ -607,8 +607,14 @@ def test_the_broker_acl_names_each_robots_topics_and_refuses_ids_that_would_open
         block = rules[rules.index("user rb1_a") + 1 : rules.index("user rb1_b")]
         # and the fleet's admin requests (docs/fleet.md), at a level no robot id can be
         fleet = f"td2adaptor/.fleet/{model.package_name}"
-        assert block[-1] == f"topic write {fleet}/answer" and f"topic read {fleet}/request" in block
-        block = [r for r in block if not r.startswith(f"topic read {fleet}/") and f" {fleet}/" not in r]
+        assert f"topic write {fleet}/answer" in block and f"topic read {fleet}/request" in block
+        # and what a process of `run --share` needs (node/share.py): its member record, beats, admitted
+        # entries, and every robot's status (read only: is the robot free?)
+        for level in ("members/+", "beats/+", "admitted/+/+"):
+            assert f"topic write {fleet}/{level}" in block, level
+        assert "topic read td2adaptor/+/status" in block
+        assert [r for r in block if r.startswith("topic write") and "/+" in r and f" {fleet}/" not in r] == []
+        block = [r for r in block if f" {fleet}/" not in r and r != "topic read td2adaptor/+/status"]
         assert "topic write td2adaptor/rb1_a/wot-thing/GoToComponent/gotoRun/feedback" in block
         # its commands through filters that also match topics no event is defined on (answered unknown-topic)
         assert "topic read td2adaptor/rb1_a/+/+" in block and "topic read td2adaptor/rb1_a/wot-thing/+/+" in block
