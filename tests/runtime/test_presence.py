@@ -240,9 +240,16 @@ def test_metrics_are_served_in_the_prometheus_text_format(broker: Mosquitto) -> 
         app.wait(lambda ev: any(s.get("robot") == "present" for s in statuses(ev)))
         app.send(GOTO, {"correlation": "m1", "payload": GOAL})
         app.wait(terminal("feedback", "m1"))
-        with urllib.request.urlopen(f"http://{address}/metrics", timeout=10) as answer:
-            assert answer.headers["Content-Type"].startswith("text/plain; version=0.0.4")
-            text = answer.read().decode()
+
+        def scrape() -> str:
+            with urllib.request.urlopen(f"http://{address}/metrics", timeout=10) as answer:
+                assert answer.headers["Content-Type"].startswith("text/plain; version=0.0.4")
+                return str(answer.read().decode())
+
+        # the mission's end is counted once its terminal event is out (the application may scrape before)
+        ended = f'td2adaptor_mission_duration_seconds_count{{robot="{ROBOT}",state="finished"}}'
+        assert until(lambda: ended in scrape(), 10)
+        text = scrape()
         app.close()
     finally:
         engine.stop()
