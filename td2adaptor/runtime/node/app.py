@@ -195,8 +195,7 @@ def serve(
     registration = register(config, td)
     if registration is not None:
         engine.on_stop.append(registration.stop)
-        keeper.on_presence.append(registration.reflect)  # the directory says whether the robot is there
-        registration.reflect(keeper.presence.word())  # what the keeper's first look found before the hook was in
+        keeper.follow_presence(registration.reflect)  # the directory says whether the robot is there
     return engine
 
 

@@ -88,7 +88,7 @@ class StatusKeeper:
         self._stopped = False
         self._last: dict[str, Any] | None = {**owner_fields(), "missions": 0}  # published last (the birth: app.py)
         self.durations = Durations()
-        self.on_presence: list[Callable[[str | None], None]] = []  # told the robot's ROS side when it changes
+        self._on_presence: list[Callable[[str | None], None]] = []  # told the robot's ROS side when it changes
         engine.outbox.on_end.append(self._ended)
         birth = getattr(raw, "birth", None)
         self._ours: deque[bytes] = deque([birth.payload] if birth is not None else [], maxlen=OURS_KEPT)
@@ -104,6 +104,12 @@ class StatusKeeper:
         with _keepers_lock:
             _keepers[engine.config.robot] = self
         self._shared.loop.post(self._tick)
+
+    def follow_presence(self, hook: Callable[[str | None], None]) -> None:
+        """Tell `hook` the robot's ROS side now (if a look found it yet) and at every change: a hook added after
+        the first look must not wait for the next change to learn it."""
+        self._on_presence.append(hook)
+        hook(self.presence.word())
 
     def _ended(self, mission: Mission, state: str) -> None:
         self.durations.add(state, max(0.0, self.engine.clock() - mission.started))
@@ -155,7 +161,7 @@ class StatusKeeper:
             self.presence.update(ready)
             now = self.presence.word()
             if now != before:
-                for hook in self.on_presence:
+                for hook in self._on_presence:
                     try:
                         hook(now)
                     except Exception:  # noqa: BLE001 - a hook must not keep the status from being published
