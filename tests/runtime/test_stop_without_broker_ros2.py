@@ -11,7 +11,6 @@ that is stopped under it.
 from __future__ import annotations
 
 import signal
-import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -23,6 +22,7 @@ from tests.ros2.common import EXAMPLE, PACKAGE, Process
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.edge import RunProcess, until
+from tests.runtime.test_fleet_changes_ros2 import sim_process
 
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain, rb1_prefix, adaptor_build
 
@@ -35,15 +35,7 @@ STOP_WITHIN = 4.0
 
 @pytest.fixture(scope="module")
 def robots(rb1_prefix: Path) -> Iterator[Process]:
-    args = [sys.executable, "-m", "examples.robotnik_rb1.sim.ros2", "--duration", "2", "--quiet"]
-    for ns in NAMESPACES:
-        args += ["--namespace", ns]
-    process = Process(args, env.child_env([rb1_prefix]))
-    try:
-        process.wait_for(lambda e: e.get("event") == "ready", timeout=60)
-    except BaseException:
-        process.stop()
-        raise
+    process = sim_process(rb1_prefix, NAMESPACES)
     yield process
     process.stop()
 
