@@ -22,7 +22,7 @@ from td2adaptor.dashboard.tdforms import affordances
 from td2adaptor.model.exposed import exposed_td
 from td2adaptor.runtime.bus.security import SecurityError
 from tests.conftest import REPO
-from tests.runtime.broker import free_port
+from tests.ports import free_port
 from tests.runtime.rb1 import rb1_model
 
 

@@ -7,12 +7,14 @@ refused when unsigned or when the fleet has no admin).
 
 from __future__ import annotations
 
+import json
 import re
 import signal
 import sys
 import threading
 import time
 from collections.abc import Iterator
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -66,6 +68,7 @@ class Watch:
     def __init__(self, broker: Mosquitto, name: str) -> None:
         self.app = AppClient(broker.url, ["td2adaptor/#"], client_id=name)
         self.came: list[float] = []
+        self.answered: set[str] = set()  # robots that answered a query through the edge node (`answering`)
         on_message = self.app.client.on_message
 
         def stamped(*args: Any) -> None:
@@ -123,7 +126,35 @@ def node_env(rb1_prefix: Path, adaptor_build: tuple[Path, Path], **extra: str) -
     return environ
 
 
+def answered_to(correlation: str, events: list[tuple[str, dict[str, Any]]]) -> bool:
+    return any(e.get("correlation") == correlation for _, e in events)
+
+
+def answering(watch: Watch, robot: str, timeout: float = 30.0) -> None:
+    """Wait until `robot` answers a (side-effect free) query through the edge node. A ROS 2 service can be
+    discovered before its server has discovered the client's response reader: the first request's answer is
+    then lost (tests/runtime/test_edge_node_ros2.py's `answers`), and the mission started by that request
+    fails `unreachable` (seen once on CI's loaded machine): a new edge node's first mission waits for this."""
+    deadline = time.monotonic() + timeout
+    attempt = 0
+    while time.monotonic() < deadline:
+        attempt += 1
+        correlation = f"answering-{robot}-{attempt}"
+        watch.app.send(f"td2adaptor/{robot}/GoToComponent/gotoQuery", {"correlation": correlation})
+        try:
+            events = watch.app.wait(partial(answered_to, correlation), 10)
+        except AssertionError:
+            continue
+        answer = [e for _, e in events if e.get("correlation") == correlation]
+        if "unreachable" not in json.dumps(answer) and "did not answer" not in json.dumps(answer):
+            watch.answered.add(robot)
+            return
+    raise AssertionError(f"{robot} never answered a query in {timeout:g} s")
+
+
 def mission(watch: Watch, robot: str, correlation: str) -> None:
+    if robot not in watch.answered:
+        answering(watch, robot)
     watch.app.send(goto(robot), {"correlation": correlation, "payload": GOAL})
 
 
