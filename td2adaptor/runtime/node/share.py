@@ -412,6 +412,20 @@ class Share:
             return engine.failure is not None or not getattr(raw, "connected", True)
 
         engine.port = AckedPort(engine.port, recorder.acknowledged, config.robot, taken, recorder.withdraw)
+        engine.kept = recorder.when_acknowledged  # a command is acknowledged once its entry is the broker's
+
+        def gate(go: Callable[[bool], None]) -> None:  # a ROS action goal: sent as AckedPort starts a procedure
+            def settled() -> None:
+                if not taken():
+                    go(True)
+                    return
+                log.warning("robot %s: its connection was lost before the goal was sent: not run here", config.robot)
+                recorder.withdraw()
+                go(False)
+
+            recorder.when_acknowledged(settled)
+
+        engine.gate = gate
 
     def _sweep(self) -> None:
         """Clear the entries of the robots served here that no copy of their invoke could still be fresh for."""
