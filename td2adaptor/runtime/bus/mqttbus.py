@@ -209,6 +209,35 @@ class MqttBus:
         self._epoch = 0  # the connection's number: an acknowledgement is for the connection its message came on
         self._flushed: list[tuple[set[int], Callable[[], None]]] = []  # `when_flushed`: what each still waits for
 
+    @classmethod
+    def sessionless(
+        cls,
+        address: BrokerAddress,
+        security: ConnectionSecurity | None,
+        purpose: str,
+        *,
+        mqtt_version: str = "5",
+        keepalive: int = 30,
+        connect_timeout: float = 10.0,
+        will: Message | None = None,
+        client_id: str | None = None,
+    ) -> MqttBus:
+        """A connection that keeps no session on the broker (clean start, expiry 0): what a look at the bus,
+        a fleet's member records, an owner claim, an admin request, a probe or the dashboard needs. Nothing is
+        queued for it while it is away, and its id (`td2adaptor-<purpose>-<random>` unless `client_id` is
+        given) never takes over a robot's session."""
+        return cls(
+            address,
+            security,
+            client_id=client_id or f"td2adaptor-{purpose}-{os.urandom(6).hex()}"[:128],
+            will=will,
+            clean_start=True,
+            session_expiry=0,
+            mqtt_version=mqtt_version,
+            keepalive=keepalive,
+            connect_timeout=connect_timeout,
+        )
+
     @property
     def connected(self) -> bool:
         return self._connected
@@ -763,12 +792,10 @@ def accepts_anonymous(
     unreachable broker counts as refusing here; the node's own connection reports it.
     """
     anonymous_tls = None if tls is None else TlsOptions(ca_file=tls.ca_file)
-    probe = MqttBus(
+    probe = MqttBus.sessionless(
         address,
         ConnectionSecurity(None, None, anonymous_tls, ()),
-        client_id=f"td2adaptor-probe-{os.urandom(4).hex()}",
-        clean_start=True,
-        session_expiry=0,
+        "probe",
         mqtt_version=mqtt_version,
         connect_timeout=timeout,
     )

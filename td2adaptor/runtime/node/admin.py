@@ -234,12 +234,6 @@ def admin_bus(config: RuntimeConfig, model: Any, *, broker: Any = None) -> Bus:
     from td2adaptor.runtime.node.app import bus_security
 
     address, security = bus_security(config, model)
-    return MqttBus(
-        address,
-        security,
-        client_id=client_id,
-        clean_start=True,
-        session_expiry=0,
-        mqtt_version=config.mqtt_version,
-        keepalive=config.keepalive,
+    return MqttBus.sessionless(
+        address, security, "fleet", client_id=client_id, mqtt_version=config.mqtt_version, keepalive=config.keepalive
     )

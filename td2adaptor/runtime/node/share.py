@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import hashlib
 import logging
-import secrets
 import threading
 import time
 from collections import deque
@@ -513,13 +512,11 @@ def share_bus(template: RuntimeConfig, model: Any, *, name: str, keepalive: int,
 
     address, security = bus_security(template, model)
     node = node or this_process().node
-    return MqttBus(
+    return MqttBus.sessionless(
         address,
         security,
-        client_id=f"td2adaptor-member-{name}-{node}-{secrets.token_hex(3)}",
+        f"member-{name}-{node}",
         will=Message(members_topic(template.topic_root, name, node), b"", retain=True),
-        clean_start=True,
-        session_expiry=0,
         mqtt_version=template.mqtt_version,
         keepalive=keepalive,
     )
