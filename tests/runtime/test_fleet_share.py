@@ -244,6 +244,25 @@ def test_the_assignment_is_the_same_everywhere_fair_and_moves_little() -> None:
         assert sorted(Counter(assign(robots[:31], [*members, "late"]).values()).values()) == [7, 7, 8, 8]
 
 
+def test_the_assignment_gives_each_robot_to_a_member_that_can_serve_it() -> None:
+    """`can`: what each member lists (its file, what its discovery sees, the admin's). A robot only some members
+    see goes to one of them, whatever the bound says (the bound still keeps a member from taking them all); the
+    plan is the same everywhere, and with every member able to serve every robot it is the plan without `can`."""
+    robots = [f"rb_{i:02d}" for i in range(ROBOTS)]
+    for seed in range(20):
+        members = [f"{seed:02d}{m}" * 4 for m in "abc"]
+        a, b, c = members
+        everyone = dict.fromkeys(members, set(robots))
+        assert assign(robots, members, everyone) == assign(robots, members)
+        can = {a: set(robots[:20]), b: set(robots[10:]), c: set(robots[:5]) | {"rb_29"}}  # nobody sees rb_99
+        plan = assign([*robots, "rb_99"], members, can)
+        reversed_can = {m: set(reversed(sorted(v))) for m, v in reversed(can.items())}
+        assert plan == assign(list(reversed([*robots, "rb_99"])), list(reversed(members)), reversed_can)
+        assert set(plan) == set(robots) and all(robot in can[member] for robot, member in plan.items())
+        assert [plan[r] for r in robots[20:29]] == [b] * 9  # only b sees them
+        assert max(Counter(plan.values()).values()) <= 15 and len(set(plan.values())) == 3
+
+
 def test_three_processes_share_30_robots_and_a_killed_ones_robots_are_taken_over_in_5_s(tmp_path: Path) -> None:
     broker = Mosquitto(tmp_path / "broker")
     broker.start()
