@@ -76,6 +76,9 @@ TAKEN_OVER = "took its session over"
 #: before it is given out: the members that list it a moment later (they read the file or look at the ROS graph
 #: a little after) are known by then, so every member computes the same owner and the robot is not handed on
 SETTLE = 0.75
+#: seconds a robot its owner retired (it no longer lists it) waits before another member that still lists it claims
+#: it: the other members drop it too a moment later (they read the file, or look at the graph, a little after)
+RETIRED_WAIT = 2.0
 
 
 def members_topic(root: str, fleet: str, node: str = "+") -> str:
@@ -142,6 +145,7 @@ class Status:
     state: str
     owner: Owner | None
     handover: str | None  # the member it was handed over to, if it was
+    retired: bool = False  # its owner stopped serving it because it no longer lists it (`Share._release`)
 
 
 def read_status(payload: bytes) -> Status | None:
@@ -155,7 +159,8 @@ def read_status(payload: bytes) -> Status | None:
     state = body.get("state")
     handover = body.get("handover")
     to = handover.get("node") if isinstance(handover, Mapping) else None
-    return Status(state if isinstance(state, str) else "", Owner.from_json(body.get("owner")), to)
+    retired = isinstance(body.get("retired"), Mapping)
+    return Status(state if isinstance(state, str) else "", Owner.from_json(body.get("owner")), to, retired)
 
 
 def _now() -> str:
@@ -198,6 +203,7 @@ class Share:
         self._beat_at = time.monotonic()  # when this process's beat thread last ran (`_stood_still`)
         self._silent: set[str] = set()  # members taken as gone because they stopped beating
         self._statuses: dict[str, Status] = {}  # robot -> its retained status
+        self._retired_at: dict[str, float] = {}  # robot -> when its status said it was retired (`RETIRED_WAIT`)
         self._candidates: dict[str, RuntimeConfig] = {}  # the fleet file's robots
         self.make_config = make_config  # (robot, namespace) -> its settings: the robots discovery or the admin adds
         self._found: dict[str, RuntimeConfig] = {}  # the robots this process's discovery sees (graphwatch.py)
@@ -370,6 +376,10 @@ class Share:
                 self._statuses.pop(robot, None)
             else:
                 self._statuses[robot] = status
+            if status is not None and status.retired:
+                self._retired_at.setdefault(robot, time.monotonic())
+            else:
+                self._retired_at.pop(robot, None)
         self._wake.set()
 
     def _on_entry(self, message: Message) -> None:
@@ -463,7 +473,8 @@ class Share:
         listed waits `SETTLE` (`_due` says until when), except at the first plan."""
         now = time.monotonic()
         mine = self._mine()
-        can = {m: set(self._members.get(m, {}).get("can") or ()) for m in live if m != self.me.node}
+        admin = set(self._admin)  # every member can serve these: the entries, not the records, say which
+        can = {m: set(self._members.get(m, {}).get("can") or ()) | admin for m in live if m != self.me.node}
         if self.me.node in live:
             can[self.me.node] = set(mine)
         listed = set().union(*can.values()) if can else set()
@@ -488,7 +499,7 @@ class Share:
         served = self.fleet.robots(ORIGIN)
         released: list[str] = []
         for robot in served:
-            winner = plan.get(robot)
+            winner = plan.get(robot) if robot in candidates else None  # no longer listed here: retired, not handed on
             if winner != self.me.node:
                 self._release(robot, winner)
                 released.append(robot)
@@ -519,6 +530,11 @@ class Share:
 
     def _free(self, robot: str, status: Status | None, live: set[str], gone: set[str]) -> bool:
         """May this process claim `robot`, whose retained status is `status`?"""
+        if status is not None and status.retired and status.owner is not None and status.owner.node in live:
+            with self._lock:  # its live owner no longer lists it: the others may drop it too in a moment
+                since = self._retired_at.get(robot, 0.0)
+            if time.monotonic() - since < RETIRED_WAIT:
+                return False
         if status is None or status.state != "online" or status.owner is None:
             return True
         owner = status.owner
@@ -598,14 +614,18 @@ class Share:
 
     def _release(self, robot: str, winner: str | None) -> None:
         """Hand `robot` over to `winner`: its missions in flight are left to it (the ledger, or the admitted
-        entries on another host: admitted.py), the TD stays, the status stays online."""
+        entries on another host: admitted.py), the TD stays, the status stays online. Without a winner (no member
+        lists it, or this one no longer does) retire it: missions ended, TD cleared, `offline` saying `retired`."""
+        from td2adaptor.runtime.node.status import owner_fields
+
         with self._lock:
             record = self._members.get(winner or "")
         who = _describe(record, winner)
         engine = next((e for e in self.fleet.engines() if e.config.robot == robot), None)
+        if engine is not None and winner is None:
+            retired = {"node": self.me.node, "time": _now()}
+            engine.offline = status_event(engine.config, engine.model, "offline", **owner_fields(), retired=retired)
         if engine is not None and winner is not None:
-            from td2adaptor.runtime.node.status import owner_fields
-
             engine.td = None  # stays retained: the next owner publishes the same TD
             engine.offline = status_event(
                 engine.config,
@@ -629,13 +649,20 @@ class Share:
         self.takeovers.append(entry)
         log.info("robot %s: taken over from %s (%s)", robot, status.owner.describe(), how)
 
+    def _can(self) -> list[str]:
+        """What this process lists (its file's robots, the ones it sees): the plans are computed from these. The
+        admin's robots are not in it: every member reads them from their entries."""
+        with self._lock:
+            return sorted({**self._found, **self._candidates})
+
     def _publish_record(self) -> None:
         record = {
             "owner": self.me.to_json(),
             "fleet": self.name,
             "joined": self._joined,
             "robots": sorted(self.fleet.robots(ORIGIN)),
-            "can": sorted(self.robots()),  # what it could serve: who serves which robot is computed from these
+            "can": self._can(),
+            "admin": sorted(self.admin_robots()),  # what it learnt of the admin's entries (fleet status, tests)
             "takeovers": list(self.takeovers),
         }
         payload = orjson.dumps(record)
