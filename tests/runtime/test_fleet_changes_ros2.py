@@ -39,9 +39,11 @@ def goto(robot: str) -> str:
     return f"td2adaptor/{robot}/GoToComponent/gotoRun"
 
 
-def sim_process(prefix: Path, namespaces: tuple[str, ...], domain: int | None = None) -> Process:
-    """The simulated RB-1s of `namespaces` in a process of their own (on ROS domain `domain`, else this worker's)."""
-    args = [sys.executable, "-m", "examples.robotnik_rb1.sim.ros2", "--duration", str(DURATION), "--quiet"]
+def sim_process(prefix: Path, namespaces: tuple[str, ...], domain: int | None = None, *, quiet: bool = True) -> Process:
+    """The simulated RB-1s of `namespaces` in a process of their own (on ROS domain `domain`, else this worker's;
+    not `quiet`: a `call` line for each call it serves)."""
+    args = [sys.executable, "-m", "examples.robotnik_rb1.sim.ros2", "--duration", str(DURATION)]
+    args += ["--quiet"] if quiet else []
     for ns in namespaces:
         args += ["--namespace", ns]
     environ = env.child_env([prefix])

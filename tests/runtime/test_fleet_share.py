@@ -406,9 +406,8 @@ def test_a_process_that_joins_later_takes_its_share_without_a_robot_going_offlin
         broker.stop()
 
 
-def test_the_same_over_a_site_broker_bridged_to_a_central_one(tmp_path: Path) -> None:
-    """The processes on the site's mosquitto, the application on a central one, bridged (`td2adaptor/#` both
-    ways): the application at the centre sees the shares, the takeover and every mission's end."""
+def bridged(tmp_path: Path) -> tuple[Mosquitto, Mosquitto]:
+    """A site mosquitto bridged to a central one (`td2adaptor/#` both ways), both started: (site, central)."""
     central = Mosquitto(tmp_path / "central")
     central.start()
     site = Mosquitto(tmp_path / "site")
@@ -420,7 +419,18 @@ def test_the_same_over_a_site_broker_bridged_to_a_central_one(tmp_path: Path) ->
             "cleansession false\n"
             "restart_timeout 1\n"
         )
-    site.start()
+    try:
+        site.start()
+    except BaseException:
+        central.stop()
+        raise
+    return site, central
+
+
+def test_the_same_over_a_site_broker_bridged_to_a_central_one(tmp_path: Path) -> None:
+    """The processes on the site's mosquitto, the application on a central one, bridged (`td2adaptor/#` both
+    ways): the application at the centre sees the shares, the takeover and every mission's end."""
+    site, central = bridged(tmp_path)
     robots = 10
     procs = Procs(site, tmp_path, robots)
     watcher = Watcher(central)
