@@ -172,6 +172,8 @@ def run(
     accepts anonymous clients is refused at start and on every reconnection: the node stops and exits 1.
     Robots join and leave while it runs: the --config file is read again on SIGHUP and when it changes on
     disk, --discover follows the ROS graph, and admin requests on the bus add or remove one (docs/fleet.md).
+    With --share the processes of one fleet share all of these robots: each is served by one process that
+    lists it (its file, the robots its graph shows, the admin's), and a dead process's robots are taken over.
     """
     import logging
     import signal
