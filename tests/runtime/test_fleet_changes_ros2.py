@@ -39,11 +39,10 @@ def goto(robot: str) -> str:
     return f"td2adaptor/{robot}/GoToComponent/gotoRun"
 
 
-def sim_process(prefix: Path, namespaces: tuple[str, ...], domain: int | None = None, *, quiet: bool = True) -> Process:
-    """The simulated RB-1s of `namespaces` in a process of their own (on ROS domain `domain`, else this worker's;
-    not `quiet`: a `call` line for each call it serves)."""
+def sim_process(prefix: Path, namespaces: tuple[str, ...], domain: int | None = None) -> Process:
+    """The simulated RB-1s of `namespaces` in a process of their own (on ROS domain `domain`, else this worker's)."""
+    # not --quiet: the robots' `call` events say, when a mission fails, whether its call reached the robot
     args = [sys.executable, "-m", "examples.robotnik_rb1.sim.ros2", "--duration", str(DURATION)]
-    args += ["--quiet"] if quiet else []
     for ns in namespaces:
         args += ["--namespace", ns]
     environ = env.child_env([prefix])
@@ -132,6 +131,19 @@ def mission(watch: Watch, robot: str, correlation: str) -> None:
     watch.app.send(goto(robot), {"correlation": correlation, "payload": GOAL})
 
 
+def check(watch: Watch, correlation: str, run: RunProcess, robots: Process | None) -> None:
+    """`check_mission` for a mission that finished; when it did not, the message says what the edge node logged
+    and what the simulated robots saw (their `call` events, their stderr): whether the call reached a robot."""
+    try:
+        check_mission(watch.app.events, correlation, ["queued", "running", "finished"])
+    except AssertionError as failure:
+        said = f"{failure}\nedge node: {run.output()[-3000:]}"
+        if robots is not None:
+            calls = [e for e in robots.drain() if e.get("event") == "call"]
+            said += f"\nrobots' last calls: {calls[-12:]}\nrobots' stderr: {robots.stderr_tail()}"
+        raise AssertionError(said) from None
+
+
 def test_robots_added_to_and_removed_from_the_fleet_file_join_and_leave_without_touching_the_others(
     adaptor_build: tuple[Path, Path], rb1_prefix: Path, robots: Process, broker: Mosquitto, tmp_path: Path
 ) -> None:
@@ -165,12 +177,12 @@ def test_robots_added_to_and_removed_from_the_fleet_file_join_and_leave_without_
 
         # the robot that stayed: one online status, no reconnection, its mission undisturbed
         watch.app.wait(terminal("feedback", "kept-1"), timeout=20)
-        check_mission(watch.app.events, "kept-1", ["queued", "running", "finished"])
+        check(watch, "kept-1", run, robots)
         assert watch.statuses("keep") == ["online"]
         # the robot that joined serves missions
         mission(watch, "joined", "new-1")
         watch.app.wait(terminal("feedback", "new-1"), timeout=30)
-        check_mission(watch.app.events, "new-1", ["queued", "running", "finished"])
+        check(watch, "new-1", run, robots)
         assert "reloaded (it changed on disk): added joined; removed leave" in run.output()
         assert run.proc.poll() is None
     finally:
@@ -222,13 +234,13 @@ def test_sighup_reloads_the_fleet_under_load_and_the_other_robots_missions_go_on
             thread.join(60)
         for robot, correlations in sent.items():
             for correlation in correlations:
-                check_mission(watch.app.events, correlation, ["queued", "running", "finished"])
+                check(watch, correlation, run, robots)
             assert watch.statuses(robot) == ["online"], robot  # never offline, never reconnected
         # the changed robot restarted alone, on its new namespace
         assert watch.statuses("changed") == ["online", "offline", "online"]
         mission(watch, "added", "added-1")
         watch.app.wait(terminal("feedback", "added-1"), timeout=30)
-        check_mission(watch.app.events, "added-1", ["queued", "running", "finished"])
+        check(watch, "added-1", run, robots)
         assert "reloaded (SIGHUP): added added; restarted changed" in run.output()
     finally:
         stop.set()
@@ -259,7 +271,7 @@ def test_a_fleet_file_that_became_invalid_is_reported_and_the_fleet_is_kept(
         assert "Traceback" not in run.output()
         mission(watch, "stay_a", "still-1")
         watch.app.wait(terminal("feedback", "still-1"), timeout=30)
-        check_mission(watch.app.events, "still-1", ["queued", "running", "finished"])
+        check(watch, "still-1", run, robots)
         assert watch.statuses("stay_a") == ["online"] and watch.statuses("stay_b") == ["online"]
         fleet_file(fleet, broker, {"stay_a": "fc_a"})  # valid again: taken
         watch.wait_status("stay_b", "offline", timeout=30)
@@ -292,7 +304,7 @@ def test_discovery_serves_a_robot_that_appears_in_the_ros_graph_and_retires_it_w
         assert td["id"].endswith(":disc_a"), td["id"]
         mission(watch, "disc_a", "found-1")
         watch.app.wait(terminal("feedback", "found-1"), timeout=30)
-        check_mission(watch.app.events, "found-1", ["queued", "running", "finished"])
+        check(watch, "found-1", run, robot)
 
         gone = time.monotonic()
         robot.stop()  # its nodes leave the ROS graph (a robot killed leaves it when DDS's lease runs out)
@@ -359,7 +371,7 @@ def test_admin_requests_add_and_remove_a_robot_and_an_unauthorised_one_is_refuse
         assert took <= SERVED_WITHIN, took
         mission(watch, "second", "adm-m1")
         watch.app.wait(terminal("feedback", "adm-m1"), timeout=30)
-        check_mission(watch.app.events, "adm-m1", ["queued", "running", "finished"])
+        check(watch, "adm-m1", run, robots)
 
         # a stranger: unsigned, signed with another key, a replay of a signed one
         assert ask({"op": "remove", "robot": "first"}, key=None)["payload"]["code"] == "unauthorised"

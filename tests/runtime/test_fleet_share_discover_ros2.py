@@ -10,7 +10,6 @@ the graph are retired the same way. No process restarts meanwhile.
 
 from __future__ import annotations
 
-import queue
 import signal
 import threading
 import time
@@ -125,15 +124,6 @@ class Admin:
         got = self.answers(rid)
         assert len(got) == 1, got
         return got[0]["payload"]  # type: ignore[no-any-return]
-
-
-def drained(process: Process) -> list[dict[str, Any]]:
-    """Every line the simulation printed so far."""
-    while True:
-        try:
-            process.seen.append(process.events.get_nowait())
-        except queue.Empty:
-            return list(process.seen)
 
 
 def wait(predicate: Callable[[], bool], timeout: float, *context: Any) -> None:
@@ -284,7 +274,7 @@ def test_three_shared_processes_discover_reload_under_load_over_bridged_brokers_
     watch = Watch(central, "combined-app")
     found = ("cx_1", "cx_2", "cx_3", "cx_4", "cx_5")
     later = ("cx_6", "cx_7", "cx_8")
-    sims = [sim_process(rb1_prefix, ("cx_f1", "cx_f2", *found), quiet=False)]
+    sims = [sim_process(rb1_prefix, ("cx_f1", "cx_f2", *found))]
     args = run_args("--config", str(fleet), "--share", "--discover", "--discover-grace", "1")
     runs = [RunProcess(args, env=node_env(rb1_prefix, adaptor_build)) for _ in range(3)]
     busy = ("cf_1", "cx_1", "cx_2", "cx_3")
@@ -300,7 +290,7 @@ def test_three_shared_processes_discover_reload_under_load_over_bridged_brokers_
         missions.start()
         assert until(lambda: all(len(v) >= 2 for v in missions.sent.values()), 30)
 
-        sims.append(sim_process(rb1_prefix, later, quiet=False))  # robots appear
+        sims.append(sim_process(rb1_prefix, later))  # robots appear
         appeared = time.monotonic()
         wait(lambda: one_owner_each(watch, first | set(later), pids), 30, owners(watch), members(watch))
         took = max((watch.status_at(r, "online", appeared) or 1e9) - appeared for r in later)
@@ -327,7 +317,7 @@ def test_three_shared_processes_discover_reload_under_load_over_bridged_brokers_
         for ids in missions.sent.values():  # each answered once, with one end
             for event_id in ids:
                 check_mission(watch.app.events, event_id, ["queued", "running", "finished"])
-        starts = Counter(e["robot"] for e in drained(sims[0]) if e.get("event") == "call" and e.get("op") == "add")
+        starts = Counter(e["robot"] for e in sims[0].drain() if e.get("event") == "call" and e.get("op") == "add")
         namespace = {"cf_1": "cx_f1"}
         assert {r: starts[namespace.get(r, r)] for r in busy} == {r: len(v) for r, v in missions.sent.items()}
         assert [r.proc.poll() for r in runs] == [None, None, None]  # no process restarted
