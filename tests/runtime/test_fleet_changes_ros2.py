@@ -41,12 +41,16 @@ def goto(robot: str) -> str:
     return f"td2adaptor/{robot}/GoToComponent/gotoRun"
 
 
-def sim_process(prefix: Path, namespaces: tuple[str, ...]) -> Process:
+def sim_process(prefix: Path, namespaces: tuple[str, ...], domain: int | None = None) -> Process:
+    """The simulated RB-1s of `namespaces` in a process of their own (on ROS domain `domain`, else this worker's)."""
     # not --quiet: the robots' `call` events say, when a mission fails, whether its call reached the robot
     args = [sys.executable, "-m", "examples.robotnik_rb1.sim.ros2", "--duration", str(DURATION)]
     for ns in namespaces:
         args += ["--namespace", ns]
-    process = Process(args, env.child_env([prefix]))
+    environ = env.child_env([prefix])
+    if domain is not None:
+        environ["ROS_DOMAIN_ID"] = str(domain)
+    process = Process(args, environ)
     try:
         process.wait_for(lambda e: e.get("event") == "ready", timeout=60)
     except BaseException:

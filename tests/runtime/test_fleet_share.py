@@ -224,6 +224,25 @@ def test_the_assignment_is_the_same_everywhere_fair_and_moves_little() -> None:
         assert sorted(Counter(assign(robots[:31], [*members, "late"]).values()).values()) == [7, 7, 8, 8]
 
 
+def test_the_assignment_gives_each_robot_to_a_member_that_can_serve_it() -> None:
+    """`can`: what each member lists (its file, what its discovery sees, the admin's). A robot only some members
+    see goes to one of them, whatever the bound says (the bound still keeps a member from taking them all); the
+    plan is the same everywhere, and with every member able to serve every robot it is the plan without `can`."""
+    robots = [f"rb_{i:02d}" for i in range(ROBOTS)]
+    for seed in range(20):
+        members = [f"{seed:02d}{m}" * 4 for m in "abc"]
+        a, b, c = members
+        everyone = dict.fromkeys(members, set(robots))
+        assert assign(robots, members, everyone) == assign(robots, members)
+        can = {a: set(robots[:20]), b: set(robots[10:]), c: set(robots[:5]) | {"rb_29"}}  # nobody sees rb_99
+        plan = assign([*robots, "rb_99"], members, can)
+        reversed_can = {m: set(reversed(sorted(v))) for m, v in reversed(can.items())}
+        assert plan == assign(list(reversed([*robots, "rb_99"])), list(reversed(members)), reversed_can)
+        assert set(plan) == set(robots) and all(robot in can[member] for robot, member in plan.items())
+        assert [plan[r] for r in robots[20:29]] == [b] * 9  # only b sees them
+        assert max(Counter(plan.values()).values()) <= 15 and len(set(plan.values())) == 3
+
+
 def test_three_processes_share_30_robots_and_a_killed_ones_robots_are_taken_over_in_5_s(tmp_path: Path) -> None:
     broker = Mosquitto(tmp_path / "broker")
     broker.start()
@@ -365,9 +384,8 @@ def test_a_process_that_joins_later_takes_its_share_without_a_robot_going_offlin
         broker.stop()
 
 
-def test_the_same_over_a_site_broker_bridged_to_a_central_one(tmp_path: Path) -> None:
-    """The processes on the site's mosquitto, the application on a central one, bridged (`td2adaptor/#` both
-    ways): the application at the centre sees the shares, the takeover and every mission's end."""
+def bridged(tmp_path: Path) -> tuple[Mosquitto, Mosquitto]:
+    """A site mosquitto bridged to a central one (`td2adaptor/#` both ways), both started: (site, central)."""
     central = Mosquitto(tmp_path / "central")
     central.start()
     site = Mosquitto(tmp_path / "site")
@@ -379,7 +397,18 @@ def test_the_same_over_a_site_broker_bridged_to_a_central_one(tmp_path: Path) ->
             "cleansession false\n"
             "restart_timeout 1\n"
         )
-    site.start()
+    try:
+        site.start()
+    except BaseException:
+        central.stop()
+        raise
+    return site, central
+
+
+def test_the_same_over_a_site_broker_bridged_to_a_central_one(tmp_path: Path) -> None:
+    """The processes on the site's mosquitto, the application on a central one, bridged (`td2adaptor/#` both
+    ways): the application at the centre sees the shares, the takeover and every mission's end."""
+    site, central = bridged(tmp_path)
     robots = 10
     procs = Procs(site, tmp_path, robots)
     watcher = Watcher(central)
@@ -471,7 +500,8 @@ def test_on_several_hosts_the_next_owner_learns_from_the_broker_what_the_dead_on
 
 
 def test_run_share_says_what_it_needs() -> None:
-    """`run --share` on an in-process bus, or with --discover, is refused in one line, before anything starts."""
+    """`run --share` on an in-process bus is refused in one line, before anything starts; with --discover it is
+    taken (each robot the graph shows goes to one of the processes that see it): here it goes on to the package."""
     from tests.conftest import EXAMPLE
 
     base = [sys.executable, "-m", "td2adaptor", "run", str(EXAMPLE / "td.json"), "-I", str(EXAMPLE / "interfaces")]
@@ -483,7 +513,7 @@ def test_run_share_says_what_it_needs() -> None:
         text=True,
         timeout=120,
     )
-    assert both.returncode == 1 and "--share and --discover cannot be combined" in both.stderr, both.stderr
+    assert both.returncode == 1 and "cannot import the adaptor package" in both.stderr, both.stderr
     assert "Traceback" not in local.stderr + both.stderr
 
 
