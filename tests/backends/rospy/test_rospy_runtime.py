@@ -47,7 +47,7 @@ def test_package_xml_validates_with_catkin_pkg_and_imports_under_debian_rospy(pa
         "p = parse_package(sys.argv[1])\n"
         "p.validate()\n"
         "deps = sorted(d.name for d in p.exec_depends)\n"
-        "assert deps == sorted([d.name for d in p.build_depends] + ['roslaunch']), deps\n"
+        "assert deps == sorted([d.name for d in p.build_depends] + ['roslaunch', 'rosgraph']), deps\n"
         "print(p.name, p.package_format, ' '.join(deps))\n",
         str(package / "package.xml"),
     )
