@@ -16,6 +16,7 @@ import subprocess
 import sys
 import uuid
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -70,11 +71,17 @@ def kill_mid_burst(proc: subprocess.Popen[str], broker: Mosquitto, robots: list[
     return set(sent)
 
 
-def every_one_answered_once(sent: set[str], watcher: Watcher, runs: Counter[str], logs: str) -> None:
+def every_one_answered_once(
+    sent: set[str], watcher: Watcher, counted: Callable[[], Counter[str]], logs: Callable[[], str]
+) -> None:
+    """Every command in `sent` answered by one terminal event, and no mission run twice (`counted`: the runs so
+    far, read once every command is answered)."""
+
     def unanswered() -> set[str]:
         return sent - set(watcher.terminals())
 
-    assert until(lambda: not unanswered(), 30), (f"{len(unanswered())} of {len(sent)} never answered", logs)
+    assert until(lambda: not unanswered(), 30), (f"{len(unanswered())} of {len(sent)} never answered", logs())
+    runs = counted()
     ends = watcher.terminals()
     outcomes = {i: {(p["state"], p.get("seq")) for p in ends[i]} for i in sent}
     assert all(len(o) == 1 for o in outcomes.values()), [o for o in outcomes.values() if len(o) > 1][:5]
@@ -117,7 +124,7 @@ def test_a_command_read_by_a_process_killed_before_it_admitted_it_is_answered_af
         assert until(lambda: watcher.owners().get(robot, ("", None))[0] == "online", 20)
         sent = kill_mid_burst(first, broker, [robot], watcher)
         start()
-        every_one_answered_once(sent, watcher, counted(), logs())
+        every_one_answered_once(sent, watcher, counted, logs)
     finally:
         for proc in procs:
             if proc.poll() is None:
@@ -149,7 +156,7 @@ def test_a_command_read_by_a_process_killed_before_it_admitted_it_is_answered_by
         theirs = [r for r, (_s, pid) in watcher.owners().items() if pid == victim.pid]
         sent = kill_mid_burst(victim, broker, theirs, watcher)
         assert until(lambda: served_by(watcher, {survivor.pid}, robots), 20), procs.logs()
-        every_one_answered_once(sent, watcher, procs.runs_of(), procs.logs())
+        every_one_answered_once(sent, watcher, procs.runs_of, procs.logs)
     finally:
         watcher.close()
         procs.close()

@@ -4,7 +4,11 @@ its connections open: the broker goes on writing a robot's commands into the soc
 and unacknowledged, while the other process takes the robot (and its session, whose commands the broker then
 delivers to it). On SIGCONT the hung process reads those commands before the broker's "Session taken over"
 behind them; it must not run them again (across hosts nothing else stops it: no shared state directory).
-The processes are tests/runtime/share_proc.py's, with state directories apart, as on two hosts.
+The same holds for ROS action goals (`SHARE_ACTIONS`: the robots' action is a ROS action served by simulated
+action servers): a goal is sent only once the broker has the invoke's admitted entry (node/admitted.py), and not
+at all when the robot's connection was lost by then; the wait is a callback of the broker's acknowledgement, not
+a wait on the engine's loop (engine/goals.py `gate`). The processes are tests/runtime/share_proc.py's, with state
+directories apart, as on two hosts.
 """
 
 from __future__ import annotations
@@ -13,6 +17,9 @@ import signal
 import time
 import uuid
 from pathlib import Path
+from typing import Any
+
+import pytest
 
 from td2adaptor.runtime.events import now_rfc3339
 from tests.runtime.broker import Mosquitto
@@ -21,9 +28,25 @@ from tests.runtime.edge import until
 from tests.runtime.test_fleet_share import INVOKE, Procs, Watcher, retained, served_by, shares
 
 ROBOTS = 4
+GOAL = "td2adaptor/{robot}/MathComponent/fibonacci"
 
 
-def test_a_resumed_process_runs_nothing_it_read_on_a_session_taken_over(tmp_path: Path) -> None:
+def procedure(n: int) -> dict[str, Any]:
+    return {"procedure": {"goals": [{"pose": {"x": 7.0 + n / 100, "y": 3.0}}]}}
+
+
+def goal(n: int) -> dict[str, Any]:
+    return {"order": 3 + n}
+
+
+@pytest.mark.parametrize(
+    ("actions", "topic", "payload"),
+    [pytest.param("", INVOKE, procedure, id="procedure"), pytest.param("1", GOAL, goal, id="ros-action-goal")],
+)
+def test_a_resumed_process_runs_nothing_it_read_on_a_session_taken_over(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, actions: str, topic: str, payload: Any
+) -> None:
+    monkeypatch.setenv("SHARE_ACTIONS", actions)
     broker = Mosquitto(tmp_path / "broker")
     broker.start()
     procs = Procs(broker, tmp_path, ROBOTS, hosts=True)
@@ -41,9 +64,9 @@ def test_a_resumed_process_runs_nothing_it_read_on_a_session_taken_over(tmp_path
             sent = []
             for n, robot in enumerate(theirs):  # one each (a robot runs one at a time), into the hung process's
                 event_id = uuid.uuid4().hex  # socket: read by nobody yet
-                payload = {"procedure": {"goals": [{"pose": {"x": 7.0 + n / 100, "y": 3.0}}]}}
-                event = {"id": event_id, "time": now_rfc3339(), "correlation": event_id, "payload": payload}
-                sender.send(INVOKE.format(robot=robot), event)
+                # each robot's its own command (the runs file tells them apart)
+                event = {"id": event_id, "time": now_rfc3339(), "correlation": event_id, "payload": payload(n)}
+                sender.send(topic.format(robot=robot), event)
                 sent.append(event_id)
             assert until(lambda: served_by(watcher, {other.pid}, ROBOTS), 20), (watcher.owners(), procs.logs())
             # the broker gives the session's commands to the next owner, which runs them
