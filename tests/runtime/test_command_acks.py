@@ -80,7 +80,7 @@ def every_one_answered_once(
     def unanswered() -> set[str]:
         return sent - set(watcher.terminals())
 
-    assert until(lambda: not unanswered(), 30), (f"{len(unanswered())} of {len(sent)} never answered", logs())
+    assert until(lambda: not unanswered(), 30), (f"never answered: {sorted(unanswered())} of {len(sent)}", logs())
     runs = counted()
     ends = watcher.terminals()
     outcomes = {i: {(p["state"], p.get("seq")) for p in ends[i]} for i in sent}

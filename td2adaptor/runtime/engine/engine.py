@@ -428,7 +428,10 @@ class Engine:
             sent if isinstance(sent, str) else None,
             digest(event) if isinstance(event_id, str) else None,
         )
-        if verdict is Verdict.DUPLICATE:
+        if verdict is Verdict.INHERITED and isinstance(event_id, str) and self._never_taken(spec, event_id, msg):
+            verdict = Verdict.NEW  # remembered by a run that stopped before taking it: it runs here
+            self.guard.adopt(event_id, msg.topic, sent if isinstance(sent, str) else None, digest(event))
+        if verdict in (Verdict.DUPLICATE, Verdict.INHERITED):
             self.outbox.count("duplicates")
             if spec.kind is Kind.INVOKE and isinstance(event_id, str):
                 self._answer_again(event_id, msg.topic)
@@ -510,6 +513,23 @@ class Engine:
             action=spec.affordance or "",
             correlation=event.get("correlation") or event.get("id"),
         )
+
+    def _never_taken(self, spec: EventSpec, event_id: str, msg: Message) -> bool:
+        """An id another run of this node remembered (replay.py, `inherited`): was the command never taken?
+        An invoke was taken once the ledger has it (its row is opened before anything reaches ROS); a query or
+        a cancel is answered again whatever happened (asking twice changes nothing). A property write is not
+        known to have been written or not: it is not written again. A command never taken becomes this run's."""
+        if spec.kind is Kind.INVOKE:
+            taken = self.ledger.latest(event_id, msg.topic) is not None
+        else:
+            taken = spec.kind not in (Kind.QUERY, Kind.CANCEL)
+        if not taken:
+            log.info(
+                "event %s on %s: an earlier run remembered it and stopped before taking it: taken now",
+                event_id,
+                msg.topic,
+            )
+        return not taken
 
     def _answer_again(self, event_id: str, topic: str) -> None:
         """An invoke sent again under its id (a redelivery, or a sender that lost track, also across a restart

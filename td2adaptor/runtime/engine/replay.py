@@ -12,7 +12,12 @@ while the node was away; a recorded command can also be published again by anyon
   per robot (so a restart forgets nothing that could still be replayed), with a digest of the event: the same
   id on the same topic with the same content is a redelivery and handled once (ignored in silence); the same
   id on another topic, or with other content, is another command under a used id and is answered with an
-  error (`id-reused`).
+  error (`id-reused`);
+* an id another run of the node remembered (a restart, or another process of a shared fleet on this host, whose
+  state directory it shares) is `inherited`: a redelivery too, but that run may have stopped between
+  remembering the id and taking the command (killed in that moment: the broker then gives the command again,
+  since it was never acknowledged), so the engine asks its mission ledger whether the command was taken
+  (engine.py): a command never taken runs now (`adopt`), one taken is answered again.
 
 The store is bounded by the window, not by a count: ids older than the window are dropped as they age out.
 Events without `time` are accepted and remembered for the window from their arrival.
@@ -23,6 +28,7 @@ from __future__ import annotations
 import calendar
 import hashlib
 import json
+import os
 import re
 import sqlite3
 import threading
@@ -44,6 +50,7 @@ _MONTHS = "January February March April May June July August September October N
 class Verdict(str, Enum):
     NEW = "new"
     DUPLICATE = "duplicate"  # the same id, topic and content: a redelivery, handled once
+    INHERITED = "inherited"  # a DUPLICATE another run remembered: taken by it, or not yet (see the module doc)
     REUSED = "id-reused"  # the same id on another topic or with other content: answered with an error
     EXPIRED = "expired"
     FUTURE = "from-the-future"
@@ -139,6 +146,9 @@ class ReplayGuard:
         columns = {row[1] for row in self._db.execute("PRAGMA table_info(seen)")}
         if "digest" not in columns:  # a store written before digests: its ids keep an unknown content (NULL)
             self._db.execute("ALTER TABLE seen ADD COLUMN digest TEXT")
+        if "run" not in columns:  # a store written before runs: its ids are an earlier run's (NULL)
+            self._db.execute("ALTER TABLE seen ADD COLUMN run TEXT")
+        self.run = os.urandom(8).hex()  # this guard's run: the ids it remembers are its own
         self._next_prune = 0.0
 
     def check(self, event_id: str | None, topic: str, sent: str | None, digest: str | None = None) -> Verdict:
@@ -161,14 +171,23 @@ class ReplayGuard:
         until = (stamp if stamp is not None else now) + self.window + self.skew
         with self._lock:
             self._prune(now)
-            row = self._db.execute("SELECT topic, digest FROM seen WHERE id = ?", (event_id,)).fetchone()
+            row = self._db.execute("SELECT topic, digest, run FROM seen WHERE id = ?", (event_id,)).fetchone()
             if row is not None:
                 same = row[0] == topic and (row[1] is None or digest is None or row[1] == digest)
-                return Verdict.DUPLICATE if same else Verdict.REUSED
+                if not same:
+                    return Verdict.REUSED
+                return Verdict.DUPLICATE if row[2] == self.run else Verdict.INHERITED
             self._db.execute(
-                "INSERT INTO seen (id, topic, until, digest) VALUES (?, ?, ?, ?)", (event_id, topic, until, digest)
+                "INSERT INTO seen (id, topic, until, digest, run) VALUES (?, ?, ?, ?, ?)",
+                (event_id, topic, until, digest, self.run),
             )
         return Verdict.NEW
+
+    def adopt(self, event_id: str, topic: str, sent: str | None, digest: str | None = None) -> None:
+        """Make an `inherited` id (`check`'s arguments) this run's: the command it names runs here (a second
+        redelivery of it is a `duplicate` from now on)."""
+        with self._lock:
+            self._db.execute("UPDATE seen SET run = ? WHERE id = ?", (self.run, event_id))
 
     def _prune(self, now: float) -> None:
         if now >= self._next_prune:

@@ -252,6 +252,10 @@ class RecordingGuard:
             self._recorder.checked(event_id, topic, sent, digest)
         return verdict
 
+    def adopt(self, event_id: str, topic: str, sent: str | None, digest: str | None = None) -> None:
+        self._guard.adopt(event_id, topic, sent, digest)
+        self._recorder.checked(event_id, topic, sent, digest)
+
     def __getattr__(self, name: str) -> Any:
         return getattr(self._guard, name)
 
