@@ -77,8 +77,10 @@ if TYPE_CHECKING:
     "--share",
     is_flag=True,
     default=None,
-    help="Share the fleet file's robots with the other processes run with --share on the same broker and fleet: "
-    "each serves a fair share, and takes over a dead one's robots (docs/fleet.md, 'Several processes share a fleet').",
+    help="Share the fleet's robots (the fleet file's, with --discover those the ROS graph shows, and those admin "
+    "requests add) with the other processes run with --share on the same broker and fleet: each robot is served by "
+    "one of the processes that list it, each takes a fair share, and a dead one's robots are taken over "
+    "(docs/fleet.md, 'Several processes share a fleet').",
 )
 @click.option("--ros", type=click.Choice(["1", "2"]), default="2", show_default=True, help="ROS version.")
 @click.option("--package", help="Module name of the generated adaptor package (default: the TD's package name).")
@@ -170,6 +172,8 @@ def run(
     accepts anonymous clients is refused at start and on every reconnection: the node stops and exits 1.
     Robots join and leave while it runs: the --config file is read again on SIGHUP and when it changes on
     disk, --discover follows the ROS graph, and admin requests on the bus add or remove one (docs/fleet.md).
+    With --share the processes of one fleet share all of these robots: each is served by one process that
+    lists it (its file, the robots its graph shows, the admin's), and a dead process's robots are taken over.
     """
     import logging
     import signal
@@ -227,8 +231,6 @@ def run(
     shared = bool(defaults.get("share"))
     if shared and (defaults.get("bus", "local") == "local" or any(c.bus != defaults.get("bus") for c in configs)):
         _fail("run", "--share needs one MQTT bus for the whole fleet: the processes that share it meet on its broker")
-    if shared and discover:
-        _fail("run", "--share and --discover cannot be combined: share the robots of a fleet file")
     logging.basicConfig(
         level=getattr(logging, log_level.upper()), format="%(asctime)s %(levelname)s %(name)s: %(message)s"
     )
@@ -251,11 +253,11 @@ def run(
     signal.signal(signal.SIGHUP, signal.SIG_IGN)  # until the main loop takes it: the file is looked at afterwards
     try:
         node.start()
+        if shared:  # before discovery and admin requests: they change the shared fleet then
+            node.share(configs)
         if discover:
             node.discover()
-        if shared:
-            node.share(configs)
-        elif defaults.get("bus", "local") != "local":  # a shared fleet takes no admin requests (each would act)
+        if defaults.get("bus", "local") != "local":
             try:
                 node.listen_admin()
             except (SecurityError, BusError) as exc:  # the robots are served all the same

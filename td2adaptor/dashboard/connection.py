@@ -5,7 +5,6 @@ never in a process list), TLS files from `TD2ADAPTOR_TLS_*`, and no password sen
 from __future__ import annotations
 
 import os
-import uuid
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -44,12 +43,6 @@ def open_dashboard_bus(settings: BusSettings, env: Mapping[str, str] | None = No
         env=env,
     )
     version = settings.mqtt_version or str(values.get("mqtt_version") or "5")
-    return MqttBus(
-        address,
-        security,
-        client_id=f"td2adaptor-dashboard-{uuid.uuid4().hex[:12]}",
-        clean_start=True,
-        session_expiry=0,
-        mqtt_version=version,
-        keepalive=int(values.get("keepalive") or 30),
+    return MqttBus.sessionless(
+        address, security, "dashboard", mqtt_version=version, keepalive=int(values.get("keepalive") or 30)
     )

@@ -69,6 +69,8 @@ PUBLISH = Method("publish_{}_Msg", ("msg",))
 GET_ONLY = Method("get_value", ("*", "timeout"))
 REGISTER = Method("register", ())
 CLOSE = Method("close", (), ("rospy",))  # ROS 2 has no connections to release
+#: {TD action: whether its server is there now}, for every action of the component (its presence)
+SERVERS_READY = Method("servers_ready", ())
 #: attributes every component has besides its methods (`node`: the rclpy node)
 ATTRIBUTES = ("robot_name", "timeout", "wait_timeout", "node")
 
@@ -101,7 +103,7 @@ def members(
     """Every member of a component with these affordances, as (name, whose): the methods of either Python
     package, so that one TD gives both packages the same names (or both refuse it)."""
     subscribers = list(subscribers)
-    out = [(m.pattern, "a member every component has") for m in (REGISTER, CLOSE)]
+    out = [(m.pattern, "a member every component has") for m in (REGISTER, CLOSE, SERVERS_READY)]
     out += [(name, "a member every component has") for name in ATTRIBUTES]
     for group, names in ((SERVICE, services), (ACTION, actions), (SUBSCRIBER, subscribers), (PUBLISHER, publishers)):
         out += [(method(name), name) for name in names for method in group]

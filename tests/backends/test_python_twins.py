@@ -133,7 +133,7 @@ def _contract(backend: str, model: Model, component: str) -> dict[str, tuple[str
         (genapi.SUBSCRIBER, [t.name for t in comp.subscribers]),
         (genapi.PUBLISHER, [t.name for t in comp.publishers]),
     )
-    out = {m.pattern: m.shape for m in (genapi.REGISTER, genapi.CLOSE) if backend in m.backends}
+    out = {m.pattern: m.shape for m in (genapi.REGISTER, genapi.CLOSE, genapi.SERVERS_READY) if backend in m.backends}
     for methods, names in groups:
         out |= {m(name): m.shape for name in names for m in methods if backend in m.backends}
     if len(comp.subscribers) == 1:

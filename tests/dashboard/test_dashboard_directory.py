@@ -13,6 +13,8 @@ from typing import Any
 import pytest
 
 import td2adaptor
+from td2adaptor.dashboard.directory import DirectoryReader, robot_of
+from td2adaptor.dashboard.fleet import Fleet
 from td2adaptor.model.exposed import exposed_td
 from td2adaptor.runtime.node.discovery import Directory, registration_document
 from tests.conftest import EXAMPLE
@@ -60,5 +62,28 @@ def test_robots_are_listed_from_a_td_directory_as_well_as_the_bus(broker: Mosqui
             assert fleet(dash.url)["d1"]["status"]["state"] == "offline"
             directory.delete(td["id"])
             assert until(lambda: "d1" not in fleet(dash.url), 30), fleet(dash.url)
+    finally:
+        tdd.stop()
+
+
+def test_a_directory_that_pages_its_listing_is_read_to_its_last_page(broker: Mosquitto, tmp_path: Path) -> None:
+    """Domus pages `GET /things?limit=N` with `Link: <...>; rel="next"`: five robots in pages of two are all
+    listed (the first page alone held two)."""
+    tdd = TddServer(tmp_path / "tdd")
+    tdd.start()
+    try:
+        result = td2adaptor.compile(small_robot_td(tmp_path), interfaces=[EXAMPLE / "interfaces"])
+        assert result.model is not None
+        directory = Directory(tdd.url)
+        robots = [f"paged_{i}" for i in range(5)]
+        for robot in robots:
+            td = exposed_td(result.model, robot=robot, broker=broker.url)
+            directory.put(td["id"], registration_document(json.dumps(td), 0))
+        fleet_view = Fleet()
+        reader = DirectoryReader(tdd.url, fleet_view, page=2)
+        listing = reader.read()
+        assert sorted(robot_of(td, fleet_view.root) or "" for td in listing) == robots
+        with urllib.request.urlopen(f"{tdd.url}/things?limit=2", timeout=10) as answer:  # what one page holds
+            assert len(json.loads(answer.read())) == 2 and 'rel="next"' in answer.headers["Link"]
     finally:
         tdd.stop()

@@ -22,7 +22,7 @@ from td2adaptor.dashboard.tdforms import affordances
 from td2adaptor.model.exposed import exposed_td
 from td2adaptor.runtime.bus.security import SecurityError
 from tests.conftest import REPO
-from tests.runtime.broker import free_port
+from tests.ports import free_port
 from tests.runtime.rb1 import rb1_model
 
 
@@ -186,3 +186,42 @@ def test_the_page_is_served_on_ipv6_loopback_and_answers_only_its_own_host_names
                 assert got == status, host
     finally:
         broker.stop()
+
+
+def test_a_directory_page_that_links_to_another_origin_is_the_last_one_read() -> None:
+    """The token goes to the directory only: a `rel="next"` link to another origin is not followed."""
+    import http.server
+    import json
+    import threading
+
+    from td2adaptor.dashboard.directory import DirectoryReader
+    from td2adaptor.dashboard.fleet import Fleet
+
+    asked: list[str] = []
+
+    class Directory(http.server.BaseHTTPRequestHandler):
+        def do_GET(self) -> None:  # noqa: N802 - http.server's name
+            asked.append(self.path)
+            body = json.dumps([{"title": f"page {len(asked)}"}]).encode()
+            self.send_response(200)
+            self.send_header("Content-Type", "application/json")
+            if self.path.startswith("/things?limit=") and len(asked) == 1:  # page 2 on this origin, then elsewhere
+                self.send_header("Link", '</things?offset=1&limit=1>; rel="next", </things>; rel="canonical"')
+            else:
+                self.send_header("Link", '<http://elsewhere.invalid/things?offset=2>; rel="next"')
+            self.end_headers()
+            self.wfile.write(body)
+
+        def log_message(self, *_args: Any) -> None:
+            pass
+
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Directory)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        reader = DirectoryReader(f"http://127.0.0.1:{server.server_port}", Fleet(), token="t0ken", page=1)
+        assert [td["title"] for td in reader.read()] == ["page 1", "page 2"]
+        assert asked == ["/things?limit=1", "/things?offset=1&limit=1"]
+    finally:
+        server.shutdown()
+        server.server_close()

@@ -94,9 +94,20 @@ class Process:
             self.seen.append(event)
             if match(event):
                 return event
+        raise AssertionError(f"no matching event within {timeout} s (exit {self.proc.poll()}): {self.stderr_tail()}")
+
+    def stderr_tail(self, size: int = 2000) -> str:
+        """The end of what the child wrote to stderr so far (for a failure's message)."""
         self.stderr.seek(0)
-        stderr = self.stderr.read()
-        raise AssertionError(f"no matching event within {timeout} s (exit {self.proc.poll()}): {stderr[-2000:]}")
+        return self.stderr.read()[-size:]
+
+    def drain(self) -> list[dict[str, Any]]:
+        """Every event seen so far, those waiting in the queue included."""
+        while True:
+            try:
+                self.seen.append(self.events.get_nowait())
+            except queue.Empty:
+                return list(self.seen)
 
     def stop(self) -> None:
         if self.proc.poll() is None:

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.ports import free_port
 from tests.tools import missing
 
 
@@ -22,12 +23,6 @@ def mosquitto_binary() -> str:
     if found is None:
         missing("mosquitto is not installed: run `SUDO= bash .ci/setup-mqtt.sh` (or .ci/setup.sh --test)")
     return found
-
-
-def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 class Mosquitto:

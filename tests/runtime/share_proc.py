@@ -4,6 +4,8 @@ directory of its own under STATE_DIR, as a process on another host has.
 
 Every mission a robot starts is appended to RUNS_FILE as `<robot> <x>` (the goal's x, unique per invoke in the
 tests) by whichever process runs it: the tests count runs across processes from it. SIGTERM stops it cleanly.
+With `SHARE_ACTIONS=1` in the environment the robots are tests/lowering/test_actions.py's, whose one action is a
+ROS action served by simulated action servers (`SimActions`): each goal sent is written as `<robot> <order>`.
 
 With `SHARE_TD` (a TD whose security is `basic`) and `SHARE_PASSWORDS` (JSON: robot id -> password) in the
 environment, each robot connects as its own broker user (its id), as under the ACL `gen -b events` writes, and
@@ -28,8 +30,8 @@ from td2adaptor.runtime.config import RuntimeConfig, load_defaults, robot_config
 from td2adaptor.runtime.node.fleet import Fleet
 from td2adaptor.runtime.node.roslink import RosLink
 from td2adaptor.runtime.node.share import Share, share_bus
-from td2adaptor.runtime.ros.port import StartResult
-from td2adaptor.runtime.ros.simport import SimPort
+from td2adaptor.runtime.ros.port import GoalListener, StartResult
+from td2adaptor.runtime.ros.simport import SimActions, SimPort
 from tests.runtime.rb1 import compile_td, rb1_model, sim
 
 FLEET = "shared"
@@ -48,6 +50,13 @@ class LoggedPort(SimPort):
         os.write(self.runs_fd, f"{self.robot} {x} {os.getpid()}\n".encode())
         return result
 
+    def start_goal(
+        self, component: str, action: str, payload: Mapping[str, Any], timeout: float, listener: GoalListener
+    ) -> str:
+        goal = super().start_goal(component, action, payload, timeout, listener)
+        os.write(self.runs_fd, f"{self.robot} {payload.get('order')} {os.getpid()}\n".encode())
+        return goal
+
     robot = ""
 
 
@@ -62,6 +71,11 @@ def main() -> None:
     robots = [f"rb_{i:02d}" for i in range(count)]
     passwords: dict[str, str] = json.loads(os.environ.get("SHARE_PASSWORDS", "{}"))
     model = compile_td(Path(os.environ["SHARE_TD"])) if "SHARE_TD" in os.environ else rb1_model()
+    actions = None
+    if os.environ.get("SHARE_ACTIONS"):
+        from tests.runtime.threads_proc import action_model
+
+        model, actions = action_model(), SimActions(step=0.05)
     if passwords:  # the top-level settings' user: the first robot's
         settings |= {"username": robots[0], "password": passwords[robots[0]]}
     defaults = load_defaults(env={}, overrides={**settings, "fleet": FLEET})
@@ -73,6 +87,8 @@ def main() -> None:
         ports = {}
         for c in configs:
             port = LoggedPort(model, sim(0.3))
+            if actions is not None:  # no properties there, one ROS action
+                port = LoggedPort(model, sim(0.3), readers={}, writers={}, actions=actions)
             port.robot = c.robot
             ports[c.robot] = port
         return RosLink(ports=dict(ports))

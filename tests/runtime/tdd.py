@@ -24,7 +24,7 @@ from typing import Any
 from urllib.parse import quote
 
 from tests.conftest import REPO
-from tests.runtime.broker import free_port
+from tests.ports import free_port
 from tests.tools import missing, require
 
 VENV = REPO / ".cache" / "tdd" / "venv"

@@ -19,7 +19,8 @@ from td2adaptor.model import Model
 from td2adaptor.runtime import RuntimeConfig, serve
 from td2adaptor.runtime.ros.simport import SimPort
 from tests.conftest import REPO
-from tests.runtime.broker import Mosquitto, free_port
+from tests.ports import free_port
+from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.edge import until
 from tests.runtime.rb1 import GOAL, compile_td, rb1_model, sim, terminal

@@ -189,35 +189,15 @@ def served_by(watcher: Watcher, pids: set[int], robots: int = ROBOTS) -> bool:
     return len(owners) == robots and all(s == "online" and p in pids for s, p in owners.values())
 
 
-def answered_or_sent_again(
-    load: Load, watcher: Watcher, broker: Mosquitto, theirs: list[str], killed: float, moved: set[str] | None = None
-) -> None:
-    """Every invoke gets its terminal event. Known gaps (docs/fleet.md): one the killed process had taken from the
-    broker in its last moment (acknowledged, not yet admitted) is lost, and so is one that reached a live owner
-    of a robot handed over (`moved`: to another survivor) after its engine stopped; the application's resend
-    under its id runs it, once (the callers check the runs)."""
-    last_moment = {
-        i
-        for i, (robot, _t, _e) in load.sent.items()
-        if (robot in theirs and killed - 0.5 <= load.sent_at[i] <= killed)
-        or (robot in (moved or set()) and killed - 0.5 <= load.sent_at[i] <= killed + 5.0)
-    }
+def every_invoke_answered(load: Load, watcher: Watcher) -> None:
+    """Every invoke gets its terminal event, also one the killed process had read in its last moment (it did not
+    acknowledge it before admitting it: the broker gave it to the next owner) or one that reached the old owner
+    of a robot handed over after its engine stopped (not acknowledged either). Nothing is sent again."""
 
     def unanswered() -> set[str]:
         return set(load.sent) - set(watcher.terminals())
 
-    assert until(lambda: unanswered() <= last_moment, 30), [
-        (load.sent[i][0], load.sent[i][0] in theirs, round(load.sent_at[i] - killed, 3)) for i in unanswered()
-    ]
-    lost = unanswered()
-    if lost:
-        print(f"{len(lost)} invoke(s) taken in the killed process's last moment: sent again")
-        again = AppClient(broker, ["test/nothing"])
-        for event_id in lost:
-            _robot, topic, event = load.sent[event_id]
-            again.send(topic, event)
-        again.close()
-        assert until(lambda: not unanswered(), 30), unanswered()
+    assert until(lambda: not unanswered(), 30), [(load.sent[i][0], load.sent_at[i]) for i in unanswered()]
 
 
 def retained(broker: Mosquitto, pattern: str) -> dict[str, dict[str, Any]]:
@@ -242,6 +222,25 @@ def test_the_assignment_is_the_same_everywhere_fair_and_moves_little() -> None:
         others_moved = [r for r in robots if plan[r] != members[0] and after[r] != plan[r]]
         assert len(others_moved) <= 4, others_moved
         assert sorted(Counter(assign(robots[:31], [*members, "late"]).values()).values()) == [7, 7, 8, 8]
+
+
+def test_the_assignment_gives_each_robot_to_a_member_that_can_serve_it() -> None:
+    """`can`: what each member lists (its file, what its discovery sees, the admin's). A robot only some members
+    see goes to one of them, whatever the bound says (the bound still keeps a member from taking them all); the
+    plan is the same everywhere, and with every member able to serve every robot it is the plan without `can`."""
+    robots = [f"rb_{i:02d}" for i in range(ROBOTS)]
+    for seed in range(20):
+        members = [f"{seed:02d}{m}" * 4 for m in "abc"]
+        a, b, c = members
+        everyone = dict.fromkeys(members, set(robots))
+        assert assign(robots, members, everyone) == assign(robots, members)
+        can = {a: set(robots[:20]), b: set(robots[10:]), c: set(robots[:5]) | {"rb_29"}}  # nobody sees rb_99
+        plan = assign([*robots, "rb_99"], members, can)
+        reversed_can = {m: set(reversed(sorted(v))) for m, v in reversed(can.items())}
+        assert plan == assign(list(reversed([*robots, "rb_99"])), list(reversed(members)), reversed_can)
+        assert set(plan) == set(robots) and all(robot in can[member] for robot, member in plan.items())
+        assert [plan[r] for r in robots[20:29]] == [b] * 9  # only b sees them
+        assert max(Counter(plan.values()).values()) <= 15 and len(set(plan.values())) == 3
 
 
 def test_three_processes_share_30_robots_and_a_killed_ones_robots_are_taken_over_in_5_s(tmp_path: Path) -> None:
@@ -288,9 +287,7 @@ def test_three_processes_share_30_robots_and_a_killed_ones_robots_are_taken_over
         resender.close()
         assert until(lambda: all(len(watcher.terminals().get(i, [])) > terminals_before[i] for i in before_kill), 15)
         # every invoke ends, once, and no mission ran twice
-        # the survivors' robots the load bound moved from one survivor to the other
-        moved = {r for r, (_s, pid) in watcher.owners().items() if r not in theirs and pid != owned_before.get(r)}
-        answered_or_sent_again(load, watcher, broker, theirs, killed, moved)
+        every_invoke_answered(load, watcher)
         ends = watcher.terminals()
         outcomes = {i: {(p["state"], p.get("seq")) for p in ends[i]} for i in load.sent}
         assert all(len(o) == 1 for o in outcomes.values()), [o for o in outcomes.values() if len(o) > 1][:5]
@@ -387,9 +384,8 @@ def test_a_process_that_joins_later_takes_its_share_without_a_robot_going_offlin
         broker.stop()
 
 
-def test_the_same_over_a_site_broker_bridged_to_a_central_one(tmp_path: Path) -> None:
-    """The processes on the site's mosquitto, the application on a central one, bridged (`td2adaptor/#` both
-    ways): the application at the centre sees the shares, the takeover and every mission's end."""
+def bridged(tmp_path: Path) -> tuple[Mosquitto, Mosquitto]:
+    """A site mosquitto bridged to a central one (`td2adaptor/#` both ways), both started: (site, central)."""
     central = Mosquitto(tmp_path / "central")
     central.start()
     site = Mosquitto(tmp_path / "site")
@@ -401,7 +397,18 @@ def test_the_same_over_a_site_broker_bridged_to_a_central_one(tmp_path: Path) ->
             "cleansession false\n"
             "restart_timeout 1\n"
         )
-    site.start()
+    try:
+        site.start()
+    except BaseException:
+        central.stop()
+        raise
+    return site, central
+
+
+def test_the_same_over_a_site_broker_bridged_to_a_central_one(tmp_path: Path) -> None:
+    """The processes on the site's mosquitto, the application on a central one, bridged (`td2adaptor/#` both
+    ways): the application at the centre sees the shares, the takeover and every mission's end."""
+    site, central = bridged(tmp_path)
     robots = 10
     procs = Procs(site, tmp_path, robots)
     watcher = Watcher(central)
@@ -431,7 +438,7 @@ def test_the_same_over_a_site_broker_bridged_to_a_central_one(tmp_path: Path) ->
         assert len(back) == 5 and max(back.values()) <= 5.0, back
         time.sleep(2)
         load.stop()
-        answered_or_sent_again(load, watcher, central, theirs, killed)
+        every_invoke_answered(load, watcher)
         ends = watcher.terminals()
         assert all(len({(p["state"], p.get("seq")) for p in ends[i]}) == 1 for i in load.sent)
         assert max(procs.runs_of().values()) == 1
@@ -493,7 +500,8 @@ def test_on_several_hosts_the_next_owner_learns_from_the_broker_what_the_dead_on
 
 
 def test_run_share_says_what_it_needs() -> None:
-    """`run --share` on an in-process bus, or with --discover, is refused in one line, before anything starts."""
+    """`run --share` on an in-process bus is refused in one line, before anything starts; with --discover it is
+    taken (each robot the graph shows goes to one of the processes that see it): here it goes on to the package."""
     from tests.conftest import EXAMPLE
 
     base = [sys.executable, "-m", "td2adaptor", "run", str(EXAMPLE / "td.json"), "-I", str(EXAMPLE / "interfaces")]
@@ -505,7 +513,7 @@ def test_run_share_says_what_it_needs() -> None:
         text=True,
         timeout=120,
     )
-    assert both.returncode == 1 and "--share and --discover cannot be combined" in both.stderr, both.stderr
+    assert both.returncode == 1 and "cannot import the adaptor package" in both.stderr, both.stderr
     assert "Traceback" not in local.stderr + both.stderr
 
 
@@ -538,7 +546,8 @@ def test_a_process_that_hangs_is_noticed_by_its_keepalive_and_rejoins_without_a_
                 if robot in theirs and t > stopped and p.get("state") == "online" and p["owner"]["pid"] == other.pid
             }
             print(f"a hung process's robots served again after {min(back.values()):.2f}-{max(back.values()):.2f} s")
-            assert len(back) == 5 and 2.5 <= min(back.values()) and max(back.values()) <= 5.0, back
+            # share_timeout (3 s) after its last beat, which came up to a beat period (0.75 s) before the stop
+            assert len(back) == 5 and 2.25 <= min(back.values()) and max(back.values()) <= 5.0, back
         finally:
             frozen.send_signal(signal.SIGCONT)
         assert until(lambda: served_by(watcher, pids, robots) and set(shares(watcher, pids).values()) == {5}, 30), (
@@ -547,19 +556,12 @@ def test_a_process_that_hangs_is_noticed_by_its_keepalive_and_rejoins_without_a_
         )
         time.sleep(2)
         load.stop()
-        # known gap (docs/fleet.md): an invoke the hung process had taken from the broker (acknowledged) just before
-        # it froze, but not run, is run when it resumes, on a connection whose session is gone: it runs once, and
-        # its answer can be lost. Every other invoke is answered
-        window = {
-            i
-            for i, (robot, _t, _e) in load.sent.items()
-            if robot in theirs and stopped - 1.0 <= load.sent_at[i] <= stopped + 0.1
-        }
-        answered = lambda: set(load.sent) - window <= set(watcher.terminals())  # noqa: E731
-        assert until(answered, 30), (set(load.sent) - window - set(watcher.terminals()), procs.logs())
+        # every invoke is answered, also one the hung process had read just before it froze (it acknowledges a
+        # command only once admitted: the broker gave it to the other process)
+        every_invoke_answered(load, watcher)
         assert max(procs.runs_of().values()) == 1
         ends = watcher.terminals()
-        assert all(len({(p["state"], p.get("seq")) for p in ends[i]}) == 1 for i in set(load.sent) & set(ends))
+        assert all(len({(p["state"], p.get("seq")) for p in ends[i]}) == 1 for i in load.sent)
         members = retained(broker, "td2adaptor/.fleet/shared/members/+")
         records = [e for e in members.values() if e.get("owner")]
         assert sorted(r for rec in records for r in rec["robots"]) == [f"rb_{i:02d}" for i in range(robots)]

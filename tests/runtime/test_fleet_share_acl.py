@@ -87,6 +87,23 @@ def test_share_works_under_the_generated_acl_and_no_stranger_forges_a_member(
         records = members(broker)
         assert len(records) == 2 and not [n for n in records if n.startswith("evil")], records
 
+        # the robots admin requests added (retained on robots/<robot>): a robot's user writes an entry, another
+        # robot's reads it; the application's entry never arrives
+        entries = f"td2adaptor/.fleet/{FLEET}/robots/+"
+        reader = AppClient(broker, [entries], username=ROBOTS[1], password=passwords[ROBOTS[1]])
+        for user, password in ((ROBOTS[0], passwords[ROBOTS[0]]), APP):
+            writer = AppClient(broker, ["test/nothing"], username=user, password=password)
+            entry = {"robot": f"adm_{user}", "namespace": "ns"}
+            writer.client.publish(entries.replace("+", f"adm_{user}"), json.dumps(entry), 1, True).wait_for_publish(5)
+            writer.close()
+        assert until(lambda: any(t.endswith(f"/adm_{ROBOTS[0]}") for t, _ in list(reader.events)), 10)
+        time.sleep(0.5)
+        assert [t.rsplit("/", 1)[1] for t, _ in list(reader.events)] == [f"adm_{ROBOTS[0]}"], reader.events
+        reader.close()
+        cleaner = AppClient(broker, ["test/nothing"], username=ROBOTS[0], password=passwords[ROBOTS[0]])
+        cleaner.client.publish(entries.replace("+", f"adm_{ROBOTS[0]}"), b"", 1, True).wait_for_publish(5)
+        cleaner.close()
+
         # kill -9 one: the other takes its robots over, through the ACL
         killed = time.monotonic()
         a.send_signal(signal.SIGKILL)

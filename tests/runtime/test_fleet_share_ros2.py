@@ -26,7 +26,7 @@ from tests.ros2.common import Process
 from tests.runtime.broker import Mosquitto
 from tests.runtime.edge import RunProcess, feedback, until
 from tests.runtime.rb1 import GOAL, terminal
-from tests.runtime.test_fleet_changes_ros2 import Watch, goto, node_env, run_args, sim_process
+from tests.runtime.test_fleet_changes_ros2 import Watch, answering, goto, node_env, run_args, sim_process
 
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain, rb1_prefix, adaptor_build
 
@@ -74,6 +74,7 @@ def test_run_share_takes_a_killed_processs_robots_over_and_its_mission_goes_on(
         theirs = sorted(r for r, (_s, pid) in owners(watch).items() if pid == victim.proc.pid)
         event_id = uuid.uuid4().hex
         invoke = {"id": event_id, "time": now_rfc3339(), "correlation": event_id, "payload": GOAL}
+        answering(watch, theirs[0])  # the new edge node's first call to the robot may go unanswered (ROS 2)
         watch.app.send(goto(theirs[0]), invoke)
         watch.app.wait(lambda ev: "running" in [e["payload"]["state"] for e in feedback(ev, event_id)], timeout=20)
 

@@ -302,7 +302,7 @@ def test_basic_credentials_over_tls_with_only_the_ca(tmp_path: Path) -> None:
 
 
 def test_unreachable_broker_is_a_clear_error() -> None:
-    from tests.runtime.broker import free_port
+    from tests.ports import free_port
 
     model = rb1_model()
     with pytest.raises(BusError, match="cannot reach the MQTT broker at mqtt://127.0.0.1:"):

@@ -22,7 +22,8 @@ from td2adaptor.runtime.node.claims import check_fleet
 from td2adaptor.runtime.node.owner import OwnerConflict, this_process
 from td2adaptor.runtime.ros.simport import SimPort
 from tests.conftest import REPO
-from tests.runtime.broker import Mosquitto, free_port
+from tests.ports import free_port
+from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.edge import bus_of, until
 from tests.runtime.rb1 import GOAL, check_outbound, rb1_model, sim, terminal

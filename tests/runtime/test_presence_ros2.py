@@ -14,9 +14,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from tests.ports import free_port
 from tests.ros2 import env
 from tests.ros2.common import EXAMPLE, PACKAGE, Process
-from tests.runtime.broker import Mosquitto, free_port
+from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.edge import RunProcess, until
 from tests.runtime.rb1 import GOAL, terminal

@@ -15,7 +15,8 @@ import pytest
 
 from td2adaptor.runtime.bus.security import redact_text, redact_url
 from tests.conftest import EXAMPLE, REPO
-from tests.runtime.broker import Mosquitto, free_port
+from tests.ports import free_port
+from tests.runtime.broker import Mosquitto
 
 SECRET = "S3cr3t-Pa55w0rd"
 ENV_PW = "TD2ADAPTOR_MQTT_PASSWORD"

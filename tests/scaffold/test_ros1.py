@@ -104,7 +104,7 @@ def _door(app: AppClient, sim: Sim) -> bool:
 def test_a_service_whose_server_is_gone_is_left_out_with_a_warning(master: Master, sim: Sim, tmp_path: Path) -> None:
     import xmlrpc.client
 
-    from tests.ros1.harness import free_port
+    from tests.ports import free_port
 
     # registered at the master by a node that then died: its rosrpc port answers nobody
     gone = f"rosrpc://127.0.0.1:{free_port()}"

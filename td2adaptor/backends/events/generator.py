@@ -358,10 +358,18 @@ def _acl(model: Model, catalog: EventCatalog, robots: list[str], fleet: str) -> 
     # `run --share` (runtime/node/share.py): the member connection, under the user of the fleet file's top-level
     # settings (a robot's), keeps its record and will on members/<node>, beats on beats/<node>, records each
     # admitted invoke on admitted/<robot>/<key> for whichever robot the process serves, and reads every robot's
-    # status (is it free?). Node names and the robots a process serves change at run time: `+`, not names.
+    # status (is it free?); the robots admin requests added are retained on robots/<robot>, which the member that
+    # answers a request writes and every member reads. Node names and the robots a process serves change at run
+    # time: `+`, not names.
     share = f"{TOPIC_ROOT}/{ADMIN_LEVEL}/{fleet}"
-    share_writes = [f"{share}/members/+", f"{share}/beats/+", f"{share}/admitted/+/+"]
-    share_reads = [f"{share}/members/#", f"{share}/beats/+", f"{share}/admitted/+/+", f"{TOPIC_ROOT}/+/status"]
+    share_writes = [f"{share}/members/+", f"{share}/beats/+", f"{share}/admitted/+/+", f"{share}/robots/+"]
+    share_reads = [
+        f"{share}/members/#",
+        f"{share}/beats/+",
+        f"{share}/admitted/+/+",
+        f"{share}/robots/+",
+        f"{TOPIC_ROOT}/+/status",
+    ]
 
     env = environment(TEMPLATES, trim=True)
     return env.get_template("mosquitto.acl.j2").render(

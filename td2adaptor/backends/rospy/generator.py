@@ -53,7 +53,13 @@ TEMPLATES = Path(__file__).parent / "templates"
 
 VERBATIM = Path(__file__).parent / "verbatim"
 #: copied unchanged: the parts of rospy and genpy the package uses, typed
-_FIXED_STUBS = ("genpy/__init__.pyi", "rospy/__init__.pyi", "rospy/core.pyi", "rospy/exceptions.pyi")
+_FIXED_STUBS = (
+    "genpy/__init__.pyi",
+    "rosgraph/__init__.pyi",
+    "rospy/__init__.pyi",
+    "rospy/core.pyi",
+    "rospy/exceptions.pyi",
+)
 #: copied unchanged into packages with actions: the parts of actionlib they use, typed
 _ACTION_STUBS = ("actionlib/__init__.pyi",)
 
@@ -204,6 +210,8 @@ def module_imports(views: list[ComponentView], imports: _Imports) -> list[str]:
             text += ["ActionGoalClient Callable GoalHandle GoalOutcome"]
         if v.services:
             text.append("ServiceClient")
+        if v.services or v.actions:
+            text.append("master_state")
         if v.mission_attrs:
             text.append("LAST_MISSION")
     blob = " ".join(text)
@@ -228,6 +236,7 @@ def module_imports(views: list[ComponentView], imports: _Imports) -> list[str]:
         "TopicPublisher",
         "TopicSubscriber",
         "in_namespace",
+        "master_state",
         "to_duration",
         "to_list",
         "to_msg",

@@ -10,7 +10,7 @@ no time by which a stale one could be told apart, see `thingbus`).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 
@@ -30,6 +30,11 @@ class Message:
     #: the topic it arrived on, when an adapter hands it on under another (a WoT message, wrapped into the
     #: envelope event of `topic` by thingbus.py): what an answer names as where the message came from
     origin: str | None = None
+    #: (a QoS 1 message to a subscription made with `acks`) acknowledges it to the broker: call it once, from any
+    #: thread, when the message is taken (the engine: admitted, or answered); a message never acknowledged is
+    #: delivered again to the next connection of the client's session (this process's after a reconnection, or
+    #: the next process to connect with the same client id)
+    ack: Callable[[], None] | None = field(default=None, compare=False, repr=False)
 
 
 Handler = Callable[[Message], None]
@@ -40,9 +45,11 @@ class Bus(Protocol):
         """Connect (or attach to the local broker); raises `BusError` with a clear message on failure."""
         ...
 
-    def subscribe(self, pattern: str, handler: Handler, *, qos: int = 1) -> None:
+    def subscribe(self, pattern: str, handler: Handler, *, qos: int = 1, acks: bool = False) -> None:
         """Receive messages on `pattern` (`+` one level, `#` the rest), also after reconnects; `qos` 0: not
-        what was published while this client was away (the broker does not queue it for the session)."""
+        what was published while this client was away (the broker does not queue it for the session). `acks`:
+        the handler acknowledges each QoS 1 message itself (`Message.ack`), else the bus does once the handlers
+        returned; the broker's acknowledgements go in the order the messages came (MQTT asks so)."""
         ...
 
     def publish(self, topic: str, payload: bytes, *, retain: bool = False, qos: int = 1) -> None:

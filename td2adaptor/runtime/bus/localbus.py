@@ -20,7 +20,7 @@ import logging
 import threading
 import uuid
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 from td2adaptor.runtime.bus.bus import BusError, Handler, Message, check_qos, topic_matches, valid_filter, valid_topic
@@ -211,7 +211,8 @@ class LocalBus:
         if self.birth is not None:
             self.broker.publish(self.birth)
 
-    def subscribe(self, pattern: str, handler: Handler, *, qos: int = 1) -> None:
+    def subscribe(self, pattern: str, handler: Handler, *, qos: int = 1, acks: bool = False) -> None:
+        """(`acks`: nothing to acknowledge in process: a message is the handler's once it is delivered)"""
         if not valid_filter(pattern):
             raise BusError(f"invalid topic filter {pattern!r}")
         with self.broker.cond:
@@ -228,6 +229,10 @@ class LocalBus:
 
     def flush(self, timeout: float) -> bool:
         return True  # a local publish is in every subscriber's queue when `publish` returns
+
+    def when_flushed(self, then: Callable[[], None]) -> None:
+        """`then()` once everything published so far is acknowledged: at once (see `flush`)."""
+        then()
 
     @property
     def connected(self) -> bool:

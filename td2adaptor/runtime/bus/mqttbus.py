@@ -14,15 +14,23 @@ The will (the retained `offline` status) is published by the broker when the con
 connection that fails it ends the client's service of the broker for good (`refused`, `on_refused`). It runs
 on a helper thread while the connection is held: what arrives meanwhile is kept unhandled (and unacknowledged:
 a held connection writes nothing), then handled in order once the check passes.
+A QoS 1 message is acknowledged to the broker (PUBACK) once it is taken, not when paho reads it (paho's manual
+acknowledgements): at once after the handlers returned, or, for a subscription made with `acks` (the engine's
+commands), when its handler calls `Message.ack` (the engine: once it admitted or answered it). A message never
+acknowledged stays the session's: the broker delivers it again on the session's next connection, this client's
+after a reconnection or the next process's that connects with the same client id (a restart, a takeover). The
+acknowledgements go in the order the messages came, on the serving thread.
 """
 
 from __future__ import annotations
 
+import functools
 import logging
 import os
 import socket
 import ssl
 import threading
+from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -177,8 +185,8 @@ class MqttBus:
         self._retained: dict[str, tuple[bytes, int]] = {}  # topic -> (payload, QoS) of the last retained publish
         self._retained_inflight: dict[int, str] = {}  # QoS 1 retained publishes not acknowledged: paho resends them
         self._retain_lock = threading.RLock()  # orders retained publishes with their republication on reconnect
-        self._handlers: list[tuple[str, Handler]] = []
-        self._routes: dict[str, list[Handler]] = {}  # topic -> its handlers, of the topics seen (see _on_message)
+        self._handlers: list[tuple[str, Handler, bool]] = []  # (filter, handler, whether it acknowledges itself)
+        self._routes: dict[str, list[tuple[Handler, bool]]] = {}  # topic -> its handlers, of the topics seen
         self._qos: dict[str, int] = {}  # each filter's QoS: the highest any of its subscriptions asked for
         self._lock = threading.Condition()
         self._pending: set[int] = set()
@@ -192,7 +200,43 @@ class MqttBus:
         self._connected = False
         self._client: mqtt.Client | None = None
         self._link: Link | None = None  # how the process's serving loop serves the client (None: `DrivenBus`)
-        self._held: list[Message] | None = None  # what arrived while `verify` checks the connection
+        #: what arrived while `verify` checks the connection (with its message id at QoS 1), or None
+        self._held: list[tuple[Message, int | None]] | None = None
+        #: (serving thread) the QoS 1 messages of this connection not acknowledged yet, in the order they came:
+        #: message id -> taken (its acknowledgement is due once every one before it is taken too)
+        self._inbox: OrderedDict[int, bool] = OrderedDict()
+        self._inbox_lock = threading.Lock()  # paho may tell a connection's loss on a publisher's thread
+        self._epoch = 0  # the connection's number: an acknowledgement is for the connection its message came on
+        self._flushed: list[tuple[set[int], Callable[[], None]]] = []  # `when_flushed`: what each still waits for
+
+    @classmethod
+    def sessionless(
+        cls,
+        address: BrokerAddress,
+        security: ConnectionSecurity | None,
+        purpose: str,
+        *,
+        mqtt_version: str = "5",
+        keepalive: int = 30,
+        connect_timeout: float = 10.0,
+        will: Message | None = None,
+        client_id: str | None = None,
+    ) -> MqttBus:
+        """A connection that keeps no session on the broker (clean start, expiry 0): what a look at the bus,
+        a fleet's member records, an owner claim, an admin request, a probe or the dashboard needs. Nothing is
+        queued for it while it is away, and its id (`td2adaptor-<purpose>-<random>` unless `client_id` is
+        given) never takes over a robot's session."""
+        return cls(
+            address,
+            security,
+            client_id=client_id or f"td2adaptor-{purpose}-{os.urandom(6).hex()}"[:128],
+            will=will,
+            clean_start=True,
+            session_expiry=0,
+            mqtt_version=mqtt_version,
+            keepalive=keepalive,
+            connect_timeout=connect_timeout,
+        )
 
     @property
     def connected(self) -> bool:
@@ -207,6 +251,7 @@ class MqttBus:
                 client_id=self.client_id,
                 protocol=MQTTProtocolVersion.MQTTv5,
                 reconnect_on_failure=False,  # paho would reconnect inside a read (blocking): the loop does it
+                manual_ack=True,  # a message is acknowledged once taken (`_taken`)
             )
         else:  # 3.1.1: the session flag is set here, and there are no CONNECT properties
             client = ServedClient(
@@ -215,6 +260,7 @@ class MqttBus:
                 clean_session=self.clean_start,
                 protocol=MQTTProtocolVersion.MQTTv311,
                 reconnect_on_failure=False,
+                manual_ack=True,
             )
         client.max_queued_messages_set(0)  # unlimited: nothing published while offline is dropped
         client.max_inflight_messages_set(200)
@@ -331,6 +377,7 @@ class MqttBus:
     def _on_connect(
         self, client: mqtt.Client, _userdata: Any, flags: Any, reason: ReasonCode, _props: Properties | None
     ) -> None:
+        self._forget_inbox()  # before anything arrives on the new connection
         if reason.is_failure:
             self._refusal = reason
             self._connack.set()
@@ -378,8 +425,8 @@ class MqttBus:
             return
         held, self._held = self._held or [], None
         self._accept(client, flags)
-        for message in held:
-            self._deliver(message)
+        for message, mid in held:
+            self._deliver(message, mid)
         link.release()
 
     def _accept(self, client: mqtt.Client, flags: Any) -> None:
@@ -387,7 +434,7 @@ class MqttBus:
         self.connects += 1
         self._connected = True  # from now on what arrives on this connection is handled
         with self._lock:
-            patterns = [(p, self._qos[p]) for p in dict.fromkeys(p for p, _ in self._handlers)]
+            patterns = [(p, self._qos[p]) for p in dict.fromkeys(p for p, _h, _a in self._handlers)]
         if patterns:
             rc, mid = self._subscribe(client, patterns)
             if self.connects == 1 and rc is MQTTErrorCode.MQTT_ERR_SUCCESS and mid is not None:
@@ -495,6 +542,7 @@ class MqttBus:
     ) -> None:
         self._connected = False
         self._held = None  # unacknowledged: the broker delivers them again on the next connection
+        self._forget_inbox()  # as is every message not acknowledged yet: its acknowledgement would go nowhere
         with self._lock:
             self._unacked.clear()  # paho drops the QoS 0 messages it had not written yet
         if self.connects == 0 and not self._connack.is_set():  # dropped before any CONNACK: fail fast
@@ -507,43 +555,129 @@ class MqttBus:
             log.warning("lost the MQTT broker %s (%s); reconnecting", self.address, reason.getName())
 
     def _on_message(self, _client: mqtt.Client, _userdata: Any, msg: mqtt.MQTTMessage) -> None:
+        mid: int | None = None
+        if msg.qos > 0:  # acknowledged once taken (`_taken`), in this order
+            mid = msg.mid
+            with self._inbox_lock:
+                self._inbox[mid] = False
         message = Message(msg.topic, bytes(msg.payload), bool(msg.retain))
         held = self._held
         if held is not None:  # the connection is being checked: handled once it passes
-            held.append(message)
+            held.append((message, mid))
             return
-        if not self._connected:  # a connection that failed `verify`: nothing of it is handled
+        if not self._connected:  # a connection that failed `verify`: nothing of it is handled (nor acknowledged)
             return
-        self._deliver(message)
+        self._deliver(message, mid)
 
-    def _deliver(self, message: Message) -> None:
+    def _deliver(self, message: Message, mid: int | None = None) -> None:
         topic = message.topic
         with self._lock:  # an edge node subscribes to dozens of filters: match each topic once, not every time
             handlers = self._routes.get(topic)
             if handlers is None:
-                handlers = [h for p, h in self._handlers if topic_matches(p, topic)]
+                handlers = [(h, a) for p, h, a in self._handlers if topic_matches(p, topic)]
                 if len(self._routes) >= ROUTES_KEPT:
                     self._routes.clear()
                 self._routes[topic] = handlers
-        for handler in handlers:
+        takers = sum(1 for _h, acks in handlers if acks) if mid is not None else 0
+        if takers and mid is not None:  # their handlers acknowledge it (`Message.ack`)
+            ack = self._acker(self._epoch, mid, takers)
+            message = Message(message.topic, message.payload, message.retain, message.origin, ack)
+        for handler, acks in handlers:
             try:
                 handler(message)
             except Exception:
                 # never let a handler bug stop the thread that serves every connection
                 log.exception("bus handler failed on %s", topic)
+                if acks and message.ack is not None:
+                    message.ack()  # it will not: taken, so that the messages after it are acknowledged too
+        if mid is not None and not takers:
+            self._taken(self._epoch, mid)
+
+    # -- acknowledgements of QoS 1 messages (manual: once taken) -------------------------------------------
+
+    def _acker(self, epoch: int, mid: int, takers: int) -> Callable[[], None]:
+        """What acknowledges message `mid` of connection `epoch` once each of its `takers` handlers called it."""
+        if takers == 1:
+            return functools.partial(self._ack, epoch, mid)
+        left = [takers]
+        lock = threading.Lock()
+
+        def ack() -> None:
+            with lock:
+                left[0] -= 1
+                last = left[0] == 0
+            if last:
+                self._ack(epoch, mid)
+
+        return ack
+
+    def _ack(self, epoch: int, mid: int) -> None:
+        """(any thread) Message `mid` is taken: acknowledged on the serving thread (`_taken`)."""
+        link = self._link
+        if link is None or link.loop.on_thread():
+            self._taken(epoch, mid)
+        else:
+            link.loop.call_soon(functools.partial(self._taken, epoch, mid))
+
+    def _taken(self, epoch: int, mid: int) -> None:
+        """(serving thread) Acknowledge message `mid` of connection `epoch`, and the messages after it that were
+        taken before it: MQTT acknowledges QoS 1 messages in the order they came. One of a connection gone
+        since is not (the broker delivers it again on the next)."""
+        due: list[int] = []
+        with self._inbox_lock:
+            inbox = self._inbox
+            if epoch != self._epoch or mid not in inbox:
+                return
+            inbox[mid] = True
+            while inbox:
+                first = next(iter(inbox))
+                if not inbox[first]:
+                    break
+                del inbox[first]
+                due.append(first)
+        client = self._client
+        if client is not None:
+            for taken in due:  # not under the lock: paho writes, and may tell the connection is lost
+                client.ack(taken, 1)
+
+    def _forget_inbox(self) -> None:
+        """The connection is gone (or a new one begins): what it delivered and nobody acknowledged is the
+        broker's, delivered again on the session's next connection."""
+        with self._inbox_lock:
+            self._epoch += 1
+            self._inbox.clear()
+
+    def when_flushed(self, then: Callable[[], None]) -> None:
+        """`then()` (on the serving thread, or here at once) once everything published so far is acknowledged
+        (`flush` without a wait: for what must follow the broker's having it, node/admitted.py)."""
+        with self._lock:
+            if self._pending:
+                self._flushed.append((set(self._pending), then))
+                return
+        then()
 
     def _on_publish(
         self, _client: mqtt.Client, _userdata: Any, mid: int, _reason: ReasonCode, _props: Properties
     ) -> None:
+        due: list[Callable[[], None]] = []
         with self._lock:
             if mid in self._unacked:  # a QoS 0 message written: nothing to wait for (and no QoS 1 one's ack)
                 self._unacked.discard(mid)
             elif mid in self._pending:
                 self._pending.discard(mid)
                 self._retained_inflight.pop(mid, None)
+                for waits, _then in self._flushed:
+                    waits.discard(mid)
+                while self._flushed and not self._flushed[0][0]:  # (each waits for what the one before did)
+                    due.append(self._flushed.pop(0)[1])
             else:
                 self._acked_early.add(mid)
             self._lock.notify_all()
+        for then in due:
+            try:
+                then()
+            except Exception:  # noqa: BLE001 - never let a hook kill the thread that serves connections
+                log.exception("after an acknowledgement from %s", self.address)
 
     def _on_subscribe(
         self, _client: mqtt.Client, _userdata: Any, mid: int, _reasons: list[ReasonCode], _props: Properties
@@ -554,14 +688,14 @@ class MqttBus:
 
     # -- bus API -------------------------------------------------------------------------------------------
 
-    def subscribe(self, pattern: str, handler: Handler, *, qos: int = 1) -> None:
+    def subscribe(self, pattern: str, handler: Handler, *, qos: int = 1, acks: bool = False) -> None:
         if not valid_filter(pattern):
             raise BusError(f"invalid topic filter {pattern!r}")
         check_qos(qos)
         with self._lock:
             known = pattern in self._qos and self._qos[pattern] >= qos
             self._qos[pattern] = max(qos, self._qos.get(pattern, 0))
-            self._handlers.append((pattern, handler))
+            self._handlers.append((pattern, handler, acks))
             self._routes.clear()
         client = self._client
         if client is None or known or not self._connected:
@@ -658,12 +792,10 @@ def accepts_anonymous(
     unreachable broker counts as refusing here; the node's own connection reports it.
     """
     anonymous_tls = None if tls is None else TlsOptions(ca_file=tls.ca_file)
-    probe = MqttBus(
+    probe = MqttBus.sessionless(
         address,
         ConnectionSecurity(None, None, anonymous_tls, ()),
-        client_id=f"td2adaptor-probe-{os.urandom(4).hex()}",
-        clean_start=True,
-        session_expiry=0,
+        "probe",
         mqtt_version=mqtt_version,
         connect_timeout=timeout,
     )

@@ -27,6 +27,7 @@ import heapq
 import itertools
 import logging
 import queue
+import select
 import selectors
 import socket
 import ssl
@@ -45,6 +46,10 @@ log = logging.getLogger("td2adaptor.runtime.bus")
 MISC = 0.5
 #: threads for what may block (reconnections, checks of new connections)
 HELPERS = 4
+#: reads of one connection in one turn at most (paho reads one packet a read, or as many as it has in flight):
+#: what the broker wrote is read together, also the end of a connection behind a burst of commands (a session
+#: taken over while the process stood still, node/share.py), and one busy connection cannot hold the others long
+READ_PACKETS = 64
 THREAD = "td2adaptor-mqtt"
 _OK = MQTTErrorCode.MQTT_ERR_SUCCESS
 
@@ -320,8 +325,13 @@ class MqttLoop:
         client = link.client
         rc = client.loop_read()
         sock = client.socket()
-        while rc is _OK and isinstance(sock, ssl.SSLSocket) and sock.pending() > 0:
-            rc = client.loop_read()  # decrypted already: the selector would not say
+        for _ in range(READ_PACKETS):  # on while more is there (paho keeps no bytes it has not handled)
+            if rc is not _OK or sock is None:
+                break
+            if not (isinstance(sock, ssl.SSLSocket) and sock.pending() > 0):  # decrypted: the selector would not say
+                if not _readable(sock):
+                    break
+            rc = client.loop_read()
             sock = client.socket()
         return rc
 
@@ -472,6 +482,15 @@ class MqttLoop:
         self._unregister(link)
         self._links.discard(link)
         link.done.set()
+
+
+def _readable(sock: Any) -> bool:
+    """Whether `sock` has something to read now (poll: descriptors past select's 1024 too)."""
+    if not hasattr(select, "poll"):
+        return bool(select.select([sock], [], [], 0)[0])
+    poller = select.poll()
+    poller.register(sock, select.POLLIN)
+    return bool(poller.poll(0))
 
 
 _shared: MqttLoop | None = None

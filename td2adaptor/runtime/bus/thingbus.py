@@ -83,8 +83,8 @@ class ThingBus:
     def connect(self) -> None:
         self.bus.connect()
 
-    def subscribe(self, pattern: str, handler: Handler, *, qos: int = 1) -> None:
-        self.bus.subscribe(pattern, handler, qos=qos)
+    def subscribe(self, pattern: str, handler: Handler, *, qos: int = 1, acks: bool = False) -> None:
+        self.bus.subscribe(pattern, handler, qos=qos, acks=acks)
         if pattern not in self._commands or self._wot_subscribed:
             return  # the all-robots channel and anything else: envelope only
         self._wot_subscribed = True

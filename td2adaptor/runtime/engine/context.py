@@ -32,6 +32,9 @@ class RobotContext:
     lane: Lane
     stopping: threading.Event
     clock: Callable[[], float]
+    #: before a ROS action goal is sent: `gate(go)` calls `go(True)` once it may be, `go(False)` if it must not
+    #: (Engine.gate; None: at once)
+    gate: Callable[[Callable[[bool], None]], None] | None = None
 
     def topic(self, kind: Kind, affordance: str, component: str | None = None) -> str:
         """The topic of the robot's `kind` event of `affordance` ("" when the robot has none)."""

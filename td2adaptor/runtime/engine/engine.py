@@ -23,6 +23,9 @@ Policies (documented in README of the generated events):
   event; an invoke sent again under its id is answered with the mission's last feedback event again (its
   current state, or its terminal event);
 * feedback carries `correlation` (the requester's, else the invoke event's id) and `payload.seq` 1, 2, ...
+* a command is acknowledged to the broker only once it is taken: admitted (its id and mission written down) or
+  answered. One the engine did not take (it stops: a hand-over, a stop) is not, so the broker delivers it again
+  to whoever connects next with the robot's session (a restart, the next owner of a shared fleet).
 """
 
 from __future__ import annotations
@@ -139,6 +142,14 @@ class Engine:
         #: (the loop) why an invoke of this affordance cannot reach the robot now (its ROS server is not there,
         #: runtime/node/presence.py), or None: such an invoke is answered at once instead of after a timeout
         self.absent: Callable[[EventSpec], str | None] | None = None
+        #: (the loop) `kept(then)`: call `then()` once what was admitted so far is kept where the robot's next
+        #: owner looks: at once (the id store and the ledger are written when admission returns); a shared fleet
+        #: across hosts waits for the broker's acknowledgement of its admitted entries (node/admitted.py). A
+        #: command is acknowledged to the broker then
+        self.kept: Callable[[Callable[[], None]], None] = _at_once
+        #: (the loop) `gate(go)` before a ROS action goal is sent, or None: `go(True)` (from any thread) once it
+        #: may be sent, `go(False)` when it must not (the robot may be another process's by then, node/share.py)
+        self.gate: Callable[[Callable[[bool], None]], None] | None = None
         self.guard = _guard(config)
         self.ledger = _ledger(config)
         self.missions = MissionTable()  # which mission each component runs (missions.py)
@@ -173,15 +184,23 @@ class Engine:
         self._threads = [shared.loop.thread]
         self._lane = Lane(shared.pool)
         ctx = RobotContext(
-            self.port, self.config, self.missions, self.outbox, shared.loop, self._lane, self._stopping, self.clock
+            self.port,
+            self.config,
+            self.missions,
+            self.outbox,
+            shared.loop,
+            self._lane,
+            self._stopping,
+            self.clock,
+            self.gate,
         )
         self._procedures = ProcedureRunner(ctx)
         self._goals = GoalRunner(ctx)
         try:
-            for pattern in command_filters(self.catalog, robot, root):
-                self.bus.subscribe(pattern, self._take)
+            for pattern in command_filters(self.catalog, robot, root):  # acknowledged once taken (_dispatch)
+                self.bus.subscribe(pattern, self._take, acks=True)
             for spec in self.catalog.inbound():
-                self.bus.subscribe(spec.topic(ALL_ROBOTS, root), self._enter)
+                self.bus.subscribe(spec.topic(ALL_ROBOTS, root), self._enter, acks=True)
             self.bus.connect()
         except BaseException:  # not serving: the loop and pool are not this engine's to keep
             self._shared, self._threads = None, []
@@ -315,6 +334,8 @@ class Engine:
         publishes there itself (property values, envelope and WoT, and the WoT error topic) is dropped at once."""
         if msg.topic not in self._own:
             self._enter(msg)
+        elif msg.ack is not None:
+            msg.ack()
 
     def _enter(self, msg: Message) -> None:
         """(the bus's thread) Hand a message to the loop, after those before it (kept back while the last run's
@@ -333,12 +354,14 @@ class Engine:
         with self._counting:
             self._queued -= 1
         if self._closed:
-            return
+            return  # not acknowledged: the broker delivers it again to the robot's session's next connection
         try:
             self._handle(msg)
         except Exception:  # a bug here must cost one event, not the process
             log.exception("internal error on %s", msg.topic)
             self.outbox.error("internal", INTERNAL, topic=msg.origin or msg.topic, raw=msg.payload)
+        if msg.ack is not None:  # admitted or answered: the broker may forget it once that is kept
+            self.kept(msg.ack)
 
     def _handle(self, msg: Message) -> None:
         self.outbox.count("in")
@@ -718,6 +741,10 @@ class Engine:
                 self.outbox.publish(spec, event, retain=True, qos=self.config.property_qos)
         finally:
             self._sampling = False
+
+
+def _at_once(then: Callable[[], None]) -> None:
+    then()
 
 
 def _restart_words(r: Record, behind: float, timeout: float) -> str:

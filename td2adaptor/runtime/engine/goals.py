@@ -154,6 +154,29 @@ class GoalRunner:
             return
         wait = max(0.0, m.started + ctx.config.mission_timeout - ctx.clock())
         chase.deadline = ctx.loop.call_later(wait, self._give_up, chase)
+        if ctx.gate is not None:  # sent once the gate says so (a shared fleet: node/share.py), on the loop
+            ctx.gate(partial(ctx.loop.post, self._gated, chase))
+            return
+        self._send(chase, port)
+
+    def _gated(self, chase: Chase, go: bool) -> None:
+        """The gate's answer: send the goal, or (the robot may be another process's now) end it unsent."""
+        if chase.ended:  # given up or left meanwhile (the engine stops): never sent
+            return
+        port = self._port()
+        if not go or port is None:
+            message = (
+                "the edge node lost its connection to the broker, and another one of the fleet may serve the robot "
+                "now: not run here"
+            )
+            log.warning("%s goal: not sent: %s", chase.m.action, message)
+            self._end(chase, ProcedureStatus("failed", message=message, reason="unreachable"))
+            return
+        self._send(chase, port)
+
+    def _send(self, chase: Chase, port: GoalPort) -> None:
+        """Send the goal: on the loop when the port can without waiting, else on the robot's lane."""
+        ctx, m = self.ctx, chase.m
         listener = _Told(self, chase)
         args = (m.component, m.action, m.payload, ctx.config.call_timeout, listener)
 

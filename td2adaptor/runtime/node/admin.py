@@ -7,6 +7,13 @@ admin users publish requests), and the request itself, signed with the fleet's a
 HMAC-SHA256 of the request without its `signature`, in `canonical` form), fresh (`time` within the freshness
 window) and new (its `id` not seen before). Without a key the fleet has no admin, and every request is
 refused. The requests are carried out one at a time on a thread of their own, never on the bus's.
+
+In a fleet shared by several processes (`run --share`, share.py) every process reads every request, and one
+answers and carries it out: the live member whose node id sorts first (the others check the request too, so a
+replay is known to whoever answers next). An added robot is retained as an entry on the broker
+(`<root>/.fleet/<fleet>/robots/<robot>`), which every member reads: the share gives it to one of them, and the
+answer comes once its owner serves it and names that process. Removing it clears the entry: its owner retires it.
+Only robots added this way can be removed (the others come from a fleet file or the ROS graph).
 """
 
 from __future__ import annotations
@@ -19,7 +26,7 @@ import queue
 import threading
 import time
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from td2adaptor.model.events import ALL_ROBOTS, ROBOT_ID
 from td2adaptor.runtime.bus.bus import Bus, BusError, Message
@@ -28,11 +35,16 @@ from td2adaptor.runtime.engine.replay import parse_time
 from td2adaptor.runtime.events import new_id, now_rfc3339
 from td2adaptor.runtime.node.fleet import Fleet, FleetError
 
+if TYPE_CHECKING:
+    from td2adaptor.runtime.node.share import Share
+
 log = logging.getLogger("td2adaptor.runtime.fleet")
 
 ADMIN_LEVEL = ".fleet"
 MAX_REQUEST_BYTES = 16384
 OPS = ("add", "remove")
+#: seconds a shared fleet's answering member waits for a robot it added to be served (or one it removed to stop)
+SHARED_WAIT = 15.0
 
 
 def admin_topics(root: str, fleet: str) -> tuple[str, str]:
@@ -77,8 +89,10 @@ class Admin:
         make_config: Callable[[str, str | None], RuntimeConfig],
         freshness_window: float,
         clock_skew: float,
+        share: Share | None = None,
     ) -> None:
         self.fleet = fleet
+        self.share = share  # `run --share`: the requests change the shared fleet (module docstring)
         self.bus = bus
         self.name = name
         self.request_topic, self.answer_topic = admin_topics(root, name)
@@ -133,6 +147,9 @@ class Admin:
         request: Any = None
         try:
             request = self._read(raw)
+            if self.share is not None and min(self.share.live()) != self.share.me.node:
+                self._note(request)  # another member answers
+                return
             code, message = self._carry_out(request)
         except Refused as exc:
             code, message = exc.code, str(exc)
@@ -162,6 +179,8 @@ class Admin:
         if not isinstance(robot, str) or not ROBOT_ID.match(robot) or robot == ALL_ROBOTS:
             raise Refused("invalid", "robot must be a robot id (1-128 letters, digits, '_', '.', '-')")
         if op == "remove":
+            if self.share is not None:
+                return self._remove_shared(robot)
             if not self.fleet.remove(robot, "was removed by an admin request"):
                 raise Refused("not-served", f"robot {robot} is not served by this edge node")
             return "removed", f"robot {robot} is no longer served"
@@ -172,12 +191,66 @@ class Admin:
             config = self.make_config(robot, namespace)
         except ConfigError as exc:
             raise Refused("invalid", str(exc)) from None
+        if self.share is not None:
+            return self._add_shared(robot, namespace, config, str(request["id"]))
         try:
             self.fleet.add(config, "admin")
         except FleetError as exc:
             code = "served-already" if exc.why == "served already" else "failed"
             raise Refused(code, str(exc)) from None
         return "added", f"robot {robot} is served (namespace {config.ros_namespace})"
+
+    # -- a shared fleet ------------------------------------------------------------------------------------
+
+    def _note(self, request: dict[str, Any]) -> None:
+        """(not the answering member) Check the request as the answering one does, silently: its id is then known
+        here too, should this process answer the next ones (the member that answered died)."""
+        if self.key is not None:
+            try:
+                self._authenticate(request)
+            except Refused:
+                pass
+
+    def _add_shared(self, robot: str, namespace: str | None, config: RuntimeConfig, rid: str) -> tuple[str, str]:
+        share = self.share
+        assert share is not None
+        if robot in share.listed():
+            raise Refused("served-already", f"robot {robot} is in the shared fleet {self.name} already")
+        entry: dict[str, Any] = {"robot": robot, "request": rid, "time": now_rfc3339()}
+        if namespace is not None:
+            entry["namespace"] = namespace
+        try:
+            share.publish_entry(robot, entry)
+        except BusError as exc:
+            raise Refused("failed", f"robot {robot} could not be added: {exc}") from None
+        owner = _wait(lambda: _served_by(share, robot), SHARED_WAIT)
+        if owner is None:
+            share.publish_entry(robot, None)
+            raise Refused(
+                "failed",
+                f"robot {robot}: no process of the shared fleet served it within {SHARED_WAIT:g} s (their logs "
+                "say why); it is not added",
+            )
+        return "added", f"robot {robot} is served by {owner} (namespace {config.ros_namespace})"
+
+    def _remove_shared(self, robot: str) -> tuple[str, str]:
+        share = self.share
+        assert share is not None
+        if robot not in share.admin_robots():
+            if robot in share.listed():
+                raise Refused(
+                    "invalid",
+                    f"robot {robot} was not added by an admin request: it is in the fleet file, or the ROS graph, of "
+                    "a process of the shared fleet; remove it there",
+                )
+            raise Refused("not-served", f"robot {robot} is not in the shared fleet {self.name}")
+        try:
+            share.publish_entry(robot, None)
+        except BusError as exc:
+            raise Refused("failed", f"robot {robot} could not be removed: {exc}") from None
+        if _wait(lambda: True if _served_by(share, robot) is None else None, SHARED_WAIT) is None:
+            raise Refused("failed", f"robot {robot} left the shared fleet, but its owner has not yet stopped it")
+        return "removed", f"robot {robot} is no longer served"
 
     def _authenticate(self, request: dict[str, Any]) -> None:
         """The signature, then freshness and novelty (the signature covers `id` and `time`)."""
@@ -220,6 +293,23 @@ class Admin:
             log.warning("could not publish the answer to admin request %s: %s", rid, exc)
 
 
+def _served_by(share: Share, robot: str) -> str | None:
+    """The live member that serves `robot` now, by its retained status (its words), or None."""
+    status = share.status(robot)
+    if status is None or status.state != "online" or status.owner is None or status.handover is not None:
+        return None
+    return status.owner.describe() if status.owner.node in share.live() else None
+
+
+def _wait(look: Callable[[], Any], timeout: float) -> Any:
+    """`look()` until it gives something other than None, for at most `timeout` seconds (it reads what the share's
+    connection received: nothing to be woken by)."""
+    deadline = time.monotonic() + timeout
+    while (found := look()) is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return found
+
+
 def admin_bus(config: RuntimeConfig, model: Any, *, broker: Any = None) -> Bus:
     """The admin listener's own connection, as the robots' (`config`: the fleet's shared settings), with a
     clean session of its own client id (one per process: several processes of one fleet each answer)."""
@@ -234,12 +324,6 @@ def admin_bus(config: RuntimeConfig, model: Any, *, broker: Any = None) -> Bus:
     from td2adaptor.runtime.node.app import bus_security
 
     address, security = bus_security(config, model)
-    return MqttBus(
-        address,
-        security,
-        client_id=client_id,
-        clean_start=True,
-        session_expiry=0,
-        mqtt_version=config.mqtt_version,
-        keepalive=config.keepalive,
+    return MqttBus.sessionless(
+        address, security, "fleet", client_id=client_id, mqtt_version=config.mqtt_version, keepalive=config.keepalive
     )

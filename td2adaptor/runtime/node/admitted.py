@@ -229,6 +229,15 @@ class Recorder:
         """Wait until the broker has every entry published so far (a mission's start, on the call pool)."""
         return self.bus.flush(ACK_TIMEOUT)
 
+    def when_acknowledged(self, then: Callable[[], None]) -> None:
+        """`then()` once the broker has every entry published so far, without waiting for it (the engine's
+        loop: a command's acknowledgement, a goal's start)."""
+        flushed = getattr(self.bus, "when_flushed", None)
+        if flushed is None:
+            then()
+        else:
+            flushed(then)
+
 
 class RecordingGuard:
     """The engine's replay guard, telling `recorder` the time and digest of each new id."""

@@ -11,7 +11,6 @@ takeover of a dead one's robots).
 from __future__ import annotations
 
 import os
-import secrets
 import threading
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -144,15 +143,7 @@ def read_view(
     address = parse_broker_url(url)
     tls = TlsOptions(tls_ca_file) if tls_ca_file else None
     security = ConnectionSecurity(env.get(ENV_USERNAME) or None, env.get(ENV_PASSWORD) or None, tls)
-    bus = MqttBus(
-        address,
-        security,
-        client_id=f"td2adaptor-fleet-{secrets.token_hex(6)}",
-        clean_start=True,
-        session_expiry=0,
-        mqtt_version=mqtt_version,
-        connect_timeout=timeout,
-    )
+    bus = MqttBus.sessionless(address, security, "fleet", mqtt_version=mqtt_version, connect_timeout=timeout)
     got: dict[str, bytes] = {}
     members: dict[tuple[str, str], bytes] = {}
     lock = threading.Lock()

@@ -13,6 +13,9 @@ has a server (`count_services`); a robot served already is checked by its first 
 servers go together when its process ends). On ROS 1 one `getSystemState` of the master over XML-RPC, whose
 service list names servers only. A robot that cannot be started (a namespace the package refuses) is
 retried after `RETRY` seconds, not every period.
+
+In a fleet shared by several processes (`run --share`, share.py) the robots seen go to the share instead of the
+fleet: each process lists what it sees, and the share gives each robot to one of the processes that see it.
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ from typing import Any, Protocol
 from td2adaptor.model import Model, Role
 from td2adaptor.model.events import ALL_ROBOTS, ROBOT_ID
 from td2adaptor.runtime.config import ConfigError, RuntimeConfig
-from td2adaptor.runtime.node.fleet import Fleet
+from td2adaptor.runtime.node.fleet import Changes
 
 log = logging.getLogger("td2adaptor.runtime.fleet")
 
@@ -148,12 +151,22 @@ class _TimeoutTransport(xmlrpc.client.Transport):
         return conn
 
 
+class Robots(Protocol):
+    """What discovery hands its robots to: the process's fleet (fleet.py), or its share of one (share.py)."""
+
+    def robots(self, origin: str | None = None) -> dict[str, RuntimeConfig]: ...
+
+    def origin(self, robot: str) -> str | None: ...
+
+    def apply(self, configs: list[RuntimeConfig], origin: str) -> Changes: ...
+
+
 class Discovery:
     """Keeps the fleet's discovered robots what `graph` shows (see the module docstring)."""
 
     def __init__(
         self,
-        fleet: Fleet,
+        fleet: Robots,
         graph: Graph,
         sig: Signature,
         make_config: Callable[[str, str], RuntimeConfig],

@@ -115,8 +115,9 @@ class EdgeNode:
             raise
 
     def discover(self) -> Discovery:
-        """Serve every robot of the model the ROS graph shows, as they come and go (node/graphwatch.py);
-        raises `ConfigError` when the model names no interface under the robot's namespace."""
+        """Serve every robot of the model the ROS graph shows, as they come and go (node/graphwatch.py); in a
+        shared fleet (`share` first) the share gives each one to a process that sees it. Raises `ConfigError`
+        when the model names no interface under the robot's namespace."""
         from td2adaptor.runtime.config import robot_config
         from td2adaptor.runtime.node.graphwatch import Discovery, ros1_graph, ros2_graph, signature
 
@@ -129,7 +130,7 @@ class EdgeNode:
         else:
             graph = ros1_graph(template.ros_master_uri, os.environ)
         discovery = Discovery(
-            self.fleet,
+            self.shared or self.fleet,
             graph,
             sig,
             lambda robot, namespace: robot_config(self.defaults, robot, namespace),
@@ -153,15 +154,20 @@ class EdgeNode:
         name = template.fleet or self.model.package_name
         bus = share_bus(template, self.model, name=name, keepalive=template.share_keepalive)
         shared = self.shared = Share(
-            self.fleet, bus, name=name, root=template.topic_root, timeout=template.share_timeout
+            self.fleet,
+            bus,
+            name=name,
+            root=template.topic_root,
+            timeout=template.share_timeout,
+            make_config=lambda robot, namespace: robot_config(self.defaults, robot, namespace),
         )
         shared.start(candidates)
         self._extras.append(shared.stop)
         return shared
 
     def listen_admin(self) -> Admin:
-        """Take admin requests on the bus (node/admin.py); raises `SecurityError` or `BusError` as a robot's
-        connection would."""
+        """Take admin requests on the bus (node/admin.py); in a shared fleet (`share` first) they change the
+        shared fleet. Raises `SecurityError` or `BusError` as a robot's connection would."""
         from td2adaptor.runtime.config import robot_config
         from td2adaptor.runtime.node.admin import Admin, admin_bus
 
@@ -176,6 +182,7 @@ class EdgeNode:
             make_config=lambda robot, namespace: robot_config(self.defaults, robot, namespace),
             freshness_window=template.freshness_window,
             clock_skew=template.clock_skew,
+            share=self.shared,
         )
         admin.start()
         self._extras.append(admin.stop)

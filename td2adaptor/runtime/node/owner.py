@@ -180,15 +180,7 @@ def probe_bus(address: Any, security: Any, mqtt_version: str, keepalive: int = 3
     """A connection of this process's own to read retained statuses: a fresh client id, no session."""
     from td2adaptor.runtime.bus.mqttbus import MqttBus
 
-    return MqttBus(
-        address,
-        security,
-        client_id=f"td2adaptor-claim-{secrets.token_hex(6)}",
-        clean_start=True,
-        session_expiry=0,
-        mqtt_version=mqtt_version,
-        keepalive=keepalive,
-    )
+    return MqttBus.sessionless(address, security, "claim", mqtt_version=mqtt_version, keepalive=keepalive)
 
 
 def taken_by(robot: str, message: Message | None, ours: Collection[bytes]) -> str | None:

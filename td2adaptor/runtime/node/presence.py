@@ -5,9 +5,10 @@ robot's status then says `online` and `robot: absent`, and an invoke is answered
 `absent`) instead of after `call_timeout`. A `Probe` looks at the servers the way the port reaches them, cheaply
 (no call is made):
 
-* ROS 2 (a `GeneratedPort` on rclpy): each service client's `service_is_ready()` and each action client's
-  `server_is_ready()`, which read the node's graph cache (DDS discovery): a server that stops cleanly is gone at
-  once, one killed (SIGKILL, power) when DDS drops its participant (its lease: Fast DDS's default is 20 s);
+* ROS 2 (a `GeneratedPort` on rclpy): each generated component's `servers_ready()` (its service clients'
+  `service_is_ready()` and action clients' `server_is_ready()`), which read the node's graph cache (DDS
+  discovery): a server that stops cleanly is gone at once, one killed (SIGKILL, power) when DDS drops its
+  participant (its lease: Fast DDS's default is 20 s);
 * the simulated robot (`SimPort`): its `down` switch, when the test sets `watched`;
 * ROS 1 (rospy here, or the bridge): the ROS 1 master's `getSystemState`, one XML-RPC call per master and
   period for all its robots: each service has a provider, each actionlib server publishes its `status`; a
@@ -31,6 +32,7 @@ from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 from td2adaptor.model.events import PRESENCE_WORDS, EventSpec
+from td2adaptor.model.genapi import SERVERS_READY
 
 #: what a look at the robot's ROS side says: each action (TD affordance) and whether its server is there
 Probe = Callable[[], Mapping[str, bool]]
@@ -38,26 +40,22 @@ PRESENT, PARTIAL, ABSENT = PRESENCE_WORDS
 
 
 def ros2_probe(port: Any, actions: Iterable[str]) -> Probe | None:
-    """The look at a ROS 2 `GeneratedPort`'s servers: its generated components hold each service client as
-    `_<action>` and each ROS action client as `_act_<action>` (`.client`: rclpy's client); None when it has
-    none of `actions`."""
+    """The look at a ROS 2 `GeneratedPort`'s servers: each generated component's `servers_ready()` (its
+    clients' view of the graph, no call made); None when no component serves any of `actions`."""
     wanted = set(actions)
-    checks: dict[str, Callable[[], bool]] = {}
+    looks: list[Callable[[], Mapping[str, bool]]] = []
     for component in getattr(port, "components", {}).values():
-        for attr, value in vars(component).items():
-            client: Any = getattr(value, "client", None)
-            server_ready = getattr(client, "server_is_ready", None)
-            service_ready = getattr(client, "service_is_ready", None)
-            if attr.startswith("_act_") and callable(server_ready):
-                checks[attr[len("_act_") :]] = server_ready
-            elif attr.startswith("_") and callable(service_ready):
-                checks[attr[1:]] = service_ready
-    checks = {name: check for name, check in checks.items() if name in wanted}
-    if not checks:
+        servers_ready = getattr(component, SERVERS_READY.pattern, None)
+        if callable(servers_ready) and wanted & set(servers_ready()):
+            looks.append(servers_ready)
+    if not looks:
         return None
 
     def look() -> dict[str, bool]:
-        return {name: bool(check()) for name, check in checks.items()}
+        seen: dict[str, bool] = {}
+        for servers_ready in looks:
+            seen.update(servers_ready())
+        return {name: ready for name, ready in seen.items() if name in wanted}
 
     return look
 

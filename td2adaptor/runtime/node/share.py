@@ -31,11 +31,10 @@ from __future__ import annotations
 
 import hashlib
 import logging
-import secrets
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from typing import Any
@@ -43,7 +42,7 @@ from typing import Any
 import orjson
 
 from td2adaptor.runtime.bus.bus import Bus, Message
-from td2adaptor.runtime.config import RuntimeConfig
+from td2adaptor.runtime.config import ConfigError, RuntimeConfig
 from td2adaptor.runtime.engine.engine import Engine, status_event
 from td2adaptor.runtime.node.admitted import (
     AckedPort,
@@ -72,6 +71,13 @@ HANDOVER_WAIT = 5.0
 SWEEP_PERIOD = 10.0
 #: what a robot's bus says when another connection took its session over (owner.taken_by, mqttbus.py)
 TAKEN_OVER = "took its session over"
+#: seconds a robot newly listed by a member (the fleet file read again, a robot discovered, an admin request) waits
+#: before it is given out: the members that list it a moment later (they read the file or look at the ROS graph
+#: a little after) are known by then, so every member computes the same owner and the robot is not handed on
+SETTLE = 0.75
+#: seconds a robot its owner retired (it no longer lists it) waits before another member that still lists it claims
+#: it: the other members drop it too a moment later (they read the file, or look at the graph, a little after)
+RETIRED_WAIT = 2.0
 
 
 def members_topic(root: str, fleet: str, node: str = "+") -> str:
@@ -84,29 +90,50 @@ def beats_topic(root: str, fleet: str, node: str = "+") -> str:
     return f"{root}/.fleet/{fleet}/beats/{node}"
 
 
+def entries_topic(root: str, fleet: str, robot: str = "+") -> str:
+    """Where a robot added by an admin request is retained while it is in the fleet (admin.py, shared)."""
+    return f"{root}/.fleet/{fleet}/robots/{robot}"
+
+
 def _score(member: str, robot: str) -> int:
     return int.from_bytes(hashlib.sha256(f"{member}\x00{robot}".encode()).digest()[:8], "big")
 
 
-def assign(robots: Iterable[str], members: Iterable[str]) -> dict[str, str]:
+def assign(
+    robots: Iterable[str], members: Iterable[str], can: Mapping[str, Collection[str]] | None = None
+) -> dict[str, str]:
     """Robot -> the member that serves it. Rendezvous hashing (each robot ranks the members by a hash of both)
     with a bound: every member gets floor(robots / members) robots, some one more, so the shares differ by one
-    at most. The same inputs give the same answer in every process."""
+    at most. The same inputs give the same answer in every process.
+
+    `can` (member -> the robots it can serve: its fleet file's, the ones its discovery sees, the admin's) limits
+    each robot to the members that list it; without it every member can serve every robot. A robot whose members
+    are all at the bound goes to the least loaded of them; one no member lists is left out. The robots with the
+    fewest members are given out first, so the bound leaves them a member."""
     ranked = sorted(set(members))
     wanted = sorted(set(robots))
     if not ranked:
         return {}
+
+    def able(robot: str) -> list[str]:
+        return ranked if can is None else [m for m in ranked if robot in can.get(m, ())]
+
+    if can is not None:
+        wanted.sort(key=lambda r: len(able(r)))  # stable: by name within the same count
     least, extra = divmod(len(wanted), len(ranked))  # `extra` members serve one robot more
     load = dict.fromkeys(ranked, 0)
     out: dict[str, str] = {}
     for robot in wanted:
-        for member in sorted(ranked, key=lambda m: _score(m, robot), reverse=True):
-            if load[member] < least or (load[member] == least and extra > 0):
-                if load[member] == least:
-                    extra -= 1
-                out[robot] = member
-                load[member] += 1
-                break
+        order = sorted(able(robot), key=lambda m: _score(m, robot), reverse=True)
+        if not order:
+            continue
+        chosen = next((m for m in order if load[m] < least or (load[m] == least and extra > 0)), None)
+        if chosen is None:  # every member that can serve it is full: the least loaded of them, by rank
+            chosen = min(order, key=lambda m: load[m])
+        elif load[chosen] == least:
+            extra -= 1
+        out[robot] = chosen
+        load[chosen] += 1
     return out
 
 
@@ -117,6 +144,7 @@ class Status:
     state: str
     owner: Owner | None
     handover: str | None  # the member it was handed over to, if it was
+    retired: bool = False  # its owner stopped serving it because it no longer lists it (`Share._release`)
 
 
 def read_status(payload: bytes) -> Status | None:
@@ -130,7 +158,8 @@ def read_status(payload: bytes) -> Status | None:
     state = body.get("state")
     handover = body.get("handover")
     to = handover.get("node") if isinstance(handover, Mapping) else None
-    return Status(state if isinstance(state, str) else "", Owner.from_json(body.get("owner")), to)
+    retired = isinstance(body.get("retired"), Mapping)
+    return Status(state if isinstance(state, str) else "", Owner.from_json(body.get("owner")), to, retired)
 
 
 def _now() -> str:
@@ -154,6 +183,7 @@ class Share:
         settle: float = 1.0,
         timeout: float = 3.0,
         me: Owner | None = None,
+        make_config: Callable[[str, str | None], RuntimeConfig] | None = None,
     ) -> None:
         self.fleet = fleet
         self.bus = bus
@@ -172,7 +202,15 @@ class Share:
         self._beat_at = time.monotonic()  # when this process's beat thread last ran (`_stood_still`)
         self._silent: set[str] = set()  # members taken as gone because they stopped beating
         self._statuses: dict[str, Status] = {}  # robot -> its retained status
-        self._candidates: dict[str, RuntimeConfig] = {}
+        self._retired_at: dict[str, float] = {}  # robot -> when its status said it was retired (`RETIRED_WAIT`)
+        self._candidates: dict[str, RuntimeConfig] = {}  # the fleet file's robots
+        self.make_config = make_config  # (robot, namespace) -> its settings: the robots discovery or the admin adds
+        self._found: dict[str, RuntimeConfig] = {}  # the robots this process's discovery sees (graphwatch.py)
+        self._admin: dict[str, RuntimeConfig] = {}  # the robots admin requests added (retained entries, admin.py)
+        self._cleared: set[str] = set()  # entries this process published that another one cleared (`_forget`)
+        self._first: dict[str, float] = {}  # robot -> since when a member lists it (`SETTLE`)
+        self._planned = False  # a first plan was made (what is listed at the start is given out at once)
+        self._due: float | None = None  # when the next robot waiting for `SETTLE` is given out
         self._wake = threading.Event()
         self._changing = threading.RLock()  # one reconciliation at a time (the share's thread, a reload)
         self._waiting: dict[str, float] = {}  # robot -> since when it is ours but handed over to another member
@@ -185,17 +223,83 @@ class Share:
         self._thread: threading.Thread | None = None
         self._joined = _now()
         self._last_record = b""
+        self._entries_mine: set[str] = set()  # entry topics this process published (`_forget`)
 
     # -- the fleet file's side (node/fleetfile.py calls `apply` as it calls Fleet.apply) --------------------
 
     def apply(self, configs: Sequence[RuntimeConfig], origin: str = ORIGIN) -> Changes:
-        """New candidates (the fleet file read again): this process serves its share of them."""
+        """New candidates (the fleet file read again): this process serves its share of them. From discovery
+        (origin "discovery", graphwatch.py): the robots this process sees, which the share gives out among the
+        members that see them."""
+        if origin == "discovery":
+            return self._see(configs)
         with self._lock:
             self._candidates = {c.robot: c for c in configs}
-        return self.reconcile()
+        try:
+            return self.reconcile()
+        finally:
+            self._wake.set()  # a robot just listed is given out once it settled
 
     def robots(self, origin: str | None = None) -> dict[str, RuntimeConfig]:
-        return self.fleet.robots(origin)
+        """The robots this process lists (of one origin): what discovery compares its look with."""
+        with self._lock:
+            sources = {"file": self._candidates, "admin": self._admin, "discovery": self._found}
+            if origin is not None:
+                return dict(sources.get(origin, {}))
+            return self._mine()
+
+    def origin(self, robot: str) -> str | None:
+        with self._lock:
+            for origin, source in (("file", self._candidates), ("admin", self._admin), ("discovery", self._found)):
+                if robot in source:
+                    return origin
+        return None
+
+    def _see(self, configs: Sequence[RuntimeConfig]) -> Changes:
+        with self._lock:
+            seen = {c.robot: c for c in configs}
+            came, went = sorted(set(seen) - set(self._found)), sorted(set(self._found) - set(seen))
+            self._found = seen
+        for words, robots in (("sees", came), ("no longer sees", went)):
+            if robots:
+                log.info("fleet %s: this process %s %s in the ROS graph", self.name, words, ", ".join(robots))
+        self._publish_record()  # the other members learn what this one can serve
+        self._wake.set()
+        return Changes()  # who serves them is decided by the share's next round
+
+    def _mine(self) -> dict[str, RuntimeConfig]:
+        """(under the lock) The robots this process can serve: its file's, the admin's, what it sees."""
+        return {**self._found, **self._admin, **self._candidates}
+
+    # -- what admin requests ask (admin.py) ----------------------------------------------------------------
+
+    def live(self) -> set[str]:
+        """The members taken as live now, this one included."""
+        with self._lock:
+            return self._live()
+
+    def listed(self) -> set[str]:
+        """Every robot some live member lists (its file, its discovery, the admin's)."""
+        with self._lock:
+            live = self._live()
+            out = set(self._mine())
+            for node, record in self._members.items():
+                if node in live:
+                    out.update(record.get("can") or ())
+            return out
+
+    def admin_robots(self) -> set[str]:
+        with self._lock:
+            return set(self._admin)
+
+    def status(self, robot: str) -> Status | None:
+        """The robot's retained status as this process last read it."""
+        with self._lock:
+            return self._statuses.get(robot)
+
+    def record(self, node: str) -> Mapping[str, Any] | None:
+        with self._lock:
+            return self._members.get(node)
 
     # -- life cycle ----------------------------------------------------------------------------------------
 
@@ -206,6 +310,7 @@ class Share:
         self.bus.subscribe(f"{self.root}/+/status", self._on_status)
         self.bus.subscribe(admitted_topic(self.root, self.name), self.book.take)
         self.bus.subscribe(beats_topic(self.root, self.name), self._on_beat)
+        self.bus.subscribe(entries_topic(self.root, self.name), self._on_entry)
         self.bus.connect()
         self.bus.subscribe(f"{members_topic(self.root, self.name)}/+", lambda _m: None)  # the retained ones are in
         self._publish_record()
@@ -224,9 +329,7 @@ class Share:
             self._thread.join(30)
         with self._changing:
             with self._lock:
-                others = self._live() - {self.me.node}
-                candidates = dict(self._candidates)
-            plan = assign(candidates, others)
+                plan, _mine = self._plan(self._live() - {self.me.node})
             for robot in self.fleet.robots(ORIGIN):
                 if plan.get(robot) is not None:
                     self._release(robot, plan[robot])
@@ -272,6 +375,29 @@ class Share:
                 self._statuses.pop(robot, None)
             else:
                 self._statuses[robot] = status
+            if status is not None and status.retired:
+                self._retired_at.setdefault(robot, time.monotonic())
+            else:
+                self._retired_at.pop(robot, None)
+        self._wake.set()
+
+    def _on_entry(self, message: Message) -> None:
+        """A robot added by an admin request (its retained entry), or removed (the entry cleared)."""
+        robot = message.topic.rsplit("/", 1)[1]
+        config: RuntimeConfig | None = None
+        if message.payload and self.make_config is not None:
+            try:
+                entry = orjson.loads(message.payload)
+                namespace = entry.get("namespace") if isinstance(entry, dict) else None
+                config = self.make_config(robot, namespace if isinstance(namespace, str) else None)
+            except (orjson.JSONDecodeError, ConfigError) as exc:
+                log.error("fleet %s: the admin's entry of robot %s cannot be served: %s", self.name, robot, exc)
+        with self._lock:
+            if config is None:
+                if self._admin.pop(robot, None) is not None:
+                    self._cleared.add(message.topic)
+            else:
+                self._admin[robot] = config
         self._wake.set()
 
     def _on_beat(self, message: Message) -> None:
@@ -326,22 +452,45 @@ class Share:
             try:
                 self.reconcile()
                 self._sweep()
+                self._forget()
             except Exception:  # one failed round must not end the share: the next wake tries again
                 log.exception("fleet %s: sharing the robots failed", self.name)
-            self._wake.wait(min(1.0, self.timeout / 4))  # also: a member that went silent
+            wait = min(1.0, self.timeout / 4)  # also: a member that went silent
+            due = self._due
+            if due is not None:  # a robot that settles meanwhile
+                wait = max(0.01, min(wait, due - time.monotonic()))
+            self._wake.wait(wait)
 
     def reconcile(self) -> Changes:
         """Release what is no longer ours (hand-over), then claim what is ours and free."""
         with self._changing:
             return self._reconcile()
 
+    def _plan(self, live: set[str]) -> tuple[dict[str, str], dict[str, RuntimeConfig]]:
+        """(under the lock) Who serves which robot among `live`, each robot among the members that list it (their
+        records' `can`; this process's own lists, fresher), and the robots this process can serve. A robot newly
+        listed waits `SETTLE` (`_due` says until when), except at the first plan."""
+        now = time.monotonic()
+        mine = self._mine()
+        admin = set(self._admin)  # every member can serve these: the entries, not the records, say which
+        can = {m: set(self._members.get(m, {}).get("can") or ()) | admin for m in live if m != self.me.node}
+        if self.me.node in live:
+            can[self.me.node] = set(mine)
+        listed = set().union(*can.values()) if can else set()
+        self._first = {r: self._first.get(r, now if self._planned else 0.0) for r in listed}
+        self._planned = True
+        waiting = [t + SETTLE for t in self._first.values() if now - t < SETTLE]
+        self._due = min(waiting) if waiting else None
+        ready = {r for r, t in self._first.items() if now - t >= SETTLE}
+        return assign(ready, live, can), mine
+
     def _reconcile(self) -> Changes:
         with self._lock:
             live = self._live()
-            candidates = dict(self._candidates)
+            plan, candidates = self._plan(live)
             statuses = dict(self._statuses)
             gone = self._gone | self._silent
-        plan = assign(candidates, live)
+        self._publish_record()  # what this process can serve, when that changed (the others' plans need it)
         with self._lock:
             lost, self._taken = self._taken, set()
         for robot in lost:  # another member holds its session now: its status is that member's, not ours to touch
@@ -349,7 +498,7 @@ class Share:
         served = self.fleet.robots(ORIGIN)
         released: list[str] = []
         for robot in served:
-            winner = plan.get(robot)
+            winner = plan.get(robot) if robot in candidates else None  # no longer listed here: retired, not handed on
             if winner != self.me.node:
                 self._release(robot, winner)
                 released.append(robot)
@@ -380,6 +529,11 @@ class Share:
 
     def _free(self, robot: str, status: Status | None, live: set[str], gone: set[str]) -> bool:
         """May this process claim `robot`, whose retained status is `status`?"""
+        if status is not None and status.retired and status.owner is not None and status.owner.node in live:
+            with self._lock:  # its live owner no longer lists it: the others may drop it too in a moment
+                since = self._retired_at.get(robot, 0.0)
+            if time.monotonic() - since < RETIRED_WAIT:
+                return False
         if status is None or status.state != "online" or status.owner is None:
             return True
         owner = status.owner
@@ -412,6 +566,42 @@ class Share:
             return engine.failure is not None or not getattr(raw, "connected", True)
 
         engine.port = AckedPort(engine.port, recorder.acknowledged, config.robot, taken, recorder.withdraw)
+        engine.kept = recorder.when_acknowledged  # a command is acknowledged once its entry is the broker's
+
+        def gate(go: Callable[[bool], None]) -> None:  # a ROS action goal: sent as AckedPort starts a procedure
+            def settled() -> None:
+                if not taken():
+                    go(True)
+                    return
+                log.warning("robot %s: its connection was lost before the goal was sent: not run here", config.robot)
+                recorder.withdraw()
+                go(False)
+
+            recorder.when_acknowledged(settled)
+
+        engine.gate = gate
+
+    def _forget(self) -> None:
+        """An entry this process published (an admin request it carried out) was cleared by another member: this
+        process's connection must not publish it again when it reconnects (mqttbus.py keeps the last retained
+        message of each topic), so it publishes the clearing too."""
+        with self._lock:
+            cleared, self._cleared = self._cleared, set()
+        for topic in cleared:
+            if topic in self._entries_mine:
+                self._entries_mine.discard(topic)
+                self.bus.publish(topic, b"", retain=True)
+
+    def publish_entry(self, robot: str, entry: Mapping[str, Any] | None) -> None:
+        """(admin.py) Add `robot` to the shared fleet (its retained entry), or remove it (None: cleared)."""
+        topic = entries_topic(self.root, self.name, robot)
+        if entry is None:
+            self._entries_mine.discard(topic)
+            self.bus.publish(topic, b"", retain=True)
+        else:
+            self._entries_mine.add(topic)
+            self.bus.publish(topic, orjson.dumps(entry), retain=True)
+        self.bus.flush(5)
 
     def _sweep(self) -> None:
         """Clear the entries of the robots served here that no copy of their invoke could still be fresh for."""
@@ -437,14 +627,18 @@ class Share:
 
     def _release(self, robot: str, winner: str | None) -> None:
         """Hand `robot` over to `winner`: its missions in flight are left to it (the ledger, or the admitted
-        entries on another host: admitted.py), the TD stays, the status stays online."""
+        entries on another host: admitted.py), the TD stays, the status stays online. Without a winner (no member
+        lists it, or this one no longer does) retire it: missions ended, TD cleared, `offline` saying `retired`."""
+        from td2adaptor.runtime.node.status import owner_fields
+
         with self._lock:
             record = self._members.get(winner or "")
         who = _describe(record, winner)
         engine = next((e for e in self.fleet.engines() if e.config.robot == robot), None)
+        if engine is not None and winner is None:
+            retired = {"node": self.me.node, "time": _now()}
+            engine.offline = status_event(engine.config, engine.model, "offline", **owner_fields(), retired=retired)
         if engine is not None and winner is not None:
-            from td2adaptor.runtime.node.status import owner_fields
-
             engine.td = None  # stays retained: the next owner publishes the same TD
             engine.offline = status_event(
                 engine.config,
@@ -468,12 +662,20 @@ class Share:
         self.takeovers.append(entry)
         log.info("robot %s: taken over from %s (%s)", robot, status.owner.describe(), how)
 
+    def _can(self) -> list[str]:
+        """What this process lists (its file's robots, the ones it sees): the plans are computed from these. The
+        admin's robots are not in it: every member reads them from their entries."""
+        with self._lock:
+            return sorted({**self._found, **self._candidates})
+
     def _publish_record(self) -> None:
         record = {
             "owner": self.me.to_json(),
             "fleet": self.name,
             "joined": self._joined,
             "robots": sorted(self.fleet.robots(ORIGIN)),
+            "can": self._can(),
+            "admin": sorted(self.admin_robots()),  # what it learnt of the admin's entries (fleet status, tests)
             "takeovers": list(self.takeovers),
         }
         payload = orjson.dumps(record)
@@ -499,13 +701,11 @@ def share_bus(template: RuntimeConfig, model: Any, *, name: str, keepalive: int,
 
     address, security = bus_security(template, model)
     node = node or this_process().node
-    return MqttBus(
+    return MqttBus.sessionless(
         address,
         security,
-        client_id=f"td2adaptor-member-{name}-{node}-{secrets.token_hex(3)}",
+        f"member-{name}-{node}",
         will=Message(members_topic(template.topic_root, name, node), b"", retain=True),
-        clean_start=True,
-        session_expiry=0,
         mqtt_version=template.mqtt_version,
         keepalive=keepalive,
     )

@@ -126,6 +126,7 @@ def test_components_follow_td_order_and_paper_names(tmp_path: Path) -> None:
         "__init__",
         "robot_name",
         "register",
+        "servers_ready",
         "construct_gotoRun_Msg",
         "call_gotoRun",
         "call_gotoRun_async",
@@ -136,13 +137,13 @@ def test_components_follow_td_order_and_paper_names(tmp_path: Path) -> None:
         "call_gotoQuery",
         "call_gotoQuery_async",
     ]
-    assert methods["AvailabilityComponent"][3:] == [
+    assert methods["AvailabilityComponent"][4:] == [
         "get_availability_value",
         "on_availability",
         "on_availability_serialized",
         "get_value",
     ]
-    assert methods["DoorComponent"][3:] == ["construct_door_Msg", "publish_door_Msg"]
+    assert methods["DoorComponent"][4:] == ["construct_door_Msg", "publish_door_Msg"]
     init = next(f for f in classes[0].body if isinstance(f, ast.FunctionDef) and f.name == "__init__")
     assert [a.arg for a in init.args.args] == ["self", "node", "robot_name"]
     assert [a.arg for a in init.args.kwonlyargs] == ["timeout", "wait_timeout"]

@@ -8,6 +8,7 @@ tests do not disturb each other. The tests of one worker share one node (see tes
 from __future__ import annotations
 
 import importlib
+import sys
 import threading
 import time
 from collections.abc import Callable, Coroutine
@@ -17,6 +18,7 @@ from typing import Any
 
 import pytest
 
+from tests.ros2 import env
 from tests.ros2.common import PACKAGE, SIM_DURATION, Process
 
 pytest_plugins = ["tests.ros2.fixtures"]  # the fixtures: ros_node, adaptor, sim, silent_robot, ...
@@ -327,6 +329,24 @@ def test_a_response_that_comes_after_its_call_gave_up_does_not_answer_the_next_c
     assert goto._gotoQuery not in runtime._READERS[(id(ros_node), "responses")]._active
     for mission in (42, 43, 44):
         assert goto.call_gotoQuery(mission_id=mission, timeout=5.0).state.header.id == mission
+
+
+def test_servers_ready_follows_the_robots_servers(adaptor: ModuleType, ros_node: Any, rb1_prefix: Path) -> None:
+    """`servers_ready()` (the edge node's presence reads it): every action of a robot whose node runs is there,
+    none once its node stopped; another robot's never; a component without actions has none."""
+    args = [sys.executable, "-m", "examples.robotnik_rb1.sim.ros2", "--quiet", "--namespace", "ready_a"]
+    robot = Process(args, env.child_env([rb1_prefix]))
+    goto = adaptor.GoToComponent(ros_node, "ready_a")
+    try:
+        robot.wait_for(lambda e: e.get("event") == "ready", timeout=30)
+        assert until(lambda: all(goto.servers_ready().values()), 10.0), goto.servers_ready()
+        assert set(goto.servers_ready()) == {"gotoRun", "gotoCancel", "gotoQuery"}
+        nobody = adaptor.GoToComponent(ros_node, "nobody_here").servers_ready()
+        assert set(nobody) == set(goto.servers_ready()) and not any(nobody.values()), nobody
+    finally:
+        robot.stop()
+    assert until(lambda: not any(goto.servers_ready().values()), 10.0), goto.servers_ready()
+    assert adaptor.AvailabilityComponent(ros_node, "ready_a").servers_ready() == {}
 
 
 def test_no_robot_running_raises_service_unavailable_within_the_timeout(adaptor: ModuleType, ros_node: Any) -> None:

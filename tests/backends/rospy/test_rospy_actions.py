@@ -389,6 +389,16 @@ def test_server_absent(master: Master, path: list[Path]) -> None:
     assert out == "action /nobody_here/fibonacci is not available (no action server within 0.5 s)"
 
 
+def test_servers_ready_says_whether_the_action_server_is_there(
+    master: Master, interfaces: Path, path: list[Path]
+) -> None:
+    """`servers_ready()`: the action server of a robot whose server runs is there, another robot's is not."""
+    code = f"from {PKG} import *\nemit([MathComponent(r).servers_ready() for r in ('fibo_ready', 'nobody_here')])\n"
+    with harness.run_server(master, interfaces, "fibonacci_server.py", "fibo_ready", str(STEP)):
+        out = harness.run_client(master, path, code)
+    assert out == [{"fibonacci": True}, {"fibonacci": False}]
+
+
 def test_invalid_goal_and_uninitialised_node(master: Master, path: list[Path]) -> None:
     out = client(
         master,

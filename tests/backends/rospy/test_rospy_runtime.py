@@ -47,7 +47,7 @@ def test_package_xml_validates_with_catkin_pkg_and_imports_under_debian_rospy(pa
         "p = parse_package(sys.argv[1])\n"
         "p.validate()\n"
         "deps = sorted(d.name for d in p.exec_depends)\n"
-        "assert deps == sorted([d.name for d in p.build_depends] + ['roslaunch']), deps\n"
+        "assert deps == sorted([d.name for d in p.build_depends] + ['roslaunch', 'rosgraph']), deps\n"
         "print(p.name, p.package_format, ' '.join(deps))\n",
         str(package / "package.xml"),
     )
@@ -193,6 +193,24 @@ def test_scenario_against_the_simulated_robot(master: Master, path: list[Path], 
     assert out["cancel"] == [cancel_id, cancel_id, "finished", "cancel", "cancel"]
     assert out["callback_seen"] is True
     assert out["serialized_seen"] is True
+
+
+READY = """
+from robotnik_rb_1_adaptor import *
+emit([GoToComponent("ready_a").servers_ready(), GoToComponent("nobody_here").servers_ready()])
+"""
+
+
+def test_servers_ready_says_which_services_the_master_knows(master: Master, path: list[Path], interfaces: Path) -> None:
+    """`servers_ready()`: the robot's services there while its node runs, gone once it stopped; another robot's
+    never there (the edge node's presence reads it)."""
+    with harness.run_sim(master, interfaces, "ready_a"):
+        there, nobody = harness.run_client(master, path, READY)
+    gone, _ = harness.run_client(master, path, READY)
+    names = {"gotoRun", "gotoQuery", "gotoCancel"}
+    assert set(there) >= names and all(there.values()), there
+    assert set(nobody) == set(there) and not any(nobody.values()), nobody
+    assert set(gone) == set(there) and not any(gone.values()), gone
 
 
 NO_ROBOT = """

@@ -563,6 +563,11 @@ class ServiceClient(Generic[RequestT, ResponseT]):
             self.register()
         return cast(Client, self.client)
 
+    def ready(self) -> bool:
+        """Whether a server of the service is there now, as this node's graph knows it (no call is made): a
+        server that stops cleanly is gone at once, one that was killed when DDS drops its participant."""
+        return self._client().service_is_ready()
+
     def _track_call(self, step: int) -> None:
         """A call is about to be sent (`step` 1) or is over (-1: answered, given up or failed to send): the
         node's responses reader, if any, waits on this client while calls are in flight."""
@@ -1645,6 +1650,10 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
         if self.client is None:
             self.register()
         return cast(_RequestingActionClient, self.client)
+
+    def ready(self) -> bool:
+        """Whether an action server is there now, as this node's graph knows it (no goal is sent)."""
+        return cast(_ActionClientApi, self._client()).server_is_ready()
 
     def start(
         self,

@@ -13,7 +13,6 @@ adaptor ("adaptor-goals", one per process) keeps the time of every goal: livenes
 from __future__ import annotations
 
 import heapq
-import http.client
 import itertools
 import threading
 import time
@@ -25,7 +24,7 @@ from typing import Any, Generic, TypeVar, cast
 import actionlib
 import rospy
 
-from ._runtime import require_node
+from ._runtime import MasterState, TimedTransport, require_node
 from .common import check_timeout
 from .errors import (
     AdaptorError,
@@ -397,7 +396,7 @@ def _topics_sent_to(uri: str, caller_id: str) -> set[str] | None:
     """The topics the node at `uri` publishes to `caller_id` by its getBusInfo (empty when it cannot be
     reached yet), or None when it has no getBusInfo (then nothing more than the connection counts is known)."""
     try:
-        proxy = xmlrpc.client.ServerProxy(uri, transport=_TimedTransport(BUS_INFO_TIMEOUT))
+        proxy = xmlrpc.client.ServerProxy(uri, transport=TimedTransport(BUS_INFO_TIMEOUT))
         reply: Any = proxy.getBusInfo(caller_id)
     except xmlrpc.client.Fault:
         return None
@@ -408,19 +407,6 @@ def _topics_sent_to(uri: str, caller_id: str) -> set[str] | None:
         return {str(row[4]) for row in rows if code == 1 and row[1] == caller_id and row[2] == "o"}
     except (TypeError, ValueError, IndexError):  # not getBusInfo's reply shape
         return set()
-
-
-class _TimedTransport(xmlrpc.client.Transport):
-    """An XML-RPC transport whose connections time out (xmlrpc.client's default waits forever)."""
-
-    def __init__(self, timeout: float) -> None:
-        super().__init__()
-        self._timeout = timeout
-
-    def make_connection(self, host: Any) -> http.client.HTTPConnection:
-        connection = super().make_connection(host)
-        connection.timeout = self._timeout
-        return connection
 
 
 class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
@@ -474,6 +460,11 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
                     topic = client.feedback_sub.resolved_name
                     self._feedback_sub = rospy.Subscriber(topic, client.ActionFeedback, self._on_feedback)
                     self._client = client
+
+    def ready(self, state: MasterState) -> bool:
+        """Whether an action server is there in `state` (what the ROS master knew a moment ago): someone
+        publishes the action's `status` topic, as every actionlib server does."""
+        return rospy.resolve_name(self.name) + "/status" in state.publishers
 
     def _goal_id(self, made: Any) -> Any:
         """actionlib's new GoalID (its stamp: now), with the id of the goal being sent."""

@@ -10,6 +10,7 @@ or timed out is dropped and made anew on the next call.
 
 from __future__ import annotations
 
+import http.client
 import importlib
 import io
 import select
@@ -17,11 +18,14 @@ import socket
 import struct
 import threading
 import time
+import xmlrpc.client
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from functools import lru_cache
 from typing import TYPE_CHECKING, Any, Generic, TypeVar, cast
 
 import genpy
+import rosgraph
 import rospy
 import rospy.core
 from rospy.exceptions import TransportException, TransportInitError
@@ -41,6 +45,49 @@ def require_node() -> None:
     """rospy allows one node per process and it is the caller's: check that it exists."""
     if not rospy.core.is_initialized():
         raise NotInitialized("call rospy.init_node(...) once in this process before using the adaptor")
+
+
+class TimedTransport(xmlrpc.client.Transport):
+    """An XML-RPC transport whose connections time out (xmlrpc.client's default waits forever)."""
+
+    def __init__(self, timeout: float) -> None:
+        super().__init__()
+        self._timeout = timeout
+
+    def make_connection(self, host: Any) -> http.client.HTTPConnection:
+        connection = super().make_connection(host)
+        connection.timeout = self._timeout
+        return connection
+
+
+#: seconds a look at the ROS master (`master_state`) may take
+MASTER_TIMEOUT = 2.0
+
+
+@dataclass(frozen=True)
+class MasterState:
+    """What the ROS master knows at one moment: the services that have a provider, the topics that have a
+    publisher (resolved names)."""
+
+    services: frozenset[str]
+    publishers: frozenset[str]
+
+
+def master_state(timeout: float = MASTER_TIMEOUT) -> MasterState:
+    """The master's system state (one `getSystemState` call, at most `timeout` seconds); nothing is there when
+    the master cannot be reached: then no server can be either."""
+    try:
+        proxy = xmlrpc.client.ServerProxy(rosgraph.get_master_uri(), transport=TimedTransport(timeout))
+        reply: Any = proxy.getSystemState(rospy.get_name())
+        code, _, (publishers, _, services) = reply
+    except (OSError, xmlrpc.client.Error, TypeError, ValueError):
+        return MasterState(frozenset(), frozenset())
+    if code != 1:
+        return MasterState(frozenset(), frozenset())
+    return MasterState(
+        frozenset(str(name) for name, nodes in services if nodes),
+        frozenset(str(name) for name, nodes in publishers if nodes),
+    )
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -248,6 +295,10 @@ class ServiceClient(Generic[Req, Resp]):
         self._lock = threading.Lock()
         self._proxy: Any = None
         self._socket: _DeadlineSocket | None = None
+
+    def ready(self, state: MasterState) -> bool:
+        """Whether the service has a provider in `state` (what the ROS master knew a moment ago)."""
+        return rospy.resolve_name(self.name) in state.services
 
     def register(self) -> None:
         """Create the service proxy (no connection is made until the first call)."""

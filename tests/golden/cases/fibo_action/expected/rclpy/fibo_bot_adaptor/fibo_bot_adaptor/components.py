@@ -70,6 +70,16 @@ class MathComponent:
         self._chatter.register()
         self._registered = True
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {
+            "fibonacci": self._fibonacci.ready(),
+        }
+
     def construct_fibonacci_Goal(
         self,
         *,

@@ -76,6 +76,16 @@ class NavigationComponent:
         self._navigateToPose.register()
         self._registered = True
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {
+            "navigateToPose": self._navigateToPose.ready(),
+        }
+
     def construct_navigateToPose_Goal(
         self,
         *,
@@ -236,6 +246,17 @@ class DockingComponent:
         self._dockRobot.register()
         self._undockRobot.register()
         self._registered = True
+
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {
+            "dockRobot": self._dockRobot.ready(),
+            "undockRobot": self._undockRobot.ready(),
+        }
 
     def construct_dockRobot_Goal(
         self,
@@ -518,6 +539,17 @@ class BaseComponent:
         self._battery.register()
         self._registered = True
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {
+            "stop": self._stop.ready(),
+            "enableMotors": self._enableMotors.ready(),
+        }
+
     def construct_stop_Msg(self) -> Trigger_Request:
         """Build the request of stop (std_srvs/srv/Trigger).
 
@@ -794,6 +826,14 @@ class LaserComponent:
             return
         self._scan.register()
         self._registered = True
+
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {}
 
     def get_scan_value(
         self,

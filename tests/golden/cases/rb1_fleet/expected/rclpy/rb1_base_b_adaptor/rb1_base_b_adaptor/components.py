@@ -103,6 +103,18 @@ class GoToComponent:
         self._gotoQuery.register()
         self._registered = True
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {
+            "gotoRun": self._gotoRun.ready(),
+            "gotoCancel": self._gotoCancel.ready(),
+            "gotoQuery": self._gotoQuery.ready(),
+        }
+
     def construct_gotoRun_Msg(
         self,
         *,
@@ -384,6 +396,18 @@ class PickComponent:
         self._pickCancel.register()
         self._pickQuery.register()
         self._registered = True
+
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {
+            "pickRun": self._pickRun.ready(),
+            "pickCancel": self._pickCancel.ready(),
+            "pickQuery": self._pickQuery.ready(),
+        }
 
     def construct_pickRun_Msg(
         self,
@@ -667,6 +691,18 @@ class PlaceComponent:
         self._placeQuery.register()
         self._registered = True
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {
+            "placeRun": self._placeRun.ready(),
+            "placeCancel": self._placeCancel.ready(),
+            "placeQuery": self._placeQuery.ready(),
+        }
+
     def construct_placeRun_Msg(
         self,
         *,
@@ -934,6 +970,14 @@ class AvailabilityComponent:
         self._availability.register()
         self._registered = True
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {}
+
     def get_availability_value(
         self,
         *,
@@ -1032,6 +1076,14 @@ class PoseMarkerComponent:
         self._poseMarker.register()
         self._registered = True
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {}
+
     def get_poseMarker_value(
         self,
         *,
@@ -1129,6 +1181,14 @@ class DoorComponent:
             return
         self._door.register()
         self._registered = True
+
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {}
 
     def construct_door_Msg(
         self,

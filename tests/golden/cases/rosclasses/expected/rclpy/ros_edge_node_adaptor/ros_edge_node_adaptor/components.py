@@ -100,6 +100,18 @@ class GoToComponent:
         self._gotoQuery.register()
         self._registered = True
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {
+            "gotoRun": self._gotoRun.ready(),
+            "gotoCancle": self._gotoCancle.ready(),
+            "gotoQuery": self._gotoQuery.ready(),
+        }
+
     def construct_gotoRun_Msg(
         self,
         *,
@@ -376,6 +388,18 @@ class PickComponent:
         self._pickQuery.register()
         self._registered = True
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {
+            "pickRun": self._pickRun.ready(),
+            "pickCancle": self._pickCancle.ready(),
+            "pickQuery": self._pickQuery.ready(),
+        }
+
     def construct_pickRun_Msg(
         self,
         *,
@@ -637,6 +661,14 @@ class AvailibilityComponent:
         self._availiblity.register()
         self._registered = True
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {}
+
     def get_availiblity_value(
         self,
         *,
@@ -733,6 +765,14 @@ class Ar_pose_markerComponent:
         self._poseMarker.register()
         self._registered = True
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {}
+
     def get_poseMarker_value(
         self,
         *,
@@ -828,6 +868,14 @@ class DoorComponent:
             return
         self._door.register()
         self._registered = True
+
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {}
 
     def construct_door_Msg(
         self,

@@ -58,6 +58,14 @@ class ImuComponent:
         self._imu.register()
         self._registered = True
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {}
+
     def get_imu_value(
         self,
         *,
@@ -155,6 +163,14 @@ class ThermalComponent:
             return
         self._temperature.register()
         self._registered = True
+
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {}
 
     def get_temperature_value(
         self,

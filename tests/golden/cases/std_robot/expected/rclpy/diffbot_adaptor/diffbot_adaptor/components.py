@@ -87,6 +87,16 @@ class DriveComponent:
         self._odom.register()
         self._registered = True
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {
+            "resetOdometry": self._resetOdometry.ready(),
+        }
+
     def construct_resetOdometry_Msg(self) -> Empty_Request:
         """Build the request of resetOdometry (std_srvs/srv/Empty).
 
@@ -270,6 +280,14 @@ class LaserComponent:
         self._scan.register()
         self._registered = True
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {}
+
     def get_scan_value(
         self,
         *,
@@ -381,6 +399,17 @@ class PowerComponent:
         self._dock.register()
         self._battery.register()
         self._registered = True
+
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as this node's
+        graph knows it: no call is made. A server that stops cleanly is gone at once; one that was killed, once
+        DDS drops its participant (its lease)."""
+        if not self._registered:
+            self.register()
+        return {
+            "enableMotors": self._enableMotors.ready(),
+            "dock": self._dock.ready(),
+        }
 
     def construct_enableMotors_Msg(
         self,

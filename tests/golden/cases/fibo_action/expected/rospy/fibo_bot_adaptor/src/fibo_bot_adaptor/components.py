@@ -13,7 +13,7 @@ from std_msgs.msg import String
 from test_msgs.msg import FibonacciAction, FibonacciFeedback, FibonacciGoal, FibonacciResult
 
 from ._actions import ActionGoalClient, GoalHandle
-from ._runtime import TopicSubscriber, require_node
+from ._runtime import TopicSubscriber, master_state, require_node
 from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, check_robot_name, check_timeout, in_namespace
 from .goals import GoalOutcome
 
@@ -63,6 +63,16 @@ class MathComponent:
         require_node()
         self._sub_chatter.register()
         self._act_fibonacci.register()
+
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        state = master_state()
+        return {
+            "fibonacci": self._act_fibonacci.ready(state),
+        }
 
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""

@@ -31,7 +31,7 @@ from sensor_msgs.msg import BatteryState, LaserScan
 from std_srvs.srv import SetBool, SetBoolRequest, SetBoolResponse, Trigger, TriggerRequest, TriggerResponse
 
 from ._actions import ActionGoalClient, GoalHandle
-from ._runtime import ServiceClient, TopicPublisher, TopicSubscriber, require_node, to_msg
+from ._runtime import ServiceClient, TopicPublisher, TopicSubscriber, master_state, require_node, to_msg
 from .common import (
     DEFAULT_TIMEOUT,
     DEFAULT_WAIT_TIMEOUT,
@@ -87,6 +87,16 @@ class NavigationComponent:
         """Create every service proxy, publisher and subscriber of this component (idempotent)."""
         require_node()
         self._act_navigateToPose.register()
+
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        state = master_state()
+        return {
+            "navigateToPose": self._act_navigateToPose.ready(state),
+        }
 
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
@@ -215,6 +225,17 @@ class DockingComponent:
         require_node()
         self._act_dockRobot.register()
         self._act_undockRobot.register()
+
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        state = master_state()
+        return {
+            "dockRobot": self._act_dockRobot.ready(state),
+            "undockRobot": self._act_undockRobot.ready(state),
+        }
 
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
@@ -443,6 +464,17 @@ class BaseComponent:
         self._sub_battery.register()
         self._pub_cmdVel.register()
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        state = master_state()
+        return {
+            "stop": self._svc_stop.ready(state),
+            "enableMotors": self._svc_enableMotors.ready(state),
+        }
+
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
         self._svc_stop.close()
@@ -618,6 +650,13 @@ class LaserComponent:
         """Create every service proxy, publisher and subscriber of this component (idempotent)."""
         require_node()
         self._sub_scan.register()
+
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        return {}
 
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""

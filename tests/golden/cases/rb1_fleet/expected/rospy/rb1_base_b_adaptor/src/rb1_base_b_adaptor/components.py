@@ -27,7 +27,7 @@ from robot_local_control_msgs.srv import (
 )
 from std_msgs.msg import Float64
 
-from ._runtime import ServiceClient, TopicPublisher, TopicSubscriber, require_node, to_msg
+from ._runtime import ServiceClient, TopicPublisher, TopicSubscriber, master_state, require_node, to_msg
 from .common import (
     DEFAULT_TIMEOUT,
     DEFAULT_WAIT_TIMEOUT,
@@ -99,6 +99,18 @@ class GoToComponent:
         self._svc_gotoRun.register()
         self._svc_gotoCancel.register()
         self._svc_gotoQuery.register()
+
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        state = master_state()
+        return {
+            "gotoRun": self._svc_gotoRun.ready(state),
+            "gotoCancel": self._svc_gotoCancel.ready(state),
+            "gotoQuery": self._svc_gotoQuery.ready(state),
+        }
 
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
@@ -289,6 +301,18 @@ class PickComponent:
         self._svc_pickCancel.register()
         self._svc_pickQuery.register()
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        state = master_state()
+        return {
+            "pickRun": self._svc_pickRun.ready(state),
+            "pickCancel": self._svc_pickCancel.ready(state),
+            "pickQuery": self._svc_pickQuery.ready(state),
+        }
+
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
         self._svc_pickRun.close()
@@ -478,6 +502,18 @@ class PlaceComponent:
         self._svc_placeCancel.register()
         self._svc_placeQuery.register()
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        state = master_state()
+        return {
+            "placeRun": self._svc_placeRun.ready(state),
+            "placeCancel": self._svc_placeCancel.ready(state),
+            "placeQuery": self._svc_placeQuery.ready(state),
+        }
+
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
         self._svc_placeRun.close()
@@ -651,6 +687,13 @@ class AvailabilityComponent:
         require_node()
         self._sub_availability.register()
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        return {}
+
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
         self._sub_availability.close()
@@ -720,6 +763,13 @@ class PoseMarkerComponent:
         """Create every service proxy, publisher and subscriber of this component (idempotent)."""
         require_node()
         self._sub_poseMarker.register()
+
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        return {}
 
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
@@ -791,6 +841,13 @@ class DoorComponent:
         """Create every service proxy, publisher and subscriber of this component (idempotent)."""
         require_node()
         self._pub_door.register()
+
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        return {}
 
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""

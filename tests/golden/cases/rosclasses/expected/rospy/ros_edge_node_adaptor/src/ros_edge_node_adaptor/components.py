@@ -22,7 +22,7 @@ from robot_local_control_msgs.srv import (
 )
 from std_msgs.msg import Float64
 
-from ._runtime import ServiceClient, TopicPublisher, TopicSubscriber, require_node, to_msg
+from ._runtime import ServiceClient, TopicPublisher, TopicSubscriber, master_state, require_node, to_msg
 from .common import (
     DEFAULT_TIMEOUT,
     DEFAULT_WAIT_TIMEOUT,
@@ -94,6 +94,18 @@ class GoToComponent:
         self._svc_gotoRun.register()
         self._svc_gotoCancle.register()
         self._svc_gotoQuery.register()
+
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        state = master_state()
+        return {
+            "gotoRun": self._svc_gotoRun.ready(state),
+            "gotoCancle": self._svc_gotoCancle.ready(state),
+            "gotoQuery": self._svc_gotoQuery.ready(state),
+        }
 
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
@@ -278,6 +290,18 @@ class PickComponent:
         self._svc_pickCancle.register()
         self._svc_pickQuery.register()
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        state = master_state()
+        return {
+            "pickRun": self._svc_pickRun.ready(state),
+            "pickCancle": self._svc_pickCancle.ready(state),
+            "pickQuery": self._svc_pickQuery.ready(state),
+        }
+
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
         self._svc_pickRun.close()
@@ -445,6 +469,13 @@ class AvailibilityComponent:
         require_node()
         self._sub_availiblity.register()
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        return {}
+
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
         self._sub_availiblity.close()
@@ -515,6 +546,13 @@ class Ar_pose_markerComponent:
         require_node()
         self._sub_poseMarker.register()
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        return {}
+
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
         self._sub_poseMarker.close()
@@ -583,6 +621,13 @@ class DoorComponent:
         """Create every service proxy, publisher and subscriber of this component (idempotent)."""
         require_node()
         self._pub_door.register()
+
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        return {}
 
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""

@@ -54,6 +54,13 @@ class ImuComponent:
         require_node()
         self._sub_imu.register()
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        return {}
+
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
         self._sub_imu.close()
@@ -123,6 +130,13 @@ class ThermalComponent:
         """Create every service proxy, publisher and subscriber of this component (idempotent)."""
         require_node()
         self._sub_temperature.register()
+
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        return {}
 
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""

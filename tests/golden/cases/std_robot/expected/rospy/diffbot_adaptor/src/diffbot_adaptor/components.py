@@ -26,7 +26,7 @@ from std_srvs.srv import (
     TriggerResponse,
 )
 
-from ._runtime import ServiceClient, TopicPublisher, TopicSubscriber, require_node, to_msg
+from ._runtime import ServiceClient, TopicPublisher, TopicSubscriber, master_state, require_node, to_msg
 from .common import (
     DEFAULT_TIMEOUT,
     DEFAULT_WAIT_TIMEOUT,
@@ -91,6 +91,16 @@ class DriveComponent:
         self._svc_resetOdometry.register()
         self._sub_odom.register()
         self._pub_cmdVel.register()
+
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        state = master_state()
+        return {
+            "resetOdometry": self._svc_resetOdometry.ready(state),
+        }
 
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
@@ -212,6 +222,13 @@ class LaserComponent:
         require_node()
         self._sub_scan.register()
 
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        return {}
+
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""
         self._sub_scan.close()
@@ -295,6 +312,17 @@ class PowerComponent:
         self._svc_enableMotors.register()
         self._svc_dock.register()
         self._sub_battery.register()
+
+    def servers_ready(self) -> dict[str, bool]:
+        """Whether the server of each of the component's actions is there now, by TD action name, as the ROS
+        master knows it (one `getSystemState` call, no call to the servers; none when the master cannot be
+        reached). A node that stops cleanly is gone at once; one that was killed, once something finds it dead."""
+        require_node()
+        state = master_state()
+        return {
+            "enableMotors": self._svc_enableMotors.ready(state),
+            "dock": self._svc_dock.ready(state),
+        }
 
     def close(self) -> None:
         """Close connections, unsubscribe and unadvertise; register() (or any method) sets them up again."""

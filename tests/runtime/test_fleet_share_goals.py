@@ -1,0 +1,88 @@
+"""A process of a shared fleet that hangs and resumes sends no ROS action goal it read on a connection whose
+session another process took over meanwhile (issue 32, docs/fleet.md "Several processes share a fleet"): as
+test_fleet_share_resume.py shows for procedure missions, with goals. A goal is sent only once the broker has the
+invoke's admitted entry (node/admitted.py), and not at all when the robot's connection was lost by then; the wait
+is a callback of the broker's acknowledgement, not a wait on the engine's loop (engine/goals.py `gate`). SIGSTOP leaves
+its connections open: the broker goes on writing a robot's commands into the socket, where they wait, unread
+and unacknowledged, while the other process takes the robot (and its session, whose commands the broker then
+delivers to it). On SIGCONT the hung process reads those commands before the broker's "Session taken over"
+behind them; it must not run them again (across hosts nothing else stops it: no shared state directory).
+The processes are tests/runtime/share_proc.py's (`SHARE_ACTIONS`: the robots' action is a ROS action served by
+simulated action servers), with state directories apart, as on two hosts.
+"""
+
+from __future__ import annotations
+
+import signal
+import time
+import uuid
+from pathlib import Path
+
+import pytest
+
+from td2adaptor.runtime.events import now_rfc3339
+from tests.runtime.broker import Mosquitto
+from tests.runtime.client import AppClient
+from tests.runtime.edge import until
+from tests.runtime.test_fleet_share import Procs, Watcher, retained, served_by, shares
+
+ROBOTS = 4
+GOAL = "td2adaptor/{robot}/MathComponent/fibonacci"
+
+
+def test_a_resumed_process_sends_no_goal_it_read_on_a_session_taken_over(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("SHARE_ACTIONS", "1")
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    procs = Procs(broker, tmp_path, ROBOTS, hosts=True)
+    watcher = Watcher(broker)
+    sender = AppClient(broker, ["test/nothing"])
+    try:
+        started = procs.start_many(2)
+        pids = {p.pid for p in started}
+        assert until(lambda: served_by(watcher, pids, ROBOTS) and set(shares(watcher, pids).values()) == {2}, 60)
+        frozen, other = started
+        theirs = [r for r, (_s, pid) in watcher.owners().items() if pid == frozen.pid]
+        others = [r for r, (_s, pid) in watcher.owners().items() if pid == other.pid]
+        frozen.send_signal(signal.SIGSTOP)
+        try:
+            sent = []
+            for n, robot in enumerate(theirs):  # one each (a robot runs one at a time), into the hung process's
+                event_id = uuid.uuid4().hex  # socket: read by nobody yet
+                payload = {"order": 3 + n}  # each robot's goal its own order: the runs file tells them apart
+                event = {"id": event_id, "time": now_rfc3339(), "correlation": event_id, "payload": payload}
+                sender.send(GOAL.format(robot=robot), event)
+                sent.append(event_id)
+            assert until(lambda: served_by(watcher, {other.pid}, ROBOTS), 20), (watcher.owners(), procs.logs())
+            # the broker gives the session's commands to the next owner, which runs them
+            assert until(lambda: set(sent) <= set(watcher.terminals()), 30), procs.logs()
+            assert sorted(procs.runs_of().values()) == [1, 1], procs.runs_of()
+        finally:
+            frozen.send_signal(signal.SIGCONT)
+        # it lets the robot go, takes a share again by hand-over, and runs none of the commands a second time
+        assert until(lambda: served_by(watcher, pids, ROBOTS) and set(shares(watcher, pids).values()) == {2}, 30), (
+            watcher.owners(),
+            procs.logs(),
+        )
+        time.sleep(2)  # a second run would have been written by now (a mission starts within milliseconds)
+        runs = procs.runs_of()
+        assert sorted(runs.values()) == [1, 1], (runs, procs.logs())
+        # nor, finding the other's beats old (they waited unread in its socket), did it take the other's robots:
+        # the silence was its own
+        grabbed = {
+            r for _t, r, p in watcher.statuses() if r in others and (p.get("owner") or {}).get("pid") == frozen.pid
+        }
+        assert not grabbed, (grabbed, procs.logs())
+        # and what the broker keeps of each command for a later owner (node/admitted.py) is the other's: it ran it
+        members = retained(broker, "td2adaptor/.fleet/shared/members/+")
+        node = next(e["owner"]["node"] for e in members.values() if e and e["owner"]["pid"] == other.pid)
+        entries = {e["id"]: e for e in retained(broker, "td2adaptor/.fleet/shared/admitted/+/+").values() if e}
+        kept = {i: (entries[i]["owner"], entries[i].get("state")) for i in sent}
+        assert kept == dict.fromkeys(sent, (node, "finished")), kept
+    finally:
+        sender.close()
+        watcher.close()
+        procs.close()
+        broker.stop()
