@@ -23,6 +23,7 @@ run "gen next to a peer generator (issue 3)" "$PY" bench/peer.py
 [ -f bench/backend_mros.py ] && run "mROS backend (issue 4)" "$PY" bench/backend_mros.py
 [ -f bench/runtime_bus.py ] && run "edge-node runtime over MQTT (issue 5)" "$PY" bench/runtime_bus.py
 [ -f bench/edge_node_ros2.py ] && run "edge node: MQTT event -> ROS 2 call -> feedback (issue 5)" "$PY" bench/edge_node_ros2.py
+[ -f bench/edge_node_ros1.py ] && run "edge node: MQTT event -> ROS 1 bridge -> answer, vs direct rospy call + echo (issue 31)" "$PY" bench/edge_node_ros1.py
 [ -f bench/wot_consumer.py ] && run "a WoT consumer (node-wot) on ROS 2; the retained TD at start (issue 11)" "$PY" bench/wot_consumer.py
 [ -f bench/discovery.py ] && run "discovery: TD registered with a TD directory at start (issue 11)" "$PY" bench/discovery.py
 [ -f bench/td_size.py ] && run "the examples' published TDs: JSON, RDF, and what a TD directory gives back (issue 35)" "$PY" bench/td_size.py

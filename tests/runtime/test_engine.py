@@ -267,6 +267,7 @@ def test_all_robots_channel_reaches_every_engine() -> None:
     app = LocalApp(broker)
     fleet = [config(robot=name) for name in ("rb1_base_a", "rb1_base_b")]
     engines = serve_fleet(model, lambda cfg: SimPort(model, sim(0.1, robot_id=cfg.robot)), fleet, broker=broker)
+    assert engines[0].catalog is engines[1].catalog  # one TD, one catalog for the fleet: not a copy per robot
     try:
         app.send("td2adaptor/all/GoToComponent/gotoRun", {"correlation": "everyone", "payload": GOAL})
         app.wait(

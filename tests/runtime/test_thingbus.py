@@ -155,3 +155,66 @@ def test_every_action_input_declares_the_correlation_and_keeps_the_goal() -> Non
             Draft202012Validator.check_schema(schema)
             assert Draft202012Validator(schema).is_valid({**GOAL, CORRELATION: "x"}) == (spec.affordance == "gotoRun")
         assert wot_topic(spec, ROBOT) is not None
+
+
+class _CountingJson:
+    """The `json` module as thingbus.py sees it, counting `loads`: how often the adapter parses an event."""
+
+    def __init__(self) -> None:
+        self.loads_calls = 0
+
+    def loads(self, raw: Any) -> Any:
+        self.loads_calls += 1
+        return json.loads(raw)
+
+    def dumps(self, *args: Any, **kw: Any) -> str:
+        return json.dumps(*args, **kw)
+
+
+@pytest.mark.parametrize("ledger", [False, True])
+def test_each_event_is_encoded_once_and_its_wot_form_is_the_one_read_back_from_it(
+    ledger: bool, tmp_path: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The engine's events reach ThingBus as objects: the WoT form is made without parsing the envelope the
+    engine just encoded, and is byte for byte what reading the envelope back gives (properties, feedback,
+    state, errors, with and without the ledger)."""
+    from td2adaptor.runtime.bus import thingbus
+
+    counting = _CountingJson()
+    monkeypatch.setattr(thingbus, "json", counting)
+    model = rb1_model()
+    broker = LocalBroker()
+    seen: list[Message] = []
+    watcher = LocalBus(broker, "w")
+    watcher.subscribe("td2adaptor/#", seen.append)
+    watcher.connect()
+    app = LocalApp(broker)
+    state = str(tmp_path) if ledger else ""
+    config = RuntimeConfig(robot=ROBOT, poll_period=0.02, property_period=0.05, state_dir=state)
+    engine = serve(model, SimPort(model, sim(0.3)), config, broker=broker)
+    try:
+        app.send(f"{T}/GoToComponent/gotoRun", {**GOAL, CORRELATION: "job"})
+        app.wait(lambda ev: any(t == f"{T}/GoToComponent/gotoRun/feedback" for t, _ in ev))
+        app.send(f"{T}/GoToComponent/gotoQuery", {"mission": 1, CORRELATION: "q"})
+        app.send(f"{T}/PickComponent/pickRun", {"nope": 1, CORRELATION: "bad"})
+        app.wait(lambda ev: any(e.get(CORRELATION) == "job" and e.get("terminal") for _, e in ev))
+        app.wait(lambda ev: {e.get(CORRELATION) for t, e in ev} >= {"q", "bad"})
+    finally:
+        engine.stop()
+    assert watcher.drain(5)
+    published = counting.loads_calls
+    reference = ThingBus(LocalBus(LocalBroker(), "r"), rb1_catalog(), ROBOT)  # reads each envelope back
+    expected: list[tuple[str, str]] = []
+    for msg in seen:
+        spec = reference._outbound.get(msg.topic)
+        if spec is None or spec.kind is Kind.STATUS or not msg.payload:
+            continue
+        out = reference.unwrap(spec, json.loads(msg.payload))
+        if out is not None:
+            expected.append((out[0], json.dumps(out[1], separators=(",", ":"), ensure_ascii=False)))
+    wot = [(m.topic, m.payload.decode()) for m in seen if m.topic.startswith(f"{T}/") and m.payload]
+    wot = [(t, p) for t, p in wot if not t.endswith(("/gotoRun", "/gotoQuery", "/pickRun"))]  # the app's own
+    kinds = {t.rsplit("/", 1)[1] for t, _ in expected}
+    assert {"feedback", "state", "error"} <= kinds and len(expected) > 5, kinds
+    assert sorted(wot) == sorted(expected)
+    assert published == 0, f"the adapter parsed {published} of the engine's events again"

@@ -114,6 +114,8 @@ class ThingBus:
         return inbound
 
     def publish(self, topic: str, payload: bytes, *, retain: bool = False, qos: int = 1) -> None:
+        """`payload` and its WoT form, read back from it (an event resent from the ledger, a test's): the
+        engine's own events come through `publish_event`, which does not parse what it just encoded."""
         self.bus.publish(topic, payload, retain=retain, qos=qos)
         spec = self._outbound.get(topic)
         if spec is None or spec.kind is Kind.STATUS or not payload:
@@ -122,6 +124,20 @@ class ThingBus:
             event = json.loads(payload)
         except ValueError:
             return
+        self._publish_wot(spec, event, retain, qos)
+
+    def publish_event(
+        self, topic: str, payload: bytes, event: Mapping[str, Any], *, retain: bool = False, qos: int = 1
+    ) -> None:
+        """`publish(topic, payload)` where `payload` is `event` encoded: the WoT form is made from `event`
+        itself (the same text as from `payload` read back, without parsing it again)."""
+        self.bus.publish(topic, payload, retain=retain, qos=qos)
+        spec = self._outbound.get(topic)
+        if spec is None or spec.kind is Kind.STATUS:
+            return
+        self._publish_wot(spec, event, retain, qos)
+
+    def _publish_wot(self, spec: EventSpec, event: Any, retain: bool, qos: int) -> None:
         out = self.unwrap(spec, event)
         if out is not None:
             text = json.dumps(out[1], separators=(",", ":"), ensure_ascii=False, allow_nan=False)

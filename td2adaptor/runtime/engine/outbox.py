@@ -20,6 +20,7 @@ from typing import Any
 
 from td2adaptor.model.events import EventCatalog, EventSpec, Kind
 from td2adaptor.runtime.bus.bus import Bus, BusError
+from td2adaptor.runtime.bus.thingbus import ThingBus
 from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.engine.ledger import SEQ_BLOCK, Ledger
 from td2adaptor.runtime.engine.missions import Mission, MissionTable
@@ -55,12 +56,25 @@ class Outbox:
         except (TypeError, ValueError) as exc:
             log.error("could not publish a %s event: %s", spec.kind.value, exc)
             return
-        self.send(spec, data, retain=retain, qos=qos)
+        self.send(spec, data, retain=retain, qos=qos, event=event)
 
-    def send(self, spec: EventSpec, data: bytes, *, retain: bool = False, qos: int = 1) -> None:
+    def send(
+        self,
+        spec: EventSpec,
+        data: bytes,
+        *,
+        retain: bool = False,
+        qos: int = 1,
+        event: Mapping[str, Any] | None = None,
+    ) -> None:
+        """Publish `data`; `event`, when given, is what `data` encodes: a WoT adapter makes its WoT form from
+        it instead of parsing `data` again (thingbus.py)."""
         try:
             topic = spec.topic(self.config.robot, self.config.topic_root)
-            self.bus.publish(topic, data, retain=retain, qos=qos)
+            if event is not None and isinstance(self.bus, ThingBus):
+                self.bus.publish_event(topic, data, event, retain=retain, qos=qos)
+            else:
+                self.bus.publish(topic, data, retain=retain, qos=qos)
             self.count(f"out.{spec.kind.value}")
         except (BusError, TypeError, ValueError) as exc:
             log.error("could not publish a %s event: %s", spec.kind.value, exc)
@@ -132,7 +146,7 @@ class Outbox:
             log.error("could not publish a %s event: %s", spec.kind.value, exc)
             return
         self._record(m, data, terminal, changed)
-        self.send(spec, data)
+        self.send(spec, data, event=event)
         if terminal:
             self.ledger.done(m.key)
             self._ended(m)

@@ -663,3 +663,35 @@ def test_50_concurrent_goals_start_no_thread(fibo_adaptor: ModuleType, ros_node:
     finally:
         server.stop()
     goal_scenarios.check_concurrent(out, [sequence(i) for i in range(1, 6)], sequence(40))
+
+
+def test_goal_ids_are_distinct_and_start_x_reads_no_random_bytes_from_the_system(
+    fibo_adaptor: ModuleType, fibo: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A goal id is 16 bytes unique in the process without a system call per goal (os.urandom lets go of the
+    interpreter lock, and start_X then waits for the executor's thread to give it back)."""
+    import os
+
+    drawn: list[int] = []
+    urandom = os.urandom
+
+    def counting(n: int) -> bytes:
+        drawn.append(n)
+        return urandom(n)
+
+    monkeypatch.setattr(os, "urandom", counting)
+    done = threading.Event()
+    ends: list[Any] = []
+
+    def on_done(outcome: Any) -> None:
+        ends.append(outcome)
+        if len(ends) == 20:
+            done.set()
+
+    goal = fibo.construct_fibonacci_Goal(order=1)
+    handles = [fibo.start_fibonacci(goal, on_done=on_done) for _ in range(20)]
+    assert not drawn, f"start_X read {len(drawn)} random numbers from the system"
+    monkeypatch.undo()
+    ids = [h.goal_id for h in handles]
+    assert len(set(ids)) == 20 and all(len(i) == 32 and int(i, 16) >= 0 for i in ids)
+    assert done.wait(15) and all(o.status == "succeeded" for o in ends), ends
