@@ -310,6 +310,7 @@ class GeneratedPort:
             raise ValueError("a ROS 2 port needs the rclpy node that owns its clients (node=...)")
         self.layout = model if isinstance(model, Layout) else Layout.of(model)
         self.robot_name = robot_name
+        self.node = node  # ROS 2: the rclpy node that owns the clients (presence reads its graph)
         self.distro = distro
         self.feedback_grace = FEEDBACK_GRACE[distro] if feedback_grace is None else feedback_grace
         self.server_timeout = server_timeout
