@@ -180,3 +180,52 @@ def test_a_robot_handed_over_to_a_process_that_drops_it_while_its_owner_drops_it
         broker.stop()
     assert codes == [0] * len(procs), codes
     print(json.dumps({"history": history(watcher, robot)}))
+
+
+def test_a_process_that_claims_a_robot_another_one_is_claiming_leaves_it_to_that_one(tmp_path: Path) -> None:
+    """l starts claiming its four robots, whose ROS side takes 3 s to come up; w lists them meanwhile (more than
+    SETTLE after l), gets two of them by the plan, finds them free (l is not online yet) and claims them. Before,
+    l then connected as well and took their sessions from w: w's reconnection took them back, found them l's
+    and went off (`offline`), l's went off in turn, and each robot was `online` by w, by l, `offline`, then
+    `online` again. Now l looks once more right before it connects, and leaves w's robots to w."""
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    watcher = Watcher(broker)
+    procs: list[Proc] = []
+    robots = [f"rb_{i:02d}" for i in range(4)]
+    try:
+        w = Proc(broker, tmp_path, "w", [])
+        procs.append(w)
+        late = Proc(broker, tmp_path, "l", robots, SHARE_GROW_DELAY="3")
+        procs.append(late)
+        pids = {w.pid, late.pid}
+        wait(lambda: bool(record(watcher, late.node).get("can")), 10, late, what="l joined")
+        time.sleep(1.5)  # l is inside its claim (it starts 1 s after it joined, and lasts 3 s)
+        w.reload(robots)
+        seen = time.monotonic()
+
+        def settled() -> bool:
+            last = {r: status(watcher, r) for r in robots}
+            if not all(p.get("state") == "online" and not p.get("handover") for p in last.values()):
+                return False
+            served = {r: p.pid for p in procs for r in record(watcher, p.node).get("robots", [])}
+            owners = {r: (last[r].get("owner") or {}).get("pid") for r in robots}
+            return sorted(served) == robots and owners == served
+
+        wait(settled, 20, w, late, what=str({r: history(watcher, r) for r in robots}))
+        took = time.monotonic() - seen
+        hist = {r: history(watcher, r) for r in robots}
+        print(f"settled {took:.2f} s after w listed them", json.dumps(hist))
+        assert {(status(watcher, r).get("owner") or {}).get("pid") for r in robots} == pids, hist
+        for robot, seq in hist.items():
+            assert all(state == "online" for state, _pid, _to in seq), (robot, seq)  # never offline on the way
+            for (_s, before, to), (_s2, after, _t2) in zip(seq, seq[1:], strict=False):
+                assert before == after or to is not None, (robot, seq)  # another owner only by hand-over
+        assert took < 8, took  # no stall
+        logs = w.log() + late.log()
+        assert "Traceback" not in logs and "SUBACK" not in logs and "took its session over" not in logs, logs
+    finally:
+        codes = [p.close() for p in procs]
+        watcher.close()
+        broker.stop()
+    assert codes == [0, 0], codes

@@ -224,6 +224,7 @@ class Share:
         self._taken: set[str] = set()  # robots whose session another member took: let go at the next round
         fleet.on_added.append(self._watch)
         fleet.prepare = self._prepare
+        fleet.admit = self._admit
         self.book = Book()  # every robot's admitted invokes, as the broker has them
         self._swept = 0.0
         self._stop = threading.Event()
@@ -619,6 +620,26 @@ class Share:
         if owner.node in live:
             return False  # its owner serves it still: it hands it over first
         return owner.node in gone or not lives(owner)  # the owner died (or a stale record of this host)
+
+    def _admit(self, config: RuntimeConfig) -> str | None:
+        """(Fleet.admit) The last look before this process takes the robot's session, after its ROS side came up
+        (which may take seconds): a member that listed the robot meanwhile (its ROS graph showed it later than
+        this one's) may be its owner now, and may have claimed it already, its status free when it looked. Two
+        claims would have the broker take the session from one of them, which then goes off and on again:
+        declined here instead, the robot is that member's (or handed over to it by this process later)."""
+        robot = config.robot
+        with self._lock:
+            live = self._live()
+            plan, _mine = self._plan(live)
+            status = self._statuses.get(robot)
+        owner = plan.get(robot)
+        if owner is not None and owner != self.me.node:
+            return f"member {owner} of the fleet serves it now"
+        holder = status.owner if status is not None else None
+        if status is not None and status.state == "online" and status.handover is None and holder is not None:
+            if holder.node != self.me.node and holder.node in live:
+                return f"{holder.describe()} serves it now"
+        return None
 
     def _prepare(self, engine: Engine) -> None:
         """(Fleet.prepare) Before the robot is served: what its earlier owners admitted, then record what this
