@@ -11,6 +11,11 @@ With `SHARE_TD` (a TD whose security is `basic`) and `SHARE_PASSWORDS` (JSON: ro
 environment, each robot connects as its own broker user (its id), as under the ACL `gen -b events` writes, and
 the process's own connection (member record, beats, admitted entries) as the first robot's user: the user of
 its top-level settings (test_fleet_share_acl.py).
+
+With `SHARE_ROBOTS_FILE` (robot ids, separated by white space) the robots are that file's instead of ROBOTS's
+count, and SIGHUP reads it again (as `run` reads its fleet file again). `SHARE_SETTLE` (seconds) is how long the
+process waits at its start before it takes its share (a process slow to take what is handed over to it), and
+`SHARE_GROW_DELAY` how long each robot's ROS side takes to come up (a slow ROS graph: its claim takes that long).
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -69,6 +75,9 @@ def main() -> None:
     LoggedPort.runs_fd = os.open(runs, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o600)
     settings = {"bus": url, "poll_period": 0.05, "property_period": 0, "presence_period": 0, "state_dir": state_dir}
     robots = [f"rb_{i:02d}" for i in range(count)]
+    listed = os.environ.get("SHARE_ROBOTS_FILE")
+    if listed:
+        robots = Path(listed).read_text().split()
     passwords: dict[str, str] = json.loads(os.environ.get("SHARE_PASSWORDS", "{}"))
     model = compile_td(Path(os.environ["SHARE_TD"])) if "SHARE_TD" in os.environ else rb1_model()
     actions = None
@@ -83,7 +92,10 @@ def main() -> None:
     if passwords:  # each robot its own user
         candidates = [replace(c, username=c.robot, password=passwords[c.robot]) for c in candidates]
 
+    delay = float(os.environ.get("SHARE_GROW_DELAY", "0"))
+
     def grow(configs: Sequence[RuntimeConfig]) -> RosLink:
+        time.sleep(delay)
         ports = {}
         for c in configs:
             port = LoggedPort(model, sim(0.3))
@@ -97,9 +109,20 @@ def main() -> None:
     template = robot_config(defaults, "stand-in")
     keepalive = int(os.environ.get("SHARE_KEEPALIVE", template.share_keepalive))
     bus = share_bus(template, model, name=FLEET, keepalive=keepalive)
-    share = Share(fleet, bus, name=FLEET, root="td2adaptor", timeout=template.share_timeout)
+    settle = float(os.environ.get("SHARE_SETTLE", "1"))
+    share = Share(fleet, bus, name=FLEET, root="td2adaptor", timeout=template.share_timeout, settle=settle)
     done = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: done.set())
+    reloading = threading.Lock()
+
+    def reload() -> None:  # as FleetFile does: off the signal handler
+        with reloading:
+            wanted = Path(listed or "").read_text().split()
+            logging.getLogger("td2adaptor.runtime.share").info("reloaded: %s", " ".join(wanted))
+            share.apply([robot_config(defaults, robot) for robot in wanted])
+
+    if listed:
+        signal.signal(signal.SIGHUP, lambda *_: threading.Thread(target=reload, daemon=True).start())
     share.start(candidates)
     print("ready", share.me.node, flush=True)
     done.wait()

@@ -194,6 +194,7 @@ class MqttBus:
         self._unacked: set[int] = set()  # QoS 0 message ids whose on_publish (at the write) has not come yet
         self._subacked: set[int] = set()
         self._first_subscribe: int | None = None  # the message id of the subscriptions sent on the first CONNACK
+        self._first_epoch = -1  # the first accepted connection's `_epoch` (connect() checks it is still there)
         self._connack = threading.Event()
         self._refusal: ReasonCode | None = None
         self._dropped: str | None = None
@@ -333,7 +334,13 @@ class MqttBus:
                     f"username and password in the configuration or in {ENV_USERNAME} / {ENV_PASSWORD})"
                 )
             raise BusError(f"the MQTT broker at {self.address} refused the connection: {refusal.getName()}")
-        self._await_first_subscribe()
+        if not self._await_first_subscribe():
+            self._abort()
+            raise BusError(
+                f"the MQTT broker at {self.address} closed the connection right after accepting it: another client "
+                f"connected with this client id ({self.client_id}) and took its session over? (a second edge node "
+                "for the same robot)"
+            )
 
     def _start(self, client: mqtt.Client) -> None:
         """Start serving the connection: the process's serving loop (`DrivenBus` serves it from its owner's)."""
@@ -349,23 +356,25 @@ class MqttBus:
     def _await_connack(self, _client: mqtt.Client) -> bool:
         return self._connack.wait(self.connect_timeout)
 
-    def _await_first_subscribe(self) -> None:
+    def _await_first_subscribe(self) -> bool:
         """Return from connect() only once the broker has taken the subscriptions made before it: an event
         published right after (an application that sees this robot online) must find them in place; without a
-        session of ours the broker keeps nothing for filters it does not know yet."""
+        session of ours the broker keeps nothing for filters it does not know yet. False: the first connection
+        was lost before (mosquitto 2.0 closes a connection whose session another one took over without MQTT 5's
+        reason: only this says so), and its reconnection would take the session back."""
         with self._lock:
             mid = self._first_subscribe
-            if mid is None:
-                return
-            self._await_suback(mid, "the subscriptions")
-            self._first_subscribe = None
+            if mid is not None:
+                self._await_suback(mid, "the subscriptions", self._first_epoch)
+                self._first_subscribe = None
+            return self._epoch == self._first_epoch
 
-    def _await_suback(self, mid: int, what: str) -> None:
-        """Wait (lock held) at most `connect_timeout` for the SUBACK of subscribe message `mid` (not on the
-        serving thread, which reads it)."""
+    def _await_suback(self, mid: int, what: str, epoch: int) -> None:
+        """Wait (lock held) at most `connect_timeout` for the SUBACK of subscribe message `mid` sent on connection
+        `epoch` (not on the serving thread, which reads it); not once that connection is lost."""
         if self._link is not None and self._link.loop.on_thread():
             return
-        if not self._lock.wait_for(lambda: mid in self._subacked, self.connect_timeout):
+        if not self._lock.wait_for(lambda: mid in self._subacked or self._epoch != epoch, self.connect_timeout):
             log.warning("no SUBACK for %s within %g s", what, self.connect_timeout)
         self._subacked.discard(mid)
 
@@ -435,6 +444,8 @@ class MqttBus:
         self._connected = True  # from now on what arrives on this connection is handled
         with self._lock:
             patterns = [(p, self._qos[p]) for p in dict.fromkeys(p for p, _h, _a in self._handlers)]
+        if self.connects == 1:
+            self._first_epoch = self._epoch
         if patterns:
             rc, mid = self._subscribe(client, patterns)
             if self.connects == 1 and rc is MQTTErrorCode.MQTT_ERR_SUCCESS and mid is not None:
@@ -545,6 +556,7 @@ class MqttBus:
         self._forget_inbox()  # as is every message not acknowledged yet: its acknowledgement would go nowhere
         with self._lock:
             self._unacked.clear()  # paho drops the QoS 0 messages it had not written yet
+            self._lock.notify_all()  # a SUBACK awaited on it will not come (`_await_suback`)
         if self.connects == 0 and not self._connack.is_set():  # dropped before any CONNACK: fail fast
             self._dropped = reason.getName()
             self._connack.set()
@@ -700,11 +712,12 @@ class MqttBus:
         client = self._client
         if client is None or known or not self._connected:
             return  # subscribed on (re)connect
+        epoch = self._epoch
         rc, mid = self._subscribe(client, [(pattern, qos)])  # never under self._lock: paho calls back holding its own
         if rc is not MQTTErrorCode.MQTT_ERR_SUCCESS or mid is None:
             return  # not connected after all: subscribed on reconnect
         with self._lock:
-            self._await_suback(mid, pattern)
+            self._await_suback(mid, pattern, epoch)
 
     def _subscribe(self, client: mqtt.Client, patterns: list[tuple[str, int]]) -> tuple[MQTTErrorCode, int | None]:
         """Subscribe to (filter, QoS) pairs; in MQTT 5 with retain-as-published, so that a message published

@@ -96,6 +96,9 @@ class Fleet:
         #: fleet (node/share.py) decides that from the members and statuses it follows instead
         self.check: Callable[[Sequence[RuntimeConfig]], None] = partial(check_fleet, model)
         self.prepare: Callable[[Engine], None] | None = None  # each engine, before it serves (share.py)
+        #: the last look before a robot connects (its ROS side is up, its session not taken yet): why it must not
+        #: be served now, or None. A shared fleet (share.py) declines a robot another member claimed meanwhile
+        self.admit: Callable[[RuntimeConfig], str | None] | None = None
         self._lock = threading.RLock()
         self._engines: dict[str, Engine] = {}
         self._origin: dict[str, str] = {}
@@ -215,22 +218,24 @@ class Fleet:
         if not configs:
             return []
         try:
-            return list(self._grow(configs, origin))
+            return list(self._grow(configs, origin, failed))
         except FleetError as exc:
             if len(configs) == 1:
                 failed[configs[0].robot] = exc.why
                 return []
-        started = []
+        started: list[str] = []
         for config in configs:
             try:
-                self._grow([config], origin)
-                started.append(config.robot)
+                started += self._grow([config], origin, failed)
             except FleetError as exc:
                 failed[config.robot] = exc.why
         return started
 
-    def _grow(self, configs: Sequence[RuntimeConfig], origin: str) -> dict[str, Engine]:
-        """Ports for `configs` on a link of their own, then their engines; on a failure nothing is left."""
+    def _grow(
+        self, configs: Sequence[RuntimeConfig], origin: str, declined: dict[str, str] | None = None
+    ) -> dict[str, Engine]:
+        """Ports for `configs` on a link of their own, then their engines; on a failure nothing is left. A robot
+        `admit` declines is not served (`declined` says why; without it, a `FleetError`)."""
         from td2adaptor.runtime.bus.bus import BusError
         from td2adaptor.runtime.bus.security import SecurityError
         from td2adaptor.runtime.ros.port import PortError, RosSetupError
@@ -244,8 +249,17 @@ class Fleet:
             self.check(configs)  # none another live process serves (OwnerConflict: a BusError)
             link = self.link.grow(configs)
             for config in configs:
+                why = self.admit(config) if self.admit is not None else None
+                if why is not None:
+                    if declined is None:
+                        raise FleetError(config.robot, why)
+                    declined[config.robot] = why
+                    link.release(config.robot)
+                    continue
                 started[config.robot] = self._serve(config, link.ports[config.robot], origin)
                 self._links[config.robot] = link
+            if not started:
+                link.close()
         except Exception as exc:
             for robot in started:
                 self._engines.pop(robot).stop()
@@ -253,6 +267,8 @@ class Fleet:
                 self._links.pop(robot, None)
             if link is not None:
                 link.close()
+            if isinstance(exc, FleetError):
+                raise
             if not isinstance(exc, (RosSetupError, SecurityError, BusError, PortError, OSError)):
                 log.exception("robot %s: could not start", robots)
                 raise FleetError(robots, "could not start (the edge node's log says why)") from None

@@ -78,6 +78,10 @@ SETTLE = 0.75
 #: seconds a robot its owner retired (it no longer lists it) waits before another member that still lists it claims
 #: it: the other members drop it too a moment later (they read the file, or look at the graph, a little after)
 RETIRED_WAIT = 2.0
+#: seconds a robot this process handed over, and which nobody took, may be listed by no live member before this
+#: process retires it (`_unclaimed`): the member it was handed over to dropped it before it took it, and so did
+#: every other one (node/unclaimed.py)
+UNCLAIMED_WAIT = RETIRED_WAIT
 
 
 def members_topic(root: str, fleet: str, node: str = "+") -> str:
@@ -214,9 +218,13 @@ class Share:
         self._wake = threading.Event()
         self._changing = threading.RLock()  # one reconciliation at a time (the share's thread, a reload)
         self._waiting: dict[str, float] = {}  # robot -> since when it is ours but handed over to another member
+        #: robot -> (its settings, since when no live member lists it): handed over by this process, not taken yet
+        self._handed: dict[str, tuple[RuntimeConfig, float]] = {}
+        self._listed: set[str] = set()  # what the live members list, at the last plan
         self._taken: set[str] = set()  # robots whose session another member took: let go at the next round
         fleet.on_added.append(self._watch)
         fleet.prepare = self._prepare
+        fleet.admit = self._admit
         self.book = Book()  # every robot's admitted invokes, as the broker has them
         self._swept = 0.0
         self._stop = threading.Event()
@@ -472,11 +480,9 @@ class Share:
         listed waits `SETTLE` (`_due` says until when), except at the first plan."""
         now = time.monotonic()
         mine = self._mine()
-        admin = set(self._admin)  # every member can serve these: the entries, not the records, say which
-        can = {m: set(self._members.get(m, {}).get("can") or ()) | admin for m in live if m != self.me.node}
-        if self.me.node in live:
-            can[self.me.node] = set(mine)
+        can = self._lists(live, mine)
         listed = set().union(*can.values()) if can else set()
+        self._listed = listed
         self._first = {r: self._first.get(r, now if self._planned else 0.0) for r in listed}
         self._planned = True
         waiting = [t + SETTLE for t in self._first.values() if now - t < SETTLE]
@@ -484,12 +490,21 @@ class Share:
         ready = {r for r, t in self._first.items() if now - t >= SETTLE}
         return assign(ready, live, can), mine
 
+    def _lists(self, live: set[str], mine: Mapping[str, RuntimeConfig]) -> dict[str, set[str]]:
+        """(under the lock) Member -> the robots it lists, of the `live` ones (this one: `mine`)."""
+        admin = set(self._admin)  # every member can serve these: the entries, not the records, say which
+        can = {m: set(self._members.get(m, {}).get("can") or ()) | admin for m in live if m != self.me.node}
+        if self.me.node in live:
+            can[self.me.node] = set(mine)
+        return can
+
     def _reconcile(self) -> Changes:
         with self._lock:
             live = self._live()
             plan, candidates = self._plan(live)
             statuses = dict(self._statuses)
             gone = self._gone | self._silent
+            listed = set(self._listed)
         self._publish_record()  # what this process can serve, when that changed (the others' plans need it)
         with self._lock:
             lost, self._taken = self._taken, set()
@@ -520,12 +535,70 @@ class Share:
         for robot, status in taken:
             if robot in changes.added:
                 self._took(robot, status)
+        for config in self._unclaimed(statuses, listed, set(self.fleet.robots(ORIGIN))):
+            if self._retire_unclaimed(config):
+                changes.removed.append(config.robot)
         if changes:
             log.info("fleet %s: %s", self.name, changes.describe())
             self._publish_record()
             for hook in list(self.on_change):
                 hook(changes)
         return changes
+
+    def _unclaimed(self, statuses: Mapping[str, Status], listed: set[str], served: set[str]) -> list[RuntimeConfig]:
+        """The robots this process handed over that are still "online, handed over" by it, and that no live
+        member has listed for `UNCLAIMED_WAIT`: the member it was handed over to dropped it before it took it,
+        and nobody else will take it. A robot taken (its status another's, or `offline`) or served here again is
+        forgotten; one listed again is left to the member that lists it."""
+        now = time.monotonic()
+        due: list[RuntimeConfig] = []
+        with self._lock:
+            for robot, (config, since) in list(self._handed.items()):
+                status = statuses.get(robot)
+                if not _still_handing(status, self.me.node) or robot in served:
+                    del self._handed[robot]
+                elif robot in listed:
+                    self._handed[robot] = (config, now)
+                elif now - since >= UNCLAIMED_WAIT:
+                    due.append(config)
+        return due
+
+    def _retire_unclaimed(self, config: RuntimeConfig) -> bool:
+        """Retire a robot nobody took (`_unclaimed`) on its own session, as it would be retired here: `offline`
+        with `retired`, TD cleared (node/unclaimed.py). Looked at once more first: a member that lists it now
+        claims it only `SETTLE` after it listed it, long after its record came here."""
+        from td2adaptor.runtime.bus.bus import BusError
+        from td2adaptor.runtime.node.status import owner_fields
+        from td2adaptor.runtime.node.unclaimed import retire
+
+        robot = config.robot
+        with self._lock:
+            listed = set().union(*self._lists(self._live(), self._mine()).values())
+            status = self._statuses.get(robot)
+            if robot in listed or not _still_handing(status, self.me.node):
+                self._handed.pop(robot, None)
+                return False
+            to = status.handover if status is not None else None
+        retired = {"node": self.me.node, "time": _now()}
+        offline = status_event(config, self.fleet.model, "offline", **owner_fields(), retired=retired)
+        try:
+            done = retire(config, self.fleet.model, offline)
+        except BusError as exc:
+            done = False
+            log.warning("robot %s: could not retire it: %s", robot, exc)
+        with self._lock:
+            if done:
+                self._handed.pop(robot, None)
+            elif robot in self._handed:
+                self._handed[robot] = (config, time.monotonic())  # again after UNCLAIMED_WAIT
+        if done:
+            log.info(
+                "robot %s: retired: handed over to member %s, which dropped it before it took it, and no member "
+                "lists it",
+                robot,
+                to,
+            )
+        return done
 
     def _free(self, robot: str, status: Status | None, live: set[str], gone: set[str]) -> bool:
         """May this process claim `robot`, whose retained status is `status`?"""
@@ -547,6 +620,26 @@ class Share:
         if owner.node in live:
             return False  # its owner serves it still: it hands it over first
         return owner.node in gone or not lives(owner)  # the owner died (or a stale record of this host)
+
+    def _admit(self, config: RuntimeConfig) -> str | None:
+        """(Fleet.admit) The last look before this process takes the robot's session, after its ROS side came up
+        (which may take seconds): a member that listed the robot meanwhile (its ROS graph showed it later than
+        this one's) may be its owner now, and may have claimed it already, its status free when it looked. Two
+        claims would have the broker take the session from one of them, which then goes off and on again:
+        declined here instead, the robot is that member's (or handed over to it by this process later)."""
+        robot = config.robot
+        with self._lock:
+            live = self._live()
+            plan, _mine = self._plan(live)
+            status = self._statuses.get(robot)
+        owner = plan.get(robot)
+        if owner is not None and owner != self.me.node:
+            return f"member {owner} of the fleet serves it now"
+        holder = status.owner if status is not None else None
+        if status is not None and status.state == "online" and status.handover is None and holder is not None:
+            if holder.node != self.me.node and holder.node in live:
+                return f"{holder.describe()} serves it now"
+        return None
 
     def _prepare(self, engine: Engine) -> None:
         """(Fleet.prepare) Before the robot is served: what its earlier owners admitted, then record what this
@@ -639,6 +732,8 @@ class Share:
             retired = {"node": self.me.node, "time": _now()}
             engine.offline = status_event(engine.config, engine.model, "offline", **owner_fields(), retired=retired)
         if engine is not None and winner is not None:
+            with self._lock:  # until it is taken (`_unclaimed`)
+                self._handed[robot] = (engine.config, time.monotonic())
             engine.td = None  # stays retained: the next owner publishes the same TD
             engine.offline = status_event(
                 engine.config,
@@ -685,6 +780,12 @@ class Share:
         message = Message(members_topic(self.root, self.name, self.me.node), payload, retain=True)
         self.bus.birth = message  # type: ignore[attr-defined]  # published again on every reconnection
         self.bus.publish(message.topic, message.payload, retain=True)
+
+
+def _still_handing(status: Status | None, node: str) -> bool:
+    """Whether the robot's status (None: none read yet) may still be member `node`'s hand-over: not taken by
+    another member, not `offline`."""
+    return status is None or (status.state == "online" and status.owner is not None and status.owner.node == node)
 
 
 def _describe(record: Mapping[str, Any] | None, node: str | None) -> str:
