@@ -33,7 +33,7 @@ from tests.runtime.test_fleet_share import bridged
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain, rb1_prefix, adaptor_build
 
 FLEET = "sdx"
-FIRST = ("sd_a", "sd_b", "sd_c", "sd_d")  # on this worker's ROS domain: processes 1 and 3 see them
+FIRST = ("sd_a", "sd_b", "sd_c", "sd_d")  # on the first of the test's ROS domains: processes 1 and 3 see them
 SECOND = ("sd_e", "sd_f")  # on a domain of their own: only process 2 sees them
 #: from a robot's appearance to its `online` status: one look at the graph (0.5 s), the settling of a newly
 #: listed robot (share.SETTLE, 0.75 s) and the start. Issue 32 asks 2 s for discovery; a shared fleet adds the
@@ -140,16 +140,18 @@ def wait(predicate: Callable[[], bool], timeout: float, watch: Watch, *more: Cal
 def test_shared_processes_discover_robots_each_served_by_one_that_sees_it_and_admin_requests_reach_the_fleet(
     adaptor_build: tuple[Path, Path], rb1_prefix: Path, broker: Mosquitto, tmp_path: Path
 ) -> None:
-    other_domain = env.private_domain_id()
+    # two domains of this test's own: the worker's holds other modules' simulated robots, which discovery
+    # would serve too
+    first_domain, other_domain = env.private_domain_id(), env.private_domain_id()
     defaults = tmp_path / "defaults.yaml"
     settings(defaults, broker, tmp_path)
     watch = Watch(broker, "share-discover-app")
     admin = Admin(watch)
     args = run_args("--config", str(defaults), "--share", "--discover", "--discover-grace", "1")
-    domains = [None, other_domain, None]
+    domains = [first_domain, other_domain, first_domain]
     runs = [
         RunProcess(args, env=node_env(rb1_prefix, adaptor_build, TD2ADAPTOR_FLEET_ADMIN_KEY=ADMIN_KEY, **extra))
-        for extra in [{} if d is None else {"ROS_DOMAIN_ID": str(d)} for d in domains]
+        for extra in [{"ROS_DOMAIN_ID": str(d)} for d in domains]
     ]
     sims: list[Process] = []
     try:
@@ -159,7 +161,7 @@ def test_shared_processes_discover_robots_each_served_by_one_that_sees_it_and_ad
         first, second, third = (r.proc.pid for r in runs)
         pids = {first, second, third}
         appeared: dict[str, float] = {}  # robot -> when its simulation said it is ready
-        for robots, domain in ((FIRST, None), (SECOND, other_domain)):
+        for robots, domain in ((FIRST, first_domain), (SECOND, other_domain)):
             sims.append(sim_process(rb1_prefix, robots, domain=domain))
             appeared |= dict.fromkeys(robots, time.monotonic())
         everyone = {*FIRST, *SECOND}
@@ -283,10 +285,11 @@ def test_three_shared_processes_discover_reload_under_load_over_bridged_brokers_
     watch = Watch(central, "combined-app")
     found = ("cx_1", "cx_2", "cx_3", "cx_4", "cx_5")
     later = ("cx_6", "cx_7", "cx_8")
-    sims = [sim_process(rb1_prefix, ("cx_f1", "cx_f2", *found))]
+    domain = env.private_domain_id()  # the worker's holds other modules' simulated robots: discovery would serve them
+    sims = [sim_process(rb1_prefix, ("cx_f1", "cx_f2", *found), domain=domain)]
     # a grace of 3 s: on a loaded machine a robot's services may be missing from one look at the graph
     args = run_args("--config", str(fleet), "--share", "--discover", "--discover-grace", "3")
-    runs = [RunProcess(args, env=node_env(rb1_prefix, adaptor_build)) for _ in range(3)]
+    runs = [RunProcess(args, env=node_env(rb1_prefix, adaptor_build, ROS_DOMAIN_ID=str(domain))) for _ in range(3)]
     busy = ("cf_1", "cx_1", "cx_2", "cx_3")
     missions = Missions(watch, busy)
     began = time.monotonic()
@@ -301,7 +304,7 @@ def test_three_shared_processes_discover_reload_under_load_over_bridged_brokers_
         missions.start()
         assert until(lambda: all(len(v) >= 2 for v in missions.sent.values()), 30)
 
-        sims.append(sim_process(rb1_prefix, later))  # robots appear
+        sims.append(sim_process(rb1_prefix, later, domain=domain))  # robots appear
         appeared = time.monotonic()
         simulations = lambda: [(sim.proc.poll(), sim.stderr_tail(500)) for sim in sims]  # noqa: E731
         wait(lambda: one_owner_each(watch, first | set(later), pids), 30, watch, simulations)
