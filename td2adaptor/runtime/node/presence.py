@@ -38,6 +38,24 @@ Probe = Callable[[], Mapping[str, bool]]
 PRESENT, PARTIAL, ABSENT = PRESENCE_WORDS
 
 
+def ros_names(
+    model: Any, namespace: str, actions: Iterable[str], server_suffix: str
+) -> tuple[dict[str, str], dict[str, str]]:
+    """The graph names a look checks, by TD action: each ROS service's, and each ROS action's with
+    `server_suffix` (a name its server offers: ROS 1's `/status` topic, ROS 2's `/_action/send_goal` service)."""
+    wanted = set(actions)
+    services: dict[str, str] = {}
+    servers: dict[str, str] = {}
+    for component in model.components:
+        for service in component.services:
+            if service.name in wanted:
+                services[service.name] = "/" + service.ros_name.resolve(namespace).lstrip("/")
+        for action in component.actions:
+            if action.name in wanted:
+                servers[action.name] = "/" + action.ros_name.resolve(namespace).lstrip("/") + server_suffix
+    return services, servers
+
+
 #: how long one look at a node's ROS 2 graph serves every robot that node reaches
 GRAPH_FRESH = 0.5
 _graphs: dict[int, tuple[float, frozenset[str]]] = {}
@@ -73,15 +91,8 @@ def graph_services(node: Any, clock: Callable[[], float] = time.monotonic) -> fr
 def ros2_probe(model: Any, namespace: str, node: Any, actions: Iterable[str]) -> Probe | None:
     """The look at a ROS 2 robot through the graph of the node its port uses: each service of `actions` is
     served, each ROS action's `_action/send_goal` service is (every rclpy and rclcpp action server offers it)."""
-    wanted = set(actions)
-    names: dict[str, str] = {}
-    for component in model.components:
-        for service in component.services:
-            if service.name in wanted:
-                names[service.name] = "/" + service.ros_name.resolve(namespace).lstrip("/")
-        for action in component.actions:
-            if action.name in wanted:
-                names[action.name] = "/" + action.ros_name.resolve(namespace).lstrip("/") + "/_action/send_goal"
+    services, servers = ros_names(model, namespace, actions, "/_action/send_goal")
+    names = {**services, **servers}
     if not names:
         return None
 
@@ -147,16 +158,7 @@ def ros1_probe(model: Any, namespace: str, master: str, actions: Iterable[str]) 
     """The look at a ROS 1 robot through its master (whatever reaches it: rospy here or the bridge): each
     service of `actions` has a provider, each actionlib server publishes its `status`. A master that does not
     answer: every server is gone (the robot's ROS side cannot be reached)."""
-    wanted = set(actions)
-    services: dict[str, str] = {}
-    servers: dict[str, str] = {}
-    for component in model.components:
-        for service in component.services:
-            if service.name in wanted:
-                services[service.name] = "/" + service.ros_name.resolve(namespace).lstrip("/")
-        for action in component.actions:
-            if action.name in wanted:
-                servers[action.name] = "/" + action.ros_name.resolve(namespace).lstrip("/") + "/status"
+    services, servers = ros_names(model, namespace, actions, "/status")
     if not services and not servers:
         return None
 
