@@ -26,7 +26,7 @@ from typing import Any
 import paho.mqtt.client as mqtt
 
 from td2adaptor.runtime.events import now_rfc3339
-from td2adaptor.runtime.node.share import assign
+from td2adaptor.runtime.node.shareplan import assign
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.edge import until

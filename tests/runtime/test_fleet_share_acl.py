@@ -18,7 +18,7 @@ import pytest
 from td2adaptor.backends.events.generator import generate as events
 from td2adaptor.diagnostics import Diagnostics
 from td2adaptor.generation.backend import GenOptions
-from td2adaptor.runtime.node.share import members_topic
+from td2adaptor.runtime.node.shareplan import members_topic
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.edge import until
