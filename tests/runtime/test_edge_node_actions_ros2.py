@@ -277,8 +277,17 @@ def test_a_server_killed_mid_goal_fails_it_within_the_bound_and_frees_the_compon
         # the dead server's endpoints stay in the graph until its lease ends: a goal sent before the new server
         # was discovered would go to the dead one only; wait for an answered goal, as the edge's start does
         assert until(lambda: rejects(edge.link.ports[KILLED]), 30, 0.1)
-        edge.send("", {"correlation": "again", "payload": {"order": 3}})
-        events = edge.ended("again", timeout=30)
+        # even so, on a loaded machine the first goal has gone to the dead server's endpoints only (seen once in
+        # ~5 full runs: it ended `unreachable`, the new server never saw it): the component is free when a goal
+        # sent again runs to its end; every goal gets its one terminal event either way
+        ends = []
+        for attempt in range(3):
+            edge.send("", {"correlation": f"again-{attempt}", "payload": {"order": 3}})
+            events = edge.ended(f"again-{attempt}", timeout=30)
+            ends.append(events[-1]["payload"])
+            if ends[-1]["state"] == "finished":
+                break
+            assert (ends[-1]["state"], ends[-1]["reason"]) == ("failed", "unreachable"), ends
         last = check_goal(events, sent_feedback(robot, KILLED, 3), "finished")
         assert last["output"] == {"sequence": sequence(3)}
         edge.check(edge.app.events)
