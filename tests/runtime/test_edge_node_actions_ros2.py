@@ -290,6 +290,7 @@ def test_a_server_killed_mid_goal_fails_it_within_the_bound_and_frees_the_compon
             assert (ends[-1]["state"], ends[-1]["reason"]) == ("failed", "unreachable"), ends
         # (its feedback is checked against the robot's by the other tests: here the robot's own event lines of this
         # goal were once not seen within 10 s although the node relayed the goal to its end)
+        print(f"goals after the restart: {[(e['state'], e.get('reason'), e.get('message')) for e in ends]}")
         assert ends[-1]["state"] == "finished", ends
         assert ends[-1]["output"] == {"sequence": sequence(3)}, ends
         edge.check(edge.app.events)
