@@ -422,15 +422,12 @@ class Engine:
                 references(event),
             )
             return
-        verdict = self.guard.check(
-            event_id if isinstance(event_id, str) else None,
-            msg.topic,
-            sent if isinstance(sent, str) else None,
-            digest(event) if isinstance(event_id, str) else None,
-        )
+        content = digest(event) if isinstance(event_id, str) else None
+        sent_text = sent if isinstance(sent, str) else None
+        verdict = self.guard.check(event_id if isinstance(event_id, str) else None, msg.topic, sent_text, content)
         if verdict is Verdict.INHERITED and isinstance(event_id, str) and self._never_taken(spec, event_id, msg):
             verdict = Verdict.NEW  # remembered by a run that stopped before taking it: it runs here
-            self.guard.adopt(event_id, msg.topic, sent if isinstance(sent, str) else None, digest(event))
+            self.guard.adopt(event_id, msg.topic, sent_text, content)
         if verdict in (Verdict.DUPLICATE, Verdict.INHERITED):
             self.outbox.count("duplicates")
             if spec.kind is Kind.INVOKE and isinstance(event_id, str):
