@@ -195,6 +195,14 @@ def test_a_replay_after_a_restart_runs_once_and_a_reused_id_is_answered(tmp_path
     runs = len(app.of("feedback", "c2"))
     # the node restarts (same state directory) and the broker delivers the same invoke again, byte for byte
     engine = serve(model, SimPort(model, robot), _config(tmp_path), broker=broker)
+    reads: list[str] = []
+    latest = engine.ledger.latest
+
+    def counted(event_id: str, topic: str) -> Any:
+        reads.append(event_id)
+        return latest(event_id, topic)
+
+    engine.ledger.latest = counted  # type: ignore[method-assign]
     try:
         app.send(GOTO, invoke)
         app.send(QUERY, {"id": "once", "correlation": "c3", "time": now_text()})
@@ -207,6 +215,7 @@ def test_a_replay_after_a_restart_runs_once_and_a_reused_id_is_answered(tmp_path
         feedback = app.of("feedback", "c2")
         assert len(feedback) == runs + 1 and feedback[-1] == feedback[runs - 1] and feedback[-1]["payload"]["terminal"]
         assert engine.stats.get("duplicates") == 1
+        assert reads == ["once"]  # the earlier run's mission read from the ledger once: taken, and its answer
     finally:
         engine.stop()
     check_outbound(app.events)

@@ -37,7 +37,7 @@ import threading
 import time
 from collections.abc import Callable, Mapping
 from functools import partial
-from typing import Any
+from typing import Any, Final
 
 from td2adaptor.model import Model, Procedure
 from td2adaptor.model.events import ALL_ROBOTS, EventCatalog, EventSpec, Kind, build_catalog, command_filters
@@ -78,6 +78,9 @@ _WOT_REUSED = (
     "not run: correlationId {id!r} was already used by another command (to another affordance or with other "
     "input); give every command a correlationId of its own"
 )
+
+
+_UNREAD: Final[Any] = object()  # the ledger not read yet for an event (a duplicate's row is read once)
 
 
 def _guard(config: RuntimeConfig) -> ReplayGuard:
@@ -425,13 +428,18 @@ class Engine:
         content = digest(event) if isinstance(event_id, str) else None
         sent_text = sent if isinstance(sent, str) else None
         verdict = self.guard.check(event_id if isinstance(event_id, str) else None, msg.topic, sent_text, content)
-        if verdict is Verdict.INHERITED and isinstance(event_id, str) and self._never_taken(spec, event_id, msg):
-            verdict = Verdict.NEW  # remembered by a run that stopped before taking it: it runs here
-            self.guard.adopt(event_id, msg.topic, sent_text, content)
+        record = _UNREAD
+        if verdict is Verdict.INHERITED and isinstance(event_id, str):
+            record = self.ledger.latest(event_id, msg.topic) if spec.kind is Kind.INVOKE else None
+            if self._never_taken(spec, record, event_id, msg):
+                verdict = Verdict.NEW  # remembered by a run that stopped before taking it: it runs here
+                self.guard.adopt(event_id, msg.topic, sent_text, content)
         if verdict in (Verdict.DUPLICATE, Verdict.INHERITED):
             self.outbox.count("duplicates")
             if spec.kind is Kind.INVOKE and isinstance(event_id, str):
-                self._answer_again(event_id, msg.topic)
+                if record is _UNREAD:
+                    record = self.ledger.latest(event_id, msg.topic)
+                self._answer_again(event_id, msg.topic, record)
             else:
                 log.info("duplicate event %s on %s ignored", event_id, msg.topic)
             return
@@ -511,13 +519,14 @@ class Engine:
             correlation=event.get("correlation") or event.get("id"),
         )
 
-    def _never_taken(self, spec: EventSpec, event_id: str, msg: Message) -> bool:
+    def _never_taken(self, spec: EventSpec, record: Record | None, event_id: str, msg: Message) -> bool:
         """An id another run of this node remembered (replay.py, `inherited`): was the command never taken?
-        An invoke was taken once the ledger has it (its row is opened before anything reaches ROS); a query or
-        a cancel is answered again whatever happened (asking twice changes nothing). A property write is not
-        known to have been written or not: it is not written again. A command never taken becomes this run's."""
+        An invoke was taken once the ledger has it (`record`: its row is opened before anything reaches ROS); a
+        query or a cancel is answered again whatever happened (asking twice changes nothing). A property write
+        is not known to have been written or not: it is not written again. A command never taken becomes this
+        run's."""
         if spec.kind is Kind.INVOKE:
-            taken = self.ledger.latest(event_id, msg.topic) is not None
+            taken = record is not None
         else:
             taken = spec.kind not in (Kind.QUERY, Kind.CANCEL)
         if not taken:
@@ -528,10 +537,10 @@ class Engine:
             )
         return not taken
 
-    def _answer_again(self, event_id: str, topic: str) -> None:
+    def _answer_again(self, event_id: str, topic: str, record: Record | None) -> None:
         """An invoke sent again under its id (a redelivery, or a sender that lost track, also across a restart
-        of this node): answered with the last feedback event of its mission again, as it was published."""
-        record = self.ledger.latest(event_id, topic)
+        of this node): answered with the last feedback event of its mission (`record`, the ledger's) again, as
+        it was published."""
         if record is None or record.latest is None:  # its first feedback event, about to come, answers it
             log.info("invoke %s on %s again: its mission has no feedback yet", event_id, topic)
             return
