@@ -23,7 +23,7 @@ import pytest
 
 from tests.conftest import REPO
 from tests.examples.nav_base import BASES, SPEED
-from tests.ros2.common import Process
+from tests.ros2.common import Process, answered
 
 pytest_plugins = ["tests.ros2.fixtures", "tests.examples.nav_base_fixtures"]  # ros2_domain; nav_* fixtures
 
@@ -67,30 +67,18 @@ class Base:
         return math.hypot(px - x, py - y) <= tolerance
 
 
-def first_answer(adaptor: ModuleType, call: Callable[[], Any]) -> Any:
-    """`call`'s answer, asked again while none comes (only for a call that may run twice): a ROS 2 service can be
-    discovered before its server has discovered the client's response reader, and the first answers are then
-    lost on a loaded machine (tests/backends/rclpy/test_rclpy_ros2.py's `answering`)."""
-    deadline = time.monotonic() + WAIT
-    while True:
-        try:
-            return call()
-        except adaptor.CallTimeout:
-            if time.monotonic() > deadline:
-                raise
-
-
 @pytest.fixture
 def make_base(nav_adaptor: ModuleType, nav_node: Any, nav_sim: Process) -> Callable[[int], Base]:
     def make(index: int) -> Base:
         """A base whose clients all exist and whose robot has answered one of them: each test's base is new, and
         a ROS 2 server may not have discovered a new client's response reader when the client sees the server
-        (its first answers are then lost, seen in CI: `first_answer`); the readers are announced together, so
+        (its first answers are then lost, seen in CI: `answered`); the readers are announced together, so
         one answered call says the others are known too."""
         b = Base(nav_adaptor, nav_node, BASES[index])
         for component in (b.nav, b.dock, b.base, b.laser):
             component.register()
-        first_answer(nav_adaptor, lambda: b.base.call_stop(timeout=2.0))  # stopping an idle base changes nothing
+        # stopping an idle base changes nothing
+        assert until(lambda: answered(lambda: b.base.call_stop(timeout=2.0), nav_adaptor.CallTimeout), WAIT)
         return b
 
     return make

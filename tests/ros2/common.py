@@ -26,6 +26,25 @@ PACKAGE = "robotnik_rb_1_adaptor"
 SIM_NAMESPACES = ("rb1_base_a", "rb1_base_b", "rb1_base_c", "rb1_base_d", "rb1_base_e")
 SIM_DURATION = 1.0
 
+Errors = type[BaseException] | tuple[type[BaseException], ...]
+
+
+def answered(call: Callable[[], object], lost: Errors, answer: Errors = ()) -> bool:
+    """Whether the robot answered `call` (a side-effect free request; `answer`: failures that are answers too).
+
+    A ROS 2 service can be discovered by a client before its server has discovered the client's response
+    reader; the server's first answers are then lost (Fast DDS drops them after 100 ms; more likely on a loaded
+    machine: docs/binding.md). A test that relies on a call's first answer waits for one answered request,
+    `until(lambda: answered(...))`; the readers of one client node are announced together, so one answered
+    call says the others are known too."""
+    try:
+        call()
+    except answer:
+        return True
+    except lost:
+        return False
+    return True
+
 
 def require_ros2() -> None:
     """The `ros2` extra, by the one policy (tests/tools.py: a skip here, a failure in CI)."""

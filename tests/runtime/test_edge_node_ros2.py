@@ -38,7 +38,7 @@ from td2adaptor.runtime.bus.mqttbus import MqttBus
 from td2adaptor.runtime.ros.genport import GeneratedPort
 from tests.conftest import REPO
 from tests.ros2 import env
-from tests.ros2.common import EXAMPLE, PACKAGE, Process
+from tests.ros2.common import EXAMPLE, PACKAGE, Process, answered
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.edge import RunProcess, bus_of, check_mission, feedback, until
@@ -79,16 +79,10 @@ def port_for(adaptor: ModuleType, node: Any, namespace: str, timeout: float = 5.
 
 
 def answers(port: GeneratedPort) -> bool:
-    """Whether the robot answers a (side-effect free) query yet. A ROS 2 service can be discovered before its
-    server has discovered the client's response reader: the first request's answer is then lost, so tests
-    wait for one answered query before they rely on a call."""
-    try:
-        port.query("GoToComponent", "gotoQuery", -1, 1.0)
-    except PortCallFailed:
-        return True  # an answer: the robot has no such procedure yet
-    except (PortUnavailable, PortTimeout):
-        return False
-    return True
+    """Whether the robot answers a query yet (`answered`; a query of no mission is refused: an answer too)."""
+    return answered(
+        lambda: port.query("GoToComponent", "gotoQuery", -1, 1.0), (PortUnavailable, PortTimeout), PortCallFailed
+    )
 
 
 def test_generated_port_drives_the_simulated_rb1(adaptor: ModuleType, ros_node: Any, edge_sim: Process) -> None:

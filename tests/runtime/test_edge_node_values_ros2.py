@@ -21,6 +21,7 @@ from td2adaptor.model import Model
 from td2adaptor.model.wot import WOT_LEVEL
 from td2adaptor.runtime import PortTimeout, PortUnavailable, RuntimeConfig, serve
 from td2adaptor.runtime.node.roslink import connect
+from tests.ros2.common import answered
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.edge import until
@@ -129,12 +130,8 @@ def robot(ros2_domain: int) -> Iterator[LevelRobot]:
 
 
 def answers(port: Any) -> bool:
-    """Whether the robot answers yet (a ROS 2 service may be discovered before the first answer can come)."""
-    try:
-        port.call("LevelComponent", "setBasic", {}, 1.0)
-    except (PortUnavailable, PortTimeout):
-        return False
-    return True
+    """Whether the robot answers yet (`answered`)."""
+    return answered(lambda: port.call("LevelComponent", "setBasic", {}, 1.0), (PortUnavailable, PortTimeout))
 
 
 def test_values_no_ros_type_holds_are_refused_naming_the_path_and_never_reach_the_robot(

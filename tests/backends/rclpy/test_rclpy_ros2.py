@@ -19,7 +19,7 @@ from typing import Any
 import pytest
 
 from tests.ros2 import env
-from tests.ros2.common import PACKAGE, SIM_DURATION, Process
+from tests.ros2.common import PACKAGE, SIM_DURATION, Process, answered
 
 pytest_plugins = ["tests.ros2.fixtures"]  # the fixtures: ros_node, adaptor, sim, silent_robot, ...
 
@@ -31,20 +31,6 @@ def until(predicate: Callable[[], bool], timeout: float, period: float = 0.05) -
             return True
         time.sleep(period)
     return predicate()
-
-
-def answering(adaptor: ModuleType, component: Any, query: str) -> bool:
-    """Whether the robot answers a (side-effect free) query of `component` yet. A ROS 2 service can be
-    discovered before its server has discovered the client's response reader: the first request's answer is
-    then lost (more likely on a loaded machine), so a test that needs its first call answered waits for one
-    answered query first."""
-    try:
-        getattr(component, query)(mission_id=-1)
-    except adaptor.CallFailed:
-        return True  # an answer: the robot has no such mission yet
-    except (adaptor.ServiceUnavailable, adaptor.CallTimeout):
-        return False
-    return True
 
 
 def query_until_finished(component: Any, query: str, mission_id: int, timeout: float = 10.0) -> Any:
@@ -101,7 +87,9 @@ def test_goto_query_by_mission_id_until_finished_then_status_and_markers(
     goto.register()
     goto.register()  # idempotent: no second set of clients
     assert len(list(ros_node.clients)) == before + 3
-    assert until(lambda: answering(adaptor, goto, "call_gotoQuery"), 30.0, 0.1)
+    lost = (adaptor.ServiceUnavailable, adaptor.CallTimeout)
+    # the query names no mission: the robot's answer is a failure
+    assert until(lambda: answered(lambda: goto.call_gotoQuery(mission_id=-1), lost, adaptor.CallFailed), 30.0, 0.1)
     request = goto.construct_gotoRun_Msg(
         procedure={"goals": [{"header": {"frame_id": "map"}, "pose": {"x": 1.5, "y": 3, "theta": 0}}]}
     )
@@ -489,16 +477,8 @@ def test_std_srvs_style_responses_and_standard_messages(
 ) -> None:
     std = std_adaptor.StdComponent(ros_node, "std_robot", wait_timeout=10.0)
 
-    def answers() -> bool:
-        # A ROS 2 service can be discovered before its server has matched this client's response reader: the
-        # first answer is then lost. Wait for one answered (harmless) call before relying on them.
-        try:
-            std.call_enable(std.construct_enable_Msg(data=False), timeout=1.0)
-        except std_adaptor.CallTimeout:
-            return False
-        return True
-
-    assert until(answers, 30.0, 0.1)
+    disable = std.construct_enable_Msg(data=False)  # harmless: the test enables it later
+    assert until(lambda: answered(lambda: std.call_enable(disable, timeout=1.0), std_adaptor.CallTimeout), 30.0, 0.1)
     with pytest.raises(std_adaptor.CallFailed, match="motor fault") as info:
         std.call_trigger()
     assert info.value.service == "/std_robot/trigger" and info.value.response.success is False
