@@ -59,6 +59,7 @@ def test_a_resumed_process_runs_nothing_it_read_on_a_session_taken_over(
         frozen, other = started
         theirs = [r for r, (_s, pid) in watcher.owners().items() if pid == frozen.pid]
         others = [r for r, (_s, pid) in watcher.owners().items() if pid == other.pid]
+        stopped = time.monotonic()  # what came before (the first shares' hand-overs) is no grab
         frozen.send_signal(signal.SIGSTOP)
         try:
             sent = []
@@ -83,17 +84,26 @@ def test_a_resumed_process_runs_nothing_it_read_on_a_session_taken_over(
         runs = procs.runs_of()
         assert sorted(runs.values()) == [1, 1], (runs, procs.logs())
         # nor, finding the other's beats old (they waited unread in its socket), did it take the other's robots:
-        # the silence was its own
+        # the silence was its own (a robot of the other's that was the hung one's before, when the shares were first
+        # made, is no grab)
         grabbed = {
-            r for _t, r, p in watcher.statuses() if r in others and (p.get("owner") or {}).get("pid") == frozen.pid
+            r
+            for t, r, p in watcher.statuses()
+            if t > stopped and r in others and (p.get("owner") or {}).get("pid") == frozen.pid
         }
         assert not grabbed, (grabbed, procs.logs())
-        # and what the broker keeps of each command for a later owner (node/admitted.py) is the other's: it ran it
+        # and what the broker keeps of each command for a later owner (node/admitted.py) is the other's, which ran
+        # it: the hung process's own entry (admitted, never run) did not stay. When the robot came back to the hung
+        # process by hand-over before the other had marked the entry done, the hung one adopted it (its
+        # recovery ends it): then it is the hung one's, finished too
         members = retained(broker, "td2adaptor/.fleet/shared/members/+")
-        node = next(e["owner"]["node"] for e in members.values() if e and e["owner"]["pid"] == other.pid)
+        node = {e["owner"]["pid"]: e["owner"]["node"] for e in members.values() if e}
         entries = {e["id"]: e for e in retained(broker, "td2adaptor/.fleet/shared/admitted/+/+").values() if e}
         kept = {i: (entries[i]["owner"], entries[i].get("state")) for i in sent}
-        assert kept == dict.fromkeys(sent, (node, "finished")), kept
+        assert {state for _owner, state in kept.values()} == {"finished"}, kept
+        assert {owner for owner, _state in kept.values()} <= {node[other.pid], node[frozen.pid]}, (kept, node)
+        adopted = [i for i, (owner, _state) in kept.items() if owner == node[frozen.pid]]
+        assert all("latest" in entries[i] for i in adopted), [entries[i] for i in adopted]  # adopted, not its own
     finally:
         sender.close()
         watcher.close()
