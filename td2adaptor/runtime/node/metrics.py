@@ -34,11 +34,14 @@ class MetricsError(ValueError):
 
 
 def parse_address(text: str) -> tuple[str, int]:
-    """`HOST:PORT` (an IP address; `[::1]:PORT` for IPv6) as (host, port)."""
+    """`HOST:PORT` (an IP address; `[::1]:PORT` for IPv6) as (host, port); port 0 takes a free one, as
+    `dashboard --listen` does (the start line then says which)."""
     host, sep, port = text.rpartition(":")
     host = host.strip("[]")
-    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+    if not sep or not host or not port.isdigit():
         raise MetricsError(f"metrics address {text!r}: give HOST:PORT, e.g. 127.0.0.1:9464")
+    if not 0 <= int(port) < 65536:
+        raise MetricsError(f"metrics address {text!r}: the port must be 0-65535 (0: a free one)")
     try:
         ipaddress.ip_address(host)
     except ValueError:
@@ -102,6 +105,12 @@ class EdgeCollector(Collector):
                     buckets.append((_bound(bound), cumulative))
                 durations.add_metric([robot, state], buckets, total)
         yield from (online, present, flight, started, events, errors, refused, reconnects, durations)
+
+
+def served_address(server: Any) -> str:
+    """The HOST:PORT `server` listens on (the port the system chose for port 0), as a URL writes it."""
+    host, port = server.server_address[:2]
+    return f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
 
 
 def serve_metrics(address: str) -> Any:
