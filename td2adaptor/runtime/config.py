@@ -23,6 +23,8 @@ from td2adaptor.runtime.ros.genport import TRAIL_LIMIT
 
 #: what an HTTP `Authorization: Bearer` token may hold (RFC 6750 is narrower; this keeps the header well formed)
 _TOKEN = re.compile(r"[\x21-\x7e]{1,8192}")
+#: a robot namespace ROS 1 and ROS 2 both take (the generated packages' check_robot_name, without the '/' around)
+_NAMESPACE = re.compile(r"[A-Za-z][A-Za-z0-9_]*(?:/[A-Za-z_][A-Za-z0-9_]*)*")
 ENV_DIRECTORY_TOKEN = "TD2ADAPTOR_DIRECTORY_TOKEN"
 
 
@@ -111,6 +113,13 @@ class RuntimeConfig:
             raise ConfigError(
                 f"robot id {self.robot!r} must be 1-128 letters, digits, '_', '.', '-' (and not {ALL_ROBOTS!r})"
             )
+        if self.namespace is not None:  # refused here, naming the key, rather than by the package when it starts
+            bare = self.namespace.strip("/")
+            if bare and (not _NAMESPACE.fullmatch(bare) or "__" in bare):
+                raise ConfigError(
+                    f"namespace {self.namespace!r} of robot {self.robot} is not a ROS namespace: use letters, "
+                    "digits, '_' and single '/' between names that start with a letter, no '__'"
+                )
         for name in ("poll_period", "call_timeout", "mission_timeout"):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"{name} must be positive")

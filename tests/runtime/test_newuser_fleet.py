@@ -5,14 +5,29 @@ ROS 2 Jazzy, or its admin listener with simulated robots) and holds the fix.
 
 from __future__ import annotations
 
+import os
 import re
+import subprocess
+import sys
 import urllib.request
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
+import pytest
+
+from td2adaptor.runtime.config import ConfigError, RuntimeConfig, load_defaults, load_fleet, robot_config
+from td2adaptor.runtime.events import now_rfc3339
+from td2adaptor.runtime.node.admin import Admin, admin_bus, admin_topics, sign
+from td2adaptor.runtime.node.fleet import Fleet
+from td2adaptor.runtime.node.roslink import RosLink
+from td2adaptor.runtime.ros.simport import SimPort
 from tests.ros2 import env
 from tests.ros2.common import EXAMPLE, generate_rclpy
 from tests.runtime.broker import Mosquitto
+from tests.runtime.client import AppClient
 from tests.runtime.edge import RunProcess
+from tests.runtime.rb1 import rb1_model, sim
 
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain, rb1_prefix
 
@@ -38,3 +53,88 @@ def test_metrics_on_port_0_take_a_free_port_and_the_start_line_names_it(
     finally:
         code = run.terminate()
     assert code == 0, run.output()
+
+
+KEY = "the-admin-key-of-the-conveyor-fleet"
+
+
+def test_admin_requests_say_what_is_wrong_with_a_signature_or_a_namespace(broker: Mosquitto) -> None:
+    """A new user took docs/fleet.md's "`admin.sign(request, key)` does it" for the signature and put what it
+    returns (the whole signed request) in `signature`: every request came back "not signed with this fleet's
+    admin key", however right the key. And `add` with a namespace that is no ROS name was added (simulated
+    robots) or failed with "robot c8: robot c8: invalid robot name" (a real package): now `invalid`, naming
+    the namespace."""
+    model = rb1_model()
+    settings = {"bus": broker.url, "poll_period": 0.05, "property_period": 0, "state_dir": "", "fleet": "belts"}
+    defaults = load_defaults(env={}, overrides=settings)
+
+    def grow(configs: Sequence[RuntimeConfig]) -> RosLink:
+        return RosLink(ports={c.robot: SimPort(model, sim(0.05)) for c in configs})
+
+    fleet = Fleet(model, RosLink(grow=grow), distro="ros2")
+    admin = Admin(
+        fleet,
+        admin_bus(robot_config(defaults, "stand-in"), model),
+        name="belts",
+        root="td2adaptor",
+        key=KEY,
+        make_config=lambda robot, namespace: robot_config(defaults, robot, namespace),
+        freshness_window=60,
+        clock_skew=5,
+    )
+    request, answer = admin_topics("td2adaptor", "belts")
+    boss: AppClient | None = None
+    try:
+        admin.start()
+        boss = AppClient(broker, [answer])
+
+        def ask(body: dict[str, Any], signed: Any) -> dict[str, Any]:
+            assert boss is not None
+            if signed is not None:
+                body = {**body, "signature": signed}
+            boss.send(request, body)
+            boss.wait(lambda ev: any(e.get("correlation") == body["id"] for t, e in ev if t == answer), timeout=20)
+            found = [e["payload"] for t, e in list(boss.events) if t == answer and e.get("correlation") == body["id"]]
+            return dict(found[0])
+
+        body = {"id": "as-documented", "time": now_rfc3339(), "op": "add", "robot": "belt_a"}
+        said = ask(body, sign(body, KEY))  # the signed request in `signature`, as the user read the docs
+        assert said["code"] == "unauthorised" and "signature must be a string" in said["message"], said
+        body = {"id": "unsigned", "time": now_rfc3339(), "op": "add", "robot": "belt_a"}
+        said = ask(body, None)
+        assert said["code"] == "unauthorised" and "no signature" in said["message"], said
+        body = {"id": "bad-ns", "time": now_rfc3339(), "op": "add", "robot": "belt_c8", "namespace": "bad ns!"}
+        said = ask(body, sign(body, KEY)["signature"])
+        assert said["code"] == "invalid", said
+        assert said["message"].startswith("namespace 'bad ns!' of robot belt_c8 is not a ROS namespace"), said
+        assert fleet.robots() == {}
+        body = {"id": "good", "time": now_rfc3339(), "op": "add", "robot": "belt_a", "namespace": "line/belt_a"}
+        assert ask(body, sign(body, KEY)["signature"])["code"] == "added"
+        assert set(fleet.robots()) == {"belt_a"}
+    finally:
+        if boss is not None:
+            boss.close()
+        admin.stop()
+        fleet.stop()
+
+
+def test_a_namespace_that_is_no_ros_name_is_refused_as_a_setting_naming_the_key(tmp_path: Path) -> None:
+    """`run --namespace 'bad ns!'` (or `namespace:` in the fleet file) went as far as the generated package,
+    which said "invalid robot name"; the setting is now refused when it is read, naming the key, so a fleet file
+    holding one is not reloaded at all (docs/fleet.md) instead of half applied."""
+    args = [str(EXAMPLE / "rb1.tm.json"), "-I", str(EXAMPLE / "interfaces"), "--robot", "c7"]
+    run = subprocess.run(
+        [sys.executable, "-m", "td2adaptor", "run", *args, "--namespace", "bad ns!", "--bus", "local"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={**os.environ, "TD2ADAPTOR_STATE_DIR": str(tmp_path / "state")},
+    )
+    assert run.returncode != 0
+    assert "namespace 'bad ns!' of robot c7 is not a ROS namespace" in run.stderr, run.stderr
+    assert "Traceback" not in run.stderr
+
+    fleet = tmp_path / "fleet.yaml"
+    fleet.write_text("robots:\n  - robot: belt_a\n  - robot: belt_b\n    namespace: 'bad ns!'\n", encoding="utf-8")
+    with pytest.raises(ConfigError, match="namespace 'bad ns!' of robot belt_b is not a ROS namespace"):
+        load_fleet(fleet, env={})
