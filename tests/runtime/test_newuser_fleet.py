@@ -5,6 +5,7 @@ ROS 2 Jazzy, or its admin listener with simulated robots) and holds the fix.
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import subprocess
@@ -26,7 +27,7 @@ from tests.ros2 import env
 from tests.ros2.common import EXAMPLE, generate_rclpy
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
-from tests.runtime.edge import RunProcess
+from tests.runtime.edge import RunProcess, until
 from tests.runtime.rb1 import rb1_model, sim
 
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain, rb1_prefix
@@ -138,3 +139,33 @@ def test_a_namespace_that_is_no_ros_name_is_refused_as_a_setting_naming_the_key(
     fleet.write_text("robots:\n  - robot: belt_a\n  - robot: belt_b\n    namespace: 'bad ns!'\n", encoding="utf-8")
     with pytest.raises(ConfigError, match="namespace 'bad ns!' of robot belt_b is not a ROS namespace"):
         load_fleet(fleet, env={})
+
+
+def test_the_dashboard_says_no_such_robot_when_an_invoke_names_a_robot_that_left(broker: Mosquitto) -> None:
+    """An invoke from a dashboard page opened before its robot left the fleet (its TD cleared) was refused with
+    "the robot's TD names no invokeaction form of 'gotoRun'", as if the action were misspelt."""
+    from tests.dashboard.harness import dashboard, serve_robot
+    from tests.dashboard.test_dashboard_browser import post, wait_for_robot
+
+    r1 = serve_robot(broker.url, "r1")
+    stopped = False
+    try:
+        with dashboard(broker.url) as dash:
+            wait_for_robot(dash.url, "r1")
+            url = f"{dash.url}api/robots/r1/actions/gotoRun"
+            assert post(url, {"op": "query", "input": {}})[0] == 200
+            r1.stop()
+            stopped = True
+
+            def gone() -> bool:
+                with urllib.request.urlopen(f"{dash.url}api/fleet", timeout=5) as answer:
+                    return all(r["id"] != "r1" for r in json.loads(answer.read())["robots"])
+
+            assert until(gone, 20)
+            for op in ("invoke", "query", "cancel"):
+                assert post(url, {"op": op, "input": {}}) == (404, {"error": "no such robot on the bus"}), op
+            write = post(f"{dash.url}api/robots/r1/properties/door", {"value": {"data": 1.0}})
+            assert write == (404, {"error": "no such robot on the bus"})
+    finally:
+        if not stopped:
+            r1.stop()
