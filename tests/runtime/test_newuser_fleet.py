@@ -169,3 +169,22 @@ def test_the_dashboard_says_no_such_robot_when_an_invoke_names_a_robot_that_left
     finally:
         if not stopped:
             r1.stop()
+
+
+def test_fleet_status_json_says_null_for_an_unknown_robot_side_and_members_without_json_is_refused(
+    broker: Mosquitto,
+) -> None:
+    """`fleet status --json` gave an offline robot `"robotSide": "-"` (the table's filler) beside `"missions":
+    null`; `--members` without `--json` was ignored (the robots' table, no word why)."""
+    from td2adaptor.runtime import serve
+    from tests.runtime.test_presence import config, run_cli
+
+    model = rb1_model()
+    engine = serve(model, SimPort(model, sim(0.3)), config(broker, robot="belt_gone"))
+    engine.stop()  # offline now: its retained status says who served it last
+    rows = json.loads(run_cli("fleet", "status", "--bus", broker.url, "--json").stdout)
+    (row,) = [r for r in rows if r["robot"] == "belt_gone"]
+    assert (row["state"], row["robotSide"], row["missions"]) == ("offline", None, None), row
+    alone = run_cli("fleet", "status", "--bus", broker.url, "--members")
+    assert alone.returncode == 2 and "--members goes with --json" in alone.stderr, (alone.stdout, alone.stderr)
+    assert "Traceback" not in alone.stderr
