@@ -467,6 +467,7 @@ class Engine:
         elif spec.kind is Kind.INVOKE and procedure is not None and procedure.run == spec.affordance:
             self._invoke(spec, procedure, event, msg.topic)
         elif spec.kind is Kind.INVOKE:
+            self.outbox.count("missions")  # a plain call is a mission too: its end is counted (metrics)
             self._submit(self._plain_call, spec, event, self._open("call", spec, event, msg.topic))
         elif spec.kind is Kind.QUERY and procedure is not None:
             self._ask(spec, procedure, event, cancel=False)

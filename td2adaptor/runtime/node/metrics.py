@@ -8,8 +8,9 @@ Every series has the label `robot`:
 * `td2adaptor_robots_owned`: robots this process serves (no label);
 * `td2adaptor_robot_online` 1 while served; `td2adaptor_robot_present` 1 / 0.5 / 0 for its ROS side present /
   partial / absent (no series before the first look, or without one: ROS 1);
-* `td2adaptor_missions_in_flight`; `td2adaptor_missions_started_total`; `td2adaptor_mission_duration_seconds`
-  (histogram, label `state`: how each ended);
+* `td2adaptor_missions_in_flight`; `td2adaptor_missions_started_total` (every invoke run: procedures, ROS action
+  goals and plain calls, as the durations count them); `td2adaptor_mission_duration_seconds` (histogram, label
+  `state`: how each ended);
 * `td2adaptor_events_in_total`, `td2adaptor_errors_total` (error events), `td2adaptor_refused_total`
   (commands not run: stale, replayed, retained, `absent`, ...);
 * `td2adaptor_mqtt_reconnects_total`: reconnections of the robot's MQTT connection.
