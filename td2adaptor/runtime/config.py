@@ -276,8 +276,8 @@ def _yaml_problem(exc: yaml.YAMLError) -> str:
 def _read_yaml(path: str | Path) -> Any:
     try:
         return yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
-    except OSError as exc:
-        raise ConfigError(f"{path}: {exc}") from None
+    except OSError as exc:  # its words alone: str(exc) says "[Errno 2] ...: '<path>'", the path a second time
+        raise ConfigError(f"{path}: {exc.strerror or exc}") from None
     except UnicodeDecodeError as exc:  # its words quote the bytes, which may be a password's
         raise ConfigError(f"{path}: not UTF-8 text (at byte {exc.start})") from None
     except yaml.YAMLError as exc:

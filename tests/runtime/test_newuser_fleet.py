@@ -188,3 +188,12 @@ def test_fleet_status_json_says_null_for_an_unknown_robot_side_and_members_witho
     alone = run_cli("fleet", "status", "--bus", broker.url, "--members")
     assert alone.returncode == 2 and "--members goes with --json" in alone.stderr, (alone.stdout, alone.stderr)
     assert "Traceback" not in alone.stderr
+
+
+def test_a_fleet_file_that_cannot_be_read_is_named_once_in_plain_words(tmp_path: Path) -> None:
+    """`run --config` of a missing file (and a reload after it was deleted) said "...: [Errno 2] No such file or
+    directory: '<path>'", the path twice and Python's errno."""
+    gone = tmp_path / "fleet.yaml"
+    with pytest.raises(ConfigError) as refused:
+        load_fleet(gone, env={})
+    assert str(refused.value) == f"{gone}: No such file or directory"
