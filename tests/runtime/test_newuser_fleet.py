@@ -197,3 +197,32 @@ def test_a_fleet_file_that_cannot_be_read_is_named_once_in_plain_words(tmp_path:
     with pytest.raises(ConfigError) as refused:
         load_fleet(gone, env={})
     assert str(refused.value) == f"{gone}: No such file or directory"
+
+
+def test_the_log_names_a_goal_the_last_run_left_by_its_goal_id(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """After a takeover the new owner logged "divert mission None: failed: the edge node restarted while it
+    followed this goal (...)": a ROS action goal has no mission id; the log now names the goal."""
+    from td2adaptor.runtime import LocalBroker, serve
+    from td2adaptor.runtime.engine.ledger import Ledger
+
+    config = RuntimeConfig(robot="belt_a", poll_period=0.02, property_period=0, state_dir=str(tmp_path))
+    ledger = Ledger(config.ids_file, keep=330)
+    key = ledger.open(
+        event_id="g1",
+        topic="td2adaptor/belt_a/GoToComponent/gotoRun",
+        kind="goal",
+        component="GoToComponent",
+        action="gotoRun",
+        correlation="g1",
+    )
+    ledger.event(key, mission=None, goal="cd" * 16, state="running", seq=2, reserved=2, latest="{}", terminal=False)
+    ledger.close()
+    model = rb1_model()
+    with caplog.at_level("WARNING", logger="td2adaptor.runtime"):
+        engine = serve(model, SimPort(model, sim(0.05)), config, broker=LocalBroker())
+        engine.stop()
+    said = [r.getMessage() for r in caplog.records if "failed: the edge node restarted" in r.getMessage()]
+    assert said and said[0].startswith(f"gotoRun goal {'cd' * 16}: failed: "), said
+    assert not any("None" in line for line in said), said
