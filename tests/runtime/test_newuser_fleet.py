@@ -226,3 +226,44 @@ def test_the_log_names_a_goal_the_last_run_left_by_its_goal_id(
     said = [r.getMessage() for r in caplog.records if "failed: the edge node restarted" in r.getMessage()]
     assert said and said[0].startswith(f"gotoRun goal {'cd' * 16}: failed: "), said
     assert not any("None" in line for line in said), said
+
+
+def test_a_robot_served_under_another_robots_user_says_that_the_broker_refuses_its_messages(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """`run --discover` on a broker with the generated ACL: every discovered robot connects with the process's
+    user, which the ACL ties to one robot id, and the broker refuses what the others publish (their status, TD,
+    answers). The node logged "serving robot conveyor2" and nothing else; an application saw no conveyor2 at all.
+    Now the first refusal (MQTT 5's PUBACK reason code) is logged, naming the client, the topic and the user."""
+    from td2adaptor.backends.events.generator import generate as events
+    from td2adaptor.diagnostics import Diagnostics
+    from td2adaptor.generation.backend import GenOptions
+    from td2adaptor.runtime import serve
+    from tests.runtime.rb1 import td_with_security
+
+    model = td_with_security(tmp_path, {"basic_sc": {"scheme": "basic"}})
+    diags = Diagnostics()
+    tree = events(model, GenOptions(extra=(("events.robots", ["belt_a", "belt_b"]),)), diags)
+    acl = tmp_path / "mosquitto.acl"
+    acl.write_bytes(tree.files[f"{model.package_name}/mosquitto.acl"])
+
+    def said() -> list[str]:
+        return [r.getMessage() for r in caplog.records if "refused a message" in r.getMessage()]
+
+    broker = Mosquitto(tmp_path / "broker", users={"belt_a": "pw-a", "belt_b": "pw-b"}, acl=acl)
+    broker.start()
+    try:
+        config = RuntimeConfig(
+            robot="belt_b", bus=broker.url, username="belt_a", password="pw-a", property_period=0, state_dir=""
+        )
+        with caplog.at_level("ERROR", logger="td2adaptor.runtime"):
+            engine = serve(model, SimPort(model, sim(0.05)), config)
+            try:
+                assert until(lambda: bool(said()), 10), [r.getMessage() for r in caplog.records]
+            finally:
+                engine.stop()
+        line = said()[0]
+        assert "client td2adaptor-belt_b on td2adaptor/belt_b/" in line and "Not authorized" in line, line
+        assert "user belt_a" in line and "pw-a" not in line, line
+    finally:
+        broker.stop()
