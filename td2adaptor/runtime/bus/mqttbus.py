@@ -564,7 +564,7 @@ class MqttBus:
         if reason.value == _TAKEN_OVER and self._client is not None and self.refused is None:
             self._taken_over(_client, "took its session over")
             return
-        if self._client is not None and reason.value != 0:
+        if self._client is not None and reason.value != 0 and not self.probe:  # a probe refused: what it asked
             log.warning("lost the MQTT broker %s (%s); reconnecting", self.address, reason.getName())
 
     def _on_message(self, _client: mqtt.Client, _userdata: Any, msg: mqtt.MQTTMessage) -> None:
