@@ -37,6 +37,8 @@ def status(
 
     Read from the retained status topics (td2adaptor/<robot>/status); the broker user and password, if it wants
     them, come from TD2ADAPTOR_MQTT_USERNAME and TD2ADAPTOR_MQTT_PASSWORD (never from the command line)."""
+    if members_json and not as_json:  # it used to be ignored: the user got the robots' table and no word why
+        raise click.UsageError("--members goes with --json (without it the members are shown below the robots)")
     from td2adaptor.runtime.bus.bus import BusError
     from td2adaptor.runtime.bus.security import SecurityError
     from td2adaptor.runtime.node import fleetview

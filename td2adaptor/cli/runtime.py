@@ -123,7 +123,8 @@ if TYPE_CHECKING:
     "--metrics",
     envvar="TD2ADAPTOR_METRICS",
     metavar="HOST:PORT",
-    help="Serve Prometheus metrics over HTTP on this address, e.g. 127.0.0.1:9464 (default: none).",
+    help="Serve Prometheus metrics over HTTP on this address, e.g. 127.0.0.1:9464; port 0 takes a free one, "
+    "named on the start line (default: none).",
 )
 def run(
     source: str,

@@ -171,6 +171,8 @@ def create_app(fleet: Fleet, bus: Publisher, *, read_only: bool = False, hosts: 
         op = ACTION_OPS.get(str(body.get("op", "invoke")))
         if op is None:
             return _refuse(400, f"op must be one of {', '.join(ACTION_OPS)}")
+        if fleet.td(robot) is None:  # a robot whose node stopped (its TD cleared), or a typo: not "no such form"
+            return _refuse(404, "no such robot on the bus")
         topic = fleet.topic_for(robot, name, op)
         if topic is None:
             return _refuse(404, f"the robot's TD names no {op} form of {name!r}")
@@ -185,6 +187,8 @@ def create_app(fleet: Fleet, bus: Publisher, *, read_only: bool = False, hosts: 
         if isinstance(body, JSONResponse):
             return body
         robot, name = request.path_params["robot"], request.path_params["name"]
+        if fleet.td(robot) is None:
+            return _refuse(404, "no such robot on the bus")
         topic = fleet.topic_for(robot, name, WRITE_OP)
         if topic is None:
             return _refuse(404, f"the robot's TD names no writeproperty form of {name!r}")

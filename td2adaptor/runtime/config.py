@@ -23,6 +23,8 @@ from td2adaptor.runtime.ros.genport import TRAIL_LIMIT
 
 #: what an HTTP `Authorization: Bearer` token may hold (RFC 6750 is narrower; this keeps the header well formed)
 _TOKEN = re.compile(r"[\x21-\x7e]{1,8192}")
+#: a robot namespace ROS 1 and ROS 2 both take (the generated packages' check_robot_name, without the '/' around)
+_NAMESPACE = re.compile(r"[A-Za-z][A-Za-z0-9_]*(?:/[A-Za-z_][A-Za-z0-9_]*)*")
 ENV_DIRECTORY_TOKEN = "TD2ADAPTOR_DIRECTORY_TOKEN"
 
 
@@ -111,6 +113,13 @@ class RuntimeConfig:
             raise ConfigError(
                 f"robot id {self.robot!r} must be 1-128 letters, digits, '_', '.', '-' (and not {ALL_ROBOTS!r})"
             )
+        if self.namespace is not None:  # refused here, naming the key, rather than by the package when it starts
+            bare = self.namespace.strip("/")
+            if bare and (not _NAMESPACE.fullmatch(bare) or "__" in bare):
+                raise ConfigError(
+                    f"namespace {self.namespace!r} of robot {self.robot} is not a ROS namespace: use letters, "
+                    "digits, '_' and single '/' between names that start with a letter, no '__'"
+                )
         for name in ("poll_period", "call_timeout", "mission_timeout"):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"{name} must be positive")
@@ -267,8 +276,8 @@ def _yaml_problem(exc: yaml.YAMLError) -> str:
 def _read_yaml(path: str | Path) -> Any:
     try:
         return yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
-    except OSError as exc:
-        raise ConfigError(f"{path}: {exc}") from None
+    except OSError as exc:  # its words alone: str(exc) says "[Errno 2] ...: '<path>'", the path a second time
+        raise ConfigError(f"{path}: {exc.strerror or exc}") from None
     except UnicodeDecodeError as exc:  # its words quote the bytes, which may be a password's
         raise ConfigError(f"{path}: not UTF-8 text (at byte {exc.start})") from None
     except yaml.YAMLError as exc:

@@ -219,3 +219,28 @@ def test_cancel_event_of_a_procedure_whose_cancel_is_a_trigger(app: LocalApp, ro
 
 def _fb(events: list[Any], correlation: str) -> list[dict[str, Any]]:
     return [e for _, e in events if e.get("type") == "feedback" and e.get("correlation") == correlation]
+
+
+def test_a_plain_call_is_counted_as_a_mission_started_as_it_is_as_one_ended(app: LocalApp) -> None:
+    """The metrics (`run --metrics`) counted a plain call's end in `td2adaptor_mission_duration_seconds` but not
+    its start in `td2adaptor_missions_started_total`: a new user's conveyor showed 2 missions started and 4
+    ended (two goals, two plain calls)."""
+    from td2adaptor.runtime.node.metrics import EdgeCollector
+
+    def counts() -> tuple[float, float]:
+        started = ended = 0.0
+        for family in EdgeCollector().collect():
+            for sample in family.samples:
+                if sample.labels.get("robot") != ROBOT:
+                    continue
+                if sample.name == "td2adaptor_missions_started_total":
+                    started += sample.value
+                elif sample.name == "td2adaptor_mission_duration_seconds_count":
+                    ended += sample.value
+        return started, ended
+
+    before = counts()
+    app.send(f"{TOPIC}/BaseComponent/stop", {"correlation": "counted"})
+    app.wait(terminal("feedback", "counted"), timeout=30)
+    assert until(lambda: counts()[1] == before[1] + 1, 10), counts()  # the end is counted once it is out
+    assert counts()[0] == before[0] + 1, (before, counts())

@@ -184,6 +184,7 @@ class MqttBus:
         self.owned: Callable[[], str | None] | None = None
         self._retained: dict[str, tuple[bytes, int]] = {}  # topic -> (payload, QoS) of the last retained publish
         self._retained_inflight: dict[int, str] = {}  # QoS 1 retained publishes not acknowledged: paho resends them
+        self._refusals_said: set[str] = set()  # topics ("" for any other) of publishes the broker refused, logged
         self._retain_lock = threading.RLock()  # orders retained publishes with their republication on reconnect
         self._handlers: list[tuple[str, Handler, bool]] = []  # (filter, handler, whether it acknowledges itself)
         self._routes: dict[str, list[tuple[Handler, bool]]] = {}  # topic -> its handlers, of the topics seen
@@ -563,7 +564,7 @@ class MqttBus:
         if reason.value == _TAKEN_OVER and self._client is not None and self.refused is None:
             self._taken_over(_client, "took its session over")
             return
-        if self._client is not None and reason.value != 0:
+        if self._client is not None and reason.value != 0 and not self.probe:  # a probe refused: what it asked
             log.warning("lost the MQTT broker %s (%s); reconnecting", self.address, reason.getName())
 
     def _on_message(self, _client: mqtt.Client, _userdata: Any, msg: mqtt.MQTTMessage) -> None:
@@ -669,15 +670,16 @@ class MqttBus:
         then()
 
     def _on_publish(
-        self, _client: mqtt.Client, _userdata: Any, mid: int, _reason: ReasonCode, _props: Properties
+        self, _client: mqtt.Client, _userdata: Any, mid: int, reason: ReasonCode, _props: Properties
     ) -> None:
         due: list[Callable[[], None]] = []
+        topic: str | None = None
         with self._lock:
             if mid in self._unacked:  # a QoS 0 message written: nothing to wait for (and no QoS 1 one's ack)
                 self._unacked.discard(mid)
             elif mid in self._pending:
                 self._pending.discard(mid)
-                self._retained_inflight.pop(mid, None)
+                topic = self._retained_inflight.pop(mid, None)
                 for waits, _then in self._flushed:
                     waits.discard(mid)
                 while self._flushed and not self._flushed[0][0]:  # (each waits for what the one before did)
@@ -690,6 +692,26 @@ class MqttBus:
                 then()
             except Exception:  # noqa: BLE001 - never let a hook kill the thread that serves connections
                 log.exception("after an acknowledgement from %s", self.address)
+        if reason.is_failure:
+            self._publish_refused(topic, reason)
+
+    def _publish_refused(self, topic: str | None, reason: ReasonCode) -> None:
+        """A message the broker did not take (an MQTT 5 PUBACK with a failure: its ACL, mostly), said once per
+        topic (retained ones; the others once): a robot served under another robot's user published into the void
+        with no word in the log."""
+        key = topic or ""
+        if key in self._refusals_said or len(self._refusals_said) > 64:
+            return
+        self._refusals_said.add(key)
+        log.error(
+            "MQTT broker %s refused a message of client %s%s: %s; the broker's ACL must let user %s write this "
+            "robot's topics (docs/security.md)",
+            self.address,
+            self.client_id,
+            f" on {topic}" if topic else "",
+            reason.getName(),
+            self.security.username or "(anonymous)",
+        )
 
     def _on_subscribe(
         self, _client: mqtt.Client, _userdata: Any, mid: int, _reasons: list[ReasonCode], _props: Properties

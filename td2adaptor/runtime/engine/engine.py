@@ -475,6 +475,7 @@ class Engine:
         elif spec.kind is Kind.INVOKE and procedure is not None and procedure.run == spec.affordance:
             self._invoke(spec, procedure, event, msg.topic)
         elif spec.kind is Kind.INVOKE:
+            self.outbox.count("missions")  # a plain call is a mission too: its end is counted (metrics)
             self._submit(self._plain_call, spec, event, self._open("call", spec, event, msg.topic))
         elif spec.kind is Kind.QUERY and procedure is not None:
             self._ask(spec, procedure, event, cancel=False)
@@ -556,7 +557,7 @@ class Engine:
             try:
                 self._recover_one(record)
             except Exception:  # one mission's record must not keep the robot from being served
-                log.exception("recovering %s mission %s", record.action, record.mission)
+                log.exception("recovering %s %s", record.action, _which(record))
                 self.ledger.done(record.key)
 
     def _recover_one(self, r: Record) -> None:
@@ -568,7 +569,7 @@ class Engine:
             self.ledger.done(r.key)
             return
         if r.phase == "ending" and r.latest is not None:  # maybe not sent before the node died: again
-            log.info("%s mission %s: its terminal event again (the last run may not have sent it)", r.action, r.mission)
+            log.info("%s %s: its terminal event again (the last run may not have sent it)", r.action, _which(r))
             self.outbox.send(spec, r.latest.encode("utf-8"))
             self.ledger.done(r.key)
             return
@@ -589,7 +590,7 @@ class Engine:
             return
         self.outbox.count("restart-failed")
         message = "the edge node restarted " + _restart_words(r, behind, self.config.mission_timeout)
-        log.warning("%s mission %s: failed: %s", r.action, r.mission, message)
+        log.warning("%s %s: failed: %s", r.action, _which(r), message)
         self.outbox.finish(m, ProcedureStatus("failed", message=message, reason="unreachable"))
 
     def _invoke(
@@ -787,6 +788,15 @@ def _restart_words(r: Record, behind: float, timeout: float) -> str:
     if behind >= timeout:  # it would have timed out meanwhile (and its id may name another mission by now)
         return f"after this mission's timeout of {timeout:g} s had passed: its outcome is unknown"
     return "while it followed this mission: its outcome is unknown"
+
+
+def _which(r: Record) -> str:
+    """How the log names a mission the last run left: a goal has no mission id ("mission None" said nothing)."""
+    if r.kind == "goal" and r.goal:
+        return f"goal {r.goal}"
+    if r.mission is not None:
+        return f"mission {r.mission}"
+    return f"invoke {r.correlation or r.event_id or '(without id)'}"
 
 
 def _describe(exc: BaseException) -> str:

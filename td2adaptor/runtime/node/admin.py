@@ -59,6 +59,10 @@ def canonical(request: Mapping[str, Any]) -> bytes:
     return json.dumps(body, sort_keys=True, separators=(",", ":"), ensure_ascii=False).encode("utf-8")
 
 
+#: what an unsigned request is told a signature is
+SIGNATURE = "the hex HMAC-SHA256 of the request without it, under the fleet's admin key"
+
+
 def sign(request: Mapping[str, Any], key: str) -> dict[str, Any]:
     """`request` with its `signature` (hex HMAC-SHA256 of `canonical(request)` under `key`)."""
     mac = hmac.new(key.encode("utf-8"), canonical(request), hashlib.sha256).hexdigest()
@@ -257,7 +261,11 @@ class Admin:
         assert self.key is not None
         given = request.get("signature")
         wanted = sign(request, self.key)["signature"]
-        if not isinstance(given, str) or not hmac.compare_digest(given.encode(), wanted.encode()):
+        if given is None:
+            raise Refused("unauthorised", f"the request has no signature ({SIGNATURE})")
+        if not isinstance(given, str):  # e.g. the whole signed request that sign() returns, put in `signature`
+            raise Refused("unauthorised", f"signature must be a string: {SIGNATURE}")
+        if not hmac.compare_digest(given.encode(), wanted.encode()):
             raise Refused("unauthorised", "the request is not signed with this fleet's admin key")
         rid, stamp = request.get("id"), request.get("time")
         if not isinstance(rid, str) or not rid or not isinstance(stamp, str):

@@ -234,7 +234,7 @@ def as_json(rows: Sequence[RobotRow]) -> list[dict[str, Any]]:
         {
             "robot": r.robot,
             "state": r.state,
-            "robotSide": r.presence,
+            "robotSide": None if r.presence == "-" else r.presence,  # offline, or not watched: null, as missions
             "missing": list(r.missing),
             "owner": r.owner.to_json() if r.owner else None,
             "missions": r.missions,

@@ -8,8 +8,9 @@ Every series has the label `robot`:
 * `td2adaptor_robots_owned`: robots this process serves (no label);
 * `td2adaptor_robot_online` 1 while served; `td2adaptor_robot_present` 1 / 0.5 / 0 for its ROS side present /
   partial / absent (no series before the first look, or without one: ROS 1);
-* `td2adaptor_missions_in_flight`; `td2adaptor_missions_started_total`; `td2adaptor_mission_duration_seconds`
-  (histogram, label `state`: how each ended);
+* `td2adaptor_missions_in_flight`; `td2adaptor_missions_started_total` (every invoke run: procedures, ROS action
+  goals and plain calls, as the durations count them); `td2adaptor_mission_duration_seconds` (histogram, label
+  `state`: how each ended);
 * `td2adaptor_events_in_total`, `td2adaptor_errors_total` (error events), `td2adaptor_refused_total`
   (commands not run: stale, replayed, retained, `absent`, ...);
 * `td2adaptor_mqtt_reconnects_total`: reconnections of the robot's MQTT connection.
@@ -34,11 +35,14 @@ class MetricsError(ValueError):
 
 
 def parse_address(text: str) -> tuple[str, int]:
-    """`HOST:PORT` (an IP address; `[::1]:PORT` for IPv6) as (host, port)."""
+    """`HOST:PORT` (an IP address; `[::1]:PORT` for IPv6) as (host, port); port 0 takes a free one, as
+    `dashboard --listen` does (the start line then says which)."""
     host, sep, port = text.rpartition(":")
     host = host.strip("[]")
-    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+    if not sep or not host or not port.isdigit():
         raise MetricsError(f"metrics address {text!r}: give HOST:PORT, e.g. 127.0.0.1:9464")
+    if not 0 <= int(port) < 65536:
+        raise MetricsError(f"metrics address {text!r}: the port must be 0-65535 (0: a free one)")
     try:
         ipaddress.ip_address(host)
     except ValueError:
@@ -102,6 +106,12 @@ class EdgeCollector(Collector):
                     buckets.append((_bound(bound), cumulative))
                 durations.add_metric([robot, state], buckets, total)
         yield from (online, present, flight, started, events, errors, refused, reconnects, durations)
+
+
+def served_address(server: Any) -> str:
+    """The HOST:PORT `server` listens on (the port the system chose for port 0), as a URL writes it."""
+    host, port = server.server_address[:2]
+    return f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
 
 
 def serve_metrics(address: str) -> Any:

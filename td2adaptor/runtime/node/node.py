@@ -91,9 +91,10 @@ class EdgeNode:
         self.check_bus()
         check_fleet(self.model, self.configs)  # no robot another live process serves (OwnerConflict)
         if self.metrics is not None:
-            from td2adaptor.runtime.node.metrics import serve_metrics
+            from td2adaptor.runtime.node.metrics import serve_metrics, served_address
 
             self._metrics_server = serve_metrics(self.metrics)  # MetricsError: the address cannot be served
+            self.metrics = served_address(self._metrics_server)  # port 0: the one the system chose
         o = self.options
         self.link = connect(
             self.model,
