@@ -288,3 +288,46 @@ def test_the_check_for_anonymous_access_warns_of_no_lost_broker(
         assert lost == [], lost
     finally:
         broker.stop()
+
+
+def test_a_robot_not_known_in_advance_is_served_under_the_generated_acls_fleet_node_user(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The generated ACL has a `fleet-node` user for a process that serves robots it discovers or is asked to add
+    (their ids are not in `events.robots`): a robot served under it publishes its status and TD, and answers an
+    application's invoke, on a mosquitto that enforces the ACL. Before, no user but the robot's own could, so a
+    discovered robot was served into the void (the test above)."""
+    from td2adaptor.backends.events.generator import FLEET_NODE
+    from td2adaptor.backends.events.generator import generate as events
+    from td2adaptor.diagnostics import Diagnostics
+    from td2adaptor.generation.backend import GenOptions
+    from td2adaptor.runtime import serve
+    from tests.runtime.rb1 import GOAL, td_with_security, terminal
+
+    model = td_with_security(tmp_path, {"basic_sc": {"scheme": "basic"}})
+    tree = events(model, GenOptions(extra=(("events.robots", ["belt_a"]),)), Diagnostics())
+    acl = tmp_path / "mosquitto.acl"
+    acl.write_bytes(tree.files[f"{model.package_name}/mosquitto.acl"])
+    users = {"belt_a": "pw-a", FLEET_NODE: "pw-fleet", "application": "pw-app"}
+    broker = Mosquitto(tmp_path / "broker", users=users, acl=acl)
+    broker.start()
+    app = AppClient(broker, ["td2adaptor/#"], username="application", password="pw-app")
+    try:
+        config = RuntimeConfig(
+            robot="belt_x", bus=broker.url, username=FLEET_NODE, password="pw-fleet", property_period=0, state_dir=""
+        )
+        with caplog.at_level("ERROR", logger="td2adaptor.runtime"):
+            engine = serve(model, SimPort(model, sim(0.05)), config)
+            try:
+                app.wait(lambda events: any(t == "td2adaptor/belt_x/td" for t, _ in events), 10)
+                app.send("td2adaptor/belt_x/GoToComponent/gotoRun", {"correlation": "fleet-node", "payload": GOAL})
+                app.wait(terminal("feedback", "fleet-node"), 15)
+                statuses = [e for t, e in app.events if t == "td2adaptor/belt_x/status"]
+                assert statuses and statuses[-1]["payload"]["state"] == "online", statuses
+            finally:
+                engine.stop()
+        refused = [r.getMessage() for r in caplog.records if "refused a message" in r.getMessage()]
+        assert refused == [], refused
+    finally:
+        app.close()
+        broker.stop()

@@ -244,6 +244,11 @@ def _readme(model: Model, catalog: EventCatalog) -> str:
 ROBOTS_OPTION = "events.robots"
 #: who the ACL's node block is for when no robot ids are given: no robot id can be it, no robot gets its rights
 ROBOT_STANDIN = "<robot>"
+#: the user of an edge process that serves robots not known in advance (`run --discover`, admin requests): the
+#: ACL lets it act as any robot of this Thing
+FLEET_NODE = "fleet-node"
+#: the users the ACL has blocks for besides the robots' (mosquitto.acl.j2): no robot may be named so
+ACL_USERS = (FLEET_NODE, "fleet-admin", "application")
 
 
 #: the option that names the fleet whose admin requests the ACL lets through (default: the package name)
@@ -296,6 +301,12 @@ def _robots(options: GenOptions, diags: Diagnostics) -> list[str]:
                 )
             elif robot in robots:
                 diags.error("GEN860", f"events backend: {ROBOTS_OPTION} names {robot!r} twice")
+            elif robot in ACL_USERS:
+                diags.error(
+                    "GEN860",
+                    f"events backend: {ROBOTS_OPTION}: {robot!r} is a user the broker ACL has a block of its own for "
+                    "(its block would add to the robot's rights): name the robot otherwise",
+                )
             else:
                 robots.append(robot)
     return robots
@@ -327,6 +338,8 @@ def _acl(model: Model, catalog: EventCatalog, robots: list[str], fleet: str) -> 
     commands), and no pattern can tell the two apart. Without robot ids (`events.robots`), one block for the
     stand-in `<robot>` shows what each robot needs. The fleet's admin requests (`td2adaptor run`, docs/fleet.md):
     every edge node reads them and writes their answers; the `fleet-admin` user writes them and reads the answers.
+    `fleet-node`: the node block with `+` for the robot, for a process that serves robots it discovers or is asked
+    to add (their ids are not known when the ACL is written; it may act as any robot of this Thing).
     `run --share`: every edge node may keep a member record, beat, record admitted invokes and read every robot's
     status (node/share.py), since a process's member connection has its top-level user, a robot's."""
     inbound = [s for s in catalog.specs if s.kind.inbound]
@@ -349,8 +362,9 @@ def _acl(model: Model, catalog: EventCatalog, robots: list[str], fleet: str) -> 
         ]
         return {
             "id": robot,
-            "reads": [*reads, admin_request, *share_reads],
-            "writes": [*writes, admin_answer, *share_writes],
+            # (once each: with `+` for the robot, its own status is every robot's, which a member reads)
+            "reads": list(dict.fromkeys([*reads, admin_request, *share_reads])),
+            "writes": list(dict.fromkeys([*writes, admin_answer, *share_writes])),
         }
 
     admin_request = f"{TOPIC_ROOT}/{ADMIN_LEVEL}/{fleet}/request"
@@ -380,6 +394,7 @@ def _acl(model: Model, catalog: EventCatalog, robots: list[str], fleet: str) -> 
         option=ROBOTS_OPTION,
         nodes=[node(robot) for robot in robots or [ROBOT_STANDIN]],
         given=bool(robots),
+        fleet_node={**node("+"), "id": FLEET_NODE},
         app_writes=[t for s in inbound for t in (s.topic("+"), wot_topic(s, "+")) if t],
         fleet=fleet,
         admin_request=admin_request,

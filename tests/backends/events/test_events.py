@@ -587,6 +587,13 @@ def test_dump_is_the_standard_library_layout(value: Any) -> None:
     assert backend.dump(value) == text
 
 
+def robot_block(rules: list[str], robot: str) -> list[str]:
+    """The rules of `robot`'s user block (up to the next user)."""
+    start = rules.index(f"user {robot}") + 1
+    end = next(i for i in range(start, len(rules)) if rules[i].startswith("user "))
+    return rules[start:end]
+
+
 def test_the_broker_acl_names_each_robots_topics_and_refuses_ids_that_would_open_others() -> None:
     """Issue 30, item 10: one `user` block per robot of `events.robots`, its topics written out (no `pattern`
     with %u, which mosquitto fills with a user name as it is, '/' included); an id with '/', '+' or '#', or any
@@ -603,7 +610,7 @@ def test_the_broker_acl_names_each_robots_topics_and_refuses_ids_that_would_open
         rules = [line for line in text.splitlines() if line and not line.startswith("#")]
         assert said == [] and not [r for r in rules if "%" in r or r.startswith("pattern")]
         users = [r for r in rules if r.startswith("user ")]
-        assert users == ["user rb1_a", "user rb1_b", "user fleet-admin", "user application"]
+        assert users == ["user rb1_a", "user rb1_b", "user fleet-node", "user fleet-admin", "user application"]
         block = rules[rules.index("user rb1_a") + 1 : rules.index("user rb1_b")]
         # and the fleet's admin requests (docs/fleet.md), at a level no robot id can be
         fleet = f"td2adaptor/.fleet/{model.package_name}"
@@ -620,10 +627,16 @@ def test_the_broker_acl_names_each_robots_topics_and_refuses_ids_that_would_open
         assert "topic read td2adaptor/rb1_a/+/+" in block and "topic read td2adaptor/rb1_a/wot-thing/+/+" in block
         assert "topic read td2adaptor/rb1_a/DoorComponent/+/write" in block
         assert all("/rb1_a/" in r or "/all/" in r for r in block), block
+        # the process that serves robots not known in advance (run --discover, admin adds): a node block for any
+        node = rules[rules.index("user fleet-node") + 1 : rules.index("user fleet-admin")]
+        assert node == list(dict.fromkeys(r.replace("/rb1_a/", "/+/") for r in robot_block(rules, "rb1_a"))), node
     for bad in ("sa_a/wot-thing", "+", "#", "a+b", ALL_ROBOTS, "", 7):
         _, said = acl(["rb1_a", bad])
         assert len(said) == 1 and said[0].startswith("GEN860") and "is not a robot id" in said[0], (bad, said)
     assert acl(["rb1_a", "rb1_a"])[1] == ["GEN860: events backend: events.robots names 'rb1_a' twice"]
+    for user in ("fleet-node", "fleet-admin", "application"):  # a robot's block would add to that user's
+        _, said = acl(["rb1_a", user])
+        assert len(said) == 1 and "a user the broker ACL has a block of its own for" in said[0], (user, said)
     assert acl({"rb1_a": 1})[1] == ["GEN860: events backend: events.robots must be a list of robot ids"]
     diags = Diagnostics()
     backend.generate(model, GenOptions(extra=(("events.robot", ["rb1_a"]),)), diags)
