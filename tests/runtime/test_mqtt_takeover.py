@@ -26,7 +26,7 @@ from td2adaptor.runtime.bus.bus import BusError, Message
 from td2adaptor.runtime.bus.mqttbus import MqttBus
 from td2adaptor.runtime.bus.security import parse_broker_url
 from tests.runtime.broker import Mosquitto
-from tests.runtime.client import AppClient
+from tests.runtime.client import AppClient, release
 from tests.runtime.edge import until
 
 CLIENT_ID = "td2adaptor-rb_07"
@@ -53,6 +53,7 @@ class Other:
     def close(self) -> None:
         self.client.disconnect()
         self.client.loop_stop()
+        release(self.client)
 
 
 class TakenOverAtOnce(MqttBus):
