@@ -81,6 +81,7 @@ def test_presence_reads_the_graph_once_counts_what_no_node_serves_and_says_what_
         assert node.sweeps - sweeps == 1, node.sweeps - sweeps  # one read of the graph for all the robots
         assert node.reads - reads == 2 + 20, node.reads - reads  # a count for each name no node serves only
         monkeypatch.setattr(presence, "GRAPH_FRESH", 0.0, raising=False)
+        presence._graphs.clear()  # each look below reads the graph again
         assert looks["graph_b"] == {"trigger": False, "enable": False}, looks["graph_b"]  # ours is a client
         assert not any(looks[f"many_{i}"]["trigger"] for i in range(20))
         robot.destroy_node()  # the robot's node stops cleanly: its servers are gone
@@ -158,3 +159,34 @@ def test_a_server_whose_node_shares_its_name_with_another_node_is_there(ros2_dom
     finally:
         rclpy.shutdown(context=second)
         rclpy.shutdown(context=first)
+
+
+class SlowGraph:
+    """A graph of `nodes` nodes whose every read by node takes `cost` seconds of the test's clock (a graph of
+    thousands of nodes, whose reads grow with its square, without starting them)."""
+
+    def __init__(self, nodes: int, cost: float) -> None:
+        self.now, self.nodes, self.cost, self.sweeps = 0.0, nodes, cost, 0
+
+    def get_node_names_and_namespaces(self) -> list[tuple[str, str]]:
+        self.sweeps += 1
+        return [("sim", f"/r{i}") for i in range(self.nodes)]
+
+    def get_service_names_and_types_by_node(self, _name: str, namespace: str) -> list[tuple[str, list[str]]]:
+        self.now += self.cost
+        return [(f"{namespace}/trigger", ["std_srvs/srv/Trigger"])]
+
+
+def test_a_graph_whose_read_is_slow_is_read_at_most_a_tenth_of_the_time() -> None:
+    """A read serves `GRAPH_FRESH` (0.25 s), or ten times what it took when that is longer: a 1,000-node graph
+    read in 0.1 s is read again after 1 s, not 4 times a second (40 % of a core)."""
+    quick, slow = SlowGraph(10, 0.0001), SlowGraph(1000, 0.0001)
+    for graph in (quick, slow):
+        clock = lambda g=graph: g.now  # noqa: E731
+        assert "/r3/trigger" in presence.graph_served(graph, clock)
+        start = graph.now
+        for step in (0.2, 0.5, 0.8, 1.1):
+            graph.now = start + step
+            presence.graph_served(graph, clock)
+    assert quick.sweeps == 4, quick.sweeps  # at 0, 0.5, 0.8 and 1.1 s: each 0.25 s after the last read
+    assert slow.sweeps == 2, slow.sweeps  # at 0 and 1.1 s: the first read took 0.1 s

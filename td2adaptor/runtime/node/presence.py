@@ -58,10 +58,11 @@ def ros_names(
     return services, servers
 
 
-#: how long one read of a node's ROS 2 graph (what each of its nodes serves) serves every robot of that node;
-#: by node: when it was read and the services served
-GRAPH_FRESH = 0.25
-_graphs: weakref.WeakKeyDictionary[Any, tuple[float, frozenset[str]]] = weakref.WeakKeyDictionary()
+#: how long one read of a node's ROS 2 graph (what each of its nodes serves) serves every robot of that node, at
+#: least; and at most this share of the time is spent reading (a graph of many nodes is read less often)
+GRAPH_FRESH, GRAPH_SHARE = 0.25, 0.1
+#: by node: when its graph was read, the services served, and until when that read serves
+_graphs: weakref.WeakKeyDictionary[Any, tuple[float, frozenset[str], float]] = weakref.WeakKeyDictionary()
 _graphs_lock = threading.Lock()
 
 
@@ -70,11 +71,13 @@ def graph_served(node: Any, clock: Callable[[], float] = time.monotonic) -> froz
     `_action/...` ones too), read node by node (`get_service_names_and_types_by_node`: servers only, where the
     graph's plain list also names a service only clients ask for, ours) once per `GRAPH_FRESH` for every robot
     of `node`: counting the servers of each name (a scan of the whole graph cache each) cost the looks of 100
-    RB-1s about a tenth of a core. Raises when the node cannot be asked (shut down)."""
+    RB-1s about a tenth of a core. A read serves for `GRAPH_FRESH`, or for ten times what it took when that is
+    longer (a read by node looks the node up among all of the graph's: the reads grow with its square). Raises
+    when the node cannot be asked (shut down)."""
     with _graphs_lock:  # held while reading: the other robots' looks wait for this read and take it
         known = _graphs.get(node)
         now = clock()
-        if known is not None and now - known[0] < GRAPH_FRESH:
+        if known is not None and now - known[0] < known[2]:
             return known[1]
         served: set[str] = set()
         for name, namespace in set(node.get_node_names_and_namespaces()):
@@ -85,7 +88,7 @@ def graph_served(node: Any, clock: Callable[[], float] = time.monotonic) -> froz
             except Exception:  # noqa: BLE001 - that node left the graph since it was listed: it serves nothing
                 continue
         read = frozenset(served)
-        _graphs[node] = (now, read)
+        _graphs[node] = (now, read, max(GRAPH_FRESH, (clock() - now) / GRAPH_SHARE))
         return read
 
 
