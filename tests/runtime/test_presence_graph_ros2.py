@@ -9,6 +9,7 @@ services."""
 from __future__ import annotations
 
 import json
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -190,3 +191,40 @@ def test_a_graph_whose_read_is_slow_is_read_at_most_a_tenth_of_the_time() -> Non
             presence.graph_served(graph, clock)
     assert quick.sweeps == 4, quick.sweeps  # at 0, 0.5, 0.8 and 1.1 s: each 0.25 s after the last read
     assert slow.sweeps == 2, slow.sweeps  # at 0 and 1.1 s: the first read took 0.1 s
+
+
+class HeldGraph(SlowGraph):
+    """A graph whose reads by node, once `hold` is cleared, wait until it is set again (a read under way)."""
+
+    def __init__(self) -> None:
+        super().__init__(3, 0.0)
+        self.hold = threading.Event()
+        self.hold.set()
+        self.reading = threading.Event()
+
+    def get_service_names_and_types_by_node(self, name: str, namespace: str) -> list[tuple[str, list[str]]]:
+        self.reading.set()
+        assert self.hold.wait(10.0)
+        return super().get_service_names_and_types_by_node(name, namespace)
+
+
+def test_a_look_does_not_wait_for_a_read_of_the_graph_under_way_but_takes_the_last_one() -> None:
+    """Looks run on the call pool, whose threads make the robots' calls: while one look reads the graph, the
+    others take the last read at once instead of each waiting for it (or reading it again)."""
+    graph = HeldGraph()
+    clock = lambda: graph.now  # noqa: E731
+    first = presence.graph_served(graph, clock)
+    graph.now = 1.0  # the first read is stale: the next look reads again
+    graph.hold.clear()
+    reader = threading.Thread(target=presence.graph_served, args=(graph, clock))
+    reader.start()
+    try:
+        assert graph.reading.wait(10.0)
+        started = time.monotonic()
+        assert presence.graph_served(graph, clock) == first  # the last read, at once
+        assert time.monotonic() - started < 1.0
+        assert graph.sweeps == 2, graph.sweeps
+    finally:
+        graph.hold.set()
+        reader.join(10.0)
+    assert presence.graph_served(graph, clock) == first and graph.sweeps == 2  # the new read serves now

@@ -63,6 +63,7 @@ def ros_names(
 GRAPH_FRESH, GRAPH_SHARE = 0.25, 0.1
 #: by node: when its graph was read, the services served, and until when that read serves
 _graphs: weakref.WeakKeyDictionary[Any, tuple[float, frozenset[str], float]] = weakref.WeakKeyDictionary()
+_readers: weakref.WeakKeyDictionary[Any, threading.Lock] = weakref.WeakKeyDictionary()  # held while reading it
 _graphs_lock = threading.Lock()
 
 
@@ -72,13 +73,24 @@ def graph_served(node: Any, clock: Callable[[], float] = time.monotonic) -> froz
     graph's plain list also names a service only clients ask for, ours) once per `GRAPH_FRESH` for every robot
     of `node`: counting the servers of each name (a scan of the whole graph cache each) cost the looks of 100
     RB-1s about a tenth of a core. A read serves for `GRAPH_FRESH`, or for ten times what it took when that is
-    longer (a read by node looks the node up among all of the graph's: the reads grow with its square). Raises
-    when the node cannot be asked (shut down)."""
-    with _graphs_lock:  # held while reading: the other robots' looks wait for this read and take it
+    longer (a read by node looks the node up among all of the graph's: the reads grow with its square). While
+    one look reads the graph, the others take the last read instead of waiting (a look runs on the call pool,
+    whose threads make the robots' calls); only the first read is waited for. Raises when the node cannot be
+    asked (shut down)."""
+    with _graphs_lock:
         known = _graphs.get(node)
-        now = clock()
-        if known is not None and now - known[0] < known[2]:
+        if known is not None and clock() - known[0] < known[2]:
             return known[1]
+        reader = _readers.setdefault(node, threading.Lock())
+    if not reader.acquire(blocking=known is None):
+        assert known is not None
+        return known[1]  # another look is reading it now
+    try:
+        with _graphs_lock:  # read by the look that held the reader just now?
+            known = _graphs.get(node)
+            now = clock()
+            if known is not None and now - known[0] < known[2]:
+                return known[1]
         served: set[str] = set()
         for name, namespace in set(node.get_node_names_and_namespaces()):
             try:
@@ -88,8 +100,11 @@ def graph_served(node: Any, clock: Callable[[], float] = time.monotonic) -> froz
             except Exception:  # noqa: BLE001 - that node left the graph since it was listed: it serves nothing
                 continue
         read = frozenset(served)
-        _graphs[node] = (now, read, max(GRAPH_FRESH, (clock() - now) / GRAPH_SHARE))
+        with _graphs_lock:
+            _graphs[node] = (now, read, max(GRAPH_FRESH, (clock() - now) / GRAPH_SHARE))
         return read
+    finally:
+        reader.release()
 
 
 def ros2_probe(model: Any, namespace: str, node: Any, actions: Iterable[str]) -> Probe | None:
