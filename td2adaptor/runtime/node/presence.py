@@ -5,10 +5,11 @@ robot's status then says `online` and `robot: absent`, and an invoke is answered
 `absent`) instead of after `call_timeout`. A `Probe` looks at the servers the way the port reaches them, cheaply
 (no call is made):
 
-* ROS 2 (a `GeneratedPort` on rclpy): the servers its node's graph cache (DDS discovery) counts for each
-  service of the robot and each ROS action's `_action/send_goal` (the names from the model, as for ROS 1); a
-  server that stops cleanly is gone at once, one killed (SIGKILL, power) when DDS drops its participant (its
-  lease: Fast DDS's default is 20 s);
+* ROS 2 (a `GeneratedPort` on rclpy): each service of the robot and each ROS action's `_action/send_goal` (the
+  names from the model, as for ROS 1) has a server in its node's graph cache (DDS discovery): the services
+  the graph's nodes serve, read node by node once per `GRAPH_FRESH` for every robot of the node, and for a
+  name not among them its servers counted (`count_services`); a server that stops cleanly is gone at once,
+  one killed (SIGKILL, power) when DDS drops its participant (its lease: Fast DDS's default is 20 s);
 * the simulated robot (`SimPort`): its `down` switch, when the test sets `watched`;
 * ROS 1 (rospy here, or the bridge): the ROS 1 master's `getSystemState`, one XML-RPC call per master and
   period for all its robots: each service has a provider, each actionlib server publishes its `status`; a
@@ -27,6 +28,7 @@ import http.client
 import os
 import threading
 import time
+import weakref
 import xmlrpc.client
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
@@ -56,12 +58,63 @@ def ros_names(
     return services, servers
 
 
+#: how long one read of a node's ROS 2 graph (what each of its nodes serves) serves every robot of that node, at
+#: least; and at most this share of the time is spent reading (a graph of many nodes is read less often)
+GRAPH_FRESH, GRAPH_SHARE = 0.25, 0.1
+#: by node: when its graph was read, the services served, and until when that read serves
+_graphs: weakref.WeakKeyDictionary[Any, tuple[float, frozenset[str], float]] = weakref.WeakKeyDictionary()
+_readers: weakref.WeakKeyDictionary[Any, threading.Lock] = weakref.WeakKeyDictionary()  # held while reading it
+_graphs_lock = threading.Lock()
+
+
+def graph_served(node: Any, clock: Callable[[], float] = time.monotonic) -> frozenset[str]:
+    """The services the nodes of `node`'s ROS 2 graph serve (fully qualified, the actions' hidden
+    `_action/...` ones too), read node by node (`get_service_names_and_types_by_node`: servers only, where the
+    graph's plain list also names a service only clients ask for, ours) once per `GRAPH_FRESH` for every robot
+    of `node`: counting the servers of each name (a scan of the whole graph cache each) cost the looks of 100
+    RB-1s about a tenth of a core. A read serves for `GRAPH_FRESH`, or for ten times what it took when that is
+    longer (a read by node looks the node up among all of the graph's: the reads grow with its square). While
+    one look reads the graph, the others take the last read instead of waiting (a look runs on the call pool,
+    whose threads make the robots' calls); only the first read is waited for. Raises when the node cannot be
+    asked (shut down)."""
+    with _graphs_lock:
+        known = _graphs.get(node)
+        if known is not None and clock() - known[0] < known[2]:
+            return known[1]
+        reader = _readers.setdefault(node, threading.Lock())
+    if not reader.acquire(blocking=known is None):
+        assert known is not None
+        return known[1]  # another look is reading it now
+    try:
+        with _graphs_lock:  # read by the look that held the reader just now?
+            known = _graphs.get(node)
+            now = clock()
+            if known is not None and now - known[0] < known[2]:
+                return known[1]
+        served: set[str] = set()
+        for name, namespace in set(node.get_node_names_and_namespaces()):
+            try:
+                served.update(
+                    str(service) for service, _types in node.get_service_names_and_types_by_node(name, namespace)
+                )
+            except Exception:  # noqa: BLE001 - that node left the graph since it was listed: it serves nothing
+                continue
+        read = frozenset(served)
+        with _graphs_lock:
+            _graphs[node] = (now, read, max(GRAPH_FRESH, (clock() - now) / GRAPH_SHARE))
+        return read
+    finally:
+        reader.release()
+
+
 def ros2_probe(model: Any, namespace: str, node: Any, actions: Iterable[str]) -> Probe | None:
     """The look at a ROS 2 robot through the graph of the node its port uses: each service of `actions` has a
     server, and each ROS action's `_action/send_goal` service has one (every rclpy and rclcpp action server
-    offers it). `count_services` counts the servers of one name in rclpy's graph cache, where asking each
-    client `service_is_ready()` cost 2.6 times as much (1,000 services of 100 nodes in the graph: 107 against
-    278 ms); the names come from the model, as for ROS 1."""
+    offers it); the names come from the model, as for ROS 1. A name some node of the graph serves
+    (`graph_served`, one read shared by the robots) is there; any other has its servers counted
+    (`count_services`): a node restarted under its old name while the killed one is still in the graph (until
+    its lease ends) is hidden behind the dead one's entry from a read by node, which finds the first node of a
+    name only, but its servers are counted."""
     services, servers = ros_names(model, namespace, actions, "/_action/send_goal")
     names = {**services, **servers}
     if not names:
@@ -69,7 +122,8 @@ def ros2_probe(model: Any, namespace: str, node: Any, actions: Iterable[str]) ->
 
     def look() -> dict[str, bool]:
         try:
-            return {name: node.count_services(ros) > 0 for name, ros in names.items()}
+            served = graph_served(node)
+            return {name: ros in served or node.count_services(ros) > 0 for name, ros in names.items()}
         except Exception:  # noqa: BLE001 - a node or context shut down: the servers count as gone
             return dict.fromkeys(names, False)
 
