@@ -102,6 +102,38 @@ def test_the_status_says_whether_the_robot_is_there_and_an_invoke_to_an_absent_r
     check_outbound(app.events)
 
 
+def test_a_robot_not_discovered_yet_at_start_is_not_said_absent_until_the_grace_ends(broker: Mosquitto) -> None:
+    """At start-up the ROS graph takes a second or two to show the robot's servers (DDS discovery), and an invoke
+    meanwhile waits for its server (nothing is refused before `call_timeout`). The status said `absent` all the
+    same, on every start of a node whose robot was there (a new user's conveyor fleet; so did the directory and
+    the metrics). Now the status has no `robot` member until a server is seen or the grace ends; a robot still
+    missing then is `absent`, and the hooks (the directory) learn that change of time too."""
+    model = rb1_model()
+    grace = 1.5
+    for robot, comes in (("pres_late", True), ("pres_never", False)):
+        port = SimPort(model, sim(0.05))
+        port.watched, port.down = True, True  # not discovered yet
+        app = AppClient(broker, [f"td2adaptor/{robot}/#"])
+        engine = serve(model, port, config(broker, robot=robot, call_timeout=grace))
+        started = time.monotonic()
+        try:
+            app.wait(lambda ev: bool(statuses(ev, robot)), timeout=5)  # noqa: B023 - waited for here
+            time.sleep(0.5)  # a few looks that find nothing
+            assert [s.get("robot") for s in statuses(app.events, robot)] == [None] * len(statuses(app.events, robot))
+            if comes:
+                port.down = False
+                app.wait(lambda ev: statuses(ev, robot)[-1].get("robot") == "present", timeout=5)  # noqa: B023
+                words = {s.get("robot") for s in statuses(app.events, robot)}
+                assert words == {None, "present"}, words  # never absent
+            else:
+                app.wait(lambda ev: statuses(ev, robot)[-1].get("robot") == "absent", timeout=grace + 5)  # noqa: B023
+                assert time.monotonic() - started >= grace  # not before the grace ended
+                assert "gotoRun" in statuses(app.events, robot)[-1]["missing"]
+        finally:
+            engine.stop()
+            app.close()
+
+
 def test_a_second_owner_of_a_robot_is_refused_and_a_stale_record_is_not(broker: Mosquitto) -> None:
     model = rb1_model()
     engine = serve(model, SimPort(model, sim(0.3)), config(broker))

@@ -19,7 +19,9 @@ robot's status then says `online` and `robot: absent`, and an invoke is answered
 
 `Presence` keeps what the last look saw. An action whose server has never been seen is refused only once the
 node has run longer than `grace` (its calls' own wait for a server): at start-up, discovery takes a moment,
-and an invoke then waits for the server as it always did.
+and an invoke then waits for the server as it always did. For the same reason the word is not known meanwhile
+(`word()` None: the status has no `robot` member): a robot that is there said `absent` for the first second or
+two of every start, while nothing was refused.
 """
 
 from __future__ import annotations
@@ -239,11 +241,17 @@ class Presence:
                 self._gone.setdefault(name, now)
 
     def word(self) -> str | None:
-        """`present`, `partial` or `absent`; None before the first look."""
-        if self.ready is None:
+        """`present`, `partial` or `absent`; None before the first look, and while an action's server was never
+        seen within `grace` of the start (not discovered yet, as `absent` says: not known to be gone)."""
+        if self.ready is None or self._discovering():
             return None
         there = sum(self.ready.values())
         return PRESENT if there == len(self.ready) else ABSENT if there == 0 else PARTIAL
+
+    def _discovering(self) -> bool:
+        ready = self.ready or {}
+        unseen = any(not there and name not in self._seen for name, there in ready.items())
+        return unseen and self.clock() - self.started < self.grace
 
     def missing(self) -> list[str]:
         return sorted(name for name, there in (self.ready or {}).items() if not there)

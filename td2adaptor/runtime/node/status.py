@@ -89,6 +89,7 @@ class StatusKeeper:
         self._last: dict[str, Any] | None = {**owner_fields(), "missions": 0}  # published last (the birth: app.py)
         self.durations = Durations()
         self._on_presence: list[Callable[[str | None], None]] = []  # told the robot's ROS side when it changes
+        self._told: str | None = None  # the word the hooks and the log were told last (it also changes with time)
         engine.outbox.on_end.append(self._ended)
         birth = getattr(raw, "birth", None)
         self._ours: deque[bytes] = deque([birth.payload] if birth is not None else [], maxlen=OURS_KEPT)
@@ -157,10 +158,10 @@ class StatusKeeper:
         if self._stopped:
             return
         if ready is not None:
-            before = self.presence.word()
             self.presence.update(ready)
             now = self.presence.word()
-            if now != before:
+            if now != self._told:
+                self._told = now
                 for hook in self._on_presence:
                     try:
                         hook(now)
