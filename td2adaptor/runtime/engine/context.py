@@ -17,7 +17,7 @@ from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.engine.missions import MissionTable
 from td2adaptor.runtime.engine.outbox import Outbox
 from td2adaptor.runtime.loop import Lane, Loop
-from td2adaptor.runtime.ros.port import RobotPort
+from td2adaptor.runtime.ros.port import QuickCall, RobotPort
 
 
 @dataclass(frozen=True)
@@ -35,6 +35,8 @@ class RobotContext:
     #: before a ROS action goal is sent: `gate(go)` calls `go(True)` once it may be, `go(False)` if it must not
     #: (Engine.gate; None: at once)
     gate: Callable[[Callable[[bool], None]], None] | None = None
+    #: the port, when it can make calls without a waiting thread (`QuickCall`: ROS 2's generated packages)
+    quick: QuickCall | None = None
 
     def topic(self, kind: Kind, affordance: str, component: str | None = None) -> str:
         """The topic of the robot's `kind` event of `affordance` ("" when the robot has none)."""
