@@ -11,13 +11,14 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from td2adaptor.model.events import Kind
 from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.engine.missions import MissionTable
 from td2adaptor.runtime.engine.outbox import Outbox
 from td2adaptor.runtime.loop import Lane, Loop
-from td2adaptor.runtime.ros.port import QuickCall, RobotPort
+from td2adaptor.runtime.ros.port import Answered, PortError, PortTimeout, QuickCall, RobotPort
 
 
 @dataclass(frozen=True)
@@ -38,6 +39,24 @@ class RobotContext:
     #: the port, when it can make calls without a waiting thread (`QuickCall`: ROS 2's generated packages)
     quick: QuickCall | None = None
 
+    def send_quick(self, send: Callable[[Answered], bool], told: Answered) -> bool:
+        """Send a call without a waiting thread: `send(on_done)` (a `QuickCall` method) says whether it did;
+        `told(answer, error)` is then called once, where the port answers, or on the loop with `PortTimeout` if
+        no answer came `QUICK_MARGIN` seconds past the call timeout (the port's own deadline is the call
+        timeout: this only guards against a port that never answers). The call counts on the robot's lane
+        (`busy`, `wait_idle`) until told."""
+        once = _Once(told, self.lane)
+        self.lane.begin()
+        if not send(once.tell):
+            self.lane.end()
+            return False
+        limit = self.config.call_timeout + QUICK_MARGIN
+        timer = self.loop.call_later(limit, once.tell, None, PortTimeout(f"no answer within {limit:g} s"))
+        once.timer = timer
+        if once.done:
+            timer.cancel()
+        return True
+
     def topic(self, kind: Kind, affordance: str, component: str | None = None) -> str:
         """The topic of the robot's `kind` event of `affordance` ("" when the robot has none)."""
         for spec in self.outbox.catalog.specs:
@@ -48,3 +67,31 @@ class RobotContext:
             ):
                 return spec.topic(self.config.robot, self.config.topic_root)
         return ""
+
+
+#: seconds past the call timeout after which the engine stops waiting for a call sent without a waiting thread
+#: (the port's own deadline is the call timeout; the ROS 1 bridge's child, wait_timeout + timeout)
+QUICK_MARGIN = 15.0
+
+
+class _Once:
+    """A quick call's answer or its guard's timeout, whichever comes first, told once; the lane told it ended."""
+
+    def __init__(self, told: Answered, lane: Lane) -> None:
+        self.told = told
+        self.lane = lane
+        self.done = False
+        self.timer: Any = None
+        self._lock = threading.Lock()
+
+    def tell(self, answer: Any, error: PortError | None) -> None:
+        with self._lock:
+            if self.done:
+                return
+            self.done = True
+        if self.timer is not None:
+            self.timer.cancel()
+        try:
+            self.told(answer, error)
+        finally:
+            self.lane.end()

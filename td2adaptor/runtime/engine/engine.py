@@ -161,6 +161,7 @@ class Engine:
         self._shared: Shared | None = None  # the process's loop and call pool (loop.py), from start to stop
         self._lane: Lane | None = None  # this robot's share of the call pool
         self._quick: QuickCall | None = None  # the port, when it makes calls without a waiting thread (start)
+        self._ctx: RobotContext | None = None  # what the mission runners share (start)
         self._procedures: ProcedureRunner | None = None  # the procedure missions, on the loop (procedure.py)
         self._goals: GoalRunner | None = None  # the ROS action goals, on the loop (goals.py)
         self._streams: PropertyStreams | None = None
@@ -196,7 +197,7 @@ class Engine:
             self.gate,
             self.port if isinstance(self.port, QuickCall) else None,
         )
-        self._quick = ctx.quick
+        self._quick, self._ctx = ctx.quick, ctx
         self._procedures = ProcedureRunner(ctx)
         self._goals = GoalRunner(ctx)
         try:
@@ -664,22 +665,18 @@ class Engine:
         call, answered with one state event: sent from here when the port can do it without a waiting thread
         (`QuickCall`: the answer is published on the port's thread), else on the pool."""
         mid = self._mission_for(procedure, event.get("mission"))
-        quick, lane = self._quick, self._lane
-        if quick is not None and lane is not None:
+        quick, ctx = self._quick, self._ctx
+        if quick is not None and ctx is not None:
             send = quick.try_cancel if cancel else quick.try_query
 
             def told(response: Any, error: PortError | None) -> None:
-                try:
-                    if error is not None and error.response is not None:  # the robot answered `error`: its answer
-                        response, error = error.response, None
-                    self._asked_then(spec, procedure, event, mid, cancel, response, error)
-                finally:
-                    lane.end()
+                if error is not None and error.response is not None:  # the robot answered `error`: its answer
+                    response, error = error.response, None
+                self._asked_then(spec, procedure, event, mid, cancel, response, error)
 
-            lane.begin()
-            if send(spec.component or "", spec.affordance or "", mid, self.config.call_timeout, told):
+            component, action, timeout = spec.component or "", spec.affordance or "", self.config.call_timeout
+            if ctx.send_quick(partial(send, component, action, mid, timeout), told):
                 return
-            lane.end()
         self._submit(self._asked, spec, procedure, event, mid, cancel)
 
     def _asked(self, spec: EventSpec, procedure: Procedure, event: dict[str, Any], mid: int, cancel: bool) -> None:
@@ -737,19 +734,11 @@ class Engine:
             done=True,
             key=key,
         )
-        quick, lane = self._quick, self._lane
-        if quick is not None and lane is not None:
-
-            def told(output: Any, error: PortError | None) -> None:
-                try:
-                    self._called(m, output, error)
-                finally:
-                    lane.end()
-
-            lane.begin()
-            if quick.try_call(m.component, action, m.payload, self.config.call_timeout, told):
+        quick, ctx = self._quick, self._ctx
+        if quick is not None and ctx is not None:
+            send = partial(quick.try_call, m.component, action, m.payload, self.config.call_timeout)
+            if ctx.send_quick(send, partial(self._called, m)):
                 return
-            lane.end()
         self._submit(self._plain_call, m)
 
     def _plain_call(self, m: Mission) -> None:

@@ -152,19 +152,8 @@ class ProcedureRunner:
                 then = Then.END
             self.ctx.loop.post(self._answered, run, then)
 
-        if quick is not None:
-            lane = self.ctx.lane
-
-            def told(value: Any, error: PortError | None) -> None:
-                try:
-                    answered(value, error)
-                finally:
-                    lane.end()
-
-            lane.begin()
-            if quick(told):
-                return
-            lane.end()
+        if quick is not None and self.ctx.send_quick(quick, answered):
+            return
 
         def task() -> None:
             try:
