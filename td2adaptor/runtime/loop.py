@@ -225,6 +225,10 @@ class Lane:
         with self._cond:
             self._flying += 1
 
+    def flying(self) -> int:
+        """Its calls sent without a pool thread and not answered yet (`begin`)."""
+        return self._flying
+
     def end(self) -> None:
         with self._cond:
             self._flying -= 1

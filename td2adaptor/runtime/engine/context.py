@@ -44,10 +44,19 @@ class RobotContext:
         `told(answer, error)` is then called once, where the port answers, or on the loop with `PortTimeout` if
         no answer came `QUICK_MARGIN` seconds past the call timeout (the port's own deadline is the call
         timeout: this only guards against a port that never answers). The call counts on the robot's lane
-        (`busy`, `wait_idle`) until told."""
+        (`busy`, `wait_idle`) until told.
+
+        Only one call at a time: while another quick call of the process or a call of the robot on the pool is
+        in flight, False (the caller uses the pool). The port's thread that tells the answer also takes the
+        next response; with calls overlapping, a pool thread that publishes one answer while that thread takes
+        the next was faster (8 in flight: about 20 % more answers a second). One at a time, no thread waits."""
+        if _flying.count or self.lane.busy():  # overlapping calls: a pool thread's answer lets the reader take the next
+            return False
         once = _Once(told, self.lane)
         self.lane.begin()
+        _flying.add(1)
         if not send(once.tell):
+            _flying.add(-1)
             self.lane.end()
             return False
         limit = self.config.call_timeout + QUICK_MARGIN
@@ -74,6 +83,21 @@ class RobotContext:
 QUICK_MARGIN = 15.0
 
 
+class _Flying:
+    """The process's quick calls in flight (every robot's)."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self._lock = threading.Lock()
+
+    def add(self, step: int) -> None:
+        with self._lock:
+            self.count += step
+
+
+_flying = _Flying()
+
+
 class _Once:
     """A quick call's answer or its guard's timeout, whichever comes first, told once; the lane told it ended."""
 
@@ -91,6 +115,7 @@ class _Once:
             self.done = True
         if self.timer is not None:
             self.timer.cancel()
+        _flying.add(-1)
         try:
             self.told(answer, error)
         finally:
