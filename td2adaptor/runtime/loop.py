@@ -225,9 +225,10 @@ class Lane:
         with self._cond:
             self._flying += 1
 
-    def flying(self) -> int:
-        """Its calls sent without a pool thread and not answered yet (`begin`)."""
-        return self._flying
+    def pooled(self) -> int:
+        """Its tasks on the pool, running or waiting (not the calls sent without a pool thread)."""
+        with self._cond:
+            return self._running + len(self._waiting)
 
     def end(self) -> None:
         with self._cond:
