@@ -45,6 +45,9 @@ CONSTRUCT_REQUEST = Method("construct_{}_Msg", ("*", "**fields"))
 #: a procedure's query and cancel take `mission_id` too (before `timeout`) when their request carries it
 CALL = Method("call_{}", ("request", "*", "timeout"))
 CALL_ASYNC = Method("call_{}_async", ("request", "*", "timeout"), ("rclpy",))
+#: the call without waiting: `on_done(answer, error)` later, on the ROS side's thread; False when it cannot be
+#: made so (then `call_<action>`); a procedure's query and cancel take `mission_id` too
+CALL_THEN = Method("call_{}_then", ("request", "*", "on_done", "timeout"), ("rclpy",))
 MISSION_ID = "mission_id"
 
 # -- per TD action bound to a ROS 2 action
@@ -74,7 +77,7 @@ SERVERS_READY = Method("servers_ready", ())
 #: attributes every component has besides its methods (`node`: the rclpy node)
 ATTRIBUTES = ("robot_name", "timeout", "wait_timeout", "node")
 
-SERVICE = (CONSTRUCT_REQUEST, CALL, CALL_ASYNC)
+SERVICE = (CONSTRUCT_REQUEST, CALL, CALL_ASYNC, CALL_THEN)
 ACTION = (CONSTRUCT_GOAL, SEND, SEND_ASYNC, START)
 SUBSCRIBER = (GET, ON, ON_SERIALIZED)
 PUBLISHER = (CONSTRUCT_MESSAGE, PUBLISH)

@@ -199,6 +199,7 @@ class Lane:
         self._cond = threading.Condition()
         self._waiting: deque[Task] = deque()
         self._running = 0
+        self._flying = 0  # calls in flight without a pool thread (`begin`), which `wait_idle` waits for too
 
     def submit(self, task: Task) -> None:
         with self._cond:
@@ -218,13 +219,30 @@ class Lane:
                     return
                 task = self._waiting.popleft()  # this thread takes the next one: its order is kept
 
-    def busy(self) -> int:
+    def begin(self) -> None:
+        """A call of this robot is sent without a pool thread (the port answers it on its own thread): it counts
+        as in flight (`busy`, `wait_idle`) until `end`, but takes no place of the `limit`."""
+        with self._cond:
+            self._flying += 1
+
+    def pooled(self) -> int:
+        """Its tasks on the pool, running or waiting (not the calls sent without a pool thread)."""
         with self._cond:
             return self._running + len(self._waiting)
 
+    def end(self) -> None:
+        with self._cond:
+            self._flying -= 1
+            if not self._flying:
+                self._cond.notify_all()
+
+    def busy(self) -> int:
+        with self._cond:
+            return self._running + len(self._waiting) + self._flying
+
     def wait_idle(self, timeout: float) -> bool:
         with self._cond:
-            return self._cond.wait_for(lambda: self._running == 0 and not self._waiting, timeout)
+            return self._cond.wait_for(lambda: self._running == 0 and not self._waiting and not self._flying, timeout)
 
 
 class Shared:

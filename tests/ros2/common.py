@@ -23,7 +23,7 @@ from tests.tools import missing
 
 EXAMPLE = env.REPO / "examples" / "robotnik_rb1"
 PACKAGE = "robotnik_rb_1_adaptor"
-SIM_NAMESPACES = ("rb1_base_a", "rb1_base_b", "rb1_base_c", "rb1_base_d", "rb1_base_e")
+SIM_NAMESPACES = ("rb1_base_a", "rb1_base_b", "rb1_base_c", "rb1_base_d", "rb1_base_e", "rb1_base_f")
 SIM_DURATION = 1.0
 
 Errors = type[BaseException] | tuple[type[BaseException], ...]

@@ -12,6 +12,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 import xmlrpc.client
 from collections.abc import Iterator
@@ -22,7 +23,9 @@ import pytest
 from click.testing import CliRunner
 
 from td2adaptor.cli.main import cli
-from td2adaptor.runtime import LocalBroker, PortCallFailed, PortTimeout, PortUnavailable, RuntimeConfig, serve
+from td2adaptor.runtime import LocalBroker, PortCallFailed, PortTimeout, PortUnavailable, RuntimeConfig, loop, serve
+from td2adaptor.runtime.engine import context
+from td2adaptor.runtime.engine.outbox import Outbox
 from td2adaptor.runtime.ros.bridge import Ros1Bridge
 from td2adaptor.runtime.ros.genport import Layout
 from td2adaptor.runtime.ros.port import RosSetupError
@@ -136,6 +139,128 @@ def test_bridge_ports_drive_the_ros1_sim_and_a_mission_runs_through_the_engine(
         assert bridge.pid != pid and bridge.starts == 2
     finally:
         bridge.close()
+
+
+def test_through_the_bridge_calls_are_answered_on_its_reader_without_the_call_pool(
+    master: Master, sim: Sim, interfaces: Path, package_src: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Through the ROS 1 bridge the engine writes a query's, a plain-less procedure's start, polls and cancel
+    requests from its loop, and the bridge's reader publishes the answer: no call-pool thread waits for the
+    child's reply (one thread hand-off fewer each way, as on ROS 2)."""
+    model = rb1_model()
+    bridge = Ros1Bridge(
+        Layout.of(model),
+        PKG,
+        [(ROBOT, ROBOT)],
+        python=harness.SYSTEM_PYTHON,
+        pythonpath=[interfaces, package_src],
+        master_uri=master.uri,
+        timeout=5.0,
+        environ=master.env(),
+    )
+    bridge.start()
+    pooled: list[str] = []  # the robot's calls handed to the call pool (its lane)
+    submit = loop.Lane.submit
+
+    def counted(lane: loop.Lane, task: Any) -> None:
+        pooled.append(threading.current_thread().name)
+        submit(lane, task)
+
+    published: list[tuple[str, str]] = []  # (event kind, thread)
+    send = Outbox.send
+
+    def recorded(outbox: Outbox, spec: Any, data: bytes, **kw: Any) -> None:
+        published.append((spec.kind.value, threading.current_thread().name))
+        send(outbox, spec, data, **kw)
+
+    try:
+        port = bridge.port(ROBOT)
+
+        def answering() -> bool:
+            try:
+                return _alive(port)
+            except PortCallFailed:  # an answer: the robot ran no procedure yet
+                return True
+
+        assert until(answering, 20.0, 0.2)
+        monkeypatch.setattr(loop.Lane, "submit", counted)
+        monkeypatch.setattr(Outbox, "send", recorded)
+        broker = LocalBroker()
+        app = LocalApp(broker)
+        config = RuntimeConfig(robot=ROBOT, poll_period=0.05, property_period=0, call_timeout=5.0)
+        engine = serve(model, port, config, broker=broker, distro="ros1")
+        root = f"td2adaptor/{ROBOT}"
+        try:
+            app.send(f"{root}/PickComponent/pickRun", {"correlation": "p", "payload": {"procedure": {}}})
+            app.wait(lambda ev: "running" in [e["payload"]["state"] for e in feedback(ev, "p")], timeout=20)
+            app.send(f"{root}/PickComponent/pickCancel", {"correlation": "stop"})
+            app.wait(terminal("feedback", "p"), timeout=20)
+            app.send(f"{root}/GoToComponent/gotoQuery", {"correlation": "q", "mission": 4242})
+            app.wait(lambda ev: any(e.get("type") == "state" and e.get("correlation") == "q" for _, e in ev))
+        finally:
+            engine.stop()
+    finally:
+        bridge.close()
+    state = next(e for _, e in app.events if e.get("type") == "state" and e.get("correlation") == "q")
+    assert state["payload"]["message"] == "no procedure with id 4242", state  # the robot's answer, read
+    assert pooled == [], f"calls handed to the call pool: {len(pooled)}"
+    assert {thread for kind, thread in published if kind in ("feedback", "state")} == {"ros1-bridge-reader"}
+
+
+def test_a_call_the_stopped_bridge_never_answers_is_answered_once_after_its_guard_and_not_again(
+    master: Master, sim: Sim, interfaces: Path, package_src: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A call sent without a waiting thread still ends when its port never answers (here the bridge's child is
+    stopped, alive but silent): the engine answers it with an error after the call timeout and its guard's
+    margin, and the reply that comes once the child goes on is not answered a second time."""
+    monkeypatch.setattr(context, "QUICK_MARGIN", 0.5)
+    model = rb1_model()
+    bridge = Ros1Bridge(
+        Layout.of(model),
+        PKG,
+        [(ROBOT, ROBOT)],
+        python=harness.SYSTEM_PYTHON,
+        pythonpath=[interfaces, package_src],
+        master_uri=master.uri,
+        timeout=5.0,
+        environ=master.env(),
+    )
+    bridge.start()
+    pid = bridge.pid
+    assert pid is not None
+    try:
+        port = bridge.port(ROBOT)
+
+        def answering() -> bool:
+            try:
+                return _alive(port)
+            except PortCallFailed:  # an answer: the robot ran no procedure yet
+                return True
+
+        assert until(answering, 20.0, 0.2)
+        broker = LocalBroker()
+        app = LocalApp(broker)
+        config = RuntimeConfig(robot=ROBOT, poll_period=0.05, property_period=0, call_timeout=1.0)
+        engine = serve(model, port, config, broker=broker, distro="ros1")
+        try:
+            os.kill(pid, signal.SIGSTOP)
+            begin = time.monotonic()
+            app.send(f"td2adaptor/{ROBOT}/GoToComponent/gotoQuery", {"correlation": "q", "mission": 4242})
+            app.wait(lambda ev: any(e.get("correlation") == "q" and "type" in e for _, e in ev), timeout=20)
+            elapsed = time.monotonic() - begin
+            os.kill(pid, signal.SIGCONT)
+            answers = [e for _, e in app.events if e.get("correlation") == "q" and "type" in e]  # not the query
+            assert [e["type"] for e in answers] == ["error"], answers
+            assert "gotoQuery of mission 4242 failed" in answers[0]["payload"]["message"], answers
+            assert 1.4 <= elapsed < 10.0, elapsed
+            assert until(answering, 20.0, 0.2)  # the child goes on and answers what it was asked meanwhile
+            time.sleep(0.5)
+        finally:
+            engine.stop()
+    finally:
+        os.kill(pid, signal.SIGCONT)
+        bridge.close()
+    assert [e["type"] for _, e in app.events if e.get("correlation") == "q" and "type" in e] == ["error"]
 
 
 def test_values_no_ros_type_holds_never_reach_the_ros1_robot(

@@ -16,6 +16,7 @@ import re
 import runpy
 import signal
 import sys
+import threading
 import time
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator
@@ -32,9 +33,11 @@ from td2adaptor.runtime import (
     PortTimeout,
     PortUnavailable,
     RuntimeConfig,
+    loop,
     serve,
 )
 from td2adaptor.runtime.bus.mqttbus import MqttBus
+from td2adaptor.runtime.engine.outbox import Outbox
 from td2adaptor.runtime.ros.genport import GeneratedPort
 from tests.conftest import REPO
 from tests.ros2 import env
@@ -46,7 +49,7 @@ from tests.runtime.rb1 import GOAL, LocalApp, check_outbound, rb1_model, termina
 
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain, rb1_prefix, adaptor_build, adaptor, ros_node
 
-NAMESPACES = ("edge_port", "edge_mqtt", "edge_fleet_a", "edge_fleet_b", "edge_fleet_c", "edge_launch")
+NAMESPACES = ("edge_port", "edge_mqtt", "edge_fleet_a", "edge_fleet_b", "edge_fleet_c", "edge_launch", "edge_quick")
 DURATION = 1.0
 
 
@@ -191,6 +194,69 @@ def test_engine_over_mosquitto_on_ros2_survives_a_broker_restart(
         engine.stop()
         app.close()
     check_outbound(app.events)
+
+
+def test_queries_and_a_procedures_calls_are_answered_on_the_responses_reader_without_the_call_pool(
+    adaptor: ModuleType, ros_node: Any, edge_sim: Process, broker: Mosquitto, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """On ROS 2 the engine sends a query, a cancel and a procedure's start, polls and cancel from its loop
+    (`call_<action>_then`), and the answer is published on the responses reader's thread: no call-pool thread
+    is woken for them (one thread hand-off fewer each way)."""
+    robot = "edge_quick"
+    port = port_for(adaptor, ros_node, robot)
+    assert until(lambda: answers(port), 20.0, 0.1)
+    pooled: list[str] = []  # the robot's calls handed to the call pool (its lane), by the thread that did
+    submit = loop.Lane.submit
+
+    def counted(lane: loop.Lane, task: Any) -> None:
+        pooled.append(threading.current_thread().name)
+        submit(lane, task)
+
+    published: list[tuple[str, str]] = []  # (event kind, thread)
+    send = Outbox.send
+
+    def recorded(outbox: Outbox, spec: Any, data: bytes, **kw: Any) -> None:
+        published.append((spec.kind.value, threading.current_thread().name))
+        send(outbox, spec, data, **kw)
+
+    monkeypatch.setattr(loop.Lane, "submit", counted)
+    monkeypatch.setattr(Outbox, "send", recorded)
+    config = RuntimeConfig(robot=robot, bus=broker.url, poll_period=0.05, property_period=0, call_timeout=5.0)
+    engine = serve(rb1_model(), port, config)
+    app = AppClient(broker.url, [f"td2adaptor/{robot}/#"], client_id="edge-quick-app")
+    root = f"td2adaptor/{robot}"
+    try:
+        app.send(goto_topic(robot), {"correlation": "go", "payload": GOAL})
+        app.wait(terminal("feedback", "go"), timeout=20)
+        mission = check_mission(app.events, "go", ["queued", "running", "finished"])[0]["mission"]
+
+        def answered(correlation: str) -> None:
+            app.wait(lambda ev: any(e.get("type") == "state" and e.get("correlation") == correlation for _, e in ev))
+
+        # one at a time: calls that overlap are made on the pool (a pool thread publishes one answer while the
+        # reader takes the next)
+        app.send(f"{root}/GoToComponent/gotoQuery", {"correlation": "q", "mission": mission})
+        answered("q")
+        app.send(f"{root}/GoToComponent/gotoQuery", {"correlation": "unknown", "mission": 4242})
+        answered("unknown")
+        pick = {"procedure": {"pick_frame_id": "edge_quick_cart3_contact"}}
+        app.send(f"{root}/PickComponent/pickRun", {"correlation": "pick", "payload": pick})
+        app.wait(lambda ev: "running" in [e["payload"]["state"] for e in feedback(ev, "pick")], timeout=10)
+        app.send(f"{root}/PickComponent/pickCancel", {"correlation": "stop"})
+        app.wait(terminal("feedback", "pick"), timeout=20)
+        app.send(f"{root}/GoToComponent/gotoCancel", {"correlation": "c", "mission": 4343})
+        answered("c")
+    finally:
+        engine.stop()
+        app.close()
+    states = {e.get("correlation"): e["payload"] for _, e in app.events if e.get("type") == "state"}
+    assert states["q"]["state"] == "finished", states
+    assert states["unknown"]["message"] == "no procedure with id 4242", states  # the robot's answer, read
+    assert states["c"]["message"] == "no procedure with id 4343", states
+    assert feedback(app.events, "pick")[-1]["payload"]["state"] in ("finished", "cancelled")
+    assert pooled == [], f"calls handed to the call pool: {len(pooled)}"
+    answers_threads = {thread for kind, thread in published if kind in ("feedback", "state")}
+    assert answers_threads == {"adaptor-responses"}, published
 
 
 def test_a_robot_killed_mid_mission_gives_failure_feedback_within_the_timeout(

@@ -175,6 +175,7 @@ class CallView:
     returns: str
     doc: str
     async_doc: str
+    then_doc: str
     run_id: str | None = None  # `response.state.header.id` for procedure runs
     last_attr: str | None = None  # `self._last_<run>_id`: runs set it, queries and cancels read it
     mission_field: str | None = None  # `request.header.id` for queries and cancels
@@ -475,6 +476,8 @@ class Builder:
         sdef = self.types.service(svc.type_name)
         self.msg_used |= {svc.type_name, sdef.request.name, sdef.response.name}
         self.runtime_used.add("ServiceClient")
+        self.std_used.add(("collections.abc", "Callable"))  # call_X_then's on_done
+        self.std_used.add((".errors", "AdaptorError"))
         srv, req, resp = namer[svc.type_name], namer[sdef.request.name], namer[sdef.response.name]
         proc = comp.procedure_of(svc.name)
         run_id = last_attr = mission_field = None
@@ -518,6 +521,17 @@ class Builder:
             ],
             "        ",
         )
+        then_doc = docstring(
+            [
+                f"{api.CALL(svc.name)} without waiting: sends the request and returns True at once; "
+                "on_done(answer, None) is called with the answer "
+                f"{api.CALL(svc.name)} would return, or on_done(None, error) with the error it would raise, once, on "
+                "the node's responses reader thread (it must not block). False, and nothing sent, when the call "
+                "cannot be made without waiting (no server known yet, or no responses reader of this package's "
+                f"Spinner serves the node): make it with {api.CALL(svc.name)}.",
+            ],
+            "        ",
+        )
         return CallView(
             name=svc.name,
             attr=f"self._{svc.name}",
@@ -530,6 +544,7 @@ class Builder:
             returns=returns,
             doc=docstring(body, "        "),
             async_doc=async_doc,
+            then_doc=then_doc,
             run_id=run_id,
             last_attr=last_attr,
             mission_field=mission_field,

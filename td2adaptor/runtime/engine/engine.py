@@ -55,7 +55,7 @@ from td2adaptor.runtime.engine.replay import ReplayGuard, Verdict, digest, time_
 from td2adaptor.runtime.engine.streams import PropertyStreams, streams
 from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope, references, salvage
 from td2adaptor.runtime.loop import Lane, Shared, Timer, acquire, release
-from td2adaptor.runtime.ros.port import NoValue, PortError, RobotPort
+from td2adaptor.runtime.ros.port import NoValue, PortError, QuickCall, RobotPort
 from td2adaptor.runtime.ros.procedures import ProcedureStatus, read
 from td2adaptor.runtime.ros.words import INTERNAL, describe
 
@@ -163,6 +163,8 @@ class Engine:
         self._threads: list[threading.Thread] = []  # the process's engine loop, while this engine uses it
         self._shared: Shared | None = None  # the process's loop and call pool (loop.py), from start to stop
         self._lane: Lane | None = None  # this robot's share of the call pool
+        self._quick: QuickCall | None = None  # the port, when it makes calls without a waiting thread (start)
+        self._ctx: RobotContext | None = None  # what the mission runners share (start)
         self._procedures: ProcedureRunner | None = None  # the procedure missions, on the loop (procedure.py)
         self._goals: GoalRunner | None = None  # the ROS action goals, on the loop (goals.py)
         self._streams: PropertyStreams | None = None
@@ -196,7 +198,9 @@ class Engine:
             self._stopping,
             self.clock,
             self.gate,
+            self.port if isinstance(self.port, QuickCall) else None,
         )
+        self._quick, self._ctx = ctx.quick, ctx
         self._procedures = ProcedureRunner(ctx)
         self._goals = GoalRunner(ctx)
         try:
@@ -476,7 +480,7 @@ class Engine:
             self._invoke(spec, procedure, event, msg.topic)
         elif spec.kind is Kind.INVOKE:
             self.outbox.count("missions")  # a plain call is a mission too: its end is counted (metrics)
-            self._submit(self._plain_call, spec, event, self._open("call", spec, event, msg.topic))
+            self._plain(spec, event, self._open("call", spec, event, msg.topic))
         elif spec.kind is Kind.QUERY and procedure is not None:
             self._ask(spec, procedure, event, cancel=False)
         elif spec.kind is Kind.CANCEL and procedure is not None:
@@ -668,20 +672,51 @@ class Engine:
 
     def _ask(self, spec: EventSpec, procedure: Procedure, event: dict[str, Any], *, cancel: bool) -> None:
         """(the loop) A query (or a cancel of a mission we do not follow): which mission it is about, then the
-        call on the pool, answered with one state event."""
+        call, answered with one state event: sent from here when the port can do it without a waiting thread
+        (`QuickCall`: the answer is published on the port's thread), else on the pool."""
         mid = self._mission_for(procedure, event.get("mission"))
+        quick, ctx = self._quick, self._ctx
+        if quick is not None and ctx is not None:
+            send = quick.try_cancel if cancel else quick.try_query
+
+            def told(response: Any, error: PortError | None) -> None:
+                if error is not None and error.response is not None:  # the robot answered `error`: its answer
+                    response, error = error.response, None
+                self._asked_then(spec, procedure, event, mid, cancel, response, error)
+
+            component, action, timeout = spec.component or "", spec.affordance or "", self.config.call_timeout
+            if ctx.send_quick(partial(send, component, action, mid, timeout), told):
+                return
         self._submit(self._asked, spec, procedure, event, mid, cancel)
 
     def _asked(self, spec: EventSpec, procedure: Procedure, event: dict[str, Any], mid: int, cancel: bool) -> None:
-        correlation = event.get("correlation") or event.get("id")
-        action = spec.affordance or ""
         try:
             call = self.port.cancel if cancel else self.port.query
-            response = answer(call, spec.component or "", action, mid, self.config.call_timeout)
+            response, error = (
+                answer(call, spec.component or "", spec.affordance or "", mid, self.config.call_timeout),
+                None,
+            )
         except Exception as exc:
+            response, error = None, exc
+        self._asked_then(spec, procedure, event, mid, cancel, response, error)
+
+    def _asked_then(
+        self,
+        spec: EventSpec,
+        procedure: Procedure,
+        event: dict[str, Any],
+        mid: int,
+        cancel: bool,
+        response: Any,
+        error: BaseException | None,
+    ) -> None:
+        """A query's (cancel's) answer, or why none came: one state event, or an error event."""
+        correlation = event.get("correlation") or event.get("id")
+        action = spec.affordance or ""
+        if error is not None:
             self.outbox.error(
                 "call-failed",
-                f"{action} of mission {mid} failed: {_describe(exc)}",
+                f"{action} of mission {mid} failed: {_describe(error)}",
                 topic=spec.topic(self.config.robot, self.config.topic_root),
                 affordance=action,
                 correlation=correlation,
@@ -694,9 +729,10 @@ class Engine:
         mission = status.mission_id if status.mission_id is not None else (mid if mid != -1 else None)
         self.outbox.state(procedure.run, status, correlation, mission)
 
-    def _plain_call(self, spec: EventSpec, event: dict[str, Any], key: str | None = None) -> None:
-        """A non-procedure action: one call, one terminal feedback with its output (also when it failed, if the
-        robot answered: its response says how)."""
+    def _plain(self, spec: EventSpec, event: dict[str, Any], key: str | None = None) -> None:
+        """(the loop) A non-procedure action: one call, one terminal feedback with its output (also when it
+        failed, if the robot answered: its response says how); sent from here when the port can do it without a
+        waiting thread (`QuickCall`), else on the pool."""
         action = spec.affordance or ""
         m = Mission(
             spec.component or "",
@@ -708,16 +744,30 @@ class Engine:
             done=True,
             key=key,
         )
+        quick, ctx = self._quick, self._ctx
+        if quick is not None and ctx is not None:
+            send = partial(quick.try_call, m.component, action, m.payload, self.config.call_timeout)
+            if ctx.send_quick(send, partial(self._called, m)):
+                return
+        self._submit(self._plain_call, m)
+
+    def _plain_call(self, m: Mission) -> None:
         try:
-            output = dict(self.port.call(m.component, action, m.payload, self.config.call_timeout))
+            output, error = self.port.call(m.component, m.action, m.payload, self.config.call_timeout), None
         except Exception as exc:
-            reason = exc.reason if isinstance(exc, PortError) else "call-failed"
-            log.warning("%s: failed (%s): %s", action, reason, _describe(exc))
-            answer = exc.response if isinstance(exc, PortError) else None  # the robot answered, and said it failed
-            status = ProcedureStatus("failed", message=_describe(exc), reason=reason)
+            output, error = None, exc
+        self._called(m, output, error)
+
+    def _called(self, m: Mission, output: Any, error: BaseException | None) -> None:
+        """A plain call's answer, or why none came: its terminal feedback."""
+        if error is not None:
+            reason = error.reason if isinstance(error, PortError) else "call-failed"
+            log.warning("%s: failed (%s): %s", m.action, reason, _describe(error))
+            answer = error.response if isinstance(error, PortError) else None  # the robot answered, and said it failed
+            status = ProcedureStatus("failed", message=_describe(error), reason=reason)
             self.outbox.feedback(m, status, terminal=True, output=dict(answer) if answer is not None else None)
             return
-        self.outbox.feedback(m, ProcedureStatus("finished"), terminal=True, output=output)
+        self.outbox.feedback(m, ProcedureStatus("finished"), terminal=True, output=dict(output))
 
     def _write(self, spec: EventSpec, event: dict[str, Any]) -> None:
         name = spec.affordance or ""

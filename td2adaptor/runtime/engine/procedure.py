@@ -34,7 +34,7 @@ from td2adaptor.model.events import Kind
 from td2adaptor.runtime.engine.context import RobotContext
 from td2adaptor.runtime.engine.missions import Mission
 from td2adaptor.runtime.loop import Timer
-from td2adaptor.runtime.ros.port import PortError, StartResult
+from td2adaptor.runtime.ros.port import Answered, PortError, StartResult
 from td2adaptor.runtime.ros.procedures import ProcedureStatus, Reading, read
 from td2adaptor.runtime.ros.words import INTERNAL, describe
 
@@ -76,6 +76,8 @@ class Run:
 
 
 Reader = Callable[[Run, Any, "Exception | None"], Then]
+#: a call sent without a waiting thread (`QuickCall`): `quick(on_done)` sends it and says whether it did
+Quick = Callable[[Answered], bool]
 
 
 class ProcedureRunner:
@@ -93,7 +95,9 @@ class ProcedureRunner:
         run = self._add(m, held)
         timeout = self.ctx.config.call_timeout
         start = partial(self.ctx.port.start, m.component, m.action, m.payload, timeout)
-        self._call(run, Phase.STARTING, start, self._started)
+        quick = self.ctx.quick
+        fast = partial(quick.try_start, m.component, m.action, m.payload, timeout) if quick is not None else None
+        self._call(run, Phase.STARTING, start, self._started, fast)
 
     def resume(self, m: Mission, held: threading.Event) -> None:
         """Follow on a mission the robot runs already (a restart of this node): its first query in a period."""
@@ -131,16 +135,15 @@ class ProcedureRunner:
         self._runs[id(m)] = run
         return run
 
-    def _call(self, run: Run, phase: Phase, call: Callable[[], Any], reader: Reader) -> None:
-        """Make a robot call on the lane; the pool thread reads and publishes its answer with `reader`, then
-        hands the mission back to the loop."""
+    def _call(
+        self, run: Run, phase: Phase, call: Callable[[], Any], reader: Reader, quick: Quick | None = None
+    ) -> None:
+        """Make a robot call: sent from here when the port can do it without a waiting thread (`quick`), its
+        answer read and published with `reader` on the port's thread; else on the lane, and the pool thread
+        reads and publishes it. Then the mission is handed back to the loop."""
         run.phase, run.calling = phase, True
 
-        def task() -> None:
-            try:
-                value, error = call(), None
-            except Exception as exc:  # noqa: BLE001 - handed to the reader, which reports it
-                value, error = None, exc
+        def answered(value: Any, error: Exception | None) -> None:
             try:
                 then = reader(run, value, error)
             except Exception:  # the last line of defence: report, never crash
@@ -148,6 +151,16 @@ class ProcedureRunner:
                 self.ctx.outbox.finish(run.m, ProcedureStatus("failed", message=INTERNAL, reason="call-failed"))
                 then = Then.END
             self.ctx.loop.post(self._answered, run, then)
+
+        if quick is not None and self.ctx.send_quick(quick, answered):
+            return
+
+        def task() -> None:
+            try:
+                value, error = call(), None
+            except Exception as exc:  # noqa: BLE001 - handed to the reader, which reports it
+                value, error = None, exc
+            answered(value, error)
 
         self.ctx.lane.submit(task)
 
@@ -207,19 +220,40 @@ class ProcedureRunner:
                 self._error("unsupported", f"{m.action} has no cancel action", Kind.INVOKE, m.action, correlation, m)
                 continue
             ask = partial(answer, self.ctx.port.cancel, m.component, proc.cancel, mid, cfg.call_timeout)
-            self._call(run, Phase.CANCELLING, ask, partial(self._cancelled, correlation))
+            fast = self._quick("try_cancel", m.component, proc.cancel, mid, answered=True)
+            self._call(run, Phase.CANCELLING, ask, partial(self._cancelled, correlation), fast)
             return
         if self.ctx.clock() >= run.deadline:
             if proc.cancel is not None and m.mission_id is not None:  # ask the robot to stop it, then give up
                 ask = partial(self.ctx.port.cancel, m.component, proc.cancel, m.mission_id, cfg.call_timeout)
-                self._call(run, Phase.CANCELLING, ask, self._timed_out)
+                fast = self._quick("try_cancel", m.component, proc.cancel, m.mission_id, answered=False)
+                self._call(run, Phase.CANCELLING, ask, self._timed_out, fast)
                 return
             self._timed_out(run, None, None)
             self._leave(run)
             return
         assert proc.query is not None
         ask = partial(answer, self.ctx.port.query, m.component, proc.query, mid, cfg.call_timeout)
-        self._call(run, Phase.POLLING, ask, self._queried)
+        self._call(run, Phase.POLLING, ask, self._queried, self._quick("try_query", m.component, proc.query, mid))
+
+    def _quick(self, method: str, component: str, action: str, mid: int, *, answered: bool = True) -> Quick | None:
+        """A query's or cancel's call without a waiting thread (`QuickCall`), or None when the port has none;
+        `answered`: a response the port raised with (the robot said `error`) is the answer, as `answer` reads it."""
+        quick = self.ctx.quick
+        if quick is None:
+            return None
+        send = getattr(quick, method)
+        timeout = self.ctx.config.call_timeout
+
+        def fast(on_done: Answered) -> bool:
+            def told(value: Any, error: PortError | None) -> None:
+                if answered and error is not None and error.response is not None:
+                    value, error = error.response, None
+                on_done(value, error)
+
+            return bool(send(component, action, mid, timeout, told))
+
+        return fast
 
     def _leave(self, run: Run) -> None:
         """The machine is done with the mission (ended, or left to the robot at a stop)."""

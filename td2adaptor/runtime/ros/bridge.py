@@ -43,6 +43,7 @@ from typing import IO, Any
 
 from td2adaptor.runtime.ros.genport import GeneratedPort, Layout
 from td2adaptor.runtime.ros.port import (
+    Answered,
     CancelDone,
     GoalEnd,
     GoalListener,
@@ -425,6 +426,16 @@ class Ros1Bridge:
         except PortError as exc:
             answer(None, exc)
 
+    def try_ask(self, robot: str, op: str, args: list[Any], answer: Callable[[Any, PortError | None], None]) -> bool:
+        """`ask` when the child runs (a dead one is restarted by `call` only: that waits); False, nothing sent,
+        otherwise. The child bounds each call by wait_timeout + timeout, and a child that dies answers every
+        request it had with PortUnavailable."""
+        proc = self._proc
+        if proc is None or proc.poll() is not None or self._closed:
+            return False
+        self.ask(robot, op, args, answer)
+        return True
+
     def port(self, robot: str) -> BridgePort:
         return BridgePort(self, robot)
 
@@ -455,6 +466,37 @@ class BridgePort:
 
     def read_property(self, component: str, name: str, timeout: float) -> Any:
         return self.bridge.call(self.robot, "read_property", [component, name, timeout], timeout)
+
+    # calls without a waiting thread (`QuickCall`): the request is written from the caller's thread and the reply
+    # told by the bridge's reader, which would otherwise wake a thread waiting for it
+
+    def try_start(
+        self, component: str, action: str, payload: Mapping[str, Any], timeout: float, on_done: Answered
+    ) -> bool:
+        def started(out: Any, error: PortError | None) -> None:
+            if error is not None:
+                on_done(None, error)
+                return
+            try:
+                mission = out.get("mission_id")
+                result = StartResult(out["response"], int(mission) if mission is not None else None)
+            except (AttributeError, KeyError, TypeError, ValueError) as exc:
+                on_done(None, PortCallFailed(f"the ROS 1 bridge's answer to {action} is not a start's: {exc}"))
+                return
+            on_done(result, None)
+
+        return self.bridge.try_ask(self.robot, "start", [component, action, dict(payload), timeout], started)
+
+    def try_query(self, component: str, action: str, mission_id: int, timeout: float, on_done: Answered) -> bool:
+        return self.bridge.try_ask(self.robot, "query", [component, action, mission_id, timeout], on_done)
+
+    def try_cancel(self, component: str, action: str, mission_id: int, timeout: float, on_done: Answered) -> bool:
+        return self.bridge.try_ask(self.robot, "cancel", [component, action, mission_id, timeout], on_done)
+
+    def try_call(
+        self, component: str, action: str, payload: Mapping[str, Any], timeout: float, on_done: Answered
+    ) -> bool:
+        return self.bridge.try_ask(self.robot, "call", [component, action, dict(payload), timeout], on_done)
 
     def write_property(self, component: str, name: str, value: Any) -> None:
         self.bridge.call(self.robot, "write_property", [component, name, value], self.bridge.timeout)

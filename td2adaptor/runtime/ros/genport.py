@@ -30,6 +30,7 @@ from typing import Any
 from td2adaptor.model import Model, ProcedureRole
 from td2adaptor.model import genapi as api
 from td2adaptor.runtime.ros.port import (
+    Answered,
     CancelDone,
     GoalEnd,
     GoalListener,
@@ -383,6 +384,80 @@ class GeneratedPort:
             return to_plain(getattr(result, "response", result))
 
         return self._guarded(component, run)  # type: ignore[no-any-return]
+
+    # -- calls without a waiting thread (the `QuickCall` protocol: ROS 2 packages with `call_<action>_then`) ---
+
+    def try_start(
+        self, component: str, action: str, payload: Mapping[str, Any], timeout: float, on_done: Answered
+    ) -> bool:
+        def started(result: Any) -> StartResult:
+            mid = result.mission_id
+            return StartResult(to_plain(result.response), int(mid) if mid is not None else None)
+
+        return self._then(component, action, on_done, started, payload, timeout=timeout)
+
+    def try_query(self, component: str, action: str, mission_id: int, timeout: float, on_done: Answered) -> bool:
+        if (component, action) in self.layout.ids:
+            return self._then(component, action, on_done, to_plain, None, timeout=timeout, mission_id=mission_id)
+        return self._then(component, action, on_done, to_plain, None, timeout=timeout)
+
+    def try_cancel(self, component: str, action: str, mission_id: int, timeout: float, on_done: Answered) -> bool:
+        return self.try_query(component, action, mission_id, timeout, on_done)
+
+    def try_call(
+        self, component: str, action: str, payload: Mapping[str, Any], timeout: float, on_done: Answered
+    ) -> bool:
+        if (component, action) in self.layout.runs:
+            return self.try_start(component, action, payload, timeout, lambda r, e: on_done(r and r.response, e))
+        return self._then(
+            component, action, on_done, lambda r: to_plain(getattr(r, "response", r)), payload, timeout=timeout
+        )
+
+    def _then(
+        self,
+        component: str,
+        action: str,
+        on_done: Answered,
+        convert: Callable[[Any], Any],
+        payload: Mapping[str, Any] | None,
+        **kwargs: Any,
+    ) -> bool:
+        """Send a call with the generated `call_<action>_then` when one of the component's `CALLS_PER_COMPONENT`
+        is free at once; its answer converted to plain data (or its error to a port error) to `on_done`."""
+        then = getattr(self.components.get(component), api.CALL_THEN(action), None)
+        lock = self._locks.get(component)
+        if self.distro != "ros2" or not callable(then) or lock is None or not lock.acquire(blocking=False):
+            return False
+        told = False
+
+        def done(answer: Any, error: BaseException | None) -> None:
+            nonlocal told
+            told = True
+            lock.release()
+            failure: PortError | None = None
+            value = None
+            try:
+                if error is not None:
+                    raise error
+                value = convert(answer)
+            except PortError as exc:
+                failure = exc
+            except Exception as exc:  # noqa: BLE001 - every generated error becomes a port error
+                failure = _mapped(component, exc)
+            on_done(value, failure)
+
+        try:
+            if payload is not None:
+                kwargs["request"] = self._method(component, api.CONSTRUCT_REQUEST(action))(**payload)
+            sent = bool(then(on_done=done, **kwargs))
+        except Exception as exc:  # noqa: BLE001 - a payload the request does not take: the call fails at once
+            if not told:
+                lock.release()
+                on_done(None, _mapped(component, exc))
+            return True
+        if not sent:
+            lock.release()
+        return sent
 
     def read_property(self, component: str, name: str, timeout: float) -> Any:
         get = self._method(component, api.GET(name))

@@ -230,3 +230,39 @@ class QuickGoalStart(Protocol):
         """`start_goal` when it can be done without blocking (no lock to wait for, no reply to wait for); None
         when it cannot, and nothing was sent: the caller calls `start_goal` from a thread that may wait."""
         ...
+
+
+#: how a call made without waiting ends: `(answer, None)`, or `(None, error)` (a `PortError`; one the robot
+#: answered, saying it failed, carries its response)
+Answered = Callable[[Any, "PortError | None"], None]
+
+
+@runtime_checkable
+class QuickCall(Protocol):
+    """A `RobotPort` that can often make a call without a thread waiting for it (the generated rclpy package's
+    `call_<action>_then`): the engine then sends it from its loop and the answer is read and published where
+    the port tells it, on the ROS side's thread (no hand-off to the call pool and back). Each returns False,
+    and sends nothing, when the call cannot be made so (no server seen yet, the component's calls all in
+    flight, a package without it): the caller then makes the `RobotPort` call on a thread that may wait.
+    Otherwise `on_done` is told once, from the port's thread (or from inside this call when the answer was
+    there at once); it must not block."""
+
+    def try_start(
+        self, component: str, action: str, payload: Mapping[str, Any], timeout: float, on_done: Answered
+    ) -> bool:
+        """`start` without waiting: `on_done(StartResult, None)`."""
+        ...
+
+    def try_query(self, component: str, action: str, mission_id: int, timeout: float, on_done: Answered) -> bool:
+        """`query` without waiting: `on_done(response as a dict, None)`."""
+        ...
+
+    def try_cancel(self, component: str, action: str, mission_id: int, timeout: float, on_done: Answered) -> bool:
+        """`cancel` without waiting: `on_done(response as a dict, None)`."""
+        ...
+
+    def try_call(
+        self, component: str, action: str, payload: Mapping[str, Any], timeout: float, on_done: Answered
+    ) -> bool:
+        """`call` without waiting: `on_done(response as a dict, None)`."""
+        ...

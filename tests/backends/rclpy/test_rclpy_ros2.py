@@ -494,3 +494,71 @@ def test_std_srvs_style_responses_and_standard_messages(
     assert pose.header.frame_id == "map" and pose.pose.pose.position.x == 2.0 and pose.pose.covariance[35] == 0.1
     with pytest.raises(TypeError, match="no field"):
         std.construct_cmd_Msg(linear={"u": 1})
+
+
+class Told:
+    """What a `call_X_then`'s on_done was told, and on which thread."""
+
+    def __init__(self) -> None:
+        self.calls: list[tuple[Any, Any, str]] = []
+        self.done = threading.Event()
+
+    def __call__(self, answer: Any, error: Any) -> None:
+        self.calls.append((answer, error, threading.current_thread().name))
+        self.done.set()
+
+    def wait(self, timeout: float = 10.0) -> tuple[Any, Any, str]:
+        assert self.done.wait(timeout), "on_done was not told"
+        time.sleep(0.05)  # told once: a second call would come right after
+        assert len(self.calls) == 1, self.calls
+        return self.calls[0]
+
+
+def test_call_then_is_answered_on_the_responses_reader_and_no_thread_waits(
+    adaptor: ModuleType, ros_node: Any, sim: Process
+) -> None:
+    """`call_X_then` sends the request and returns True at once; its answer (as `call_X` returns it, a run's
+    `Started` too) or its error (the robot's refusal, with its response) is told once, on the responses
+    reader's thread; a query without a mission id asks about the mission the last run (`_then` too) started."""
+    goto = adaptor.GoToComponent(ros_node, "rb1_base_f", wait_timeout=10.0)
+    assert until(lambda: answering(adaptor, goto, "call_gotoQuery"), 10.0)
+    run = Told()
+    assert goto.call_gotoRun_then(on_done=run) is True
+    started, error, thread = run.wait()
+    assert error is None and thread == "adaptor-responses"
+    assert isinstance(started, adaptor.Started) and started.mission_id == started.response.state.header.id
+    query = Told()
+    assert goto.call_gotoQuery_then(on_done=query) is True  # no mission id: the last run's
+    response, error, thread = query.wait()
+    assert error is None and thread == "adaptor-responses"
+    assert response.state.header.id == started.mission_id
+    refused = Told()
+    assert goto.call_gotoRun_then(goto.construct_gotoRun_Msg(), on_done=refused) is True  # busy: refused
+    response, error, thread = refused.wait()
+    assert response is None and isinstance(error, adaptor.CallFailed) and thread == "adaptor-responses"
+    assert "already running a procedure" in error.message and error.response.state.current_state == "unknown"
+    cancel = Told()
+    assert goto.call_gotoCancel_then(mission_id=started.mission_id, on_done=cancel) is True
+    assert cancel.wait()[1] is None
+
+
+def test_call_then_sends_nothing_without_a_server_and_times_out_on_a_silent_one(
+    adaptor: ModuleType, ros_node: Any, silent_robot: Process
+) -> None:
+    """Waiting for a server blocks, so `call_X_then` returns False (nothing sent) while the node knows none; a
+    request its server never answers is told CallTimeout after `timeout`, by the reader (no thread waits)."""
+    nobody = adaptor.GoToComponent(ros_node, "no_robot_here", wait_timeout=10.0)
+    never = Told()
+    assert nobody.call_gotoQuery_then(on_done=never, timeout=0.3) is False
+    goto = adaptor.GoToComponent(ros_node, "silent_robot", wait_timeout=10.0)
+    with pytest.raises(adaptor.CallTimeout):
+        goto.call_gotoQuery(timeout=0.3)  # waits for the server, then for the answer that never comes
+    told = Told()
+    started = time.monotonic()
+    assert goto.call_gotoQuery_then(on_done=told, timeout=0.5) is True
+    assert time.monotonic() - started < 0.2  # returns at once
+    answer, error, thread = told.wait(10.0)
+    elapsed = time.monotonic() - started
+    assert answer is None and isinstance(error, adaptor.CallTimeout) and error.timeout == 0.5
+    assert thread == "adaptor-responses" and 0.45 <= elapsed < 5.0, (thread, elapsed)
+    assert not never.calls

@@ -42,6 +42,7 @@ from .convert import (
     to_robot_local_control_msgs_Pick,
     to_robot_local_control_msgs_Place,
 )
+from .errors import AdaptorError
 from .runtime import ServiceClient, TopicPublisher, TopicSubscriber, procedure_failure, qos_profile
 
 
@@ -184,6 +185,36 @@ class GoToComponent:
         self._last_gotoRun_id = mission_id
         return Started(mission_id, response)
 
+    def call_gotoRun_then(
+        self,
+        request: GoToPetition_Request | None = None,
+        *,
+        on_done: Callable[[Started[GoToPetition_Response] | None, AdaptorError | None], None],
+        timeout: float | None = None,
+    ) -> bool:
+        """call_gotoRun without waiting: sends the request and returns True at once; on_done(answer, None) is
+        called with the answer call_gotoRun would return, or on_done(None, error) with the error it would raise,
+        once, on the node's responses reader thread (it must not block). False, and nothing sent, when the call
+        cannot be made without waiting (no server known yet, or no responses reader of this package's Spinner
+        serves the node): make it with call_gotoRun.
+        """
+        if not self._registered:
+            self.register()
+
+        def answered(response: GoToPetition_Response | None, error: AdaptorError | None) -> None:
+            if response is None:
+                on_done(None, error)
+                return
+            mission_id = response.state.header.id
+            self._last_gotoRun_id = mission_id
+            on_done(Started(mission_id, response), None)
+
+        return self._gotoRun.call_then(
+            self.construct_gotoRun_Msg() if request is None else request,
+            self.timeout if timeout is None else timeout,
+            answered,
+        )
+
     def construct_gotoCancel_Msg(
         self,
         *,
@@ -261,6 +292,34 @@ class GoToComponent:
             self.wait_timeout,
         )
 
+    def call_gotoCancel_then(
+        self,
+        request: ProcedureQuery_Request | None = None,
+        *,
+        mission_id: int | None = None,
+        on_done: Callable[[ProcedureQuery_Response | None, AdaptorError | None], None],
+        timeout: float | None = None,
+    ) -> bool:
+        """call_gotoCancel without waiting: sends the request and returns True at once; on_done(answer, None) is
+        called with the answer call_gotoCancel would return, or on_done(None, error) with the error it would
+        raise, once, on the node's responses reader thread (it must not block). False, and nothing sent, when
+        the call cannot be made without waiting (no server known yet, or no responses reader of this package's
+        Spinner serves the node): make it with call_gotoCancel.
+        """
+        if not self._registered:
+            self.register()
+        if request is None:
+            request = self.construct_gotoCancel_Msg()
+            if mission_id is None:
+                mission_id = LAST_MISSION if self._last_gotoRun_id is None else self._last_gotoRun_id
+        if mission_id is not None:
+            request.header.id = mission_id
+        return self._gotoCancel.call_then(
+            request,
+            self.timeout if timeout is None else timeout,
+            on_done,
+        )
+
     def construct_gotoQuery_Msg(
         self,
         *,
@@ -336,6 +395,34 @@ class GoToComponent:
             request,
             self.timeout if timeout is None else timeout,
             self.wait_timeout,
+        )
+
+    def call_gotoQuery_then(
+        self,
+        request: ProcedureQuery_Request | None = None,
+        *,
+        mission_id: int | None = None,
+        on_done: Callable[[ProcedureQuery_Response | None, AdaptorError | None], None],
+        timeout: float | None = None,
+    ) -> bool:
+        """call_gotoQuery without waiting: sends the request and returns True at once; on_done(answer, None) is
+        called with the answer call_gotoQuery would return, or on_done(None, error) with the error it would
+        raise, once, on the node's responses reader thread (it must not block). False, and nothing sent, when
+        the call cannot be made without waiting (no server known yet, or no responses reader of this package's
+        Spinner serves the node): make it with call_gotoQuery.
+        """
+        if not self._registered:
+            self.register()
+        if request is None:
+            request = self.construct_gotoQuery_Msg()
+            if mission_id is None:
+                mission_id = LAST_MISSION if self._last_gotoRun_id is None else self._last_gotoRun_id
+        if mission_id is not None:
+            request.header.id = mission_id
+        return self._gotoQuery.call_then(
+            request,
+            self.timeout if timeout is None else timeout,
+            on_done,
         )
 
 
@@ -478,6 +565,36 @@ class PickComponent:
         self._last_pickRun_id = mission_id
         return Started(mission_id, response)
 
+    def call_pickRun_then(
+        self,
+        request: PickPetition_Request | None = None,
+        *,
+        on_done: Callable[[Started[PickPetition_Response] | None, AdaptorError | None], None],
+        timeout: float | None = None,
+    ) -> bool:
+        """call_pickRun without waiting: sends the request and returns True at once; on_done(answer, None) is
+        called with the answer call_pickRun would return, or on_done(None, error) with the error it would raise,
+        once, on the node's responses reader thread (it must not block). False, and nothing sent, when the call
+        cannot be made without waiting (no server known yet, or no responses reader of this package's Spinner
+        serves the node): make it with call_pickRun.
+        """
+        if not self._registered:
+            self.register()
+
+        def answered(response: PickPetition_Response | None, error: AdaptorError | None) -> None:
+            if response is None:
+                on_done(None, error)
+                return
+            mission_id = response.state.header.id
+            self._last_pickRun_id = mission_id
+            on_done(Started(mission_id, response), None)
+
+        return self._pickRun.call_then(
+            self.construct_pickRun_Msg() if request is None else request,
+            self.timeout if timeout is None else timeout,
+            answered,
+        )
+
     def construct_pickCancel_Msg(
         self,
         *,
@@ -555,6 +672,34 @@ class PickComponent:
             self.wait_timeout,
         )
 
+    def call_pickCancel_then(
+        self,
+        request: ProcedureQuery_Request | None = None,
+        *,
+        mission_id: int | None = None,
+        on_done: Callable[[ProcedureQuery_Response | None, AdaptorError | None], None],
+        timeout: float | None = None,
+    ) -> bool:
+        """call_pickCancel without waiting: sends the request and returns True at once; on_done(answer, None) is
+        called with the answer call_pickCancel would return, or on_done(None, error) with the error it would
+        raise, once, on the node's responses reader thread (it must not block). False, and nothing sent, when
+        the call cannot be made without waiting (no server known yet, or no responses reader of this package's
+        Spinner serves the node): make it with call_pickCancel.
+        """
+        if not self._registered:
+            self.register()
+        if request is None:
+            request = self.construct_pickCancel_Msg()
+            if mission_id is None:
+                mission_id = LAST_MISSION if self._last_pickRun_id is None else self._last_pickRun_id
+        if mission_id is not None:
+            request.header.id = mission_id
+        return self._pickCancel.call_then(
+            request,
+            self.timeout if timeout is None else timeout,
+            on_done,
+        )
+
     def construct_pickQuery_Msg(
         self,
         *,
@@ -630,6 +775,34 @@ class PickComponent:
             request,
             self.timeout if timeout is None else timeout,
             self.wait_timeout,
+        )
+
+    def call_pickQuery_then(
+        self,
+        request: ProcedureQuery_Request | None = None,
+        *,
+        mission_id: int | None = None,
+        on_done: Callable[[ProcedureQuery_Response | None, AdaptorError | None], None],
+        timeout: float | None = None,
+    ) -> bool:
+        """call_pickQuery without waiting: sends the request and returns True at once; on_done(answer, None) is
+        called with the answer call_pickQuery would return, or on_done(None, error) with the error it would
+        raise, once, on the node's responses reader thread (it must not block). False, and nothing sent, when
+        the call cannot be made without waiting (no server known yet, or no responses reader of this package's
+        Spinner serves the node): make it with call_pickQuery.
+        """
+        if not self._registered:
+            self.register()
+        if request is None:
+            request = self.construct_pickQuery_Msg()
+            if mission_id is None:
+                mission_id = LAST_MISSION if self._last_pickRun_id is None else self._last_pickRun_id
+        if mission_id is not None:
+            request.header.id = mission_id
+        return self._pickQuery.call_then(
+            request,
+            self.timeout if timeout is None else timeout,
+            on_done,
         )
 
 
@@ -772,6 +945,36 @@ class PlaceComponent:
         self._last_placeRun_id = mission_id
         return Started(mission_id, response)
 
+    def call_placeRun_then(
+        self,
+        request: PlacePetition_Request | None = None,
+        *,
+        on_done: Callable[[Started[PlacePetition_Response] | None, AdaptorError | None], None],
+        timeout: float | None = None,
+    ) -> bool:
+        """call_placeRun without waiting: sends the request and returns True at once; on_done(answer, None) is
+        called with the answer call_placeRun would return, or on_done(None, error) with the error it would
+        raise, once, on the node's responses reader thread (it must not block). False, and nothing sent, when
+        the call cannot be made without waiting (no server known yet, or no responses reader of this package's
+        Spinner serves the node): make it with call_placeRun.
+        """
+        if not self._registered:
+            self.register()
+
+        def answered(response: PlacePetition_Response | None, error: AdaptorError | None) -> None:
+            if response is None:
+                on_done(None, error)
+                return
+            mission_id = response.state.header.id
+            self._last_placeRun_id = mission_id
+            on_done(Started(mission_id, response), None)
+
+        return self._placeRun.call_then(
+            self.construct_placeRun_Msg() if request is None else request,
+            self.timeout if timeout is None else timeout,
+            answered,
+        )
+
     def construct_placeCancel_Msg(
         self,
         *,
@@ -849,6 +1052,34 @@ class PlaceComponent:
             self.wait_timeout,
         )
 
+    def call_placeCancel_then(
+        self,
+        request: ProcedureQuery_Request | None = None,
+        *,
+        mission_id: int | None = None,
+        on_done: Callable[[ProcedureQuery_Response | None, AdaptorError | None], None],
+        timeout: float | None = None,
+    ) -> bool:
+        """call_placeCancel without waiting: sends the request and returns True at once; on_done(answer, None) is
+        called with the answer call_placeCancel would return, or on_done(None, error) with the error it would
+        raise, once, on the node's responses reader thread (it must not block). False, and nothing sent, when
+        the call cannot be made without waiting (no server known yet, or no responses reader of this package's
+        Spinner serves the node): make it with call_placeCancel.
+        """
+        if not self._registered:
+            self.register()
+        if request is None:
+            request = self.construct_placeCancel_Msg()
+            if mission_id is None:
+                mission_id = LAST_MISSION if self._last_placeRun_id is None else self._last_placeRun_id
+        if mission_id is not None:
+            request.header.id = mission_id
+        return self._placeCancel.call_then(
+            request,
+            self.timeout if timeout is None else timeout,
+            on_done,
+        )
+
     def construct_placeQuery_Msg(
         self,
         *,
@@ -924,6 +1155,34 @@ class PlaceComponent:
             request,
             self.timeout if timeout is None else timeout,
             self.wait_timeout,
+        )
+
+    def call_placeQuery_then(
+        self,
+        request: ProcedureQuery_Request | None = None,
+        *,
+        mission_id: int | None = None,
+        on_done: Callable[[ProcedureQuery_Response | None, AdaptorError | None], None],
+        timeout: float | None = None,
+    ) -> bool:
+        """call_placeQuery without waiting: sends the request and returns True at once; on_done(answer, None) is
+        called with the answer call_placeQuery would return, or on_done(None, error) with the error it would
+        raise, once, on the node's responses reader thread (it must not block). False, and nothing sent, when
+        the call cannot be made without waiting (no server known yet, or no responses reader of this package's
+        Spinner serves the node): make it with call_placeQuery.
+        """
+        if not self._registered:
+            self.register()
+        if request is None:
+            request = self.construct_placeQuery_Msg()
+            if mission_id is None:
+                mission_id = LAST_MISSION if self._last_placeRun_id is None else self._last_placeRun_id
+        if mission_id is not None:
+            request.header.id = mission_id
+        return self._placeQuery.call_then(
+            request,
+            self.timeout if timeout is None else timeout,
+            on_done,
         )
 
 

@@ -17,6 +17,7 @@ from std_srvs.srv import SetBool, SetBool_Request, SetBool_Response, Trigger, Tr
 
 from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, check_float32, check_robot_name, check_timeout, in_namespace
 from .convert import to_geometry_msgs_PoseStamped, to_geometry_msgs_Vector3
+from .errors import AdaptorError
 from .goals import GoalOutcome
 from .runtime import (
     ActionGoalClient,
@@ -601,6 +602,27 @@ class BaseComponent:
             self.wait_timeout,
         )
 
+    def call_stop_then(
+        self,
+        request: Trigger_Request | None = None,
+        *,
+        on_done: Callable[[Trigger_Response | None, AdaptorError | None], None],
+        timeout: float | None = None,
+    ) -> bool:
+        """call_stop without waiting: sends the request and returns True at once; on_done(answer, None) is called
+        with the answer call_stop would return, or on_done(None, error) with the error it would raise, once, on
+        the node's responses reader thread (it must not block). False, and nothing sent, when the call cannot be
+        made without waiting (no server known yet, or no responses reader of this package's Spinner serves the
+        node): make it with call_stop.
+        """
+        if not self._registered:
+            self.register()
+        return self._stop.call_then(
+            self.construct_stop_Msg() if request is None else request,
+            self.timeout if timeout is None else timeout,
+            on_done,
+        )
+
     def construct_enableMotors_Msg(
         self,
         *,
@@ -656,6 +678,27 @@ class BaseComponent:
             self.construct_enableMotors_Msg() if request is None else request,
             self.timeout if timeout is None else timeout,
             self.wait_timeout,
+        )
+
+    def call_enableMotors_then(
+        self,
+        request: SetBool_Request | None = None,
+        *,
+        on_done: Callable[[SetBool_Response | None, AdaptorError | None], None],
+        timeout: float | None = None,
+    ) -> bool:
+        """call_enableMotors without waiting: sends the request and returns True at once; on_done(answer, None) is
+        called with the answer call_enableMotors would return, or on_done(None, error) with the error it would
+        raise, once, on the node's responses reader thread (it must not block). False, and nothing sent, when
+        the call cannot be made without waiting (no server known yet, or no responses reader of this package's
+        Spinner serves the node): make it with call_enableMotors.
+        """
+        if not self._registered:
+            self.register()
+        return self._enableMotors.call_then(
+            self.construct_enableMotors_Msg() if request is None else request,
+            self.timeout if timeout is None else timeout,
+            on_done,
         )
 
     def construct_cmdVel_Msg(

@@ -38,6 +38,7 @@ from .convert import (
     to_robot_local_control_msgs_GoTo,
     to_robot_local_control_msgs_Pick,
 )
+from .errors import AdaptorError
 from .runtime import ServiceClient, TopicPublisher, TopicSubscriber, procedure_failure, qos_profile
 
 
@@ -178,6 +179,36 @@ class GoToComponent:
         self._last_gotoRun_id = mission_id
         return Started(mission_id, response)
 
+    def call_gotoRun_then(
+        self,
+        request: GoToPetition_Request | None = None,
+        *,
+        on_done: Callable[[Started[GoToPetition_Response] | None, AdaptorError | None], None],
+        timeout: float | None = None,
+    ) -> bool:
+        """call_gotoRun without waiting: sends the request and returns True at once; on_done(answer, None) is
+        called with the answer call_gotoRun would return, or on_done(None, error) with the error it would raise,
+        once, on the node's responses reader thread (it must not block). False, and nothing sent, when the call
+        cannot be made without waiting (no server known yet, or no responses reader of this package's Spinner
+        serves the node): make it with call_gotoRun.
+        """
+        if not self._registered:
+            self.register()
+
+        def answered(response: GoToPetition_Response | None, error: AdaptorError | None) -> None:
+            if response is None:
+                on_done(None, error)
+                return
+            mission_id = response.state.header.id
+            self._last_gotoRun_id = mission_id
+            on_done(Started(mission_id, response), None)
+
+        return self._gotoRun.call_then(
+            self.construct_gotoRun_Msg() if request is None else request,
+            self.timeout if timeout is None else timeout,
+            answered,
+        )
+
     def construct_gotoCancle_Msg(
         self,
         *,
@@ -253,6 +284,34 @@ class GoToComponent:
             self.wait_timeout,
         )
 
+    def call_gotoCancle_then(
+        self,
+        request: ProcedureQuery_Request | None = None,
+        *,
+        mission_id: int | None = None,
+        on_done: Callable[[ProcedureQuery_Response | None, AdaptorError | None], None],
+        timeout: float | None = None,
+    ) -> bool:
+        """call_gotoCancle without waiting: sends the request and returns True at once; on_done(answer, None) is
+        called with the answer call_gotoCancle would return, or on_done(None, error) with the error it would
+        raise, once, on the node's responses reader thread (it must not block). False, and nothing sent, when
+        the call cannot be made without waiting (no server known yet, or no responses reader of this package's
+        Spinner serves the node): make it with call_gotoCancle.
+        """
+        if not self._registered:
+            self.register()
+        if request is None:
+            request = self.construct_gotoCancle_Msg()
+            if mission_id is None:
+                mission_id = LAST_MISSION if self._last_gotoRun_id is None else self._last_gotoRun_id
+        if mission_id is not None:
+            request.header.id = mission_id
+        return self._gotoCancle.call_then(
+            request,
+            self.timeout if timeout is None else timeout,
+            on_done,
+        )
+
     def construct_gotoQuery_Msg(
         self,
         *,
@@ -326,6 +385,34 @@ class GoToComponent:
             request,
             self.timeout if timeout is None else timeout,
             self.wait_timeout,
+        )
+
+    def call_gotoQuery_then(
+        self,
+        request: ProcedureQuery_Request | None = None,
+        *,
+        mission_id: int | None = None,
+        on_done: Callable[[ProcedureQuery_Response | None, AdaptorError | None], None],
+        timeout: float | None = None,
+    ) -> bool:
+        """call_gotoQuery without waiting: sends the request and returns True at once; on_done(answer, None) is
+        called with the answer call_gotoQuery would return, or on_done(None, error) with the error it would
+        raise, once, on the node's responses reader thread (it must not block). False, and nothing sent, when
+        the call cannot be made without waiting (no server known yet, or no responses reader of this package's
+        Spinner serves the node): make it with call_gotoQuery.
+        """
+        if not self._registered:
+            self.register()
+        if request is None:
+            request = self.construct_gotoQuery_Msg()
+            if mission_id is None:
+                mission_id = LAST_MISSION if self._last_gotoRun_id is None else self._last_gotoRun_id
+        if mission_id is not None:
+            request.header.id = mission_id
+        return self._gotoQuery.call_then(
+            request,
+            self.timeout if timeout is None else timeout,
+            on_done,
         )
 
 
@@ -466,6 +553,36 @@ class PickComponent:
         self._last_pickRun_id = mission_id
         return Started(mission_id, response)
 
+    def call_pickRun_then(
+        self,
+        request: PickPetition_Request | None = None,
+        *,
+        on_done: Callable[[Started[PickPetition_Response] | None, AdaptorError | None], None],
+        timeout: float | None = None,
+    ) -> bool:
+        """call_pickRun without waiting: sends the request and returns True at once; on_done(answer, None) is
+        called with the answer call_pickRun would return, or on_done(None, error) with the error it would raise,
+        once, on the node's responses reader thread (it must not block). False, and nothing sent, when the call
+        cannot be made without waiting (no server known yet, or no responses reader of this package's Spinner
+        serves the node): make it with call_pickRun.
+        """
+        if not self._registered:
+            self.register()
+
+        def answered(response: PickPetition_Response | None, error: AdaptorError | None) -> None:
+            if response is None:
+                on_done(None, error)
+                return
+            mission_id = response.state.header.id
+            self._last_pickRun_id = mission_id
+            on_done(Started(mission_id, response), None)
+
+        return self._pickRun.call_then(
+            self.construct_pickRun_Msg() if request is None else request,
+            self.timeout if timeout is None else timeout,
+            answered,
+        )
+
     def construct_pickCancle_Msg(
         self,
         *,
@@ -541,6 +658,34 @@ class PickComponent:
             self.wait_timeout,
         )
 
+    def call_pickCancle_then(
+        self,
+        request: ProcedureQuery_Request | None = None,
+        *,
+        mission_id: int | None = None,
+        on_done: Callable[[ProcedureQuery_Response | None, AdaptorError | None], None],
+        timeout: float | None = None,
+    ) -> bool:
+        """call_pickCancle without waiting: sends the request and returns True at once; on_done(answer, None) is
+        called with the answer call_pickCancle would return, or on_done(None, error) with the error it would
+        raise, once, on the node's responses reader thread (it must not block). False, and nothing sent, when
+        the call cannot be made without waiting (no server known yet, or no responses reader of this package's
+        Spinner serves the node): make it with call_pickCancle.
+        """
+        if not self._registered:
+            self.register()
+        if request is None:
+            request = self.construct_pickCancle_Msg()
+            if mission_id is None:
+                mission_id = LAST_MISSION if self._last_pickRun_id is None else self._last_pickRun_id
+        if mission_id is not None:
+            request.header.id = mission_id
+        return self._pickCancle.call_then(
+            request,
+            self.timeout if timeout is None else timeout,
+            on_done,
+        )
+
     def construct_pickQuery_Msg(
         self,
         *,
@@ -614,6 +759,34 @@ class PickComponent:
             request,
             self.timeout if timeout is None else timeout,
             self.wait_timeout,
+        )
+
+    def call_pickQuery_then(
+        self,
+        request: ProcedureQuery_Request | None = None,
+        *,
+        mission_id: int | None = None,
+        on_done: Callable[[ProcedureQuery_Response | None, AdaptorError | None], None],
+        timeout: float | None = None,
+    ) -> bool:
+        """call_pickQuery without waiting: sends the request and returns True at once; on_done(answer, None) is
+        called with the answer call_pickQuery would return, or on_done(None, error) with the error it would
+        raise, once, on the node's responses reader thread (it must not block). False, and nothing sent, when
+        the call cannot be made without waiting (no server known yet, or no responses reader of this package's
+        Spinner serves the node): make it with call_pickQuery.
+        """
+        if not self._registered:
+            self.register()
+        if request is None:
+            request = self.construct_pickQuery_Msg()
+            if mission_id is None:
+                mission_id = LAST_MISSION if self._last_pickRun_id is None else self._last_pickRun_id
+        if mission_id is not None:
+            request.header.id = mission_id
+        return self._pickQuery.call_then(
+            request,
+            self.timeout if timeout is None else timeout,
+            on_done,
         )
 
 

@@ -26,6 +26,7 @@ from std_srvs.srv import (
 
 from .common import DEFAULT_TIMEOUT, DEFAULT_WAIT_TIMEOUT, check_robot_name, check_timeout, in_namespace
 from .convert import to_geometry_msgs_Vector3
+from .errors import AdaptorError
 from .runtime import ServiceClient, TopicPublisher, TopicSubscriber, qos_profile, success_failure
 
 
@@ -145,6 +146,27 @@ class DriveComponent:
             self.construct_resetOdometry_Msg() if request is None else request,
             self.timeout if timeout is None else timeout,
             self.wait_timeout,
+        )
+
+    def call_resetOdometry_then(
+        self,
+        request: Empty_Request | None = None,
+        *,
+        on_done: Callable[[Empty_Response | None, AdaptorError | None], None],
+        timeout: float | None = None,
+    ) -> bool:
+        """call_resetOdometry without waiting: sends the request and returns True at once; on_done(answer, None) is
+        called with the answer call_resetOdometry would return, or on_done(None, error) with the error it would
+        raise, once, on the node's responses reader thread (it must not block). False, and nothing sent, when
+        the call cannot be made without waiting (no server known yet, or no responses reader of this package's
+        Spinner serves the node): make it with call_resetOdometry.
+        """
+        if not self._registered:
+            self.register()
+        return self._resetOdometry.call_then(
+            self.construct_resetOdometry_Msg() if request is None else request,
+            self.timeout if timeout is None else timeout,
+            on_done,
         )
 
     def construct_cmdVel_Msg(
@@ -468,6 +490,27 @@ class PowerComponent:
             self.wait_timeout,
         )
 
+    def call_enableMotors_then(
+        self,
+        request: SetBool_Request | None = None,
+        *,
+        on_done: Callable[[SetBool_Response | None, AdaptorError | None], None],
+        timeout: float | None = None,
+    ) -> bool:
+        """call_enableMotors without waiting: sends the request and returns True at once; on_done(answer, None) is
+        called with the answer call_enableMotors would return, or on_done(None, error) with the error it would
+        raise, once, on the node's responses reader thread (it must not block). False, and nothing sent, when
+        the call cannot be made without waiting (no server known yet, or no responses reader of this package's
+        Spinner serves the node): make it with call_enableMotors.
+        """
+        if not self._registered:
+            self.register()
+        return self._enableMotors.call_then(
+            self.construct_enableMotors_Msg() if request is None else request,
+            self.timeout if timeout is None else timeout,
+            on_done,
+        )
+
     def construct_dock_Msg(self) -> Trigger_Request:
         """Build the request of dock (std_srvs/srv/Trigger).
 
@@ -517,6 +560,27 @@ class PowerComponent:
             self.construct_dock_Msg() if request is None else request,
             self.timeout if timeout is None else timeout,
             self.wait_timeout,
+        )
+
+    def call_dock_then(
+        self,
+        request: Trigger_Request | None = None,
+        *,
+        on_done: Callable[[Trigger_Response | None, AdaptorError | None], None],
+        timeout: float | None = None,
+    ) -> bool:
+        """call_dock without waiting: sends the request and returns True at once; on_done(answer, None) is called
+        with the answer call_dock would return, or on_done(None, error) with the error it would raise, once, on
+        the node's responses reader thread (it must not block). False, and nothing sent, when the call cannot be
+        made without waiting (no server known yet, or no responses reader of this package's Spinner serves the
+        node): make it with call_dock.
+        """
+        if not self._registered:
+            self.register()
+        return self._dock.call_then(
+            self.construct_dock_Msg() if request is None else request,
+            self.timeout if timeout is None else timeout,
+            on_done,
         )
 
     def get_battery_value(
