@@ -123,7 +123,10 @@ def test_a_fleet_that_is_there_costs_one_read_of_the_graph_and_no_count(
         looks = [probe() for probe in probes if probe is not None]
         assert looks == [{"trigger": True, "enable": True}] * 20, looks
         assert (node.reads - reads, node.sweeps - sweeps) == (0, 1), (node.reads - reads, node.sweeps - sweeps)
-        assert node.by_node - by_node == 21, node.by_node - by_node  # the 20 robots' nodes and ours
+        # one read by node of each node of the graph: the 20 robots' nodes, ours, and any other test's of this
+        # worker's domain still running (a simulation a session keeps)
+        graph = len(set(node.node.get_node_names_and_namespaces()))
+        assert graph >= 21 and node.by_node - by_node == graph, (node.by_node - by_node, graph)
     finally:
         rclpy.shutdown(context=context)
 

@@ -521,7 +521,8 @@ def test_call_then_is_answered_on_the_responses_reader_and_no_thread_waits(
     `Started` too) or its error (the robot's refusal, with its response) is told once, on the responses
     reader's thread; a query without a mission id asks about the mission the last run (`_then` too) started."""
     goto = adaptor.GoToComponent(ros_node, "rb1_base_f", wait_timeout=10.0)
-    assert until(lambda: answering(adaptor, goto, "call_gotoQuery"), 10.0)
+    lost = (adaptor.ServiceUnavailable, adaptor.CallTimeout)
+    assert until(lambda: answered(lambda: goto.call_gotoQuery(mission_id=-1), lost, adaptor.CallFailed), 10.0)
     run = Told()
     assert goto.call_gotoRun_then(on_done=run) is True
     started, error, thread = run.wait()
