@@ -22,6 +22,7 @@ from typing import Any
 
 from td2adaptor.runtime.events import now_rfc3339
 from td2adaptor.runtime.node.admin import admin_topics, sign
+from td2adaptor.runtime.node.graphwatch import PERIOD
 from tests.ros2 import env
 from tests.ros2.common import Process
 from tests.runtime.broker import Mosquitto
@@ -35,11 +36,13 @@ pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain, rb1_prefix, adaptor_bui
 FLEET = "sdx"
 FIRST = ("sd_a", "sd_b", "sd_c", "sd_d")  # on the first of the test's ROS domains: processes 1 and 3 see them
 SECOND = ("sd_e", "sd_f")  # on a domain of their own: only process 2 sees them
-#: from a robot's appearance to its `online` status: one look at the graph (0.5 s), the settling of a newly
-#: listed robot (share.SETTLE, 0.75 s) and the start. Issue 32 asks 2 s for discovery; a shared fleet adds the
-#: settling, so that every process that sees the robot is known before it is given out (measured 1.1-2.2 s here
-#: with the machine busy); the bound leaves room for a loaded CI machine
-SERVED_WITHIN = 4.0
+#: issue 32: a robot is served within 2 s of its appearance in the ROS graph. Asserted from the moment a process's
+#: discovery listed it (its member record) to its `online` status: the other processes' looks (at once, and
+#: share.UNSEEN_AFTER later, when one lists a robot they do not: share.py `_heard`) and the start (its ROS clients,
+#: its connection), with one look's period (graphwatch.PERIOD) left for the look that finds it. Not from the
+#: simulation's "ready": how long ROS 2's own discovery takes to show a new process's servers to another process
+#: is no edge node's doing, and on a loaded machine it took up to 1.6 s (docs/fleet.md has the figures)
+SERVED_WITHIN = 2.0
 
 
 def settings(path: Path, broker: Mosquitto, tmp_path: Path, *robots: tuple[str, str]) -> None:
@@ -73,6 +76,15 @@ def members(watch: Watch) -> dict[str, dict[str, Any]]:
             else:
                 out[node] = e
     return out
+
+
+def listed_at(watch: Watch, robot: str) -> float | None:
+    """When a member record first listed `robot` (one of the processes saw it in its ROS graph)."""
+    prefix = f"td2adaptor/.fleet/{FLEET}/members/"
+    for (t, e), when in zip(list(watch.app.events), list(watch.came), strict=False):
+        if t.startswith(prefix) and robot in (e.get("can") or ()):
+            return when
+    return None
 
 
 def one_owner_each(watch: Watch, robots: set[str], pids: set[int]) -> bool:
@@ -158,20 +170,32 @@ def test_shared_processes_discover_robots_each_served_by_one_that_sees_it_and_ad
         for run in runs:
             run.wait_ready()
             assert "serving its share of fleet sdx (now 0 robots)" in run.output(), run.output()
+        ready = time.monotonic()
         first, second, third = (r.proc.pid for r in runs)
         pids = {first, second, third}
-        appeared: dict[str, float] = {}  # robot -> when its simulation said it is ready
-        for robots, domain in ((FIRST, first_domain), (SECOND, other_domain)):
-            sims.append(sim_process(rb1_prefix, robots, domain=domain))
-            appeared |= dict.fromkeys(robots, time.monotonic())
+        # the second domain's robots first; then, the processes' first plans made (each gives out at once what is
+        # listed then), the first domain's: both of its processes list them, the other one says it does not see them
+        sims.append(sim_process(rb1_prefix, SECOND, domain=other_domain))
+        wait(lambda: one_owner_each(watch, set(SECOND), pids), 30, watch)
+        assert until(lambda: time.monotonic() - ready > 1.5, 2)  # the first plans: 1 s after each process joined
+        sims.insert(0, sim_process(rb1_prefix, FIRST, domain=first_domain))
+        appeared = time.monotonic()  # when its simulation said it is ready
         everyone = {*FIRST, *SECOND}
         wait(lambda: one_owner_each(watch, everyone, pids), 30, watch)
-        took = max((watch.status_at(r, "online", appeared[r]) or 1e9) - appeared[r] for r in everyone)
-        print(f"appeared -> online with one of the processes that see it: max {took:.2f} s")
-        assert took <= SERVED_WITHIN, took
+        online = {r: watch.status_at(r, "online", appeared) or 1e9 for r in FIRST}
+        listed = {r: listed_at(watch, r) or 1e9 for r in FIRST}
+        took = max(online[r] - listed[r] for r in FIRST)
+        print(f"appeared -> online with one of the processes that see it: max {max(online.values()) - appeared:.2f} s")
+        print(
+            f"  of which the ROS graph (appeared -> a process listed it): max {max(listed.values()) - appeared:.2f} s"
+        )
+        print(f"  and the share (listed -> online): max {took:.2f} s")
+        assert took + PERIOD <= SERVED_WITHIN, took
+        # both see them: a share each (one whose graph showed them later than the other's is handed its share)
+        wait(lambda: {owners(watch)[r][1] for r in FIRST} == {first, third}, 10, watch)
+        wait(lambda: one_owner_each(watch, everyone, pids), 10, watch)
         now = owners(watch)
         assert {now[r][1] for r in SECOND} == {second}, now  # only it sees them
-        assert {now[r][1] for r in FIRST} == {first, third}, now  # both see them: a share each
         records = {m["owner"]["pid"]: m for m in members(watch).values()}
         assert set(records[second]["can"]) == set(SECOND) and set(records[first]["can"]) == set(FIRST), records
         for robot in ("sd_a", "sd_e"):

@@ -183,18 +183,34 @@ class Discovery:
         self.period = period
         self.clock = clock
         self.scans = 0
+        #: hooks told after each reading of the graph, with when it began (this process's monotonic clock): a
+        #: shared fleet says then which robots the others see that this process does not (share.py, `unseen`)
+        self.on_look: list[Callable[[float], None]] = []
         self._seen: dict[str, tuple[str, float]] = {}  # robot id -> (namespace, when last seen)
         self._failed: dict[str, float] = {}  # robot id -> when it may be tried again
         self._graph_failing = False
         self._stop = threading.Event()
+        self._kick = threading.Event()  # look now rather than at the end of the period (`look_now`)
+        self._kicks: list[float] = []  # when to look again, sooner than the period (`look_now` with a delay)
+        self._kicks_lock = threading.Lock()
         self._thread: threading.Thread | None = None
 
     def start(self) -> None:
         self._thread = threading.Thread(target=self._run, name="fleet-discovery", daemon=True)
         self._thread.start()
 
+    def look_now(self, *later: float) -> None:
+        """Read the graph again at once, and again `later` seconds from now, not at the end of the period: another
+        process of a shared fleet lists a robot this one does not, and every process that can see it should say so
+        before it is given out (its own graph may show it a moment later than the other's)."""
+        with self._kicks_lock:
+            now = time.monotonic()
+            self._kicks = sorted([*self._kicks, *(now + d for d in later)])
+        self._kick.set()
+
     def stop(self, timeout: float = 10.0) -> None:
         self._stop.set()
+        self._kick.set()
         if self._thread is not None:
             self._thread.join(timeout)
             self._thread = None
@@ -205,10 +221,22 @@ class Discovery:
                 self.scan()
             except Exception:  # a bug must not end discovery for good
                 log.exception("discovery: a scan failed")
-            self._stop.wait(self.period)
+            with self._kicks_lock:
+                now = time.monotonic()
+                self._kicks = [t for t in self._kicks if t > now]
+                wait = min([self.period, *(t - now for t in self._kicks[:1])])
+            self._kick.wait(wait)
+            self._kick.clear()
 
     def scan(self) -> None:
-        """One reading of the graph, applied to the fleet."""
+        """One reading of the graph, applied to the fleet; then the `on_look` hooks."""
+        began = time.monotonic()
+        if self._look():
+            for hook in list(self.on_look):
+                hook(began)
+
+    def _look(self) -> bool:
+        """One reading of the graph, applied to the fleet; False when the graph could not be read."""
         now = self.clock()
         known = {ns for ns, _ in self._seen.values()}
         try:
@@ -217,7 +245,7 @@ class Discovery:
             if not self._graph_failing:
                 log.warning("discovery: the ROS graph cannot be read (%s); trying again", exc)
             self._graph_failing = True
-            return
+            return False
         if self._graph_failing:
             log.info("discovery: the ROS graph can be read again")
         self._graph_failing = False
@@ -239,7 +267,7 @@ class Discovery:
                 log.error("discovery: robot %s (namespace /%s) not served: %s", rid, ns, exc)
                 self._failed[rid] = now + RETRY
         if set(wanted) == set(served):
-            return
+            return True
         changes = self.fleet.apply(list(wanted.values()), "discovery")
         for rid, why in changes.failed.items():
             log.error("discovery: robot %s not served, tried again in %g s: %s", rid, RETRY, why)
@@ -248,6 +276,7 @@ class Discovery:
             self._failed.pop(rid, None)
         if changes.added or changes.removed:
             log.info("discovery: %s", changes.describe())
+        return True
 
 
 def ros2_graph(graph_node: Callable[[int | None], Any], domain: int | None) -> Graph:

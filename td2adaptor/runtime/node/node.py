@@ -136,6 +136,8 @@ class EdgeNode:
             lambda robot, namespace: robot_config(self.defaults, robot, namespace),
             grace=template.discover_grace,
         )
+        if self.shared is not None:
+            self.shared.follow(discovery)  # it looks at once when another member finds a robot
         discovery.start()
         self._extras.append(discovery.stop)
         return discovery
