@@ -130,7 +130,15 @@ def main() -> None:
     keepalive = int(os.environ.get("SHARE_KEEPALIVE", template.share_keepalive))
     bus = share_bus(template, model, name=FLEET, keepalive=keepalive)
     settle = float(os.environ.get("SHARE_SETTLE", "1"))
-    share = Share(fleet, bus, name=FLEET, root="td2adaptor", timeout=template.share_timeout, settle=settle)
+    share = Share(
+        fleet,
+        bus,
+        name=FLEET,
+        root="td2adaptor",
+        timeout=template.share_timeout,
+        settle=settle,
+        make_config=lambda robot, namespace: robot_config(defaults, robot, namespace),  # as `run` gives it
+    )
     done = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: done.set())
     reloading = threading.Lock()

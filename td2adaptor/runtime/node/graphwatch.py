@@ -3,9 +3,10 @@
 A robot is a namespace under which the graph shows the model's interfaces (`Signature`): a server for every
 service and action the model names under `{{robotName}}`, or, for a model without any, a publisher of every
 topic it subscribes to there. The edge node's own clients and subscriptions never count (servers and
-publishers only). Every `period` the watcher reads the graph once and hands the robots it saw, with those
-gone for less than `grace` seconds, to the fleet (`Fleet.apply`, origin "discovery"): a new robot joins,
-one gone for `grace` leaves (its missions in flight end, its TD is cleared, its status goes `offline`).
+publishers only). Every `period` (and at once when a shared fleet asks: `look_now`) the watcher reads the graph
+once and hands the robots it saw, with those gone for less than `grace` seconds, to the fleet (`Fleet.apply`,
+origin "discovery"): a new robot joins, one gone for `grace` leaves (its missions in flight end, its TD is
+cleared, its status goes `offline`).
 
 Reading the graph: on ROS 2 with rclpy's graph API on a node of the edge node's own context (no executor:
 graph queries need none): the service names once, then, for each namespace that has them all, whether each

@@ -142,6 +142,9 @@ class Share:
         self._waiting: dict[str, float] = {}  # robot -> since when it is ours but handed over to another member
         #: robot -> (its settings, since when no live member lists it): handed over by this process, not taken yet
         self._handed: dict[str, tuple[RuntimeConfig, float]] = {}
+        #: robot -> since when it is "online, handed over" by a member that left (died) and no live member lists it:
+        #: this process retires it if it is the one to (`_orphans`); None: it tried and could not
+        self._orphaned: dict[str, float | None] = {}
         self._listed: set[str] = set()  # what the live members list, at the last plan
         #: robot -> when this process learnt that another member's discovery found it, which this one did not
         self._asked: dict[str, float] = {}
@@ -521,6 +524,9 @@ class Share:
         for config in self._unclaimed(statuses, listed, set(self.fleet.robots(ORIGIN))):
             if self._retire_unclaimed(config):
                 changes.removed.append(config.robot)
+        for config in self._orphans(statuses, listed, live):
+            if self._retire_orphan(config):
+                changes.removed.append(config.robot)
         if changes:
             log.info("fleet %s: %s", self.name, changes.describe())
             self._publish_record()
@@ -580,6 +586,74 @@ class Share:
                 "lists it",
                 robot,
                 to,
+            )
+        return done
+
+    def _orphans(self, statuses: Mapping[str, Status], listed: set[str], live: set[str]) -> list[RuntimeConfig]:
+        """The robots a member that left (it died: its record was cleared) had handed over, still "online, handed
+        over" by it, that no live member has listed for `UNCLAIMED_WAIT`: the member it was handed over to dropped
+        it, and the one that handed it over died before it retired it (`_unclaimed`). The member it was handed to
+        retires it if it is live, else the live member whose node id sorts first: the same one in every view.
+        Its settings are the template's (`make_config`): the robot's credentials, where the fleet's robots share
+        the top-level user; one the broker refuses is left as it is (said once in the log)."""
+        if self.make_config is None:
+            return []
+        now = time.monotonic()
+        due: list[RuntimeConfig] = []
+        with self._lock:
+            for robot in set(self._orphaned) - set(statuses):
+                del self._orphaned[robot]
+            for robot, status in statuses.items():
+                if not _orphan(status, self._gone, live) or robot in listed:
+                    self._orphaned.pop(robot, None)
+                    continue
+                assert status.handover is not None
+                if (status.handover if status.handover in live else min(live)) != self.me.node:
+                    continue
+                since = self._orphaned.setdefault(robot, now)
+                if since is not None and now - since >= UNCLAIMED_WAIT:
+                    try:
+                        due.append(self.make_config(robot, None))
+                    except ConfigError as exc:
+                        log.warning("robot %s: could not retire it: %s", robot, exc)
+                        self._orphaned[robot] = None
+        return due
+
+    def _retire_orphan(self, config: RuntimeConfig) -> bool:
+        """Retire a robot `_orphans` found, on its own session (node/unclaimed.py), as its dead owner would have:
+        `offline` with `retired` (this process's node), TD cleared. Looked at once more first, as in
+        `_retire_unclaimed`."""
+        from td2adaptor.runtime.bus.bus import BusError
+        from td2adaptor.runtime.bus.security import SecurityError
+        from td2adaptor.runtime.node.status import owner_fields
+        from td2adaptor.runtime.node.unclaimed import retire
+
+        robot = config.robot
+        with self._lock:
+            live = self._live()
+            listed = set().union(*self._lists(live, self._mine()).values())
+            status = self._statuses.get(robot)
+            if robot in listed or status is None or not _orphan(status, self._gone, live):
+                self._orphaned.pop(robot, None)
+                return False
+            dead = status.owner.describe() if status.owner is not None else "a member"
+        retired = {"node": self.me.node, "time": _now()}
+        offline = status_event(config, self.fleet.model, "offline", **owner_fields(), retired=retired)
+        try:
+            done = retire(config, self.fleet.model, offline)
+        except (BusError, SecurityError) as exc:
+            done = False
+            log.warning("robot %s: could not retire it with the fleet's settings: %s", robot, exc)
+        with self._lock:
+            if robot in self._orphaned:
+                self._orphaned[robot] = None  # tried: once
+        if done:
+            log.info(
+                "robot %s: retired: %s handed it over to member %s and left before it retired it, and no member "
+                "lists it",
+                robot,
+                dead,
+                status.handover,
             )
         return done
 
@@ -770,6 +844,19 @@ class Share:
 def _names(value: Any) -> set[str]:
     """A record's list of robot ids (nothing when it is not a list: a record of another version)."""
     return {v for v in value if isinstance(v, str)} if isinstance(value, list) else set()
+
+
+def _orphan(status: Status, gone: set[str], live: set[str]) -> bool:
+    """Whether the robot's status is "online, handed over" by a member of this fleet that left (`gone`), to one
+    that did not take it."""
+    owner = status.owner
+    return (
+        status.state == "online"
+        and status.handover is not None
+        and owner is not None
+        and owner.node in gone
+        and owner.node not in live
+    )
 
 
 def _still_handing(status: Status | None, node: str) -> bool:
