@@ -18,7 +18,8 @@ process waits at its start before it takes its share (a process slow to take wha
 `SHARE_GROW_DELAY` how long each robot's ROS side takes to come up (a slow ROS graph: its claim takes that long).
 
 With `SHARE_FOUND_FILE` (robot ids) the process also discovers robots (graphwatch.py's `Discovery`), its "graph" that
-file, read at each look: a test lists a robot there as a ROS graph would show it. The process then prints
+file, read at each look: a test lists a robot there as a ROS graph would show it; `SHARE_GRAPH` names that graph
+(graphwatch.py `Graph.name`), and `SHARE_LOOK_DELAY` is how long each look takes. The process then prints
 `planned` once its share made its first plan (what is listed before is given out at once). `SHARE_NEW_SETTLE` sets
 share.SETTLE, how long a newly listed robot waits for the members that list it a moment later.
 """
@@ -53,10 +54,13 @@ FLEET = "shared"
 class FileGraph:
     """A "ROS graph" that shows the robots a file names (each its own namespace), read again at each look."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, name: str = "", delay: float = 0.0) -> None:
         self.path = path
+        self.name = name  # "": unknown, every process may see what another finds
+        self.delay = delay  # seconds each look takes (a slow graph)
 
     def robots(self, sig: Signature, known: set[str]) -> set[str]:
+        time.sleep(self.delay)
         try:
             return set(self.path.read_text().split())
         except FileNotFoundError:
@@ -159,7 +163,10 @@ def main() -> None:
     if found:
         sig = Signature(("x",), (), ())
         make = lambda robot, namespace: robot_config(defaults, robot, namespace)  # noqa: E731
-        discovery = Discovery(share, FileGraph(Path(found)), sig, make, grace=1.0)
+        graph = FileGraph(
+            Path(found), os.environ.get("SHARE_GRAPH", ""), float(os.environ.get("SHARE_LOOK_DELAY", "0"))
+        )
+        discovery = Discovery(share, graph, sig, make, grace=1.0)
         share.follow(discovery)
         discovery.start()
     print("ready", share.me.node, flush=True)

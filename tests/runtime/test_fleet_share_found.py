@@ -68,3 +68,38 @@ def test_a_discovered_robot_is_given_out_once_every_member_said_whether_it_sees_
         codes = [p.close() for p in procs.values()]
         watcher.close()
     assert codes == [0, 0, 0]
+
+
+def test_a_member_on_another_ros_graph_is_not_waited_for(broker: Mosquitto, tmp_path: Path) -> None:
+    """A process whose discovery reads another ROS graph (another ROS 2 domain: `graph` in its record) cannot see
+    what one on the first graph finds: the robot is given out without waiting for its look, here one that takes
+    4 s (a slow graph); it still says `unseen` once it looked."""
+    graphs = {name: tmp_path / f"{name}.graph" for name in "ac"}
+    watcher = Watcher(broker)
+    env = {"SHARE_SETTLE": "0.2", "SHARE_NEW_SETTLE": str(SETTLE)}
+    a = Proc(broker, tmp_path, "a", [], SHARE_FOUND_FILE=str(graphs["a"]), SHARE_GRAPH="ros2 domain 1", **env)
+    c = Proc(
+        broker,
+        tmp_path,
+        "c",
+        [],
+        SHARE_FOUND_FILE=str(graphs["c"]),
+        SHARE_GRAPH="ros2 domain 2",
+        SHARE_LOOK_DELAY="4",
+        **env,
+    )
+    try:
+        for proc in (a, c):
+            assert proc.proc.stdout is not None and proc.proc.stdout.readline().strip() == "planned", proc.log()
+        shown = time.monotonic()
+        show(graphs["a"], ["rb_a"])
+        wait(lambda: online_at(watcher, "rb_a") is not None, 15, a, c)
+        took = (online_at(watcher, "rb_a") or 1e9) - shown
+        print(f"shown -> online: {took:.2f} s")
+        assert took <= SERVED_WITHIN, took
+        assert status(watcher, "rb_a")["owner"]["pid"] == a.pid
+        wait(lambda: "rb_a" in record(watcher, c.node).get("unseen", []), 15, c)  # c's look, done later
+    finally:
+        codes = [p.close() for p in (a, c)]
+        watcher.close()
+    assert codes == [0, 0]

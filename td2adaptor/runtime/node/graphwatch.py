@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import logging
 import re
+import socket
 import threading
 import time
 import xmlrpc.client
@@ -89,6 +90,10 @@ def robot_id(namespace: str) -> str | None:
 
 
 class Graph(Protocol):
+    #: which graph this is, the same in every process that reads it ("" when unknown): a shared fleet's process
+    #: on another graph cannot see the robots this one finds (share.py `_heard`)
+    name: str
+
     def robots(self, sig: Signature, known: set[str]) -> set[str]:
         """The namespaces that show `sig` now; `known` ones (served already) may be checked more cheaply."""
         ...
@@ -97,8 +102,9 @@ class Graph(Protocol):
 class Ros2Graph:
     """The ROS 2 graph as `node` (an rclpy node, not spun) sees it."""
 
-    def __init__(self, node: Any) -> None:
+    def __init__(self, node: Any, name: str = "") -> None:
         self.node = node
+        self.name = name
 
     def robots(self, sig: Signature, known: set[str]) -> set[str]:
         if sig.services or sig.actions:
@@ -124,6 +130,7 @@ class Ros1Graph:
     def __init__(self, master_uri: str, timeout: float = 2.0) -> None:
         self.master_uri = master_uri
         self.timeout = timeout
+        self.name = f"ros1 {master_uri}"
 
     def robots(self, sig: Signature, known: set[str]) -> set[str]:
         transport = _TimeoutTransport(self.timeout)
@@ -280,8 +287,12 @@ class Discovery:
         return True
 
 
-def ros2_graph(graph_node: Callable[[int | None], Any], domain: int | None) -> Graph:
-    return Ros2Graph(graph_node(domain))
+def ros2_graph(graph_node: Callable[[int | None], Any], domain: int | None, env: Mapping[str, str]) -> Graph:
+    """The ROS 2 graph of `domain` (None: the environment's). Its name is the domain, and this host's name when
+    discovery stays on the host (`ROS_LOCALHOST_ONLY`, `ROS_AUTOMATIC_DISCOVERY_RANGE`)."""
+    number = domain if domain is not None else env.get("ROS_DOMAIN_ID", "").strip() or "0"
+    local = env.get("ROS_LOCALHOST_ONLY") == "1" or env.get("ROS_AUTOMATIC_DISCOVERY_RANGE") in ("LOCALHOST", "OFF")
+    return Ros2Graph(graph_node(domain), f"ros2 domain {number}" + (f" on {socket.gethostname()}" if local else ""))
 
 
 def ros1_graph(master_uri: str | None, env: Mapping[str, str]) -> Graph:

@@ -126,7 +126,7 @@ class EdgeNode:
         template = robot_config(self.defaults, STAND_IN)
         if self.options.ros == 2:
             assert self.link.graph is not None
-            graph = ros2_graph(self.link.graph, template.ros_domain_id)
+            graph = ros2_graph(self.link.graph, template.ros_domain_id, os.environ)
         else:
             graph = ros1_graph(template.ros_master_uri, os.environ)
         discovery = Discovery(

@@ -150,6 +150,7 @@ class Share:
         self._asked: dict[str, float] = {}
         self._unseen: set[str] = set()  # of those, the ones this process's discovery looked for and did not see
         self._look_now: Callable[..., None] | None = None  # this process's discovery, to look at once (`follow`)
+        self._graph = ""  # which ROS graph its discovery reads (graphwatch.py `Graph.name`; "": unknown)
         self._taken: set[str] = set()  # robots whose session another member took: let go at the next round
         fleet.on_added.append(self._watch)
         fleet.prepare = self._prepare
@@ -210,6 +211,7 @@ class Share:
         says in its record that it does not see it (`unseen`): the robot is given out once every live member said
         whether it sees it (`_heard`) rather than after the whole `SETTLE`."""
         self._look_now = discovery.look_now
+        self._graph = discovery.graph.name
         discovery.on_look.append(self._looked)
 
     def _looked(self, began: float) -> None:
@@ -463,18 +465,33 @@ class Share:
     def _heard(self, robot: str, live: set[str], can: Mapping[str, set[str]], found: set[str]) -> bool:
         """(under the lock) May `robot`, newly listed, be given out before `SETTLE` is over? Yes when a member's
         discovery found it and every live member said whether it sees it: it lists it, or it looked at its graph
-        since it learnt of it and did not see it (`unseen`; a member without discovery at once). Then no member
-        that sees it is left out of the plan. A robot of a fleet file or an admin request waits the whole
-        `SETTLE`: the members read a reloaded file, or an entry, each at its own moment and say nothing before."""
+        since it learnt of it and did not see it (`unseen`; a member without discovery at once), or it reads
+        another ROS graph than every member that found it (another ROS 2 domain, ROS 1 master: `graph` in its
+        record), which cannot show it. Then no member that sees it is left out of the plan. A robot of a fleet
+        file or an admin request waits the whole `SETTLE`: the members read a reloaded file, or an entry, each at
+        its own moment and say nothing before."""
         if robot not in found or robot in self._admin:
             return False
+        graphs = {self._graph_of(n) for n in live if robot in self._found_of(n)}
         for node in live:
             if robot in can.get(node, ()):
                 continue
             unseen = self._unseen if node == self.me.node else _names(self._members.get(node, {}).get("unseen"))
-            if robot not in unseen:
+            elsewhere = "" not in graphs and self._graph_of(node) not in graphs | {""}
+            if robot not in unseen and not elsewhere:
                 return False
         return True
+
+    def _graph_of(self, node: str) -> str:
+        """(under the lock) Which ROS graph member `node`'s discovery reads ("": unknown, or none)."""
+        if node == self.me.node:
+            return self._graph
+        graph = self._members.get(node, {}).get("graph")
+        return graph if isinstance(graph, str) else ""
+
+    def _found_of(self, node: str) -> set[str]:
+        """(under the lock) What member `node`'s discovery finds."""
+        return set(self._found) if node == self.me.node else _names(self._members.get(node, {}).get("found"))
 
     def _lists(self, live: set[str], mine: Mapping[str, RuntimeConfig]) -> dict[str, set[str]]:
         """(under the lock) Member -> the robots it lists, of the `live` ones (this one: `mine`)."""
@@ -828,6 +845,7 @@ class Share:
             "robots": sorted(self.fleet.robots(ORIGIN)),
             "can": self._can(),
             "found": sorted(self.robots("discovery")),  # what its discovery sees (`_heard`)
+            "graph": self._graph,  # which ROS graph that is
             "unseen": sorted(self.unseen()),  # what the others' discovery found and this one does not see
             "admin": sorted(self.admin_robots()),  # what it learnt of the admin's entries (fleet status, tests)
             "takeovers": list(self.takeovers),
