@@ -624,8 +624,8 @@ class Share:
                 if not _orphan(status, self._gone, live) or robot in listed:
                     self._orphaned.pop(robot, None)
                     continue
-                assert status.handover is not None
-                if (status.handover if status.handover in live else min(live)) != self.me.node:
+                to = status.handover or ""  # set: `_orphan`
+                if (to if to in live else min(live)) != self.me.node:
                     continue
                 since = self._orphaned.setdefault(robot, now)
                 if since is not None and now - since >= UNCLAIMED_WAIT:
