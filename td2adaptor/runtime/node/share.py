@@ -53,7 +53,16 @@ from td2adaptor.runtime.node.admitted import (
 )
 from td2adaptor.runtime.node.fleet import Changes, Fleet
 from td2adaptor.runtime.node.owner import Owner, lives, this_process
-from td2adaptor.runtime.node.shareplan import Status, assign, beats_topic, entries_topic, members_topic, read_status
+from td2adaptor.runtime.node.shareplan import (
+    Status,
+    assign,
+    beats_topic,
+    entries_topic,
+    members_topic,
+    names,
+    orphaned,
+    read_status,
+)
 
 log = logging.getLogger("td2adaptor.runtime.share")
 
@@ -331,7 +340,7 @@ class Share:
                 self._members[node] = record
                 self._gone.discard(node)
                 mine = self._mine()
-                new = [r for r in _names(record.get("found")) if r not in mine and r not in self._asked]
+                new = [r for r in names(record.get("found")) if r not in mine and r not in self._asked]
                 self._asked.update(dict.fromkeys(new, time.monotonic()))
         if new and self._look_now is not None:
             self._look_now(UNSEEN_AFTER)  # does this process see them too? (`_heard`)
@@ -459,7 +468,7 @@ class Share:
         """(under the lock) The robots the discovery of a live member (this one included) finds."""
         found = set(self._found)
         for node in live - {self.me.node}:
-            found.update(_names(self._members.get(node, {}).get("found")))
+            found.update(names(self._members.get(node, {}).get("found")))
         return found
 
     def _heard(self, robot: str, live: set[str], can: Mapping[str, set[str]], found: set[str]) -> bool:
@@ -476,7 +485,7 @@ class Share:
         for node in live:
             if robot in can.get(node, ()):
                 continue
-            unseen = self._unseen if node == self.me.node else _names(self._members.get(node, {}).get("unseen"))
+            unseen = self._unseen if node == self.me.node else names(self._members.get(node, {}).get("unseen"))
             elsewhere = "" not in graphs and self._graph_of(node) not in graphs | {""}
             if robot not in unseen and not elsewhere:
                 return False
@@ -491,7 +500,7 @@ class Share:
 
     def _found_of(self, node: str) -> set[str]:
         """(under the lock) What member `node`'s discovery finds."""
-        return set(self._found) if node == self.me.node else _names(self._members.get(node, {}).get("found"))
+        return set(self._found) if node == self.me.node else names(self._members.get(node, {}).get("found"))
 
     def _lists(self, live: set[str], mine: Mapping[str, RuntimeConfig]) -> dict[str, set[str]]:
         """(under the lock) Member -> the robots it lists, of the `live` ones (this one: `mine`)."""
@@ -542,7 +551,7 @@ class Share:
             if self._retire_unclaimed(config):
                 changes.removed.append(config.robot)
         for config in self._orphans(statuses, listed, live):
-            if self._retire_orphan(config):
+            if self._retireorphaned(config):
                 changes.removed.append(config.robot)
         if changes:
             log.info("fleet %s: %s", self.name, changes.describe())
@@ -621,7 +630,7 @@ class Share:
             for robot in set(self._orphaned) - set(statuses):
                 del self._orphaned[robot]
             for robot, status in statuses.items():
-                if not _orphan(status, self._gone, live) or robot in listed:
+                if not orphaned(status, self._gone, live) or robot in listed:
                     self._orphaned.pop(robot, None)
                     continue
                 to = status.handover or ""  # set: `_orphan`
@@ -636,7 +645,7 @@ class Share:
                         self._orphaned[robot] = None
         return due
 
-    def _retire_orphan(self, config: RuntimeConfig) -> bool:
+    def _retireorphaned(self, config: RuntimeConfig) -> bool:
         """Retire a robot `_orphans` found, on its own session (node/unclaimed.py), as its dead owner would have:
         `offline` with `retired` (this process's node), TD cleared. Looked at once more first, as in
         `_retire_unclaimed`."""
@@ -650,7 +659,7 @@ class Share:
             live = self._live()
             listed = set().union(*self._lists(live, self._mine()).values())
             status = self._statuses.get(robot)
-            if robot in listed or status is None or not _orphan(status, self._gone, live):
+            if robot in listed or status is None or not orphaned(status, self._gone, live):
                 self._orphaned.pop(robot, None)
                 return False
             dead = status.owner.describe() if status.owner is not None else "a member"
@@ -857,24 +866,6 @@ class Share:
         message = Message(members_topic(self.root, self.name, self.me.node), payload, retain=True)
         self.bus.birth = message  # type: ignore[attr-defined]  # published again on every reconnection
         self.bus.publish(message.topic, message.payload, retain=True)
-
-
-def _names(value: Any) -> set[str]:
-    """A record's list of robot ids (nothing when it is not a list: a record of another version)."""
-    return {v for v in value if isinstance(v, str)} if isinstance(value, list) else set()
-
-
-def _orphan(status: Status, gone: set[str], live: set[str]) -> bool:
-    """Whether the robot's status is "online, handed over" by a member of this fleet that left (`gone`), to one
-    that did not take it."""
-    owner = status.owner
-    return (
-        status.state == "online"
-        and status.handover is not None
-        and owner is not None
-        and owner.node in gone
-        and owner.node not in live
-    )
 
 
 def _still_handing(status: Status | None, node: str) -> bool:
