@@ -12,12 +12,20 @@ robots: median, p99, max), invokes sent, those of the killed process's robots th
 the missions it was following, ended by the new owner's recovery when it cannot follow them again), and
 missions run twice (from every process's log of the missions it started: must be 0).
 Run: `.venv/bin/python bench/fleet_takeover.py [--case 30x2 --case 30x3 ...]` (default 30x2 and 30x3).
+
+`--scenario N`: issue 32's whole scenario with real ROS 2 instead (three `run --share --discover` processes,
+simulated RB-1s, N robots at the peak: 10 added, 5 removed, a SIGHUP, a kill -9 under missions, two bridged
+brokers), which is too heavy for the test suite: tests/runtime/test_fleet_share_discover_ros2.py
+`test_issue_32_scenario_at_scale`, run by pytest with TD2ADAPTOR_SHARE_SCENARIO_ROBOTS=N; its figures (one JSON
+line) are printed.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -98,10 +106,24 @@ def _why(message: str) -> str:
     return message[:80]
 
 
+def scenario(robots: int) -> int:
+    """Issue 32's scenario at `robots` robots (see the module docstring); pytest's exit code."""
+    test = "tests/runtime/test_fleet_share_discover_ros2.py::test_issue_32_scenario_at_scale"
+    environ = {**os.environ, "TD2ADAPTOR_SHARE_SCENARIO_ROBOTS": str(robots), "PYTHONPATH": str(REPO)}
+    command = [sys.executable, "-m", "pytest", "-n", "0", "-q", "-s", "-p", "no:cacheprovider", test]
+    proc = subprocess.run(command, cwd=REPO, env=environ, capture_output=True, text=True, check=False)
+    lines = [line for line in proc.stdout.splitlines() if line.startswith("SCENARIO ")]
+    print(*(lines or [proc.stdout[-3000:]]), sep="\n", flush=True)
+    return proc.returncode
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--case", action="append", help="ROBOTSxPROCESSES (default: 30x2 and 30x3)")
+    parser.add_argument("--scenario", type=int, help="issue 32's scenario with ROS 2 at this many robots (>= 12)")
     args = parser.parse_args()
+    if args.scenario is not None:
+        sys.exit(scenario(args.scenario))
     for spec in args.case or ["30x2", "30x3"]:
         robots, processes = (int(x) for x in spec.split("x"))
         r = case(robots, processes)

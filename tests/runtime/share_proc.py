@@ -16,6 +16,12 @@ With `SHARE_ROBOTS_FILE` (robot ids, separated by white space) the robots are th
 count, and SIGHUP reads it again (as `run` reads its fleet file again). `SHARE_SETTLE` (seconds) is how long the
 process waits at its start before it takes its share (a process slow to take what is handed over to it), and
 `SHARE_GROW_DELAY` how long each robot's ROS side takes to come up (a slow ROS graph: its claim takes that long).
+
+With `SHARE_FOUND_FILE` (robot ids) the process also discovers robots (graphwatch.py's `Discovery`), its "graph" that
+file, read at each look: a test lists a robot there as a ROS graph would show it; `SHARE_GRAPH` names that graph
+(graphwatch.py `Graph.name`), and `SHARE_LOOK_DELAY` is how long each look takes. The process then prints
+`planned` once its share made its first plan (what is listed before is given out at once). `SHARE_NEW_SETTLE` sets
+share.SETTLE, how long a newly listed robot waits for the members that list it a moment later.
 """
 
 from __future__ import annotations
@@ -33,7 +39,9 @@ from pathlib import Path
 from typing import Any
 
 from td2adaptor.runtime.config import RuntimeConfig, load_defaults, robot_config
+from td2adaptor.runtime.node import share as shared
 from td2adaptor.runtime.node.fleet import Fleet
+from td2adaptor.runtime.node.graphwatch import Discovery, Signature
 from td2adaptor.runtime.node.roslink import RosLink
 from td2adaptor.runtime.node.share import Share, share_bus
 from td2adaptor.runtime.ros.port import GoalListener, StartResult
@@ -41,6 +49,22 @@ from td2adaptor.runtime.ros.simport import SimActions, SimPort
 from tests.runtime.rb1 import compile_td, rb1_model, sim
 
 FLEET = "shared"
+
+
+class FileGraph:
+    """A "ROS graph" that shows the robots a file names (each its own namespace), read again at each look."""
+
+    def __init__(self, path: Path, name: str = "", delay: float = 0.0) -> None:
+        self.path = path
+        self.name = name  # "": unknown, every process may see what another finds
+        self.delay = delay  # seconds each look takes (a slow graph)
+
+    def robots(self, sig: Signature, known: set[str]) -> set[str]:
+        time.sleep(self.delay)
+        try:
+            return set(self.path.read_text().split())
+        except FileNotFoundError:
+            return set()
 
 
 class LoggedPort(SimPort):
@@ -110,7 +134,15 @@ def main() -> None:
     keepalive = int(os.environ.get("SHARE_KEEPALIVE", template.share_keepalive))
     bus = share_bus(template, model, name=FLEET, keepalive=keepalive)
     settle = float(os.environ.get("SHARE_SETTLE", "1"))
-    share = Share(fleet, bus, name=FLEET, root="td2adaptor", timeout=template.share_timeout, settle=settle)
+    share = Share(
+        fleet,
+        bus,
+        name=FLEET,
+        root="td2adaptor",
+        timeout=template.share_timeout,
+        settle=settle,
+        make_config=lambda robot, namespace: robot_config(defaults, robot, namespace),  # as `run` gives it
+    )
     done = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: done.set())
     reloading = threading.Lock()
@@ -123,9 +155,28 @@ def main() -> None:
 
     if listed:
         signal.signal(signal.SIGHUP, lambda *_: threading.Thread(target=reload, daemon=True).start())
+    if "SHARE_NEW_SETTLE" in os.environ:
+        shared.SETTLE = float(os.environ["SHARE_NEW_SETTLE"])
     share.start(candidates)
+    found = os.environ.get("SHARE_FOUND_FILE")
+    discovery = None
+    if found:
+        sig = Signature(("x",), (), ())
+        make = lambda robot, namespace: robot_config(defaults, robot, namespace)  # noqa: E731
+        graph = FileGraph(
+            Path(found), os.environ.get("SHARE_GRAPH", ""), float(os.environ.get("SHARE_LOOK_DELAY", "0"))
+        )
+        discovery = Discovery(share, graph, sig, make, grace=1.0)
+        share.follow(discovery)
+        discovery.start()
     print("ready", share.me.node, flush=True)
+    if found:
+        while not share._planned and not done.wait(0.01):
+            pass
+        print("planned", flush=True)
     done.wait()
+    if discovery is not None:
+        discovery.stop()
     share.stop()
     fleet.stop()
 

@@ -11,6 +11,7 @@ the graph are retired the same way. No process restarts meanwhile.
 from __future__ import annotations
 
 import json
+import os
 import signal
 import threading
 import time
@@ -20,8 +21,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import pytest
+
 from td2adaptor.runtime.events import now_rfc3339
 from td2adaptor.runtime.node.admin import admin_topics, sign
+from td2adaptor.runtime.node.graphwatch import PERIOD
 from tests.ros2 import env
 from tests.ros2.common import Process
 from tests.runtime.broker import Mosquitto
@@ -35,11 +39,20 @@ pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain, rb1_prefix, adaptor_bui
 FLEET = "sdx"
 FIRST = ("sd_a", "sd_b", "sd_c", "sd_d")  # on the first of the test's ROS domains: processes 1 and 3 see them
 SECOND = ("sd_e", "sd_f")  # on a domain of their own: only process 2 sees them
-#: from a robot's appearance to its `online` status: one look at the graph (0.5 s), the settling of a newly
-#: listed robot (share.SETTLE, 0.75 s) and the start. Issue 32 asks 2 s for discovery; a shared fleet adds the
-#: settling, so that every process that sees the robot is known before it is given out (measured 1.1-2.2 s here
-#: with the machine busy); the bound leaves room for a loaded CI machine
-SERVED_WITHIN = 4.0
+#: issue 32: a robot is served within 2 s of its appearance in the ROS graph. Asserted from the moment a process's
+#: discovery listed it (its member record) to its `online` status: the other processes' looks (at once, and
+#: share.UNSEEN_AFTER later, when one lists a robot they do not: share.py `_heard`) and the start (its ROS clients,
+#: its connection), with one look's period (graphwatch.PERIOD) left for the look that finds it. Not from the
+#: simulation's "ready": how long ROS 2's own discovery takes to show a new process's servers to another process
+#: is no edge node's doing, and on a loaded machine it took up to 2.3 s (docs/fleet.md has the figures)
+SERVED_WITHIN = 2.0
+
+
+def served_within() -> float:
+    """`SERVED_WITHIN`, stretched on a machine busier than its cores (load average above twice their number): every
+    step is a process's turn on a core then (the measured share part was 0.4-1.1 s at load 8-12, 1.8 s at 26)."""
+    busy = os.getloadavg()[0] / (2 * (os.cpu_count() or 1))
+    return SERVED_WITHIN * max(1.0, busy)
 
 
 def settings(path: Path, broker: Mosquitto, tmp_path: Path, *robots: tuple[str, str]) -> None:
@@ -73,6 +86,15 @@ def members(watch: Watch) -> dict[str, dict[str, Any]]:
             else:
                 out[node] = e
     return out
+
+
+def listed_at(watch: Watch, robot: str) -> float | None:
+    """When a member record first listed `robot` (one of the processes saw it in its ROS graph)."""
+    prefix = f"td2adaptor/.fleet/{FLEET}/members/"
+    for (t, e), when in zip(list(watch.app.events), list(watch.came), strict=False):
+        if t.startswith(prefix) and robot in (e.get("can") or ()):
+            return when
+    return None
 
 
 def one_owner_each(watch: Watch, robots: set[str], pids: set[int]) -> bool:
@@ -158,20 +180,32 @@ def test_shared_processes_discover_robots_each_served_by_one_that_sees_it_and_ad
         for run in runs:
             run.wait_ready()
             assert "serving its share of fleet sdx (now 0 robots)" in run.output(), run.output()
+        ready = time.monotonic()
         first, second, third = (r.proc.pid for r in runs)
         pids = {first, second, third}
-        appeared: dict[str, float] = {}  # robot -> when its simulation said it is ready
-        for robots, domain in ((FIRST, first_domain), (SECOND, other_domain)):
-            sims.append(sim_process(rb1_prefix, robots, domain=domain))
-            appeared |= dict.fromkeys(robots, time.monotonic())
+        # the second domain's robots first; then, the processes' first plans made (each gives out at once what is
+        # listed then), the first domain's: both of its processes list them, the other one says it does not see them
+        sims.append(sim_process(rb1_prefix, SECOND, domain=other_domain))
+        wait(lambda: one_owner_each(watch, set(SECOND), pids), 30, watch)
+        assert until(lambda: time.monotonic() - ready > 1.5, 2)  # the first plans: 1 s after each process joined
+        sims.insert(0, sim_process(rb1_prefix, FIRST, domain=first_domain))
+        appeared = time.monotonic()  # when its simulation said it is ready
         everyone = {*FIRST, *SECOND}
         wait(lambda: one_owner_each(watch, everyone, pids), 30, watch)
-        took = max((watch.status_at(r, "online", appeared[r]) or 1e9) - appeared[r] for r in everyone)
-        print(f"appeared -> online with one of the processes that see it: max {took:.2f} s")
-        assert took <= SERVED_WITHIN, took
+        online = {r: watch.status_at(r, "online", appeared) or 1e9 for r in FIRST}
+        listed = {r: listed_at(watch, r) or 1e9 for r in FIRST}
+        took = max(online[r] - listed[r] for r in FIRST)
+        print(f"appeared -> online with one of the processes that see it: max {max(online.values()) - appeared:.2f} s")
+        print(
+            f"  of which the ROS graph (appeared -> a process listed it): max {max(listed.values()) - appeared:.2f} s"
+        )
+        print(f"  and the share (listed -> online): max {took:.2f} s; load average {os.getloadavg()[0]:.1f}")
+        assert took + PERIOD <= served_within(), (took, os.getloadavg())
+        # both see them: a share each (one whose graph showed them later than the other's is handed its share)
+        wait(lambda: {owners(watch)[r][1] for r in FIRST} == {first, third}, 10, watch)
+        wait(lambda: one_owner_each(watch, everyone, pids), 10, watch)
         now = owners(watch)
         assert {now[r][1] for r in SECOND} == {second}, now  # only it sees them
-        assert {now[r][1] for r in FIRST} == {first, third}, now  # both see them: a share each
         records = {m["owner"]["pid"]: m for m in members(watch).values()}
         assert set(records[second]["can"]) == set(SECOND) and set(records[first]["can"]) == set(FIRST), records
         for robot in ("sd_a", "sd_e"):
@@ -352,3 +386,150 @@ def test_three_shared_processes_discover_reload_under_load_over_bridged_brokers_
         site.stop()
         central.stop()
     assert codes == [0, 0, 0], [run.output()[-3000:] for run in runs]
+
+
+#: issue 32's scenario at its scale (`bench/fleet_takeover.py --scenario 30` sets it): too heavy for the suite on
+#: a 2-core machine (3 edge processes, 3 simulations of 20 + 5 + 5 robots, the missions, two brokers)
+SCENARIO = int(os.environ.get("TD2ADAPTOR_SHARE_SCENARIO_ROBOTS", "0"))
+
+
+def _quantile(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, int(q * len(ordered)))] if ordered else float("nan")
+
+
+@pytest.mark.skipif(SCENARIO < 12, reason="issue 32's scenario at scale: bench/fleet_takeover.py --scenario 30")
+def test_issue_32_scenario_at_scale(adaptor_build: tuple[Path, Path], rb1_prefix: Path, tmp_path: Path) -> None:
+    """Three `run --share --discover` processes on a site mosquitto bridged to a central one (the application
+    there), SCENARIO robots at the peak: 2 in the fleet file, SCENARIO - 12 discovered at the start, 10 added
+    (two simulations of 5), 5 removed (one of them stopped), a SIGHUP that replaces a file robot, and a kill -9
+    of one process, all under missions sent one after the other on every robot served from the start but the one
+    the SIGHUP removes (each mission 2 s on the simulated robot). Printed: the figures (one JSON line,
+    `SCENARIO`). Asserted: no command ran twice, none lost, every robot one owner, the removed ones `offline` with
+    no TD."""
+    n = SCENARIO
+    site, central = bridged(tmp_path)
+    fleet = tmp_path / "fleet.yaml"
+    settings(fleet, site, tmp_path, ("cf_1", "cx_f1"), ("cf_2", "cx_f2"))
+    watch = Watch(central, "scenario-app")
+    found = tuple(f"cx_{i:02d}" for i in range(n - 12))
+    added, removed = tuple(f"ca_{i}" for i in range(5)), tuple(f"cr_{i}" for i in range(5))
+    domain = env.private_domain_id()
+    sims = [sim_process(rb1_prefix, ("cx_f1", "cx_f2", *found), domain=domain)]
+    args = run_args("--config", str(fleet), "--share", "--discover", "--discover-grace", "3")
+    runs = [RunProcess(args, env=node_env(rb1_prefix, adaptor_build, ROS_DOMAIN_ID=str(domain))) for _ in range(3)]
+    first = {"cf_1", "cf_2", *found}
+    missions = Missions(watch, tuple(sorted(first - {"cf_2"})))  # cf_2 leaves the fleet file on the way
+    figures: dict[str, Any] = {"robots": n, "load_before": os.getloadavg()[0]}
+    began = time.monotonic()
+    try:
+        for run in runs:
+            run.wait_ready()
+        pids = {r.proc.pid for r in runs}
+        even = {len(first) // 3, -(-len(first) // 3)}
+        fair = lambda: set(Counter(owners(watch)[r][1] for r in first).values()) <= even  # noqa: E731
+        wait(lambda: one_owner_each(watch, first, pids) and fair(), 120, watch)
+        figures["start_s"] = round(time.monotonic() - began, 2)
+        missions.start()
+        assert until(lambda: all(len(v) >= 2 for v in missions.sent.values()), 60)
+
+        # add 10: two simulations of 5
+        appeared = time.monotonic()
+        sims += [sim_process(rb1_prefix, added, domain=domain), sim_process(rb1_prefix, removed, domain=domain)]
+        ready = time.monotonic()
+        wait(lambda: one_owner_each(watch, first | set(added) | set(removed), pids), 60, watch)
+        new = (*added, *removed)
+        online = {r: watch.status_at(r, "online", appeared) or 1e9 for r in new}
+        listed = {r: listed_at(watch, r) or 1e9 for r in new}
+        figures["added_ready_to_online_max_s"] = round(max(online.values()) - ready, 2)
+        figures["added_listed_to_online_max_s"] = round(max(online[r] - listed[r] for r in new), 2)
+        figures["load_at_add"] = os.getloadavg()[0]
+
+        # remove 5: their simulation stops
+        gone = time.monotonic()
+        sims.pop().stop()
+        wait(lambda: all(owners(watch)[r][0] == "offline" for r in removed), 60, watch)
+        figures["removed_to_offline_max_s"] = round(
+            max((watch.status_at(r, "offline", gone) or 1e9) - gone for r in removed), 2
+        )
+
+        # SIGHUP under load: cf_2 leaves, cf_3 joins
+        settings(fleet, site, tmp_path, ("cf_1", "cx_f1"), ("cf_3", "cx_f2"))
+        for run in runs:
+            run.proc.send_signal(signal.SIGHUP)
+        now = first - {"cf_2"} | {"cf_3"} | set(added)
+        wait(lambda: one_owner_each(watch, now, pids) and owners(watch)["cf_2"][0] == "offline", 60, watch)
+
+        # kill -9 one process under load
+        victim = runs[0]
+        theirs = {r for r, (state, pid) in owners(watch).items() if pid == victim.proc.pid and state == "online"}
+        killed = time.monotonic()
+        victim.proc.kill()
+        victim.proc.wait(10)
+        survivors = pids - {victim.proc.pid}
+        wait(lambda: one_owner_each(watch, now, survivors), 60, watch)
+        back = []
+        for robot in theirs:
+            when = next(
+                (
+                    t
+                    for (topic, e), t in zip(list(watch.app.events), list(watch.came), strict=False)
+                    if topic == f"td2adaptor/{robot}/status"
+                    and t >= killed
+                    and e["payload"]["state"] == "online"
+                    and (e["payload"].get("owner") or {}).get("pid") in survivors
+                ),
+                None,
+            )
+            back.append((when or 1e9) - killed)
+        figures["killed_robots"] = len(theirs)
+        figures["takeover_p50_s"] = round(_quantile(back, 0.5), 2)
+        figures["takeover_p99_s"] = round(_quantile(back, 0.99), 2)
+        figures["takeover_max_s"] = round(max(back), 2)
+        figures["load_at_kill"] = os.getloadavg()[0]
+        sent_before = {r: len(v) for r, v in missions.sent.items()}
+        assert until(lambda: all(len(v) >= sent_before[r] + 2 for r, v in missions.sent.items() if r in now), 90)
+        missions.stop()
+
+        ends: dict[str, list[str]] = {}
+        for _topic, e in list(watch.app.events):
+            if e.get("type") == "feedback" and (e.get("payload") or {}).get("terminal"):
+                ends.setdefault(str(e.get("correlation")), []).append(e["payload"].get("state", ""))
+        sent = [i for v in missions.sent.values() for i in v]
+        lost = [i for i in sent if i not in ends]
+        twice = [i for i in sent if len(ends.get(i, [])) > 1]
+        states = Counter(ends[i][0] for i in sent if i in ends)
+        starts = Counter(e["robot"] for e in sims[0].drain() if e.get("event") == "call" and e.get("op") == "add")
+        namespace = {"cf_1": "cx_f1", "cf_2": "cx_f2", "cf_3": "cx_f2"}
+        ran: Counter[str] = Counter()
+        for robot, ids in missions.sent.items():
+            ran[namespace.get(robot, robot)] += len(ids)
+        duplicated = {ns: starts[ns] - count for ns, count in ran.items() if starts[ns] > count}
+        figures |= {
+            "missions": len(sent),
+            "sent_again": missions.resent,
+            "ends": dict(states),
+            "lost": len(lost),
+            "answered_twice": len(twice),
+            "commands_run_twice": sum(duplicated.values()),
+            "wall_s": round(time.monotonic() - began, 1),
+        }
+        print("SCENARIO " + json.dumps(figures, sort_keys=True))
+        assert not duplicated, duplicated
+        assert not lost and not twice, (lost[:5], twice[:5])
+        for robot in ("cf_2", *removed):
+            assert owners(watch)[robot][0] == "offline", robot
+            assert retained_td_cleared(central, robot), robot
+        assert [r.proc.poll() for r in runs[1:]] == [None, None]  # the survivors did not restart
+        for run in runs[1:]:
+            assert "Traceback" not in run.output(), run.output()[-3000:]
+    finally:
+        missions.stop()
+        for sim in sims:
+            sim.stop()
+        codes = [run.terminate(signal.SIGTERM) for run in runs[1:]]
+        runs[0].terminate(signal.SIGKILL)
+        watch.close()
+        site.stop()
+        central.stop()
+    assert codes == [0, 0], [run.output()[-3000:] for run in runs[1:]]

@@ -182,6 +182,63 @@ def test_a_robot_handed_over_to_a_process_that_drops_it_while_its_owner_drops_it
     print(json.dumps({"history": history(watcher, robot)}))
 
 
+def test_a_robot_handed_over_by_a_process_that_died_before_it_retired_it_is_retired_by_a_survivor(
+    tmp_path: Path,
+) -> None:
+    """a hands a robot over to x, which takes it only later (SHARE_SETTLE); a drops it and is killed (kill -9)
+    before it could retire it, then x drops it too: nobody lists it, and its status says "online, handed over"
+    by a dead process. x, the member it was handed over to, retires it with the fleet's settings."""
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    watcher = Watcher(broker)
+    procs: list[Proc] = []
+    try:
+        robots = ["rb_00", "rb_01"]
+        a = Proc(broker, tmp_path, "a", robots)
+        procs.append(a)
+        wait(lambda: all(status(watcher, r).get("state") == "online" for r in robots), 20, a, what="a serves both")
+        x = Proc(broker, tmp_path, "x", robots, SHARE_SETTLE="10")  # takes what it is handed only 10 s later
+        procs.append(x)
+        started = time.monotonic()
+
+        def handed() -> str | None:
+            return next((r for r in robots if (status(watcher, r).get("handover") or {}).get("node") == x.node), None)
+
+        wait(lambda: handed() is not None, 8, a, x, what="a hands one robot over to x")
+        robot = handed()
+        assert robot is not None
+        other = next(r for r in robots if r != robot)
+        a.reload([other])
+        wait(lambda: robot not in record(watcher, a.node).get("can", [robot]), 5, a, what="a dropped it")
+        a.proc.kill()  # before it retired it (it would, 2 s after x dropped it too)
+        a.proc.wait(10)
+        wait(lambda: "owner" not in record(watcher, a.node), 5, a, what="a's record cleared by its will")
+        x.reload([other])
+        wait(lambda: robot not in record(watcher, x.node).get("can", [robot]), 5, x, what="x dropped it")
+        assert time.monotonic() - started < 9, "the window closed before x dropped the robot (too slow a machine)"
+        assert history(watcher, robot)[-1] == ("online", a.pid, x.node), history(watcher, robot)
+        dropped = time.monotonic()
+        wait(lambda: status(watcher, robot).get("state") == "offline", 15, x, what=str(history(watcher, robot)))
+        took = time.monotonic() - dropped
+        last = status(watcher, robot)
+        assert last.get("retired", {}).get("node") == x.node, last
+        assert (last.get("owner") or {}).get("pid") == x.pid, last
+        assert retained_td_cleared(broker, robot)
+        assert history(watcher, robot)[-2:] == [("online", a.pid, x.node), ("offline", x.pid, None)]
+        assert status(watcher, other).get("state") == "online", history(watcher, other)
+        print(f"retired {took:.2f} s after the last member dropped it")
+        # listed again: served again, by x
+        x.reload([other, robot])
+        wait(lambda: status(watcher, robot).get("state") == "online", 15, x, what=str(history(watcher, robot)))
+        assert history(watcher, robot)[-1] == ("online", x.pid, None), history(watcher, robot)
+        assert "Traceback" not in x.log()
+    finally:
+        codes = [p.close() for p in procs]
+        watcher.close()
+        broker.stop()
+    assert codes[1:] == [0], codes
+
+
 def test_a_process_that_claims_a_robot_another_one_is_claiming_leaves_it_to_that_one(tmp_path: Path) -> None:
     """l starts claiming its four robots, whose ROS side takes 3 s to come up; w lists them meanwhile (more than
     SETTLE after l), gets two of them by the plan, finds them free (l is not online yet) and claims them. Before,

@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import orjson
 import paho.mqtt.client as mqtt
 import pytest
 from paho.mqtt.enums import CallbackAPIVersion
@@ -25,6 +26,7 @@ from paho.mqtt.properties import Properties
 from td2adaptor.runtime.bus.bus import BusError, Message
 from td2adaptor.runtime.bus.mqttbus import MqttBus
 from td2adaptor.runtime.bus.security import parse_broker_url
+from td2adaptor.runtime.node.owner import probe_bus, read_statuses, taken_by
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient, release
 from tests.runtime.edge import until
@@ -106,4 +108,61 @@ def test_a_connection_taken_over_before_its_subscriptions_fails_at_once_and_leav
         bus.close()
         if bus.other is not None:
             bus.other.close()
+        broker.stop()
+
+
+def _status(state: str, node: str, pid: int) -> bytes:
+    owner = {"host": "vm", "pid": pid, "started": "2026-01-01T00:00:00Z", "node": node}
+    return orjson.dumps({"type": "status", "payload": {"state": state, "owner": owner}})
+
+
+def test_a_connection_whose_session_another_client_took_over_does_not_take_it_back_from_the_robots_new_owner(
+    tmp_path: Path,
+) -> None:
+    """Two processes both passed the share's last look and both connected the robot: the later connection took
+    the session over, and mosquitto 2.0 closed the earlier one without saying why. Its reconnection would take
+    the session back from the other, then find (its `owned` check) that the other serves the robot and drop,
+    its will putting `offline` over the other's `online`: the robot flapped once. Now it asks `owned` before it
+    reconnects, and stops serving without touching the session."""
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    status = "td2adaptor/rb_07/status"
+    ours, theirs = _status("online", "aaaa", 1), _status("online", "bbbb", 2)
+    bus = MqttBus(
+        parse_broker_url(broker.url),
+        client_id=CLIENT_ID,
+        birth=Message(status, ours, retain=True),
+        will=Message(status, _status("offline", "aaaa", 1), retain=True),
+        reconnect_delay=(1, 2),
+        connect_timeout=5,
+    )
+
+    def owned() -> str | None:  # what a robot's status keeper asks (node/status.py StatusKeeper.owned)
+        seen = read_statuses(probe_bus(bus.address, bus.security, bus.mqtt_version), [status])
+        return taken_by("rb_07", seen.get(status), [ours])
+
+    bus.owned = owned
+    refused: list[str] = []
+    bus.on_refused = refused.append
+    bus.subscribe("td2adaptor/rb_07/+/+", lambda _m: None)
+    other: Other | None = None
+    try:
+        bus.connect()
+        other = Other(broker)  # takes the session over
+        assert other.connected.wait(5)
+        other.client.publish(status, theirs, qos=1, retain=True).wait_for_publish(5)  # the new owner's birth
+        assert until(lambda: bool(refused), 10), "this client did not stop serving"
+        assert "took its session over" in refused[0] and "process 2 on vm" in refused[0], refused
+        assert not until(lambda: other is not None and other.lost > 0, 4), "this client took the session back"
+        reader = AppClient(broker, [status])
+        try:
+            time.sleep(0.3)  # a retained message comes right after the SUBACK, which the client waited for
+            assert [e["payload"]["owner"]["node"] for _t, e in reader.events] == ["bbbb"], reader.events
+            assert [e["payload"]["state"] for _t, e in reader.events] == ["online"], reader.events
+        finally:
+            reader.close()
+    finally:
+        bus.close()
+        if other is not None:
+            other.close()
         broker.stop()

@@ -346,6 +346,7 @@ class MqttBus:
     def _start(self, client: mqtt.Client) -> None:
         """Start serving the connection: the process's serving loop (`DrivenBus` serves it from its owner's)."""
         self._link = Link(shared(), client, self.reconnect_delay, self.client_id)
+        self._link.may_reconnect = self._may_reconnect
         self._link.start()
 
     def _stop(self, client: mqtt.Client) -> None:
@@ -490,6 +491,29 @@ class MqttBus:
         except Exception:  # noqa: BLE001 - the thread that runs it must live; the details go to the log
             log.exception("checking who serves this robot on %s failed", self.address)
             return None
+
+    def _may_reconnect(self) -> bool:
+        """(Helper thread, before reconnecting) Ask `owned` first: a broker that took the session over closes the
+        connection without saying so (mosquitto 2.0: no "Session taken over"), and reconnecting would take the
+        session back from the other client, which serves the robot now (node/share.py: two processes that both
+        claimed it). If another serves it, this client stops serving without reconnecting."""
+        if self.owned is None or self.refused is not None or self.connects == 0:
+            return self.refused is None
+        try:
+            taken = self.owned()
+        except Exception as exc:  # noqa: BLE001 - the broker away, as the reconnection will find: it is tried
+            log.debug("before reconnecting to %s, who serves the robot could not be read: %s", self.address, exc)
+            return True
+        if taken is None:
+            return True
+        self.refused = (
+            f"stopped serving: another client connected to the MQTT broker at {self.address} with this client id "
+            f"({self.client_id}) and {taken}: a second edge node for the same robot?"
+        )
+        log.error("%s", self.refused)
+        if self.on_refused is not None:
+            self._tell_refused(self.on_refused, self.refused)
+        return False
 
     def _taken_over(self, client: mqtt.Client, what: str) -> None:
         """Another connection with this client id took the session over (a second edge node for the same robot,

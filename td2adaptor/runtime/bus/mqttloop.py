@@ -82,6 +82,9 @@ class Link:
         self.closing = False  # never reconnect; forget once the socket is gone
         self.away = False  # no socket: waiting to reconnect, or reconnecting on a helper
         self.trying = False  # a helper is reconnecting it
+        #: (helper thread) asked before each reconnection: False gives the connection up for good instead (its
+        #: session is another's now: a reconnection would take it back from that one)
+        self.may_reconnect: Callable[[], bool] | None = None
         self.done = threading.Event()  # the loop has forgotten it
         self.io = threading.RLock()  # held by whoever reads or writes the socket: the loop, or a publisher
         client.on_socket_close = self._socket_closed
@@ -413,6 +416,9 @@ class MqttLoop:
         `broker`: this attempt is the one the other clients of that broker wait for (see `_turn`): a broker
         that drops packets costs `connect_timeout` per attempt, and a fleet's hundred attempts in a row
         would keep every robot away for minutes after it is back."""
+        if link.may_reconnect is not None and not link.may_reconnect():
+            self.call_soon(lambda: self._given_up(link, broker))
+            return
         try:
             link.client.reconnect()
         except Exception as exc:  # noqa: BLE001 - refused, unreachable, TLS: tried again after the back-off
@@ -428,8 +434,16 @@ class MqttLoop:
             other.away = False
             self._lost(other)
 
-    def _back(self, link: Link, broker: tuple[str, int] | None) -> None:
-        """Connected: serve it; the clients that waited for this broker try now, each on its own."""
+    def _given_up(self, link: Link, broker: tuple[str, int] | None) -> None:
+        """`may_reconnect` said no: the client is forgotten (closing); the clients that waited for this broker
+        try now, each on its own (nothing was learnt of the broker)."""
+        self._go_on(broker)
+        link.trying = link.away = False
+        link.closing = True
+        self._forget(link)
+
+    def _go_on(self, broker: tuple[str, int] | None) -> None:
+        """The clients that waited for this broker's attempt try now, each on its own."""
         for other in self._trying.pop(broker, []) if broker is not None else []:
             if other.closing:
                 other.away = False
@@ -437,6 +451,10 @@ class MqttLoop:
             else:
                 other.trying = True
                 self.run_blocking(functools.partial(self._reconnect, other, None))
+
+    def _back(self, link: Link, broker: tuple[str, int] | None) -> None:
+        """Connected: serve it; the clients that waited for this broker try now, each on its own."""
+        self._go_on(broker)
         link.trying = link.away = False
         with link.io:
             sock = link.client.socket()

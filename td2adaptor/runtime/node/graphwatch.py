@@ -3,9 +3,10 @@
 A robot is a namespace under which the graph shows the model's interfaces (`Signature`): a server for every
 service and action the model names under `{{robotName}}`, or, for a model without any, a publisher of every
 topic it subscribes to there. The edge node's own clients and subscriptions never count (servers and
-publishers only). Every `period` the watcher reads the graph once and hands the robots it saw, with those
-gone for less than `grace` seconds, to the fleet (`Fleet.apply`, origin "discovery"): a new robot joins,
-one gone for `grace` leaves (its missions in flight end, its TD is cleared, its status goes `offline`).
+publishers only). Every `period` (and at once when a shared fleet asks: `look_now`) the watcher reads the graph
+once and hands the robots it saw, with those gone for less than `grace` seconds, to the fleet (`Fleet.apply`,
+origin "discovery"): a new robot joins, one gone for `grace` leaves (its missions in flight end, its TD is
+cleared, its status goes `offline`).
 
 Reading the graph: on ROS 2 with rclpy's graph API on a node of the edge node's own context (no executor:
 graph queries need none): the service names once, then, for each namespace that has them all, whether each
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import logging
 import re
+import socket
 import threading
 import time
 import xmlrpc.client
@@ -88,6 +90,10 @@ def robot_id(namespace: str) -> str | None:
 
 
 class Graph(Protocol):
+    #: which graph this is, the same in every process that reads it ("" when unknown): a shared fleet's process
+    #: on another graph cannot see the robots this one finds (share.py `_heard`)
+    name: str
+
     def robots(self, sig: Signature, known: set[str]) -> set[str]:
         """The namespaces that show `sig` now; `known` ones (served already) may be checked more cheaply."""
         ...
@@ -96,8 +102,9 @@ class Graph(Protocol):
 class Ros2Graph:
     """The ROS 2 graph as `node` (an rclpy node, not spun) sees it."""
 
-    def __init__(self, node: Any) -> None:
+    def __init__(self, node: Any, name: str = "") -> None:
         self.node = node
+        self.name = name
 
     def robots(self, sig: Signature, known: set[str]) -> set[str]:
         if sig.services or sig.actions:
@@ -123,6 +130,7 @@ class Ros1Graph:
     def __init__(self, master_uri: str, timeout: float = 2.0) -> None:
         self.master_uri = master_uri
         self.timeout = timeout
+        self.name = f"ros1 {master_uri}"
 
     def robots(self, sig: Signature, known: set[str]) -> set[str]:
         transport = _TimeoutTransport(self.timeout)
@@ -183,18 +191,34 @@ class Discovery:
         self.period = period
         self.clock = clock
         self.scans = 0
+        #: hooks told after each reading of the graph, with when it began (this process's monotonic clock): a
+        #: shared fleet says then which robots the others see that this process does not (share.py, `unseen`)
+        self.on_look: list[Callable[[float], None]] = []
         self._seen: dict[str, tuple[str, float]] = {}  # robot id -> (namespace, when last seen)
         self._failed: dict[str, float] = {}  # robot id -> when it may be tried again
         self._graph_failing = False
         self._stop = threading.Event()
+        self._kick = threading.Event()  # look now rather than at the end of the period (`look_now`)
+        self._kicks: list[float] = []  # when to look again, sooner than the period (`look_now` with a delay)
+        self._kicks_lock = threading.Lock()
         self._thread: threading.Thread | None = None
 
     def start(self) -> None:
         self._thread = threading.Thread(target=self._run, name="fleet-discovery", daemon=True)
         self._thread.start()
 
+    def look_now(self, *later: float) -> None:
+        """Read the graph again at once, and again `later` seconds from now, not at the end of the period: another
+        process of a shared fleet lists a robot this one does not, and every process that can see it should say so
+        before it is given out (its own graph may show it a moment later than the other's)."""
+        with self._kicks_lock:
+            now = time.monotonic()
+            self._kicks = sorted([*self._kicks, *(now + d for d in later)])
+        self._kick.set()
+
     def stop(self, timeout: float = 10.0) -> None:
         self._stop.set()
+        self._kick.set()
         if self._thread is not None:
             self._thread.join(timeout)
             self._thread = None
@@ -205,10 +229,22 @@ class Discovery:
                 self.scan()
             except Exception:  # a bug must not end discovery for good
                 log.exception("discovery: a scan failed")
-            self._stop.wait(self.period)
+            with self._kicks_lock:
+                now = time.monotonic()
+                self._kicks = [t for t in self._kicks if t > now]
+                wait = min([self.period, *(t - now for t in self._kicks[:1])])
+            self._kick.wait(wait)
+            self._kick.clear()
 
     def scan(self) -> None:
-        """One reading of the graph, applied to the fleet."""
+        """One reading of the graph, applied to the fleet; then the `on_look` hooks."""
+        began = time.monotonic()
+        if self._look():
+            for hook in list(self.on_look):
+                hook(began)
+
+    def _look(self) -> bool:
+        """One reading of the graph, applied to the fleet; False when the graph could not be read."""
         now = self.clock()
         known = {ns for ns, _ in self._seen.values()}
         try:
@@ -217,7 +253,7 @@ class Discovery:
             if not self._graph_failing:
                 log.warning("discovery: the ROS graph cannot be read (%s); trying again", exc)
             self._graph_failing = True
-            return
+            return False
         if self._graph_failing:
             log.info("discovery: the ROS graph can be read again")
         self._graph_failing = False
@@ -239,7 +275,7 @@ class Discovery:
                 log.error("discovery: robot %s (namespace /%s) not served: %s", rid, ns, exc)
                 self._failed[rid] = now + RETRY
         if set(wanted) == set(served):
-            return
+            return True
         changes = self.fleet.apply(list(wanted.values()), "discovery")
         for rid, why in changes.failed.items():
             log.error("discovery: robot %s not served, tried again in %g s: %s", rid, RETRY, why)
@@ -248,10 +284,15 @@ class Discovery:
             self._failed.pop(rid, None)
         if changes.added or changes.removed:
             log.info("discovery: %s", changes.describe())
+        return True
 
 
-def ros2_graph(graph_node: Callable[[int | None], Any], domain: int | None) -> Graph:
-    return Ros2Graph(graph_node(domain))
+def ros2_graph(graph_node: Callable[[int | None], Any], domain: int | None, env: Mapping[str, str]) -> Graph:
+    """The ROS 2 graph of `domain` (None: the environment's). Its name is the domain, and this host's name when
+    discovery stays on the host (`ROS_LOCALHOST_ONLY`, `ROS_AUTOMATIC_DISCOVERY_RANGE`)."""
+    number = domain if domain is not None else env.get("ROS_DOMAIN_ID", "").strip() or "0"
+    local = env.get("ROS_LOCALHOST_ONLY") == "1" or env.get("ROS_AUTOMATIC_DISCOVERY_RANGE") in ("LOCALHOST", "OFF")
+    return Ros2Graph(graph_node(domain), f"ros2 domain {number}" + (f" on {socket.gethostname()}" if local else ""))
 
 
 def ros1_graph(master_uri: str | None, env: Mapping[str, str]) -> Graph:

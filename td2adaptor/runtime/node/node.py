@@ -127,7 +127,7 @@ class EdgeNode:
         template = robot_config(self.defaults, STAND_IN)
         if self.options.ros == 2:
             assert self.link.graph is not None
-            graph = ros2_graph(self.link.graph, template.ros_domain_id)
+            graph = ros2_graph(self.link.graph, template.ros_domain_id, os.environ)
         else:
             graph = ros1_graph(template.ros_master_uri, os.environ)
         discovery = Discovery(
@@ -137,6 +137,8 @@ class EdgeNode:
             lambda robot, namespace: robot_config(self.defaults, robot, namespace),
             grace=template.discover_grace,
         )
+        if self.shared is not None:
+            self.shared.follow(discovery)  # it looks at once when another member finds a robot
         discovery.start()
         self._extras.append(discovery.stop)
         return discovery

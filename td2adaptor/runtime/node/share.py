@@ -53,7 +53,16 @@ from td2adaptor.runtime.node.admitted import (
 )
 from td2adaptor.runtime.node.fleet import Changes, Fleet
 from td2adaptor.runtime.node.owner import Owner, lives, this_process
-from td2adaptor.runtime.node.shareplan import Status, assign, beats_topic, entries_topic, members_topic, read_status
+from td2adaptor.runtime.node.shareplan import (
+    Status,
+    assign,
+    beats_topic,
+    entries_topic,
+    members_topic,
+    names,
+    orphaned,
+    read_status,
+)
 
 log = logging.getLogger("td2adaptor.runtime.share")
 
@@ -72,8 +81,13 @@ SWEEP_PERIOD = 10.0
 TAKEN_OVER = "took its session over"
 #: seconds a robot newly listed by a member (the fleet file read again, a robot discovered, an admin request) waits
 #: before it is given out: the members that list it a moment later (they read the file or look at the ROS graph
-#: a little after) are known by then, so every member computes the same owner and the robot is not handed on
+#: a little after) are known by then, so every member computes the same owner and the robot is not handed on.
+#: A robot a member's discovery found waits less when every live member has said whether it sees it (`_heard`)
 SETTLE = 0.75
+#: seconds after it learnt that another member's discovery found a robot a member says (`unseen`) that its own
+#: discovery does not show it: the graphs of two processes show a robot that appears a moment apart (their ROS 2
+#: discovery), so the first look, at once, shows it only when the graph has it already
+UNSEEN_AFTER = 0.25
 #: seconds a robot its owner retired (it no longer lists it) waits before another member that still lists it claims
 #: it: the other members drop it too a moment later (they read the file, or look at the graph, a little after)
 RETIRED_WAIT = 2.0
@@ -137,7 +151,15 @@ class Share:
         self._waiting: dict[str, float] = {}  # robot -> since when it is ours but handed over to another member
         #: robot -> (its settings, since when no live member lists it): handed over by this process, not taken yet
         self._handed: dict[str, tuple[RuntimeConfig, float]] = {}
+        #: robot -> since when it is "online, handed over" by a member that left (died) and no live member lists it:
+        #: this process retires it if it is the one to (`_orphans`); None: it tried and could not
+        self._orphaned: dict[str, float | None] = {}
         self._listed: set[str] = set()  # what the live members list, at the last plan
+        #: robot -> when this process learnt that another member's discovery found it, which this one did not
+        self._asked: dict[str, float] = {}
+        self._unseen: set[str] = set()  # of those, the ones this process's discovery looked for and did not see
+        self._look_now: Callable[..., None] | None = None  # this process's discovery, to look at once (`follow`)
+        self._graph = ""  # which ROS graph its discovery reads (graphwatch.py `Graph.name`; "": unknown)
         self._taken: set[str] = set()  # robots whose session another member took: let go at the next round
         fleet.on_added.append(self._watch)
         fleet.prepare = self._prepare
@@ -192,6 +214,27 @@ class Share:
         self._wake.set()
         return Changes()  # who serves them is decided by the share's next round
 
+    def follow(self, discovery: Any) -> None:
+        """This process discovers robots (graphwatch.py `Discovery`): when another member finds a robot this one
+        does not list, its discovery looks at once, and after a look that began `UNSEEN_AFTER` later, this process
+        says in its record that it does not see it (`unseen`): the robot is given out once every live member said
+        whether it sees it (`_heard`) rather than after the whole `SETTLE`."""
+        self._look_now = discovery.look_now
+        self._graph = discovery.graph.name
+        discovery.on_look.append(self._looked)
+
+    def _looked(self, began: float) -> None:
+        """(discovery's thread) A look at the graph that began at `began` is done: what the others found that it
+        did not show is `unseen` now."""
+        with self._lock:
+            mine = self._mine()
+            unseen = self._unseen | {r for r, t in self._asked.items() if t + UNSEEN_AFTER <= began and r not in mine}
+            changed = unseen != self._unseen
+            self._unseen = unseen
+        if changed:
+            self._publish_record()
+            self._wake.set()
+
     def _mine(self) -> dict[str, RuntimeConfig]:
         """(under the lock) The robots this process can serve: its file's, the admin's, what it sees."""
         return {**self._found, **self._admin, **self._candidates}
@@ -212,6 +255,11 @@ class Share:
                 if node in live:
                     out.update(record.get("can") or ())
             return out
+
+    def unseen(self) -> set[str]:
+        """The robots another member's discovery found that this process looked for and does not see."""
+        with self._lock:
+            return set(self._unseen)
 
     def admin_robots(self) -> set[str]:
         with self._lock:
@@ -273,6 +321,7 @@ class Share:
 
     def _on_member(self, message: Message) -> None:
         node = message.topic.rsplit("/", 1)[1]
+        new: list[str] = []  # robots its discovery found that this process does not list
         with self._lock:
             if not message.payload:
                 if self._members.pop(node, None) is not None:
@@ -290,6 +339,11 @@ class Share:
                     self._beats.setdefault(node, time.monotonic())  # a `timeout` of grace for its first beat
                 self._members[node] = record
                 self._gone.discard(node)
+                mine = self._mine()
+                new = [r for r in names(record.get("found")) if r not in mine and r not in self._asked]
+                self._asked.update(dict.fromkeys(new, time.monotonic()))
+        if new and self._look_now is not None:
+            self._look_now(UNSEEN_AFTER)  # does this process see them too? (`_heard`)
         self._wake.set()
 
     def _on_status(self, message: Message) -> None:
@@ -402,10 +456,51 @@ class Share:
         self._listed = listed
         self._first = {r: self._first.get(r, now if self._planned else 0.0) for r in listed}
         self._planned = True
-        waiting = [t + SETTLE for t in self._first.values() if now - t < SETTLE]
+        found = self._found_by(live)
+        self._asked = {r: t for r, t in self._asked.items() if r in found and r not in mine}
+        self._unseen = set(self._asked) if self._look_now is None else self._unseen & set(self._asked)
+        ready = {r for r, t in self._first.items() if now - t >= SETTLE or self._heard(r, live, can, found)}
+        waiting = [t + SETTLE for r, t in self._first.items() if r not in ready]
         self._due = min(waiting) if waiting else None
-        ready = {r for r, t in self._first.items() if now - t >= SETTLE}
         return assign(ready, live, can), mine
+
+    def _found_by(self, live: set[str]) -> set[str]:
+        """(under the lock) The robots the discovery of a live member (this one included) finds."""
+        found = set(self._found)
+        for node in live - {self.me.node}:
+            found.update(names(self._members.get(node, {}).get("found")))
+        return found
+
+    def _heard(self, robot: str, live: set[str], can: Mapping[str, set[str]], found: set[str]) -> bool:
+        """(under the lock) May `robot`, newly listed, be given out before `SETTLE` is over? Yes when a member's
+        discovery found it and every live member said whether it sees it: it lists it, or it looked at its graph
+        since it learnt of it and did not see it (`unseen`; a member without discovery at once), or it reads
+        another ROS graph than every member that found it (another ROS 2 domain, ROS 1 master: `graph` in its
+        record), which cannot show it. Then no member that sees it is left out of the plan. A robot of a fleet
+        file or an admin request waits the whole `SETTLE`: the members read a reloaded file, or an entry, each at
+        its own moment and say nothing before."""
+        if robot not in found or robot in self._admin:
+            return False
+        graphs = {self._graph_of(n) for n in live if robot in self._found_of(n)}
+        for node in live:
+            if robot in can.get(node, ()):
+                continue
+            unseen = self._unseen if node == self.me.node else names(self._members.get(node, {}).get("unseen"))
+            elsewhere = "" not in graphs and self._graph_of(node) not in graphs | {""}
+            if robot not in unseen and not elsewhere:
+                return False
+        return True
+
+    def _graph_of(self, node: str) -> str:
+        """(under the lock) Which ROS graph member `node`'s discovery reads ("": unknown, or none)."""
+        if node == self.me.node:
+            return self._graph
+        graph = self._members.get(node, {}).get("graph")
+        return graph if isinstance(graph, str) else ""
+
+    def _found_of(self, node: str) -> set[str]:
+        """(under the lock) What member `node`'s discovery finds."""
+        return set(self._found) if node == self.me.node else names(self._members.get(node, {}).get("found"))
 
     def _lists(self, live: set[str], mine: Mapping[str, RuntimeConfig]) -> dict[str, set[str]]:
         """(under the lock) Member -> the robots it lists, of the `live` ones (this one: `mine`)."""
@@ -454,6 +549,9 @@ class Share:
                 self._took(robot, status)
         for config in self._unclaimed(statuses, listed, set(self.fleet.robots(ORIGIN))):
             if self._retire_unclaimed(config):
+                changes.removed.append(config.robot)
+        for config in self._orphans(statuses, listed, live):
+            if self._retireorphaned(config):
                 changes.removed.append(config.robot)
         if changes:
             log.info("fleet %s: %s", self.name, changes.describe())
@@ -514,6 +612,74 @@ class Share:
                 "lists it",
                 robot,
                 to,
+            )
+        return done
+
+    def _orphans(self, statuses: Mapping[str, Status], listed: set[str], live: set[str]) -> list[RuntimeConfig]:
+        """The robots a member that left (it died: its record was cleared) had handed over, still "online, handed
+        over" by it, that no live member has listed for `UNCLAIMED_WAIT`: the member it was handed over to dropped
+        it, and the one that handed it over died before it retired it (`_unclaimed`). The member it was handed to
+        retires it if it is live, else the live member whose node id sorts first: the same one in every view.
+        Its settings are the template's (`make_config`): the robot's credentials, where the fleet's robots share
+        the top-level user; one the broker refuses is left as it is (said once in the log)."""
+        if self.make_config is None:
+            return []
+        now = time.monotonic()
+        due: list[RuntimeConfig] = []
+        with self._lock:
+            for robot in set(self._orphaned) - set(statuses):
+                del self._orphaned[robot]
+            for robot, status in statuses.items():
+                if not orphaned(status, self._gone, live) or robot in listed:
+                    self._orphaned.pop(robot, None)
+                    continue
+                to = status.handover or ""  # set: `_orphan`
+                if (to if to in live else min(live)) != self.me.node:
+                    continue
+                since = self._orphaned.setdefault(robot, now)
+                if since is not None and now - since >= UNCLAIMED_WAIT:
+                    try:
+                        due.append(self.make_config(robot, None))
+                    except ConfigError as exc:
+                        log.warning("robot %s: could not retire it: %s", robot, exc)
+                        self._orphaned[robot] = None
+        return due
+
+    def _retireorphaned(self, config: RuntimeConfig) -> bool:
+        """Retire a robot `_orphans` found, on its own session (node/unclaimed.py), as its dead owner would have:
+        `offline` with `retired` (this process's node), TD cleared. Looked at once more first, as in
+        `_retire_unclaimed`."""
+        from td2adaptor.runtime.bus.bus import BusError
+        from td2adaptor.runtime.bus.security import SecurityError
+        from td2adaptor.runtime.node.status import owner_fields
+        from td2adaptor.runtime.node.unclaimed import retire
+
+        robot = config.robot
+        with self._lock:
+            live = self._live()
+            listed = set().union(*self._lists(live, self._mine()).values())
+            status = self._statuses.get(robot)
+            if robot in listed or status is None or not orphaned(status, self._gone, live):
+                self._orphaned.pop(robot, None)
+                return False
+            dead = status.owner.describe() if status.owner is not None else "a member"
+        retired = {"node": self.me.node, "time": _now()}
+        offline = status_event(config, self.fleet.model, "offline", **owner_fields(), retired=retired)
+        try:
+            done = retire(config, self.fleet.model, offline)
+        except (BusError, SecurityError) as exc:
+            done = False
+            log.warning("robot %s: could not retire it with the fleet's settings: %s", robot, exc)
+        with self._lock:
+            if robot in self._orphaned:
+                self._orphaned[robot] = None  # tried: once
+        if done:
+            log.info(
+                "robot %s: retired: %s handed it over to member %s and left before it retired it, and no member "
+                "lists it",
+                robot,
+                dead,
+                status.handover,
             )
         return done
 
@@ -687,6 +853,9 @@ class Share:
             "joined": self._joined,
             "robots": sorted(self.fleet.robots(ORIGIN)),
             "can": self._can(),
+            "found": sorted(self.robots("discovery")),  # what its discovery sees (`_heard`)
+            "graph": self._graph,  # which ROS graph that is
+            "unseen": sorted(self.unseen()),  # what the others' discovery found and this one does not see
             "admin": sorted(self.admin_robots()),  # what it learnt of the admin's entries (fleet status, tests)
             "takeovers": list(self.takeovers),
         }

@@ -4,7 +4,8 @@
 * `assign`: rendezvous hashing with a bound on the load, so the shares differ by one robot at most and a member
   that leaves moves little but its own robots; `can` limits each robot to the members that list it.
 * the topics under `<root>/.fleet/<fleet>/`: member records, beats, and the robots admin requests added;
-* `read_status`: what a robot's retained status says about its owner (free, handed over, retired).
+* `read_status`: what a robot's retained status says about its owner (free, handed over, retired), and
+  `orphaned`: whether it was handed over by a member that left; `names`: a member record's list of robots.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from __future__ import annotations
 import hashlib
 from collections.abc import Collection, Iterable, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import orjson
 
@@ -98,3 +100,21 @@ def read_status(payload: bytes) -> Status | None:
     to = handover.get("node") if isinstance(handover, Mapping) else None
     retired = isinstance(body.get("retired"), Mapping)
     return Status(state if isinstance(state, str) else "", Owner.from_json(body.get("owner")), to, retired)
+
+
+def names(value: Any) -> set[str]:
+    """A record's list of robot ids (nothing when it is not a list: a record of another version)."""
+    return {v for v in value if isinstance(v, str)} if isinstance(value, list) else set()
+
+
+def orphaned(status: Status, gone: set[str], live: set[str]) -> bool:
+    """Whether the robot's status is "online, handed over" by a member of this fleet that left (`gone`), to one
+    that did not take it."""
+    owner = status.owner
+    return (
+        status.state == "online"
+        and status.handover is not None
+        and owner is not None
+        and owner.node in gone
+        and owner.node not in live
+    )
