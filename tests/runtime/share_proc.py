@@ -93,6 +93,7 @@ class LoggedPort(SimPort):
 def main() -> None:
     logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     logging.getLogger("td2adaptor.runtime.share").setLevel(logging.INFO)
+    logging.getLogger("td2adaptor.runtime.fleet").setLevel(logging.INFO)  # where each robot that joins came from
     url, state_dir, count, runs = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
     if sys.argv[5:] == ["own"]:  # another host: no state directory shared with the others
         state_dir = os.path.join(state_dir, str(os.getpid()))

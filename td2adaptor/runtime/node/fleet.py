@@ -99,6 +99,9 @@ class Fleet:
         #: the last look before a robot connects (its ROS side is up, its session not taken yet): why it must not
         #: be served now, or None. A shared fleet (share.py) declines a robot another member claimed meanwhile
         self.admit: Callable[[RuntimeConfig], str | None] | None = None
+        #: how the log names where a robot that joins came from (a shared fleet keeps its robots under one origin
+        #: here and knows the real one: file, discovery or admin)
+        self.source: Callable[[str, str], str] = lambda _robot, origin: origin
         self._lock = threading.RLock()
         self._engines: dict[str, Engine] = {}
         self._origin: dict[str, str] = {}
@@ -274,7 +277,8 @@ class Fleet:
                 raise FleetError(robots, "could not start (the edge node's log says why)") from None
             raise FleetError(robots, str(exc)) from None
         for engine in started.values():
-            log.info("robot %s: served from now on (%s)", engine.config.robot, origin)
+            robot = engine.config.robot
+            log.info("robot %s: served from now on (%s)", robot, self.source(robot, origin))
             self._tell(self.on_added, engine)
         return started
 

@@ -128,6 +128,7 @@ class Share:
         self.timeout = timeout  # seconds a member may be silent (no beat) before the others take its robots
         self.me = me or this_process()
         fleet.check = _no_check  # who may serve a robot is decided here, from the members and the statuses
+        fleet.source = lambda robot, _origin: f"shared, {self.origin(robot) or 'listed by another member'}"
         self.takeovers: deque[dict[str, Any]] = deque(maxlen=TAKEOVERS_KEPT)
         self.on_change: list[Callable[[Changes], None]] = []  # tests, logs: after each change of the share
         self._lock = threading.Lock()
@@ -158,6 +159,7 @@ class Share:
         #: robot -> when this process learnt that another member's discovery found it, which this one did not
         self._asked: dict[str, float] = {}
         self._unseen: set[str] = set()  # of those, the ones this process's discovery looked for and did not see
+        self._foreign: set[str] = set()  # robots served by a live process outside the share: logged once each
         self._look_now: Callable[..., None] | None = None  # this process's discovery, to look at once (`follow`)
         self._graph = ""  # which ROS graph its discovery reads (graphwatch.py `Graph.name`; "": unknown)
         self._taken: set[str] = set()  # robots whose session another member took: let go at the next round
@@ -702,7 +704,21 @@ class Share:
             return time.monotonic() - since > HANDOVER_WAIT  # which does not take it: it is no longer its
         if owner.node in live:
             return False  # its owner serves it still: it hands it over first
-        return owner.node in gone or not lives(owner)  # the owner died (or a stale record of this host)
+        if owner.node in gone or not lives(owner):
+            return True  # the owner died (or a stale record of this host)
+        with self._lock:
+            member = owner.node in self._members
+            said = robot in self._foreign
+            self._foreign.add(robot)
+        if not member and not said:  # a process outside the share serves it: this one would wait in silence
+            log.warning(
+                "robot %s: not served by fleet %s: %s serves it and is no member of the fleet (started without "
+                "--share?); the fleet takes it once that process stops",
+                robot,
+                self.name,
+                owner.describe(),
+            )
+        return False
 
     def _admit(self, config: RuntimeConfig) -> str | None:
         """(Fleet.admit) The last look before this process takes the robot's session, after its ROS side came up
@@ -832,8 +848,15 @@ class Share:
             self.fleet.remove(robot, f"was handed over to {who}", retire=False)
 
     def _took(self, robot: str, status: Status | None) -> None:
-        """Note a robot this process took from another one (the member record and `fleet status` show it)."""
+        """Note a robot this process took from another member (the member record and `fleet status` show it). A
+        robot whose last owner was never a member (a plain `run` that stopped, long ago maybe) is started, not
+        taken over."""
         if status is None or status.owner is None or status.owner.node == self.me.node:
+            return
+        with self._lock:
+            member = status.owner.node in self._members or status.owner.node in self._gone
+        if not member:
+            log.info("robot %s: served by this member now (last served by %s)", robot, status.owner.describe())
             return
         how = "handover" if status.handover == self.me.node else "takeover"  # else its owner stopped or died
         entry = {"robot": robot, "from": status.owner.to_json(), "how": how, "time": _now()}
