@@ -72,7 +72,8 @@ def test_a_resumed_process_runs_nothing_it_read_on_a_session_taken_over(
             assert until(lambda: served_by(watcher, {other.pid}, ROBOTS), 20), (watcher.owners(), procs.logs())
             # the broker gives the session's commands to the next owner, which runs them
             assert until(lambda: set(sent) <= set(watcher.terminals()), 30), procs.logs()
-            assert sorted(procs.runs_of().values()) == [1, 1], procs.runs_of()
+            ends = {i: watcher.terminals()[i] for i in sent}
+            assert sorted(procs.runs_of().values()) == [1, 1], (procs.runs_of(), ends, procs.logs())
         finally:
             frozen.send_signal(signal.SIGCONT)
         # it lets the robot go, takes a share again by hand-over, and runs none of the commands a second time
