@@ -25,7 +25,7 @@ from tests.ros2 import env
 from tests.ros2.common import EXAMPLE, PACKAGE, Process
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
-from tests.runtime.edge import RunProcess, check_mission, feedback, until
+from tests.runtime.edge import RunProcess, check_mission, feedback, stretched, until
 from tests.runtime.rb1 import GOAL, terminal
 
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain, rb1_prefix, adaptor_build
@@ -197,7 +197,7 @@ def test_robots_added_to_and_removed_from_the_fleet_file_join_and_leave_without_
         took = (watch.status_at("joined", "online", changed) or 1e9) - changed
         # the node looks every half second and waits for the file to stand still one look
         print(f"file change -> online: {took:.2f} s")
-        assert took <= SERVED_WITHIN, f"served {took:.2f} s after the change"
+        assert took <= stretched(SERVED_WITHIN), f"served {took:.2f} s after the change"
         watch.wait_status("leave", "offline", timeout=30)
         # the removed robot's mission in flight ended with one clear terminal event
         watch.app.wait(terminal("feedback", "cut-1"), timeout=20)
@@ -257,7 +257,7 @@ def test_sighup_reloads_the_fleet_under_load_and_the_other_robots_missions_go_on
         watch.wait_status("added", "online", timeout=30)
         took = (watch.status_at("added", "online", hup) or 1e9) - hup
         print(f"SIGHUP -> online: {took:.2f} s")
-        assert took <= SERVED_WITHIN, f"served {took:.2f} s after SIGHUP"
+        assert took <= stretched(SERVED_WITHIN), f"served {took:.2f} s after SIGHUP"
         assert until(lambda: watch.status_at("changed", "online", hup) is not None, 30)
         assert until(lambda: all(len(v) >= 5 for v in sent.values()), 60)
         stop.set()
@@ -330,7 +330,7 @@ def test_discovery_serves_a_robot_that_appears_in_the_ros_graph_and_retires_it_w
         watch.wait_status("disc_a", "online", timeout=30)
         took = (watch.status_at("disc_a", "online", appeared) or 1e9) - appeared
         print(f"appeared -> online: {took:.2f} s")
-        assert took <= SERVED_WITHIN, f"served {took:.2f} s after it appeared"
+        assert took <= stretched(SERVED_WITHIN), f"served {took:.2f} s after it appeared"
         td = watch.tds("disc_a")[-1]
         assert td["id"].endswith(":disc_a"), td["id"]
         mission(watch, "disc_a", "found-1")
@@ -402,7 +402,7 @@ def test_admin_requests_add_and_remove_a_robot_and_an_unauthorised_one_is_refuse
         watch.wait_status("second", "online")
         took = (watch.status_at("second", "online", sent) or 1e9) - sent
         print(f"admin add -> online: {took:.2f} s")
-        assert took <= SERVED_WITHIN, took
+        assert took <= stretched(SERVED_WITHIN), took
         mission(watch, "second", "adm-m1")
         watch.app.wait(terminal("feedback", "adm-m1"), timeout=30)
         check(watch, "adm-m1", run, robots)

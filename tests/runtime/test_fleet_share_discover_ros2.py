@@ -29,7 +29,7 @@ from td2adaptor.runtime.node.graphwatch import PERIOD
 from tests.ros2 import env
 from tests.ros2.common import Process
 from tests.runtime.broker import Mosquitto
-from tests.runtime.edge import RunProcess, check_mission, until
+from tests.runtime.edge import RunProcess, check_mission, stretched, until
 from tests.runtime.rb1 import GOAL, terminal
 from tests.runtime.test_fleet_changes_ros2 import ADMIN_KEY, Watch, goto, mission, node_env, run_args, sim_process
 from tests.runtime.test_fleet_share import bridged
@@ -49,10 +49,8 @@ SERVED_WITHIN = 2.0
 
 
 def served_within() -> float:
-    """`SERVED_WITHIN`, stretched on a machine busier than its cores (load average above twice their number): every
-    step is a process's turn on a core then (the measured share part was 0.4-1.1 s at load 8-12, 1.8 s at 26)."""
-    busy = os.getloadavg()[0] / (2 * (os.cpu_count() or 1))
-    return SERVED_WITHIN * max(1.0, busy)
+    """`SERVED_WITHIN`, stretched on a machine busier than its cores (tests/runtime/edge.py `stretched`)."""
+    return stretched(SERVED_WITHIN)
 
 
 def settings(path: Path, broker: Mosquitto, tmp_path: Path, *robots: tuple[str, str]) -> None:

@@ -130,12 +130,15 @@ def test_components_follow_td_order_and_paper_names(tmp_path: Path) -> None:
         "construct_gotoRun_Msg",
         "call_gotoRun",
         "call_gotoRun_async",
+        "call_gotoRun_then",
         "construct_gotoCancel_Msg",
         "call_gotoCancel",
         "call_gotoCancel_async",
+        "call_gotoCancel_then",
         "construct_gotoQuery_Msg",
         "call_gotoQuery",
         "call_gotoQuery_async",
+        "call_gotoQuery_then",
     ]
     assert methods["AvailabilityComponent"][4:] == [
         "get_availability_value",
@@ -176,6 +179,7 @@ def test_hostile_titles_and_descriptions_stay_text(tmp_path: Path) -> None:
         "math",
         "re",
         "itertools",
+        "heapq",
         "sys",
         "threading",
         "time",
