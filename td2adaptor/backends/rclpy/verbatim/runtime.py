@@ -307,7 +307,8 @@ class _Reader:
         try:
             with contextlib.ExitStack() as held:
                 wait_set: Any = None
-                drop = collections.deque(maxlen=0).extend  # runs an iterator in C, keeping nothing
+                sink: collections.deque[object] = collections.deque(maxlen=0)
+                drop = sink.extend  # runs an iterator in C, keeping nothing
                 handles: list[Any] = []  # the subscriptions' handles, in registration order
                 subscribers: dict[int, tuple[Any, TopicSubscriber[Any]]] = {}  # by the handle's pointer
                 registered: dict[ServiceClient[Any, Any], Any] = {}  # the clients' handles
