@@ -563,3 +563,70 @@ def test_call_then_sends_nothing_without_a_server_and_times_out_on_a_silent_one(
     assert answer is None and isinstance(error, adaptor.CallTimeout) and error.timeout == 0.5
     assert thread == "adaptor-responses" and 0.45 <= elapsed < 5.0, (thread, elapsed)
     assert not never.calls
+
+
+def test_a_message_costs_the_subscriptions_reader_no_python_per_subscription(
+    adaptor: ModuleType, ros_node: Any
+) -> None:
+    """A fleet's node has hundreds of subscriptions, and every message wakes the subscriptions reader: the
+    Python it runs for one message (line events of `_Reader._run`, traced) does not grow with them. The ready
+    subscriptions are found by pointer, and the wait set is refilled without a Python loop (rcl empties it at
+    each wait). Messages still come in order and none is lost, also when several subscriptions are ready."""
+    import rclpy
+    from std_msgs.msg import String
+
+    runtime = importlib.import_module(f"{adaptor.__name__}.runtime")
+    node: Any = rclpy.create_node("adaptor_test_many_subscriptions", context=ros_node.context)
+    qos = runtime.qos_profile("reliable", "volatile", "keep_last", 100)
+    subscribers = [runtime.TopicSubscriber(node, String, f"/many_subscriptions/t{i}", qos) for i in range(200)]
+    heard: dict[int, list[str]] = {i: [] for i in (7, 8, 9)}
+    arrived = threading.Semaphore(0)
+
+    def listen(i: int) -> Callable[[Any], None]:
+        def callback(msg: Any) -> None:
+            heard[i].append(msg.data)
+            arrived.release()
+
+        return callback
+
+    for i, subscriber in enumerate(subscribers):
+        subscriber.register()
+        if i in heard:
+            subscriber.add_callback(listen(i))
+    lines = [0]
+    run = runtime._Reader._run.__code__
+
+    def count(frame: Any, event: str, arg: Any) -> Any:
+        if event == "line":
+            lines[0] += 1
+        return count
+
+    def trace(frame: Any, event: str, arg: Any) -> Any:
+        return count if frame.f_code is run else None  # the reader's loop only, not what it calls
+
+    outer = threading.gettrace()
+    threading.settrace(trace)  # the threads started now: the spinner's and its readers
+    try:
+        spinner = adaptor.spin_in_background(node)
+    finally:
+        threading.settrace(outer)  # type: ignore[arg-type]
+    publishers = {i: node.create_publisher(String, f"/many_subscriptions/t{i}", qos) for i in heard}
+    try:
+        assert until(lambda: all(s.group.served for s in subscribers), 10.0), "the reader serves them all"
+        assert until(lambda: all(p.get_subscription_count() == 1 for p in publishers.values()), 10.0)
+        lines[0] = 0
+        for n in range(20):  # one message at a time: a wake each
+            publishers[7].publish(String(data=str(n)))
+            assert arrived.acquire(timeout=10.0), f"message {n} delivered"
+        per_message = lines[0] / 20
+        for n in range(20, 70):  # a burst on three subscriptions at once
+            for i in (7, 8, 9):
+                publishers[i].publish(String(data=str(n)))
+        for _ in range(150):
+            assert arrived.acquire(timeout=10.0), heard
+        burst = [str(n) for n in range(20, 70)]
+        assert heard == {7: [str(n) for n in range(70)], 8: burst, 9: burst}
+        assert per_message < 100, f"{per_message} lines of the reader's loop per message, with 200 subscriptions"
+    finally:
+        spinner.stop()
+        node.destroy_node()
