@@ -174,6 +174,8 @@ def test_door_command_reaches_the_robot(adaptor: ModuleType, ros_node: Any, sim:
 
 def test_async_calls_in_coroutine_callbacks(adaptor: ModuleType, ros_node: Any, sim: Process) -> None:
     pick = adaptor.PickComponent(ros_node, "rb1_base_e", wait_timeout=10.0)
+    lost = (adaptor.ServiceUnavailable, adaptor.CallTimeout)  # a new client's first answers may be lost (answered)
+    assert until(lambda: answered(lambda: pick.call_pickQuery(mission_id=-1), lost, adaptor.CallFailed), 30.0, 0.1)
     started = run_in_executor(ros_node, pick.call_pickRun_async(pick.construct_pickRun_Msg()))
     assert isinstance(started, adaptor.Started) and started.response.state.current_state == "queued"
     response = run_in_executor(ros_node, pick.call_pickQuery_async())
