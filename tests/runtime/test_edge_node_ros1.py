@@ -66,17 +66,7 @@ def test_bridge_ports_drive_the_ros1_sim_and_a_mission_runs_through_the_engine(
     master: Master, sim: Sim, interfaces: Path, package_src: Path
 ) -> None:
     model = rb1_model()
-    bridge = Ros1Bridge(
-        Layout.of(model),
-        PKG,
-        [(ROBOT, ROBOT)],
-        python=harness.SYSTEM_PYTHON,
-        pythonpath=[interfaces, package_src],
-        master_uri=master.uri,
-        timeout=5.0,
-        environ=master.env(),
-        restart_period=0.5,
-    )
+    bridge = rb1_bridge(model, master, interfaces, package_src, restart_period=0.5)
     bridge.start()
     try:
         port = bridge.port(ROBOT)
@@ -148,16 +138,7 @@ def test_through_the_bridge_calls_are_answered_on_its_reader_without_the_call_po
     requests from its loop, and the bridge's reader publishes the answer: no call-pool thread waits for the
     child's reply (one thread hand-off fewer each way, as on ROS 2)."""
     model = rb1_model()
-    bridge = Ros1Bridge(
-        Layout.of(model),
-        PKG,
-        [(ROBOT, ROBOT)],
-        python=harness.SYSTEM_PYTHON,
-        pythonpath=[interfaces, package_src],
-        master_uri=master.uri,
-        timeout=5.0,
-        environ=master.env(),
-    )
+    bridge = rb1_bridge(model, master, interfaces, package_src)
     bridge.start()
     pooled: list[str] = []  # the robot's calls handed to the call pool (its lane)
     submit = loop.Lane.submit
@@ -176,13 +157,7 @@ def test_through_the_bridge_calls_are_answered_on_its_reader_without_the_call_po
     try:
         port = bridge.port(ROBOT)
 
-        def answering() -> bool:
-            try:
-                return _alive(port)
-            except PortCallFailed:  # an answer: the robot ran no procedure yet
-                return True
-
-        assert until(answering, 20.0, 0.2)
+        assert until(lambda: _answering(port), 20.0, 0.2)
         monkeypatch.setattr(loop.Lane, "submit", counted)
         monkeypatch.setattr(Outbox, "send", recorded)
         broker = LocalBroker()
@@ -215,29 +190,14 @@ def test_a_call_the_stopped_bridge_never_answers_is_answered_once_after_its_guar
     margin, and the reply that comes once the child goes on is not answered a second time."""
     monkeypatch.setattr(context, "QUICK_MARGIN", 0.5)
     model = rb1_model()
-    bridge = Ros1Bridge(
-        Layout.of(model),
-        PKG,
-        [(ROBOT, ROBOT)],
-        python=harness.SYSTEM_PYTHON,
-        pythonpath=[interfaces, package_src],
-        master_uri=master.uri,
-        timeout=5.0,
-        environ=master.env(),
-    )
+    bridge = rb1_bridge(model, master, interfaces, package_src)
     bridge.start()
     pid = bridge.pid
     assert pid is not None
     try:
         port = bridge.port(ROBOT)
 
-        def answering() -> bool:
-            try:
-                return _alive(port)
-            except PortCallFailed:  # an answer: the robot ran no procedure yet
-                return True
-
-        assert until(answering, 20.0, 0.2)
+        assert until(lambda: _answering(port), 20.0, 0.2)
         broker = LocalBroker()
         app = LocalApp(broker)
         config = RuntimeConfig(robot=ROBOT, poll_period=0.05, property_period=0, call_timeout=1.0)
@@ -253,7 +213,7 @@ def test_a_call_the_stopped_bridge_never_answers_is_answered_once_after_its_guar
             assert [e["type"] for e in answers] == ["error"], answers
             assert "gotoQuery of mission 4242 failed" in answers[0]["payload"]["message"], answers
             assert 1.4 <= elapsed < 10.0, elapsed
-            assert until(answering, 20.0, 0.2)  # the child goes on and answers what it was asked meanwhile
+            assert until(lambda: _answering(port), 20.0, 0.2)  # the child goes on, answers what it was asked
             time.sleep(0.5)
         finally:
             engine.stop()
@@ -269,16 +229,7 @@ def test_values_no_ros_type_holds_never_reach_the_ros1_robot(
     """Issue 30 on ROS 1: what no ROS number or text holds is refused before the bridge is asked (envelope and
     WoT topics); the door hears only the valid command after them."""
     model = rb1_model()
-    bridge = Ros1Bridge(
-        Layout.of(model),
-        PKG,
-        [(ROBOT, ROBOT)],
-        python=harness.SYSTEM_PYTHON,
-        pythonpath=[interfaces, package_src],
-        master_uri=master.uri,
-        timeout=5.0,
-        environ=master.env(),
-    )
+    bridge = rb1_bridge(model, master, interfaces, package_src)
     bridge.start()
     broker = LocalBroker()
     app = LocalApp(broker, f"td2adaptor/{ROBOT}/error")
@@ -347,6 +298,28 @@ def _group_members(pgid: int) -> list[int]:
         if int(fields[2]) == pgid:
             found.append(int(stat.parent.name))
     return found
+
+
+def rb1_bridge(model: Any, master: Master, interfaces: Path, package_src: Path, **options: Any) -> Ros1Bridge:
+    """The RB-1 adaptor's ROS 1 bridge for ROBOT (not started yet)."""
+    return Ros1Bridge(
+        Layout.of(model),
+        PKG,
+        [(ROBOT, ROBOT)],
+        python=harness.SYSTEM_PYTHON,
+        pythonpath=[interfaces, package_src],
+        master_uri=master.uri,
+        environ=master.env(),
+        **{"timeout": 5.0, **options},
+    )
+
+
+def _answering(port: Any) -> bool:
+    """Whether the robot answers through the bridge yet (a failure is an answer: it ran no procedure yet)."""
+    try:
+        return _alive(port)
+    except PortCallFailed:
+        return True
 
 
 def _alive(port: Any) -> bool:

@@ -12,9 +12,7 @@ import re
 import signal
 import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 from tests.conftest import REPO
 from tests.ros2 import env
@@ -23,6 +21,7 @@ from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.edge import RunProcess, until
 from tests.runtime.rb1 import GOAL, terminal
+from tests.runtime.test_presence_ros2 import status_of
 
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain, rb1_prefix, adaptor_build, ...
 
@@ -36,15 +35,6 @@ def documented_profile() -> str:
     found = re.search(r"<!-- robot-lease-profile -->\n```xml\n(.*?)```", page, re.S)
     assert found, "docs/fleet.md lost its robot lease profile"
     return found.group(1)
-
-
-def status_of(app: AppClient) -> Callable[[], dict[str, Any]]:
-    def last() -> dict[str, Any]:
-        with app.cond:
-            found = [e["payload"] for t, e in app.events if t == f"td2adaptor/{ROBOT}/status" and "payload" in e]
-        return found[-1] if found else {}
-
-    return last
 
 
 def test_a_robot_killed_with_a_short_lease_is_absent_within_its_lease(
@@ -67,7 +57,7 @@ def test_a_robot_killed_with_a_short_lease_is_absent_within_its_lease(
     run_args = [str(EXAMPLE / "rb1.tm.json"), "-I", str(EXAMPLE / "interfaces"), "--robot", ROBOT]
     run_args += ["--bus", broker.url, "--call-timeout", "20", "--property-period", "0", "--poll-period", "0.1"]
     app = AppClient(broker, [f"td2adaptor/{ROBOT}/#"])
-    status = status_of(app)
+    status = status_of(app, ROBOT)
     run = RunProcess(run_args, env=environ, command=[str(adaptor_build[1] / "lib" / PACKAGE / "edge_node")])
     try:
         sim.wait_for(lambda e: e.get("event") == "ready", timeout=30)

@@ -38,10 +38,12 @@ def simulation(prefix: Path) -> Process:
     return process
 
 
-def status_of(app: AppClient) -> Callable[[], dict[str, Any]]:
+def status_of(app: AppClient, robot: str = ROBOT) -> Callable[[], dict[str, Any]]:
+    """The last status `app` received of `robot`."""
+
     def last() -> dict[str, Any]:
         with app.cond:
-            found = [e["payload"] for t, e in app.events if t == f"td2adaptor/{ROBOT}/status" and "payload" in e]
+            found = [e["payload"] for t, e in app.events if t == f"td2adaptor/{robot}/status" and "payload" in e]
         return found[-1] if found else {}
 
     return last
