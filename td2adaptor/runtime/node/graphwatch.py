@@ -195,6 +195,10 @@ class Discovery:
         #: shared fleet says then which robots the others see that this process does not (share.py, `unseen`)
         self.on_look: list[Callable[[float], None]] = []
         self._seen: dict[str, tuple[str, float]] = {}  # robot id -> (namespace, when last seen)
+        #: robot id -> when a look first did not see it: it leaves once gone that long (`grace`), counted from
+        #: the first look without it, not from the last one with it (looks delayed by a long start of other
+        #: robots made a robot gone for a moment count as gone for the whole delay)
+        self._missing: dict[str, float] = {}
         self._failed: dict[str, float] = {}  # robot id -> when it may be tried again
         self._graph_failing = False
         self._stop = threading.Event()
@@ -262,7 +266,12 @@ class Discovery:
             rid = robot_id(ns)
             if rid is not None:
                 self._seen[rid] = (ns, now)
-        self._seen = {r: (ns, t) for r, (ns, t) in self._seen.items() if now - t <= self.grace}
+                self._missing.pop(rid, None)
+        for rid, (_ns, t) in self._seen.items():
+            if t != now:
+                self._missing.setdefault(rid, now)
+        self._seen = {r: v for r, v in self._seen.items() if now - self._missing.get(r, now) < self.grace}
+        self._missing = {r: t for r, t in self._missing.items() if r in self._seen}
         served = self.fleet.robots("discovery")
         others = {c.ros_namespace.strip("/") for r, c in self.fleet.robots().items() if r not in served}
         wanted: dict[str, RuntimeConfig] = {}
