@@ -50,7 +50,7 @@ from td2adaptor.runtime.engine.ledger import Ledger, Record
 from td2adaptor.runtime.engine.missions import Mission, MissionTable
 from td2adaptor.runtime.engine.outbox import Outbox
 from td2adaptor.runtime.engine.precheck import FastCheck
-from td2adaptor.runtime.engine.procedure import DEFAULT_MISSION_PATH, ProcedureRunner, answer, requested
+from td2adaptor.runtime.engine.procedure import DEFAULT_MISSION_PATH, ProcedureRunner, answer, answering, requested
 from td2adaptor.runtime.engine.replay import ReplayGuard, Verdict, digest, time_problem
 from td2adaptor.runtime.engine.streams import PropertyStreams, streams
 from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope, references, salvage
@@ -163,7 +163,6 @@ class Engine:
         self._threads: list[threading.Thread] = []  # the process's engine loop, while this engine uses it
         self._shared: Shared | None = None  # the process's loop and call pool (loop.py), from start to stop
         self._lane: Lane | None = None  # this robot's share of the call pool
-        self._quick: QuickCall | None = None  # the port, when it makes calls without a waiting thread (start)
         self._ctx: RobotContext | None = None  # what the mission runners share (start)
         self._procedures: ProcedureRunner | None = None  # the procedure missions, on the loop (procedure.py)
         self._goals: GoalRunner | None = None  # the ROS action goals, on the loop (goals.py)
@@ -200,7 +199,7 @@ class Engine:
             self.gate,
             self.port if isinstance(self.port, QuickCall) else None,
         )
-        self._quick, self._ctx = ctx.quick, ctx
+        self._ctx = ctx
         self._procedures = ProcedureRunner(ctx)
         self._goals = GoalRunner(ctx)
         try:
@@ -675,15 +674,10 @@ class Engine:
         call, answered with one state event: sent from here when the port can do it without a waiting thread
         (`QuickCall`: the answer is published on the port's thread), else on the pool."""
         mid = self._mission_for(procedure, event.get("mission"))
-        quick, ctx = self._quick, self._ctx
-        if quick is not None and ctx is not None:
-            send = quick.try_cancel if cancel else quick.try_query
-
-            def told(response: Any, error: PortError | None) -> None:
-                if error is not None and error.response is not None:  # the robot answered `error`: its answer
-                    response, error = error.response, None
-                self._asked_then(spec, procedure, event, mid, cancel, response, error)
-
+        ctx = self._ctx
+        if ctx is not None and ctx.quick is not None:
+            send = ctx.quick.try_cancel if cancel else ctx.quick.try_query
+            told = answering(partial(self._asked_then, spec, procedure, event, mid, cancel))
             component, action, timeout = spec.component or "", spec.affordance or "", self.config.call_timeout
             if ctx.send_quick(partial(send, component, action, mid, timeout), told):
                 return
@@ -744,9 +738,9 @@ class Engine:
             done=True,
             key=key,
         )
-        quick, ctx = self._quick, self._ctx
-        if quick is not None and ctx is not None:
-            send = partial(quick.try_call, m.component, action, m.payload, self.config.call_timeout)
+        ctx = self._ctx
+        if ctx is not None and ctx.quick is not None:
+            send = partial(ctx.quick.try_call, m.component, action, m.payload, self.config.call_timeout)
             if ctx.send_quick(send, partial(self._called, m)):
                 return
         self._submit(self._plain_call, m)

@@ -246,12 +246,7 @@ class ProcedureRunner:
         timeout = self.ctx.config.call_timeout
 
         def fast(on_done: Answered) -> bool:
-            def told(value: Any, error: PortError | None) -> None:
-                if answered and error is not None and error.response is not None:
-                    value, error = error.response, None
-                on_done(value, error)
-
-            return bool(send(component, action, mid, timeout, told))
+            return bool(send(component, action, mid, timeout, answering(on_done) if answered else on_done))
 
         return fast
 
@@ -390,6 +385,18 @@ def answer(
         if exc.response is None:
             raise
         return exc.response
+
+
+def answering(on_done: Answered) -> Answered:
+    """`on_done` for a query or cancel sent without a waiting thread, told the robot's response as the answer
+    when the port raised with one (the robot said `error`), as `answer` reads a call that waited."""
+
+    def told(value: Any, error: PortError | None) -> None:
+        if error is not None and error.response is not None:
+            value, error = error.response, None
+        on_done(value, error)
+
+    return told
 
 
 def requested(state: str | None) -> ProcedureStatus:

@@ -99,6 +99,14 @@ def to_plain(value: Any) -> Any:
 _SCALARS = frozenset({int, str, bool, type(None)})
 
 
+def _start_result(result: Any) -> StartResult:
+    """A run's answer (the generated `Started`: its mission id and response; else the response alone)."""
+    if hasattr(result, "mission_id") and hasattr(result, "response"):
+        mid = result.mission_id
+        return StartResult(to_plain(result.response), int(mid) if mid is not None else None)
+    return StartResult(to_plain(result))
+
+
 def _port_error(exc: BaseException) -> PortError:
     """Map a generated package's error onto the port's error kinds (by class name, across both backends)."""
     names = {cls.__name__ for cls in type(exc).__mro__}
@@ -353,14 +361,7 @@ class GeneratedPort:
         construct = self._method(component, api.CONSTRUCT_REQUEST(action))
         call = self._method(component, api.CALL(action))
 
-        def run() -> StartResult:
-            result = call(construct(**payload), timeout=timeout)
-            if hasattr(result, "mission_id") and hasattr(result, "response"):
-                mid = result.mission_id
-                return StartResult(to_plain(result.response), int(mid) if mid is not None else None)
-            return StartResult(to_plain(result))
-
-        return self._guarded(component, run)  # type: ignore[no-any-return]
+        return self._guarded(component, lambda: _start_result(call(construct(**payload), timeout=timeout)))  # type: ignore[no-any-return]
 
     def query(self, component: str, action: str, mission_id: int, timeout: float) -> Mapping[str, Any]:
         """Call a query or cancel; the mission id goes where its request carries one (`mission_id=`, see
@@ -390,11 +391,7 @@ class GeneratedPort:
     def try_start(
         self, component: str, action: str, payload: Mapping[str, Any], timeout: float, on_done: Answered
     ) -> bool:
-        def started(result: Any) -> StartResult:
-            mid = result.mission_id
-            return StartResult(to_plain(result.response), int(mid) if mid is not None else None)
-
-        return self._then(component, action, on_done, started, payload, timeout=timeout)
+        return self._then(component, action, on_done, _start_result, payload, timeout=timeout)
 
     def try_query(self, component: str, action: str, mission_id: int, timeout: float, on_done: Answered) -> bool:
         if (component, action) in self.layout.ids:
