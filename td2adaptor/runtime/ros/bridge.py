@@ -451,9 +451,7 @@ class BridgePort:
         self._listeners: dict[tuple[str, str, str], GoalListener] = {}
 
     def start(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> StartResult:
-        out = self.bridge.call(self.robot, "start", [component, action, dict(payload), timeout], timeout)
-        mission = out.get("mission_id")
-        return StartResult(out["response"], int(mission) if mission is not None else None)
+        return _start_of(self.bridge.call(self.robot, "start", [component, action, dict(payload), timeout], timeout))
 
     def query(self, component: str, action: str, mission_id: int, timeout: float) -> Mapping[str, Any]:
         return self.bridge.call(self.robot, "query", [component, action, mission_id, timeout], timeout)  # type: ignore[no-any-return]
@@ -478,8 +476,7 @@ class BridgePort:
                 on_done(None, error)
                 return
             try:
-                mission = out.get("mission_id")
-                result = StartResult(out["response"], int(mission) if mission is not None else None)
+                result = _start_of(out)
             except (AttributeError, KeyError, TypeError, ValueError) as exc:
                 on_done(None, PortCallFailed(f"the ROS 1 bridge's answer to {action} is not a start's: {exc}"))
                 return
@@ -526,6 +523,12 @@ class BridgePort:
             self.bridge.ask(self.robot, "forget_goal", [component, action, goal], lambda value, error: None)
         except Exception:  # noqa: BLE001, S110 - a dead child has forgotten it already
             pass
+
+
+def _start_of(out: Any) -> StartResult:
+    """A start's answer as the child sends it (`mission_id`, `response`)."""
+    mission = out.get("mission_id")
+    return StartResult(out["response"], int(mission) if mission is not None else None)
 
 
 def _outcome(reply: Mapping[str, Any], package: str) -> Any:
