@@ -43,6 +43,7 @@ def test_metrics_on_port_0_take_a_free_port_and_the_start_line_names_it(
     args += ["--prefix", str(rb1_prefix), "--bus", broker.url, "--discover", "--metrics", "127.0.0.1:0"]
     environ = env.child_env([rb1_prefix])
     environ["TD2ADAPTOR_STATE_DIR"] = str(tmp_path / "state")
+    environ["ROS_DOMAIN_ID"] = str(env.private_domain_id())  # no simulation of this worker is discovered
     run = RunProcess(args, env=environ)
     try:
         run.wait_ready()
