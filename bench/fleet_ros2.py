@@ -15,8 +15,11 @@ Figures per deployment:
 * start-up: from launching the process(es) until every robot's retained status says online (its TD is retained
   before that), and until every robot finished a first goto mission (ROS discovery included);
 * memory per robot: RSS of the edge-node process(es) / N, and PSS (shared libraries split between the
-  processes that map them: the fair figure for N processes); the threads of the edge node(s) at idle and the
-  most seen under load;
+  processes that map them: the fair figure for N processes), and for one process what each robot after the
+  first adds ((RSS - the 1-robot baseline's RSS) / (N - 1): the process's fixed part, an interpreter, rclpy and
+  a DDS participant, paid once); the edge nodes run with the product's Fast DDS defaults
+  (td2adaptor/runtime/ros/fastdds.xml), not the tests' profile the simulation loads; the threads of the edge
+  node(s) at idle and the most seen under load;
 * CPU of the edge node(s) at idle (no events; each robot's properties at most once a second: `property_mode:
   message` with `property_interval: 1`, as docs/fleet.md recommends for a fleet; `--property-mode sample` for
   the default sampling every second) and
@@ -59,6 +62,7 @@ from runtime_bus import mosquitto  # noqa: E402
 from td2adaptor.runtime.bus.bus import Message  # noqa: E402
 from td2adaptor.runtime.bus.mqttbus import MqttBus  # noqa: E402
 from td2adaptor.runtime.bus.security import parse_broker_url  # noqa: E402
+from td2adaptor.runtime.ros.fastdds import USER_VARIABLES  # noqa: E402
 from tests.ros2 import env  # noqa: E402
 from tests.ros2.build import build_interfaces  # noqa: E402
 from tests.ros2.common import EXAMPLE, Process, generate_rclpy  # noqa: E402
@@ -402,6 +406,14 @@ def report(base: Figures, runs: list[tuple[str, Figures]]) -> None:
     row("start-up: CPU of the edge node(s) per robot", "{:.2f} s", lambda f: f.startup_cpu / f.robots)
     row("RSS per robot", "{:.1f} MiB", lambda f: f.rss_kib / 1024 / f.robots)
     row("PSS per robot", "{:.1f} MiB", lambda f: f.pss_kib / 1024 / f.robots)
+
+    def added(f: Figures) -> str:
+        """What each robot after the first adds to one process (its fixed part is the 1-robot baseline's)."""
+        if f.processes != 1 or f.robots < 2:
+            return "-"
+        return f"{(f.rss_kib - base.rss_kib) / 1024 / (f.robots - 1):.1f} MiB"
+
+    row("RSS per robot added to one process", "{}", added, "(RSS - the 1-robot process's RSS) / (robots - 1)")
     row("threads of the edge node(s), idle / load", "{}", lambda f: f"{f.threads_idle} / {f.threads_load}")
     row("CPU at idle, edge node(s)", "{:.1f} %", lambda f: f.idle_cpu, "% of one core")
     row("CPU at idle per robot", "{:.2f} %", lambda f: f.idle_cpu / f.robots)
@@ -473,7 +485,10 @@ def main() -> None:
         watcher = Watcher(url)
         try:
             sim.wait_for(lambda e: e.get("event") == "ready", 120)
-            ctx = Context(work, prefix, src, url, child_env, watcher, sim, args.property_mode)
+            # the edge nodes run with the product's Fast DDS defaults (td2adaptor/runtime/ros/fastdds.xml), not
+            # the tests' discovery profile the simulation uses
+            edge_env = {k: v for k, v in child_env.items() if k not in USER_VARIABLES}
+            ctx = Context(work, prefix, src, url, edge_env, watcher, sim, args.property_mode)
             base = measure(ctx, robots[:1], 1, "base", args.idle, args.load)
             runs = []
             if args.deployment in ("both", "process"):
