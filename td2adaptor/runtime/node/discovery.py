@@ -275,11 +275,27 @@ class Registration:
             busy = self._thread.is_alive()
         if self.registered_at is None and not busy:
             return  # never got there: nothing to remove
+        removed = self._delete()
+        if busy and removed and self._thread is not None:
+            # the PUT under way may land after that DELETE and store the TD again: once it is answered, remove again
+            self._thread.join(PUT_TIMEOUT)
+            if not self._thread.is_alive():
+                self._delete(again=True)
+        if removed:
+            log.info("robot %s: Thing Description removed from the directory", self.robot)
+
+    def _delete(self, *, again: bool = False) -> bool:
+        """One DELETE; whether the directory holds the TD no more (404 counts). Failures are logged (not twice)."""
         try:
             self.directory.delete(self.thing_id)
-            log.info("robot %s: Thing Description removed from the directory", self.robot)
+            return True
         except DirectoryError as exc:
-            expiry = f"; it expires after its ttl ({self.ttl} s)" if self.ttl else ""
-            log.warning(
-                "robot %s: could not remove the Thing Description from the directory%s: %s", self.robot, expiry, exc
-            )
+            if not again:
+                expiry = f"; it expires after its ttl ({self.ttl} s)" if self.ttl else ""
+                log.warning(
+                    "robot %s: could not remove the Thing Description from the directory%s: %s",
+                    self.robot,
+                    expiry,
+                    exc,
+                )
+            return False
