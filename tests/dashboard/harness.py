@@ -106,11 +106,14 @@ def chromium(performance_log: bool = False) -> Iterator[Any]:
 
 
 def wait(driver: Any, condition: Callable[[Any], Any], timeout: float = 20.0, what: str = "") -> Any:
-    from selenium.common.exceptions import TimeoutException
+    """Until `condition(driver)` is true. An element the page re-rendered between the condition's find and its
+    read (stale) is looked for again at the next poll, not a failure (the robots list re-renders on each status)."""
+    from selenium.common.exceptions import StaleElementReferenceException, TimeoutException
     from selenium.webdriver.support.ui import WebDriverWait
 
     try:
-        return WebDriverWait(driver, timeout, poll_frequency=0.05).until(condition)
+        ignored = (StaleElementReferenceException,)
+        return WebDriverWait(driver, timeout, poll_frequency=0.05, ignored_exceptions=ignored).until(condition)
     except TimeoutException:
         raise AssertionError(f"timed out waiting for {what or condition}") from None
 
