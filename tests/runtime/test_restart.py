@@ -135,3 +135,23 @@ def test_what_cannot_be_followed_on_ends_failed_once_and_an_unsent_end_is_sent(t
     assert terminals["goal"][0]["payload"]["seq"] == 3 + SEQ_BLOCK + 1  # past every number it may have used
     assert terminals["goal"][0]["payload"]["goal"] == "ab" * 16
     assert (robot.x, robot.y) == (0.0, 0.0)  # nothing ran again
+
+
+def test_the_replay_guard_and_the_ledger_share_one_connection_to_the_robots_file(tmp_path: Path) -> None:
+    """A SQLite connection costs about 120 KiB, and a fleet process holds its robots' files open: the guard and the
+    ledger use one connection (one open descriptor of the file), not one each; closed when the engine stops."""
+    import os
+
+    broker, model = LocalBroker(), rb1_model()
+    config = _config(tmp_path)
+
+    def opened() -> int:
+        fds = Path("/proc/self/fd")
+        return sum(1 for fd in fds.iterdir() if os.path.realpath(fd) == os.path.realpath(config.ids_file))
+
+    engine = serve(model, SimPort(model, sim(0.2)), config, broker=broker)
+    try:
+        assert opened() == 1
+    finally:
+        engine.stop()
+    assert opened() == 0

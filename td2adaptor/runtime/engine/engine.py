@@ -51,7 +51,7 @@ from td2adaptor.runtime.engine.missions import Mission, MissionTable
 from td2adaptor.runtime.engine.outbox import Outbox
 from td2adaptor.runtime.engine.precheck import FastCheck
 from td2adaptor.runtime.engine.procedure import DEFAULT_MISSION_PATH, ProcedureRunner, answer, answering, requested
-from td2adaptor.runtime.engine.replay import ReplayGuard, Verdict, digest, time_problem
+from td2adaptor.runtime.engine.replay import ReplayGuard, Store, Verdict, digest, time_problem
 from td2adaptor.runtime.engine.streams import PropertyStreams, streams
 from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope, references, salvage
 from td2adaptor.runtime.loop import Lane, Shared, Timer, acquire, release
@@ -83,24 +83,23 @@ _WOT_REUSED = (
 _UNREAD: Final[Any] = object()  # the ledger not read yet for an event (a duplicate's row is read once)
 
 
-def _guard(config: RuntimeConfig) -> ReplayGuard:
-    """The robot's replay guard: durable where the state directory can be written, else in memory."""
-    path = config.ids_file
-    try:
-        return ReplayGuard(path, window=config.freshness_window, skew=config.clock_skew)
-    except (OSError, sqlite3.Error) as exc:
-        log.warning("event ids kept in memory only (%s: %s): a restart forgets them", path, exc)
-        return ReplayGuard(None, window=config.freshness_window, skew=config.clock_skew)
-
-
-def _ledger(config: RuntimeConfig) -> Ledger:
-    """The robot's mission ledger, in the replay guard's file: durable where it can be written, else in memory."""
+def _state(config: RuntimeConfig) -> tuple[ReplayGuard, Ledger]:
+    """The robot's replay guard and mission ledger, on one connection to the robot's SQLite file (`Store`):
+    durable where the state directory can be written, else in memory."""
     path, keep = config.ids_file, config.freshness_window + config.clock_skew
+    window, skew = config.freshness_window, config.clock_skew
     try:
-        return Ledger(path, keep=keep)
+        store = Store(path)
     except (OSError, sqlite3.Error) as exc:
-        log.warning("missions kept in memory only (%s: %s): a restart forgets them", path, exc)
-        return Ledger(None, keep=keep)
+        log.warning("event ids and missions kept in memory only (%s: %s): a restart forgets them", path, exc)
+        store = Store(None)
+    try:
+        return ReplayGuard(store, window=window, skew=skew), Ledger(store, keep=keep)
+    except sqlite3.Error as exc:  # a file that is no database of ours
+        store.db.close()
+        log.warning("event ids and missions kept in memory only (%s: %s): a restart forgets them", path, exc)
+        store = Store(None)
+        return ReplayGuard(store, window=window, skew=skew), Ledger(store, keep=keep)
 
 
 def status_event(config: RuntimeConfig, model: Model, state: str, **extra: Any) -> Message:
@@ -153,8 +152,7 @@ class Engine:
         #: (the loop) `gate(go)` before a ROS action goal is sent, or None: `go(True)` (from any thread) once it
         #: may be sent, `go(False)` when it must not (the robot may be another process's by then, node/share.py)
         self.gate: Callable[[Callable[[bool], None]], None] | None = None
-        self.guard = _guard(config)
-        self.ledger = _ledger(config)
+        self.guard, self.ledger = _state(config)
         self.missions = MissionTable()  # which mission each component runs (missions.py)
         self.outbox = Outbox(bus, config, self.catalog, self.ledger, self.missions)  # what we publish (outbox.py)
         self.stats = self.outbox.stats

@@ -24,13 +24,12 @@ from __future__ import annotations
 
 import logging
 import sqlite3
-import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from td2adaptor.runtime.engine.replay import open_store
+from td2adaptor.runtime.engine.replay import Store
 from td2adaptor.runtime.events import new_id
 
 log = logging.getLogger("td2adaptor.runtime")
@@ -87,13 +86,15 @@ class Ledger:
     """The durable record of missions (see the module docstring). Every method may be called from any thread;
     a failing write is logged, never raised: the ledger must not cost a mission."""
 
-    def __init__(self, path: Path | None, *, keep: float, clock: Callable[[], float] = time.time) -> None:
+    def __init__(self, path: Path | Store | None, *, keep: float, clock: Callable[[], float] = time.time) -> None:
         self.keep = keep
         self.clock = clock
-        self.durable = path is not None
-        self._lock = threading.Lock()
-        self._db: sqlite3.Connection | None = open_store(path, timeout=5.0)
-        self._db.executescript(_SCHEMA)
+        self._store = path if isinstance(path, Store) else Store(path)
+        self.durable = self._store.durable
+        db, self._lock = self._store.use()
+        self._db: sqlite3.Connection | None = db
+        with self._lock:
+            db.executescript(_SCHEMA)
         self._next_prune = 0.0
 
     def _write(self, sql: str, args: tuple[object, ...]) -> None:
@@ -198,6 +199,7 @@ class Ledger:
 
     def close(self) -> None:
         with self._lock:
-            if self._db is not None:
-                self._db.close()
-                self._db = None
+            if self._db is None:
+                return
+            self._db = None
+        self._store.release()
