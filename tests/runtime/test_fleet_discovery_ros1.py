@@ -69,3 +69,40 @@ def test_discovery_on_the_ros1_master_serves_a_robot_that_registers_and_retires_
         run.close()
         app.close()
         broker.stop()
+
+
+def test_discovery_on_the_ros1_master_retires_a_robot_that_was_killed_and_stays_registered(
+    master: Master, package_src: Path, tmp_path: Path
+) -> None:
+    """A killed ROS 1 node (SIGKILL, a crash) is never unregistered: the master lists its services for ever. The
+    node finds it dead (its XML-RPC API refuses connections) and retires the robot after the grace."""
+    robot = "killed_ros1"
+    interfaces = harness.interfaces_dir()
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    app = AppClient(broker.url, [f"td2adaptor/{robot}/#"], client_id="disc-ros1-killed-app")
+    environ = {**os.environ, "ROS_HOME": str(master.home), "ROS_IP": "127.0.0.1", "ROS_HOSTNAME": "127.0.0.1"}
+    args = [str(EXAMPLE / "rb1.tm.json"), "-I", str(EXAMPLE / "interfaces"), "--ros", "1", "--package", PKG]
+    args += ["--bus", broker.url, "--master-uri", master.uri, "--ros1-python", harness.SYSTEM_PYTHON]
+    args += ["--package-path", str(package_src), "--package-path", str(interfaces)]
+    args += ["--property-period", "0", "--discover", "--discover-grace", "1"]
+    run = RunProcess(args, env=environ)
+
+    def states() -> list[str]:
+        return [e["payload"]["state"] for t, e in list(app.events) if t == f"td2adaptor/{robot}/status"]
+
+    try:
+        run.wait_ready()
+        with harness.run_sim(master, interfaces, robot, "--duration", "0.5") as sim:
+            assert until(lambda: states()[-1:] == ["online"], 30), run.output()
+            sim.process.kill()
+            sim.process.wait()
+            killed = time.monotonic()
+            assert until(lambda: states()[-1:] == ["offline"], 15), run.output()
+            assert time.monotonic() - killed < 6.0  # the grace (1 s) after a look found it dead
+        assert until(lambda: f"discovery: removed {robot}" in run.output(), 10), run.output()
+        assert run.terminate(signal.SIGTERM) == 0, run.output()
+    finally:
+        run.close()
+        app.close()
+        broker.stop()

@@ -12,7 +12,8 @@ Reading the graph: on ROS 2 with rclpy's graph API on a node of the edge node's 
 graph queries need none): the service names once, then, for each namespace that has them all, whether each
 has a server (`count_services`); a robot served already is checked by its first interface only (a robot's
 servers go together when its process ends). On ROS 1 one `getSystemState` of the master over XML-RPC, whose
-service list names servers only. A robot that cannot be started (a namespace the package refuses) is
+service list names servers only, and a look whether each robot's first server still runs (a killed node stays
+listed: ros1nodes.py). A robot that cannot be started (a namespace the package refuses) is
 retried after `RETRY` seconds, not every period.
 
 In a fleet shared by several processes (`run --share`, share.py) the robots seen go to the share instead of the
@@ -35,6 +36,7 @@ from td2adaptor.model import Model, Role
 from td2adaptor.model.events import ALL_ROBOTS, ROBOT_ID
 from td2adaptor.runtime.config import ConfigError, RuntimeConfig
 from td2adaptor.runtime.node.fleet import Changes
+from td2adaptor.runtime.node.ros1nodes import TimeoutTransport, alive
 
 log = logging.getLogger("td2adaptor.runtime.fleet")
 
@@ -133,30 +135,25 @@ class Ros1Graph:
         self.name = f"ros1 {master_uri}"
 
     def robots(self, sig: Signature, known: set[str]) -> set[str]:
-        transport = _TimeoutTransport(self.timeout)
+        """The namespaces that show `sig`, whose first interface's node runs: a killed node stays registered
+        with the master (ros1nodes.py), and its robot would be served for ever."""
+        transport = TimeoutTransport(self.timeout)
         master: Any = xmlrpc.client.ServerProxy(self.master_uri, transport=transport)
         code, message, state = master.getSystemState(CALLER_ID)
         if code != 1:
             raise OSError(f"the ROS 1 master refused getSystemState: {message}")
         publishers, _subscribers, services = state
         if sig.services:
-            names, paths = [n for n, _ in services], list(sig.services)
+            listed, paths = services, list(sig.services)
         else:  # ROS 1 has no actions here: the topics the robot publishes
-            names, paths = [n for n, nodes in publishers if nodes], list(sig.published)
+            listed, paths = publishers, list(sig.published)
+        nodes = {str(name): tuple(str(n) for n in providers) for name, providers in listed if providers}
         if not paths:
             return set()
-        return set.intersection(*(namespaces(names, p) for p in paths))
-
-
-class _TimeoutTransport(xmlrpc.client.Transport):
-    def __init__(self, timeout: float) -> None:
-        super().__init__()
-        self.timeout = timeout
-
-    def make_connection(self, host: Any) -> Any:
-        conn = super().make_connection(host)
-        conn.timeout = self.timeout
-        return conn
+        found = set.intersection(*(namespaces(nodes, p) for p in paths))
+        first = {ns: nodes[f"/{ns}/{paths[0]}"] for ns in found}
+        running = alive(self.master_uri, (node for listed_by in first.values() for node in listed_by))
+        return {ns for ns, listed_by in first.items() if any(node in running for node in listed_by)}
 
 
 class Robots(Protocol):
