@@ -106,3 +106,30 @@ def test_discovery_on_the_ros1_master_retires_a_robot_that_was_killed_and_stays_
         run.close()
         app.close()
         broker.stop()
+
+
+def test_discovery_names_the_ros1_master_it_cannot_read_and_how_to_name_another(
+    package_src: Path, tmp_path: Path
+) -> None:
+    """Without ROS_MASTER_URI (or with a master that is not running) the node said only "the ROS graph cannot be
+    read ([Errno 111] Connection refused)": not which master, nor how to give one."""
+    from tests.ports import free_port
+
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    nobody = f"http://127.0.0.1:{free_port()}/"
+    environ = {k: v for k, v in os.environ.items() if not k.startswith("ROS_")}
+    args = [str(EXAMPLE / "rb1.tm.json"), "-I", str(EXAMPLE / "interfaces"), "--ros", "1", "--package", PKG]
+    args += ["--bus", broker.url, "--master-uri", nobody, "--ros1-python", harness.SYSTEM_PYTHON]
+    args += ["--package-path", str(package_src), "--discover"]
+    run = RunProcess(args, env=environ)
+    try:
+        run.wait_ready()
+        assert until(lambda: "cannot be read" in run.output(), 10), run.output()
+        line = next(x for x in run.output().splitlines() if "cannot be read" in x)
+        assert nobody in line and "--master-uri" in line and "ROS_MASTER_URI" in line, line
+        assert "Errno" not in line, line
+        assert run.terminate(signal.SIGTERM) == 0, run.output()
+    finally:
+        run.close()
+        broker.stop()

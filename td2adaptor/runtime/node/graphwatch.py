@@ -139,7 +139,14 @@ class Ros1Graph:
         with the master (ros1nodes.py), and its robot would be served for ever."""
         transport = TimeoutTransport(self.timeout)
         master: Any = xmlrpc.client.ServerProxy(self.master_uri, transport=transport)
-        code, message, state = master.getSystemState(CALLER_ID)
+        try:
+            code, message, state = master.getSystemState(CALLER_ID)
+        except OSError as exc:  # said once by the watcher, so say which master and how to name another
+            reason = exc.strerror or str(exc) or "no answer"
+            raise OSError(
+                f"the ROS 1 master {self.master_uri} does not answer ({reason}): is it running? "
+                "--master-uri (or ROS_MASTER_URI) names the one the robots use"
+            ) from exc
         if code != 1:
             raise OSError(f"the ROS 1 master refused getSystemState: {message}")
         publishers, _subscribers, services = state
