@@ -27,6 +27,7 @@ import re
 import socket
 import threading
 import time
+import urllib.parse
 import xmlrpc.client
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
@@ -309,7 +310,20 @@ def ros2_graph(graph_node: Callable[[int | None], Any], domain: int | None, env:
 
 
 def ros1_graph(master_uri: str | None, env: Mapping[str, str]) -> Graph:
+    """The ROS 1 graph of the master at `master_uri` (None: `ROS_MASTER_URI`, else ROS's default). Its name is
+    the master's host and port, however the URI spells them, and this host's name for a loopback master: the
+    processes of a shared fleet compare the names to tell whether they read one graph."""
     uri = master_uri or env.get("ROS_MASTER_URI") or "http://localhost:11311"
     if not re.match(r"^https?://", uri):
         raise ConfigError(f"ROS master URI {uri!r} must be http://host:port")
-    return Ros1Graph(uri)
+    try:
+        parts = urllib.parse.urlsplit(uri)
+        host, port = (parts.hostname or "localhost").lower(), parts.port or 11311
+    except ValueError as exc:
+        raise ConfigError(f"ROS master URI {uri!r} must be http://host:port") from exc
+    graph = Ros1Graph(uri)
+    if host == "localhost" or host == "::1" or host.startswith("127."):
+        graph.name = f"ros1 master localhost:{port} on {socket.gethostname()}"
+    else:
+        graph.name = f"ros1 master {host}:{port}"
+    return graph
