@@ -7,12 +7,24 @@ beside the features they touch (test_presence_ros1.py, test_fleet_discovery_ros1
 from __future__ import annotations
 
 import json
+import os
+import signal
+import threading
 import urllib.request
+from pathlib import Path
 from typing import Any
 
+import pytest
+
+from td2adaptor.runtime.ros.port import PortError
+from tests import generated
+from tests.conftest import EXAMPLE
+from tests.ros1 import harness
+from tests.ros1.harness import Master
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.edge import until
+from tests.runtime.rb1 import rb1_model
 
 
 def test_the_dashboard_keeps_a_robots_status_when_something_else_is_published_on_its_status_topic(
@@ -45,3 +57,58 @@ def test_the_dashboard_keeps_a_robots_status_when_something_else_is_published_on
     finally:
         app.close()
         robot.stop()
+
+
+@pytest.fixture(scope="module")
+def package_src(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Path:
+    _, package = generated.generate(
+        "rospy", EXAMPLE / "td.json", tmp_path_factory.mktemp("rospy"), interfaces=[EXAMPLE / "interfaces"]
+    )
+    return package / "src"
+
+
+def test_a_ros1_bridge_that_died_starts_again_while_several_robots_properties_are_read(
+    master: Master, package_src: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Killed once (SIGKILL, the OOM killer), the bridge of a fleet never came back: the property reads of its
+    robots, sampled in parallel, restarted it at once and wrote their requests before its first line (what to
+    serve), so the new child took a read for it and died ("TypeError: string indices must be integers"), again
+    at every restart, and every call said so. Its death was not logged either."""
+    from tests.runtime.test_edge_node_ros1 import ROBOT, rb1_bridge
+
+    interfaces = harness.interfaces_dir()
+    bridge = rb1_bridge(rb1_model(), master, interfaces, package_src, restart_period=0.0)
+    bridge.start()
+    failures: list[str] = []
+    stop = threading.Event()
+
+    def read() -> None:
+        port = bridge.port(ROBOT)
+        while not stop.is_set():
+            try:
+                port.read_property("AvailabilityComponent", "availability", 5.0)
+            except PortError as exc:
+                failures.append(str(exc))
+
+    readers = [threading.Thread(target=read, daemon=True) for _ in range(6)]
+    try:
+        with harness.run_sim(master, interfaces, ROBOT, "--duration", "0.5"):
+            for reader in readers:
+                reader.start()
+            for _ in range(3):
+                pid = bridge.pid
+                assert pid is not None
+                os.kill(pid, signal.SIGKILL)
+                gone = {None, pid}
+                assert until(lambda: bridge.pid not in gone, 20), failures[-3:]  # noqa: B023 - read at once
+                answered = bridge.port(ROBOT).read_property("AvailabilityComponent", "availability", 5.0)
+                assert answered["robot_id"] == ROBOT
+            stop.set()
+            for reader in readers:
+                reader.join(20)
+        assert not [f for f in failures if "indices" in f or "Error:" in f], sorted(set(failures))
+        deaths = [r.getMessage() for r in caplog.records if "the ROS 1 bridge exited with code -9" in r.getMessage()]
+        assert len(deaths) == 3 and all("the next call starts it again" in d for d in deaths), deaths
+    finally:
+        stop.set()
+        bridge.close()
