@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+import subprocess
 import threading
 import urllib.request
 from pathlib import Path
@@ -23,7 +24,7 @@ from tests.ros1 import harness
 from tests.ros1.harness import Master
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
-from tests.runtime.edge import until
+from tests.runtime.edge import RunProcess, until
 from tests.runtime.rb1 import rb1_model
 
 
@@ -112,3 +113,48 @@ def test_a_ros1_bridge_that_died_starts_again_while_several_robots_properties_ar
     finally:
         stop.set()
         bridge.close()
+
+
+def _children(pid: int) -> list[int]:
+    out = subprocess.run(["pgrep", "-P", str(pid)], capture_output=True, text=True)
+    return [int(p) for p in out.stdout.split()]
+
+
+def _running(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii") as stat:
+            return stat.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+@pytest.mark.parametrize("how", [signal.SIGINT, signal.SIGKILL], ids=["ctrl-c", "kill-9"])
+def test_a_run_stopped_while_its_ros1_bridge_waits_for_the_master_leaves_no_bridge_behind(
+    package_src: Path, how: signal.Signals
+) -> None:
+    """`run --ros 1` with no master up (ROS_MASTER_URI unset: rospy waits for localhost:11311 for ever), stopped
+    with Ctrl-C ("interrupted while starting") or killed: its bridge child, which ignores SIGINT/SIGTERM and
+    ends when its input closes but reads nothing while rospy waits for the master, ran on for good."""
+    from tests.ports import free_port
+
+    nobody = f"http://127.0.0.1:{free_port()}/"
+    environ = {k: v for k, v in os.environ.items() if not k.startswith("ROS_")}
+    args = [str(EXAMPLE / "td.json"), "-I", str(EXAMPLE / "interfaces"), "--ros", "1", "--robot", "no_master"]
+    args += ["--master-uri", nobody, "--ros1-python", harness.SYSTEM_PYTHON, "--property-period", "0"]
+    args += ["--package-path", str(package_src), "--package-path", str(harness.interfaces_dir())]
+    run = RunProcess(args, env=environ)
+    bridges: list[int] = []
+    try:
+        assert until(lambda: "Unable to register with master" in run.output(), 60), run.output()
+        bridges += _children(run.proc.pid)
+        assert len(bridges) == 1, bridges
+        run.proc.send_signal(how)
+        run.proc.wait(30)
+        # Ctrl-C: the run ends it as it stops; killed: the child ends itself (its parent gone, after a grace)
+        within = 2.0 if how == signal.SIGINT else 15.0
+        assert until(lambda: not _running(bridges[0]), within), f"bridge {bridges[0]} runs on:\n{run.output()}"
+    finally:
+        for pid in [*bridges, *_children(run.proc.pid)]:
+            if _running(pid):
+                os.kill(pid, signal.SIGKILL)
+        run.close()

@@ -236,6 +236,9 @@ class Ros1Bridge:
         except PortError as exc:
             self._kill()
             raise RosSetupError(f"the ROS 1 bridge under {self.python} did not start: {exc}") from None
+        except BaseException:  # interrupted (Ctrl-C while rospy waits for a master that is not up): no orphan
+            self._kill(at_once=True)
+            raise
 
     def init_request(self) -> dict[str, Any]:
         """What the child is told first: the package, the robots and the settings of their ports."""
@@ -268,10 +271,14 @@ class Ros1Bridge:
             shutil.rmtree(self._shim, ignore_errors=True)
             self._shim = None
 
-    def _kill(self) -> None:
+    def _kill(self, at_once: bool = False) -> None:
+        """End the child: SIGTERM, then SIGKILL after 5 s (`at_once`: SIGKILL, for a child that never served)."""
         proc = self._proc
         if proc is None:
             return
+        if proc.poll() is None and at_once:
+            proc.kill()
+            proc.wait(5)
         if proc.poll() is None:
             proc.terminate()
             try:
@@ -711,8 +718,23 @@ def _serve(requests: IO[str], replies: IO[str]) -> int:
     return 0
 
 
+#: seconds the child lives on once its parent is gone (a clean shutdown, started by its input closing, ends first)
+ORPHAN_GRACE = 5.0
+
+
+def _leave_with(parent: int) -> None:
+    """(a daemon thread of the child) End the child once its parent is gone. The parent's death closes the
+    child's input, which ends it, but only once it reads it: rospy's wait for a master that is not up reads
+    nothing (and the child ignores SIGINT/SIGTERM), so a `run` stopped or killed meanwhile left it running."""
+    while os.getppid() == parent:
+        time.sleep(1.0)
+    time.sleep(ORPHAN_GRACE)
+    os._exit(1)
+
+
 def main() -> int:
     """`python -m td2adaptor.runtime.ros.bridge`: requests on stdin, replies on the original stdout."""
+    threading.Thread(target=_leave_with, args=(os.getppid(),), name="bridge-orphan", daemon=True).start()
     # The parent ends the bridge by closing its input (its death closes it too). A SIGINT/SIGTERM sent to the
     # whole process group (Ctrl-C, a launch system stopping the node) must not end it first: the parent would
     # log the property reads of its last moments as failures of a clean stop.
