@@ -217,7 +217,9 @@ class Fleet:
         if robot_id is None or not isinstance(event, dict):
             return
         payload = event.get("payload")
-        status = {**(payload if isinstance(payload, dict) else {}), "time": event.get("time")}
+        if event.get("type") != "status" or not isinstance(payload, dict) or not isinstance(payload.get("state"), str):
+            return  # not the edge node's: wotpy's read of `presence` publishes {"action": "read"} on this topic
+        status = {**payload, "time": event.get("time")}
         with self._lock:
             self._statuses[robot_id] = status
             robot = self.robots.get(robot_id)  # listed only with a TD: a cleanly stopped robot cleared it

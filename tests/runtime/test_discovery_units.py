@@ -121,3 +121,17 @@ def test_a_td_without_id_is_reported_and_not_registered(caplog: pytest.LogCaptur
     with caplog.at_level(logging.ERROR, logger="td2adaptor.runtime"):
         assert register(config, td) is None
     assert "robot r1: its Thing Description has no id, so a directory cannot hold it" in caplog.text
+
+
+def test_the_ros1_graph_is_named_by_its_master_the_same_however_its_uri_is_spelt() -> None:
+    """Processes of a shared fleet compare their graphs' names (share.py: a member on another graph cannot see a
+    robot): `http://localhost:11311/` and `http://127.0.0.1:11311` are one master, and a loopback master on two
+    hosts is two."""
+    import socket
+
+    from td2adaptor.runtime.node.graphwatch import ros1_graph
+
+    names = {ros1_graph(uri, {}).name for uri in ("http://localhost:11311/", "http://127.0.0.1:11311", None)}
+    assert names == {f"ros1 master localhost:11311 on {socket.gethostname()}"}
+    assert ros1_graph("http://Master.Site:11312/", {}).name == "ros1 master master.site:11312"
+    assert ros1_graph(None, {"ROS_MASTER_URI": "http://10.0.0.2:11311"}).name == "ros1 master 10.0.0.2:11311"

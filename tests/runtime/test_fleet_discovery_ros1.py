@@ -69,3 +69,67 @@ def test_discovery_on_the_ros1_master_serves_a_robot_that_registers_and_retires_
         run.close()
         app.close()
         broker.stop()
+
+
+def test_discovery_on_the_ros1_master_retires_a_robot_that_was_killed_and_stays_registered(
+    master: Master, package_src: Path, tmp_path: Path
+) -> None:
+    """A killed ROS 1 node (SIGKILL, a crash) is never unregistered: the master lists its services for ever. The
+    node finds it dead (its XML-RPC API refuses connections) and retires the robot after the grace."""
+    robot = "killed_ros1"
+    interfaces = harness.interfaces_dir()
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    app = AppClient(broker.url, [f"td2adaptor/{robot}/#"], client_id="disc-ros1-killed-app")
+    environ = {**os.environ, "ROS_HOME": str(master.home), "ROS_IP": "127.0.0.1", "ROS_HOSTNAME": "127.0.0.1"}
+    args = [str(EXAMPLE / "rb1.tm.json"), "-I", str(EXAMPLE / "interfaces"), "--ros", "1", "--package", PKG]
+    args += ["--bus", broker.url, "--master-uri", master.uri, "--ros1-python", harness.SYSTEM_PYTHON]
+    args += ["--package-path", str(package_src), "--package-path", str(interfaces)]
+    args += ["--property-period", "0", "--discover", "--discover-grace", "1"]
+    run = RunProcess(args, env=environ)
+
+    def states() -> list[str]:
+        return [e["payload"]["state"] for t, e in list(app.events) if t == f"td2adaptor/{robot}/status"]
+
+    try:
+        run.wait_ready()
+        with harness.run_sim(master, interfaces, robot, "--duration", "0.5") as sim:
+            assert until(lambda: states()[-1:] == ["online"], 30), run.output()
+            sim.process.kill()
+            sim.process.wait()
+            killed = time.monotonic()
+            assert until(lambda: states()[-1:] == ["offline"], 15), run.output()
+            assert time.monotonic() - killed < 6.0  # the grace (1 s) after a look found it dead
+        assert until(lambda: f"discovery: removed {robot}" in run.output(), 10), run.output()
+        assert run.terminate(signal.SIGTERM) == 0, run.output()
+    finally:
+        run.close()
+        app.close()
+        broker.stop()
+
+
+def test_discovery_names_the_ros1_master_it_cannot_read_and_how_to_name_another(
+    package_src: Path, tmp_path: Path
+) -> None:
+    """Without ROS_MASTER_URI (or with a master that is not running) the node said only "the ROS graph cannot be
+    read ([Errno 111] Connection refused)": not which master, nor how to give one."""
+    from tests.ports import free_port
+
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    nobody = f"http://127.0.0.1:{free_port()}/"
+    environ = {k: v for k, v in os.environ.items() if not k.startswith("ROS_")}
+    args = [str(EXAMPLE / "rb1.tm.json"), "-I", str(EXAMPLE / "interfaces"), "--ros", "1", "--package", PKG]
+    args += ["--bus", broker.url, "--master-uri", nobody, "--ros1-python", harness.SYSTEM_PYTHON]
+    args += ["--package-path", str(package_src), "--discover"]
+    run = RunProcess(args, env=environ)
+    try:
+        run.wait_ready()
+        assert until(lambda: "cannot be read" in run.output(), 10), run.output()
+        line = next(x for x in run.output().splitlines() if "cannot be read" in x)
+        assert nobody in line and "--master-uri" in line and "ROS_MASTER_URI" in line, line
+        assert "Errno" not in line, line
+        assert run.terminate(signal.SIGTERM) == 0, run.output()
+    finally:
+        run.close()
+        broker.stop()

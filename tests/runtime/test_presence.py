@@ -297,3 +297,23 @@ def test_metrics_are_served_in_the_prometheus_text_format(broker: Mosquitto) -> 
     assert values[f'td2adaptor_mission_duration_seconds_bucket{{le="+Inf",robot="{ROBOT}",state="finished"}}'] == 1.0
     assert values[f'td2adaptor_mqtt_reconnects_total{{robot="{ROBOT}"}}'] == 0.0
     assert "# TYPE td2adaptor_mission_duration_seconds histogram" in text
+
+
+def test_the_offline_status_of_a_stop_is_stamped_when_the_node_stopped_not_when_it_started(broker: Mosquitto) -> None:
+    """An application that keeps the newest status of a robot by its `time` must not take the `offline` of a clean
+    stop (or a robot retired from the fleet) for older than the statuses before it."""
+    model = rb1_model()
+    port = SimPort(model, sim(0.3))
+    port.watched = True
+    app = AppClient(broker, [f"td2adaptor/{ROBOT}/status"])
+    engine = serve(model, port, config(broker))
+    try:
+        app.wait(lambda ev: any(s.get("robot") == "present" for s in statuses(ev)))
+        port.down = True
+        app.wait(lambda ev: statuses(ev)[-1].get("robot") == "absent", timeout=5)
+    finally:
+        engine.stop()
+    app.wait(lambda ev: statuses(ev)[-1]["state"] == "offline", timeout=5)
+    times = [e["time"] for t, e in app.events if t == f"td2adaptor/{ROBOT}/status"]
+    app.close()
+    assert times[-1] >= max(times), times  # ISO 8601 UTC with milliseconds: text order is time order

@@ -90,3 +90,66 @@ def test_a_ros1_robot_is_absent_when_its_nodes_stop_and_present_again(
         engine.stop()
         bridge.close()
         app.close()
+
+
+def test_a_ros1_robot_killed_without_unregistering_is_absent_and_an_invoke_is_answered_at_once(
+    master: Master, package_src: Path, broker: Mosquitto
+) -> None:
+    """A ROS 1 node killed (SIGKILL, a crash) stays registered with the master, which keeps listing its services;
+    the edge node finds it dead (its XML-RPC API refuses connections) rather than calling it for `call_timeout`."""
+    robot = "killed_ros1"
+    interfaces = harness.interfaces_dir()
+    model = rb1_model()
+    bridge = Ros1Bridge(
+        Layout.of(model),
+        PKG,
+        [(robot, robot)],
+        python=harness.SYSTEM_PYTHON,
+        pythonpath=[interfaces, package_src],
+        master_uri=master.uri,
+        timeout=10.0,
+        environ=master.env(),
+    )
+    bridge.start()
+    app = AppClient(broker, [f"td2adaptor/{robot}/#"])
+
+    def status() -> dict[str, Any]:
+        with app.cond:
+            found = [e["payload"] for t, e in app.events if t == f"td2adaptor/{robot}/status" and "payload" in e]
+        return found[-1] if found else {}
+
+    config = RuntimeConfig(
+        robot=robot,
+        bus=broker.url,
+        ros_master_uri=master.uri,
+        poll_period=0.05,
+        property_period=0,
+        call_timeout=10.0,
+        presence_period=0.2,
+        state_dir="",
+    )
+    engine = serve(model, bridge.port(robot), config, distro="ros1")
+    try:
+        with harness.run_sim(master, interfaces, robot, "--duration", "0.3") as sim:
+            assert until(lambda: status().get("robot") == "present", 20.0), status()
+            sim.process.kill()
+            sim.process.wait()
+            killed = time.monotonic()
+            assert until(lambda: status().get("robot") == "absent", 10.0), status()
+            assert time.monotonic() - killed < 5.0
+            sent = time.monotonic()
+            app.send(f"td2adaptor/{robot}/GoToComponent/gotoRun", {"correlation": "dead", "payload": GOAL})
+            app.wait(terminal("feedback", "dead"), timeout=15)
+            assert time.monotonic() - sent < 3.0  # at once, not after call_timeout (10 s)
+            codes = [
+                e["payload"]["code"]
+                for _, e in app.events
+                if e.get("type") == "error" and e.get("correlation") == "dead"
+            ]
+            assert codes == ["absent"]
+        with harness.run_sim(master, interfaces, robot, "--duration", "0.3"):  # the same node name, again
+            assert until(lambda: status().get("robot") == "present", 20.0), status()
+    finally:
+        engine.stop()
+        bridge.close()
+        app.close()

@@ -12,7 +12,8 @@ Reading the graph: on ROS 2 with rclpy's graph API on a node of the edge node's 
 graph queries need none): the service names once, then, for each namespace that has them all, whether each
 has a server (`count_services`); a robot served already is checked by its first interface only (a robot's
 servers go together when its process ends). On ROS 1 one `getSystemState` of the master over XML-RPC, whose
-service list names servers only. A robot that cannot be started (a namespace the package refuses) is
+service list names servers only, and a look whether each robot's first server still runs (a killed node stays
+listed: ros1nodes.py). A robot that cannot be started (a namespace the package refuses) is
 retried after `RETRY` seconds, not every period.
 
 In a fleet shared by several processes (`run --share`, share.py) the robots seen go to the share instead of the
@@ -26,6 +27,7 @@ import re
 import socket
 import threading
 import time
+import urllib.parse
 import xmlrpc.client
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
@@ -35,6 +37,7 @@ from td2adaptor.model import Model, Role
 from td2adaptor.model.events import ALL_ROBOTS, ROBOT_ID
 from td2adaptor.runtime.config import ConfigError, RuntimeConfig
 from td2adaptor.runtime.node.fleet import Changes
+from td2adaptor.runtime.node.ros1nodes import TimeoutTransport, alive
 
 log = logging.getLogger("td2adaptor.runtime.fleet")
 
@@ -133,30 +136,32 @@ class Ros1Graph:
         self.name = f"ros1 {master_uri}"
 
     def robots(self, sig: Signature, known: set[str]) -> set[str]:
-        transport = _TimeoutTransport(self.timeout)
+        """The namespaces that show `sig`, whose first interface's node runs: a killed node stays registered
+        with the master (ros1nodes.py), and its robot would be served for ever."""
+        transport = TimeoutTransport(self.timeout)
         master: Any = xmlrpc.client.ServerProxy(self.master_uri, transport=transport)
-        code, message, state = master.getSystemState(CALLER_ID)
+        try:
+            code, message, state = master.getSystemState(CALLER_ID)
+        except OSError as exc:  # said once by the watcher, so say which master and how to name another
+            reason = exc.strerror or str(exc) or "no answer"
+            raise OSError(
+                f"the ROS 1 master {self.master_uri} does not answer ({reason}): is it running? "
+                "--master-uri (or ROS_MASTER_URI) names the one the robots use"
+            ) from exc
         if code != 1:
             raise OSError(f"the ROS 1 master refused getSystemState: {message}")
         publishers, _subscribers, services = state
         if sig.services:
-            names, paths = [n for n, _ in services], list(sig.services)
+            listed, paths = services, list(sig.services)
         else:  # ROS 1 has no actions here: the topics the robot publishes
-            names, paths = [n for n, nodes in publishers if nodes], list(sig.published)
+            listed, paths = publishers, list(sig.published)
+        nodes = {str(name): tuple(str(n) for n in providers) for name, providers in listed if providers}
         if not paths:
             return set()
-        return set.intersection(*(namespaces(names, p) for p in paths))
-
-
-class _TimeoutTransport(xmlrpc.client.Transport):
-    def __init__(self, timeout: float) -> None:
-        super().__init__()
-        self.timeout = timeout
-
-    def make_connection(self, host: Any) -> Any:
-        conn = super().make_connection(host)
-        conn.timeout = self.timeout
-        return conn
+        found = set.intersection(*(namespaces(nodes, p) for p in paths))
+        first = {ns: nodes[f"/{ns}/{paths[0]}"] for ns in found}
+        running = alive(self.master_uri, (node for listed_by in first.values() for node in listed_by))
+        return {ns for ns, listed_by in first.items() if any(node in running for node in listed_by)}
 
 
 class Robots(Protocol):
@@ -305,7 +310,20 @@ def ros2_graph(graph_node: Callable[[int | None], Any], domain: int | None, env:
 
 
 def ros1_graph(master_uri: str | None, env: Mapping[str, str]) -> Graph:
+    """The ROS 1 graph of the master at `master_uri` (None: `ROS_MASTER_URI`, else ROS's default). Its name is
+    the master's host and port, however the URI spells them, and this host's name for a loopback master: the
+    processes of a shared fleet compare the names to tell whether they read one graph."""
     uri = master_uri or env.get("ROS_MASTER_URI") or "http://localhost:11311"
     if not re.match(r"^https?://", uri):
         raise ConfigError(f"ROS master URI {uri!r} must be http://host:port")
-    return Ros1Graph(uri)
+    try:
+        parts = urllib.parse.urlsplit(uri)
+        host, port = (parts.hostname or "localhost").lower(), parts.port or 11311
+    except ValueError as exc:
+        raise ConfigError(f"ROS master URI {uri!r} must be http://host:port") from exc
+    graph = Ros1Graph(uri)
+    if host == "localhost" or host == "::1" or host.startswith("127."):
+        graph.name = f"ros1 master localhost:{port} on {socket.gethostname()}"
+    else:
+        graph.name = f"ros1 master {host}:{port}"
+    return graph

@@ -12,9 +12,9 @@ robot's status then says `online` and `robot: absent`, and an invoke is answered
   one killed (SIGKILL, power) when DDS drops its participant (its lease: Fast DDS's default is 20 s);
 * the simulated robot (`SimPort`): its `down` switch, when the test sets `watched`;
 * ROS 1 (rospy here, or the bridge): the ROS 1 master's `getSystemState`, one XML-RPC call per master and
-  period for all its robots: each service has a provider, each actionlib server publishes its `status`; a
-  node that dies is gone once the master knows (a clean stop unregisters at once; a killed node stays
-  registered until something finds it dead, e.g. `rosnode cleanup`);
+  period for all its robots: each service has a provider, each actionlib server publishes its `status`, and
+  that node runs (a clean stop unregisters at once; a killed node, which stays registered, is found dead by
+  a connection to its XML-RPC API that is refused: ros1nodes.py);
 * anything else: no probe; the status has no `robot` member and nothing is refused.
 
 `Presence` keeps what the last look saw. An action whose server has never been seen is refused only once the
@@ -26,7 +26,6 @@ two of every start, while nothing was refused.
 
 from __future__ import annotations
 
-import http.client
 import os
 import threading
 import time
@@ -36,6 +35,7 @@ from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 from td2adaptor.model.events import PRESENCE_WORDS, EventSpec
+from td2adaptor.runtime.node.ros1nodes import TimeoutTransport, alive
 
 #: what a look at the robot's ROS side says: each action (TD affordance) and whether its server is there
 Probe = Callable[[], Mapping[str, bool]]
@@ -140,21 +140,14 @@ def sim_probe(port: Any, actions: Iterable[str]) -> Probe:
 
 #: seconds one look at a ROS 1 master may take; and how long its answer serves every robot on that master
 MASTER_TIMEOUT, MASTER_FRESH = 2.0, 0.2
-_masters: dict[str, tuple[float, frozenset[str], frozenset[str]] | None] = {}
+#: by name: the nodes that provide a service, or publish a topic
+Providers = Mapping[str, tuple[str, ...]]
+_masters: dict[str, tuple[float, Providers, Providers] | None] = {}
 _masters_lock = threading.Lock()
 
 
-class _TimeoutTransport(xmlrpc.client.Transport):
-    """XML-RPC over HTTP that gives up after `MASTER_TIMEOUT` (the standard transport waits for ever)."""
-
-    def make_connection(self, host: Any) -> http.client.HTTPConnection:
-        connection = super().make_connection(host)
-        connection.timeout = MASTER_TIMEOUT
-        return connection
-
-
-def master_state(uri: str, clock: Callable[[], float] = time.monotonic) -> tuple[frozenset[str], frozenset[str]] | None:
-    """The services that have a provider and the topics that have a publisher on the ROS 1 master at `uri`
+def master_state(uri: str, clock: Callable[[], float] = time.monotonic) -> tuple[Providers, Providers] | None:
+    """The nodes the ROS 1 master at `uri` lists as each service's provider and each topic's publishers
     (`getSystemState`, shared by every robot of that master for `MASTER_FRESH`); None when it does not answer."""
     with _masters_lock:
         known = _masters.get(uri)
@@ -162,14 +155,14 @@ def master_state(uri: str, clock: Callable[[], float] = time.monotonic) -> tuple
             return known[1], known[2]
     answer: Any = None
     try:
-        with xmlrpc.client.ServerProxy(uri, transport=_TimeoutTransport()) as master:
+        with xmlrpc.client.ServerProxy(uri, transport=TimeoutTransport(MASTER_TIMEOUT)) as master:
             answer = master.getSystemState("/td2adaptor_presence")
     except (OSError, xmlrpc.client.Error):
         answer = None
     try:
         code, _message, (publishers, _subscribers, services) = answer
-        served = frozenset(str(name) for name, providers in services if providers)
-        published = frozenset(str(name) for name, nodes in publishers if nodes)
+        served = {str(name): tuple(str(n) for n in providers) for name, providers in services if providers}
+        published = {str(name): tuple(str(n) for n in nodes) for name, nodes in publishers if nodes}
     except (TypeError, ValueError):  # no answer, or not the master's
         code = 0
     if code != 1:
@@ -183,8 +176,9 @@ def master_state(uri: str, clock: Callable[[], float] = time.monotonic) -> tuple
 
 def ros1_probe(model: Any, namespace: str, master: str, actions: Iterable[str]) -> Probe | None:
     """The look at a ROS 1 robot through its master (whatever reaches it: rospy here or the bridge): each
-    service of `actions` has a provider, each actionlib server publishes its `status`. A master that does not
-    answer: every server is gone (the robot's ROS side cannot be reached)."""
+    service of `actions` has a provider, each actionlib server publishes its `status`, and that node runs
+    (ros1nodes.py: a killed node stays listed by the master). A master that does not answer: every server is
+    gone (the robot's ROS side cannot be reached)."""
     services, servers = ros_names(model, namespace, actions, "/status")
     if not services and not servers:
         return None
@@ -194,9 +188,10 @@ def ros1_probe(model: Any, namespace: str, master: str, actions: Iterable[str]) 
         if state is None:
             return dict.fromkeys([*services, *servers], False)
         served, published = state
-        ready = {name: ros in served for name, ros in services.items()}
-        ready.update({name: topic in published for name, topic in servers.items()})
-        return ready
+        nodes = {name: served.get(ros, ()) for name, ros in services.items()}
+        nodes.update({name: published.get(topic, ()) for name, topic in servers.items()})
+        running = alive(master, (node for listed in nodes.values() for node in listed))
+        return {name: any(node in running for node in listed) for name, listed in nodes.items()}
 
     return look
 

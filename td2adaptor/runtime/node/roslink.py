@@ -251,7 +251,7 @@ def connect_ros1(
             "ROS 1 (rospy) is not importable here and no ROS 1 interpreter was found: give --ros1-python PATH "
             "(the Python that has rospy, e.g. /usr/bin/python3) or set TD2ADAPTOR_ROS1_PYTHON"
         )
-    link = RosLink(description=f"ROS 1 via {interpreter}, package {package}")
+    link = RosLink(description=f"ROS 1 (a bridge under {interpreter}), package {package}")
     layout = Layout.of(model)
 
     def attach(into: RosLink, members: Sequence[RuntimeConfig], suffix: str) -> None:

@@ -22,7 +22,7 @@ from collections.abc import Callable, Mapping
 from datetime import datetime, timezone
 from typing import Any
 
-from td2adaptor.runtime.bus.bus import Bus, BusError
+from td2adaptor.runtime.bus.bus import Bus, BusError, Message
 from td2adaptor.runtime.engine.engine import Engine, status_event
 from td2adaptor.runtime.engine.missions import Mission
 from td2adaptor.runtime.loop import Shared, Timer, acquire, release
@@ -90,6 +90,7 @@ class StatusKeeper:
         self.durations = Durations()
         self._on_presence: list[Callable[[str | None], None]] = []  # told the robot's ROS side when it changes
         self._told: str | None = None  # the word the hooks and the log were told last (it also changes with time)
+        self._offline: Message | None = None  # the `offline` made at the start (stop() stamps it anew)
         engine.outbox.on_end.append(self._ended)
         birth = getattr(raw, "birth", None)
         self._ours: deque[bytes] = deque([birth.payload] if birth is not None else [], maxlen=OURS_KEPT)
@@ -101,7 +102,7 @@ class StatusKeeper:
         if self.probe is not None and self.engine.absent is None and self.period > 0:
             self.engine.absent = self.presence.absent
         engine = self.engine
-        engine.offline = status_event(engine.config, engine.model, "offline", **owner_fields())
+        engine.offline = self._offline = status_event(engine.config, engine.model, "offline", **owner_fields())
         with _keepers_lock:
             _keepers[engine.config.robot] = self
         self._shared.loop.post(self._tick)
@@ -116,8 +117,12 @@ class StatusKeeper:
         self.durations.add(state, max(0.0, self.engine.clock() - mission.started))
 
     def stop(self) -> None:
-        """No more looks and no more status (the engine publishes `offline` next)."""
+        """No more looks and no more status (the engine publishes `offline` next, stamped now unless a share
+        replaced it: an `offline` stamped at the start would look older than the statuses before it)."""
         self._stopped = True
+        engine = self.engine
+        if self._offline is not None and engine.offline is self._offline:
+            engine.offline = status_event(engine.config, engine.model, "offline", **owner_fields())
         if self._timer is not None:
             self._timer.cancel()
         with _keepers_lock:

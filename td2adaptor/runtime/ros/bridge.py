@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import importlib
 import json
+import logging
 import os
 import shutil
 import signal
@@ -60,6 +61,8 @@ from td2adaptor.runtime.ros.port import (
 from td2adaptor.runtime.ros.words import import_failure, setup_failure
 
 ENV_PYTHON = "TD2ADAPTOR_ROS1_PYTHON"
+log = logging.getLogger("td2adaptor.runtime")
+
 _ERRORS: dict[str, type[PortError]] = {
     "PortUnavailable": PortUnavailable,
     "PortTimeout": PortTimeout,
@@ -170,6 +173,7 @@ class Ros1Bridge:
         self._last_start = -1e9
         self._closed = False
         self._readers: list[threading.Thread] = []
+        self._serving: subprocess.Popen[bytes] | None = None  # the child that started serving last
 
     # -- life cycle ----------------------------------------------------------------------------------------
 
@@ -212,16 +216,29 @@ class Ros1Bridge:
                 threading.Thread(target=self._read, args=(proc,), name="ros1-bridge-reader", daemon=True),
                 threading.Thread(target=self._relay, args=(proc,), name="ros1-bridge-stderr", daemon=True),
             ]
+            # the child's first line says what to serve: written before the lock lets a call see the child (the
+            # property reads of a fleet's robots, in parallel, wrote theirs first, and the child took one for it)
+            init = self._reply_box()
+            try:
+                rid: int | PortError = self._send_locked(None, "init", [self.init_request()], init[0])
+            except PortError as exc:  # it died at once
+                rid = exc
         for reader in self._readers:
             reader.start()
         try:
-            self._request(None, "init", [self.init_request()], self.start_timeout)
+            if isinstance(rid, PortError):
+                raise rid
+            self._await(rid, init, "init", self.start_timeout)
+            self._serving = proc
         except StalePackage:
             self._kill()
             raise
         except PortError as exc:
             self._kill()
             raise RosSetupError(f"the ROS 1 bridge under {self.python} did not start: {exc}") from None
+        except BaseException:  # interrupted (Ctrl-C while rospy waits for a master that is not up): no orphan
+            self._kill(at_once=True)
+            raise
 
     def init_request(self) -> dict[str, Any]:
         """What the child is told first: the package, the robots and the settings of their ports."""
@@ -254,10 +271,14 @@ class Ros1Bridge:
             shutil.rmtree(self._shim, ignore_errors=True)
             self._shim = None
 
-    def _kill(self) -> None:
+    def _kill(self, at_once: bool = False) -> None:
+        """End the child: SIGTERM, then SIGKILL after 5 s (`at_once`: SIGKILL, for a child that never served)."""
         proc = self._proc
         if proc is None:
             return
+        if proc.poll() is None and at_once:
+            proc.kill()
+            proc.wait(5)
         if proc.poll() is None:
             proc.terminate()
             try:
@@ -313,6 +334,9 @@ class Ros1Bridge:
                 listeners, self._listeners = self._listeners, {}
             else:
                 pending, listeners = {}, {}
+            unexpected = self._serving is proc and not self._closed
+        if unexpected:  # else the operator learns of it only from the calls that fail meanwhile
+            log.warning("%s (process %d); the next call starts it again", why, proc.pid)
         for deliver in pending.values():
             deliver({"error": {"kind": "PortUnavailable", "message": why}})
         for listener in listeners.values():
@@ -342,23 +366,31 @@ class Ros1Bridge:
     ) -> int:
         """Write one request; `deliver` is given its reply (in the reader's thread), None: nobody waits for one."""
         with self._lock:
-            proc = self._proc
-            if proc is None or proc.poll() is not None or proc.stdin is None:
-                raise PortUnavailable("the ROS 1 bridge is not running")
-            rid = 0 if op == "init" else self._next_id
-            self._next_id += 1
-            if deliver is not None:
-                self._pending[rid] = deliver
-            line = json.dumps({"id": rid, "robot": robot, "op": op, "args": args}) + "\n"
-            try:
-                proc.stdin.write(line.encode("utf-8"))
-                proc.stdin.flush()
-            except (OSError, ValueError):
-                self._pending.pop(rid, None)
-                raise PortUnavailable("the ROS 1 bridge is not running (its input is closed)") from None
+            return self._send_locked(robot, op, args, deliver)
+
+    def _send_locked(
+        self, robot: str | None, op: str, args: list[Any], deliver: Callable[[dict[str, Any]], None] | None
+    ) -> int:
+        """`_send` with the lock held."""
+        proc = self._proc
+        if proc is None or proc.poll() is not None or proc.stdin is None:
+            raise PortUnavailable("the ROS 1 bridge is not running")
+        rid = 0 if op == "init" else self._next_id
+        self._next_id += 1
+        if deliver is not None:
+            self._pending[rid] = deliver
+        line = json.dumps({"id": rid, "robot": robot, "op": op, "args": args}) + "\n"
+        try:
+            proc.stdin.write(line.encode("utf-8"))
+            proc.stdin.flush()
+        except (OSError, ValueError):
+            self._pending.pop(rid, None)
+            raise PortUnavailable("the ROS 1 bridge is not running (its input is closed)") from None
         return rid
 
-    def _request(self, robot: str | None, op: str, args: list[Any], timeout: float) -> Any:
+    @staticmethod
+    def _reply_box() -> tuple[Callable[[dict[str, Any]], None], threading.Event, list[dict[str, Any]]]:
+        """(deliver, set once the reply came, the reply): what a request waits on."""
         event = threading.Event()
         box: list[dict[str, Any]] = []
 
@@ -366,11 +398,25 @@ class Ros1Bridge:
             box.append(reply)
             event.set()
 
-        rid = self._send(robot, op, args, deliver)
+        return deliver, event, box
+
+    def _await(
+        self,
+        rid: int,
+        waiting: tuple[Callable[[dict[str, Any]], None], threading.Event, list[dict[str, Any]]],
+        op: str,
+        timeout: float,
+    ) -> Any:
+        _deliver, event, box = waiting
         if not event.wait(timeout):
             self._pending.pop(rid, None)
             raise PortTimeout(f"the ROS 1 bridge did not answer {op} within {timeout:g} s")
         return _outcome(box[0], self.package)
+
+    def _request(self, robot: str | None, op: str, args: list[Any], timeout: float) -> Any:
+        waiting = self._reply_box()
+        rid = self._send(robot, op, args, waiting[0])
+        return self._await(rid, waiting, op, timeout)
 
     def _ensure_started(self) -> None:
         """Restart a dead child first, if it is time to."""
@@ -672,8 +718,23 @@ def _serve(requests: IO[str], replies: IO[str]) -> int:
     return 0
 
 
+#: seconds the child lives on once its parent is gone (a clean shutdown, started by its input closing, ends first)
+ORPHAN_GRACE = 5.0
+
+
+def _leave_with(parent: int) -> None:
+    """(a daemon thread of the child) End the child once its parent is gone. The parent's death closes the
+    child's input, which ends it, but only once it reads it: rospy's wait for a master that is not up reads
+    nothing (and the child ignores SIGINT/SIGTERM), so a `run` stopped or killed meanwhile left it running."""
+    while os.getppid() == parent:
+        time.sleep(1.0)
+    time.sleep(ORPHAN_GRACE)
+    os._exit(1)
+
+
 def main() -> int:
     """`python -m td2adaptor.runtime.ros.bridge`: requests on stdin, replies on the original stdout."""
+    threading.Thread(target=_leave_with, args=(os.getppid(),), name="bridge-orphan", daemon=True).start()
     # The parent ends the bridge by closing its input (its death closes it too). A SIGINT/SIGTERM sent to the
     # whole process group (Ctrl-C, a launch system stopping the node) must not end it first: the parent would
     # log the property reads of its last moments as failures of a clean stop.

@@ -234,6 +234,26 @@ def test_no_robot_raises_service_unavailable_within_the_timeout(master: Master, 
     assert 0.4 <= elapsed < 1.5
 
 
+NO_ROBOT_WITHIN_THE_TIMEOUT = """
+from robotnik_rb_1_adaptor import *
+c = GoToComponent("nobody_here", timeout=0.5, wait_timeout=5.0)
+try:
+    c.call_gotoQuery()
+    emit("no error")
+except ServiceUnavailable as e:
+    emit(str(e))
+"""
+
+
+def test_a_wait_for_a_service_cut_short_by_the_call_timeout_says_how_long_in_plain_numbers(
+    master: Master, path: list[Path]
+) -> None:
+    """The edge node relays this message to the application ("the robot is not reachable: ..."): it said
+    "waited 9.99999 s" for a call timeout of 10 s (the time left of the call, printed in full)."""
+    message = harness.run_client(master, path, NO_ROBOT_WITHIN_THE_TIMEOUT)
+    assert message.endswith("is not available (waited 0.5 s)"), message
+
+
 HANG = """
 from robotnik_rb_1_adaptor import *
 c = GoToComponent("hang", timeout=0.5)

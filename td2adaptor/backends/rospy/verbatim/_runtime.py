@@ -349,7 +349,7 @@ class ServiceClient(Generic[Req, Resp]):
         except rospy.ROSInterruptException:
             raise ServiceUnavailable(self.name, "rospy is shutting down") from None
         except rospy.ROSException:
-            raise ServiceUnavailable(self.name, f"waited {wait:g} s") from None
+            raise ServiceUnavailable(self.name, f"waited {wait:.3g} s") from None
         proxy = self._proxy
         if proxy is None:
             proxy = rospy.ServiceProxy(self.name, self._service_class, persistent=True)
