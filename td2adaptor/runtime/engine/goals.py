@@ -1,4 +1,4 @@
-"""The engine's side of TD actions bound to ROS actions: a goal is a mission, a state machine on the engine's loop.
+"""The engine's side of TD actions bound to ROS actions: a goal is a mission, a state machine driven by the port.
 
 An invoke sends the goal (one mission per component at a time, as for procedures). Once the server accepts,
 a feedback event says so (`queued`, `result: accepted`, with the goal id); then every ROS feedback message
@@ -13,18 +13,19 @@ answered (the terminal feedback follows when the server ends the goal); a query 
 current state, or with the end of the last goal. Every decision that fails a goal is logged.
 
 No thread waits for a goal. The port tells what happens to it through a `GoalListener` (ros/port.py), from
-the ROS client library's threads, one call at a time per goal and in order. The acceptance, the status and
-each feedback message are handled right there, in the thread that was told (ROS 2: the executor's; the ROS 1
-bridge: its reader), under the goal's lock: its `queued` and `running` events go out without a hand-off to
-the loop, so the first feedback never waits for the loop to wake nor for other work queued on it (measured: a
-hand-off costs up to a switch interval of the interpreter lock when the executor keeps it busy). The goal's end
-is posted to the loop, which owns the rest of the machine (`Chase`): the timers (the mission timeout, the held
-feedback's), the end and the component's release, the queries and cancels. The lock keeps a goal's events
-numbered in order and none after its terminal one: the loop publishes that one under the lock too, and marks
-the goal ended with it. A goal is started on the loop itself when the port can do so without waiting
-(`QuickGoalStart`: ROS 2's generated `start_X` returns at once), else on the robot's lane of the call pool; the
-other calls into the robot's side (cancel, forget) go to the lane, and what comes of them is posted back as
-callbacks. The generated package keeps the goal's feedback (one buffer) and tells it in order.
+the ROS client library's threads, one call at a time per goal and in order, and each is handled right there
+(ROS 2: in the executor's thread; the ROS 1 bridge: its reader's), under the goal's lock: the `queued`,
+`running` and terminal events go out without a hand-off to the engine's loop, so the first feedback waits
+neither for the loop to wake (a hand-off costs up to a switch interval of the interpreter lock while the
+executor keeps it busy) nor for other work queued on it. The goal's machine (`Chase`) is shared by those calls
+and the loop's own steps: its timers (the mission timeout, the feedback held back by `feedback_period`), a
+query's or cancel's look at it, stopping. The lock keeps a goal's events numbered in order and none after its
+terminal one: whoever ends the goal publishes that one under the lock and marks the goal ended with it, and
+every other step looks at that mark first. The mission table, the ledger and the outbox are safe from any
+thread. A goal is started on the loop itself when the port can do so without waiting (`QuickGoalStart`: ROS
+2's generated `start_X` returns at once), else on the robot's lane of the call pool; the other calls into the
+robot's side (cancel, forget) go to the lane, and a cancel's answer is posted back to the loop. The generated
+package keeps the goal's feedback (one buffer) and tells it in order.
 """
 
 from __future__ import annotations
@@ -115,11 +116,10 @@ class Chase:
 
 
 class _Told:
-    """The listener of one goal: the acceptance, status and feedback are handled in the port's thread (under the
-    goal's lock), the end is posted to the loop (see the module docstring)."""
+    """The listener of one goal: what the port tells is handled in the port's thread, under the goal's lock (see
+    the module docstring)."""
 
     def __init__(self, runner: GoalRunner, chase: Chase) -> None:
-        self.post = runner.ctx.loop.post
         self.runner = runner
         self.chase = chase
 
@@ -133,11 +133,12 @@ class _Told:
         self.runner._feedback(self.chase, message)
 
     def on_done(self, end: GoalEnd) -> None:
-        self.post(self.runner._done, self.chase, end)
+        self.runner._done(self.chase, end)
 
 
 class GoalRunner:
-    """Follows the ROS action goals of one robot (see the module docstring); every method runs on the loop."""
+    """Follows the ROS action goals of one robot (see the module docstring): on the loop, except what the port
+    tells (`_accepted`, `_status`, `_feedback`, `_done`), which runs in the port's thread."""
 
     def __init__(self, ctx: RobotContext) -> None:
         self.ctx = ctx
@@ -264,7 +265,8 @@ class GoalRunner:
         self.ctx.outbox.feedback(chase.m, running, terminal=False, extra={"feedback": message})
 
     def _done(self, chase: Chase, end: GoalEnd) -> None:
-        """The goal's end as the port told it: its held feedback, then the one terminal event."""
+        """(the port's thread) The goal's end as the port told it: its held feedback, then the one terminal
+        event."""
         with chase.lock:
             if chase.ended:
                 return
@@ -272,8 +274,9 @@ class GoalRunner:
                 chase.flush.cancel()
                 chase.flush = None
             self._flush(chase)
-        # the port tells nothing after the end, and the loop's own steps come after this one: the goal is as
-        # it was here until _end publishes its terminal event
+            self._ended(chase, end)
+
+    def _ended(self, chase: Chase, end: GoalEnd) -> None:
         m = chase.m
         if not chase.accepted:  # it never ran: refused, or no server took it
             error = end.error or PortCallFailed(end.message)
@@ -290,16 +293,17 @@ class GoalRunner:
 
     def _give_up(self, chase: Chase) -> None:
         """The mission timeout passed: the goal fails, and the server is asked to cancel it."""
-        if chase.ended:
-            return
-        message = f"no result within the mission timeout of {self.ctx.config.mission_timeout:g} s"
-        log.warning("%s goal %s: failed: %s", chase.m.action, chase.goal, message)
-        chase.cancel_when_sent = True  # the server is asked to cancel it as the port forgets it
-        self._end(chase, ProcedureStatus("failed", message=message, reason="timeout"))
+        with chase.lock:
+            if chase.ended:
+                return
+            message = f"no result within the mission timeout of {self.ctx.config.mission_timeout:g} s"
+            log.warning("%s goal %s: failed: %s", chase.m.action, chase.goal, message)
+            chase.cancel_when_sent = True  # the server is asked to cancel it as the port forgets it
+            self._end(chase, ProcedureStatus("failed", message=message, reason="timeout"))
 
     def _end(self, chase: Chase, status: ProcedureStatus, output: Any = None) -> None:
-        """Publish the goal's terminal event and leave it: under the goal's lock, so that no event of the port's
-        thread comes after it."""
+        """Publish the goal's terminal event and leave it, under the goal's lock: no other event of the goal
+        comes after it, from whichever thread (the loop's timeout, the port's end)."""
         with chase.lock:
             if chase.ended:
                 return
