@@ -229,7 +229,12 @@ def test_a_goals_events_go_out_while_the_engine_loop_is_busy(
         edge.send("", {"correlation": "busy-loop", "payload": {"order": 6}})
         edge.app.wait(lambda ev: bool(feedback(ev, "busy-loop")), timeout=20)  # queued: the goal was sent
         held = threading.Event()
-        shared.loop.post(lambda: (held.set(), free.wait(60)))
+
+        def hold() -> None:  # on the loop: nothing else runs there until `free`
+            held.set()
+            free.wait(60)
+
+        shared.loop.post(hold)
         assert held.wait(10)
         events = edge.ended("busy-loop")
         assert not free.is_set()  # the loop was busy all along
