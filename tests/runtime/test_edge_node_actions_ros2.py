@@ -6,7 +6,8 @@ tests.lowering.test_actions.action_td. Checked: invoke → the acceptance, one f
 message (in order, carrying it) → exactly one terminal event with the result; rejected and aborted goals;
 query and cancel; the throttle; the action server killed mid-goal → failure within `action_server_timeout`,
 the component free again; a burst of 1,000 feedback messages relayed in order, without a gap or a duplicate;
-the edge process's threads the same with eight goals in flight as with none.
+the edge process's threads the same with eight goals in flight as with none; a goal's events going out while the
+engine's loop is busy.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ import pytest
 from td2adaptor.model import Model
 from td2adaptor.model.events import Kind, build_catalog
 from td2adaptor.model.wot import WOT_LEVEL
-from td2adaptor.runtime import RuntimeConfig, serve
+from td2adaptor.runtime import RuntimeConfig, loop, serve
 from td2adaptor.runtime.events import EventValidator
 from td2adaptor.runtime.node.roslink import RosLink, connect
 from tests.lowering.test_actions import INTERFACES, action_td
@@ -212,6 +213,35 @@ def test_query_and_cancel_a_goal(fibo_build: tuple[Model, Path], fibo_robot: Pro
         assert error["type"] == "error" and error["payload"]["code"] == "unsupported"
         edge.check(edge.app.events)
     finally:
+        edge.close()
+
+
+def test_a_goals_events_go_out_while_the_engine_loop_is_busy(
+    fibo_build: tuple[Model, Path], fibo_robot: Process, broker: Mosquitto
+) -> None:
+    """A goal's feedback and end are published from the thread ROS tells them in, not queued behind the engine's
+    loop (issue 31: the first feedback waited for the loop to wake and to finish the acceptance): with the loop
+    held busy, a running goal's feedback events and its terminal event still come, in order."""
+    edge = Edge(fibo_build, broker, ROBOT)
+    shared = loop.acquire()  # the process's loop, which the edge node's engine runs on
+    free = threading.Event()
+    try:
+        edge.send("", {"correlation": "busy-loop", "payload": {"order": 6}})
+        edge.app.wait(lambda ev: bool(feedback(ev, "busy-loop")), timeout=20)  # queued: the goal was sent
+        held = threading.Event()
+
+        def hold() -> None:  # on the loop: nothing else runs there until `free`
+            held.set()
+            free.wait(60)
+
+        shared.loop.post(hold)
+        assert held.wait(10)
+        events = edge.ended("busy-loop")
+        assert not free.is_set()  # the loop was busy all along
+        check_goal(events, sent_feedback(fibo_robot, ROBOT, 6), "finished")
+    finally:
+        free.set()
+        loop.release(shared)
         edge.close()
 
 

@@ -1,7 +1,8 @@
 """Where the engine starts a ROS action goal (runtime/engine/goals.py): on its loop when the port can start it
 without waiting (`QuickGoalStart`: one thread hand-off fewer between the invoke event and the goal request),
 on the robot's lane of the call pool when it cannot. Simulated action servers (`SimActions`) on the in-process
-bus; each goal still gets its feedback in order and one terminal event."""
+bus; each goal still gets its feedback in order and one terminal event, also when the loop's mission timeout
+ends it while the server's thread publishes its feedback."""
 
 from __future__ import annotations
 
@@ -79,3 +80,32 @@ def test_a_goal_is_started_on_the_loop_when_the_port_can_and_on_the_call_pool_ot
         assert [p["seq"] for p in payloads] == list(range(1, len(payloads) + 1))
         assert [p["state"] for p in payloads] == ["queued"] + ["running"] * (len(payloads) - 2) + ["finished"]
         assert [p["feedback"]["sequence"] for p in payloads[1:-1]] == [[0, 1, 1, 2, 3, 5][: k + 2] for k in range(4)]
+
+
+def test_a_goal_given_up_while_its_feedback_streams_in_gets_no_event_after_its_terminal_one() -> None:
+    """The mission timeout (the loop's timer) ends goals whose feedback the simulated server sends every
+    millisecond from its own thread, which publishes it there: each goal's events are numbered without a gap
+    and its terminal event (failed, timeout) is its last one, whichever thread came first (the goal's lock)."""
+    broker = LocalBroker()
+    port = Watched(action_model(), sim(robot_id=ROBOT), readers={}, writers={}, actions=SimActions(step=0.001))
+    config = RuntimeConfig(robot=ROBOT, bus="local", state_dir="", mission_timeout=0.2)
+    engine = serve(action_model(), port, config, broker=broker)
+    app = Recorder(broker, [f"{TOPIC}/feedback"], "goal-timeout-app")
+    try:
+        # five goals given up, then a short one: an event of theirs published late would be in before its end
+        for i, order in enumerate([100000] * 5 + [1]):
+            app.send(TOPIC, json.dumps({"correlation": f"t{i}", "payload": {"order": order}}).encode())
+            app.wait(
+                lambda es, c=f"t{i}": any(e["correlation"] == c and e["payload"]["terminal"] for _, e in es),
+                timeout=10,
+            )  # type: ignore[misc]
+        events = [e for _, e in app.wait(lambda es: True)]
+        for i in range(5):
+            payloads = [e["payload"] for e in events if e["correlation"] == f"t{i}"]
+            assert [p["seq"] for p in payloads] == list(range(1, len(payloads) + 1))
+            assert [p["terminal"] for p in payloads] == [False] * (len(payloads) - 1) + [True]
+            assert (payloads[-1]["state"], payloads[-1]["reason"]) == ("failed", "timeout")
+            assert len(payloads) > 3  # feedback came before the timeout
+    finally:
+        app.close()
+        engine.stop()

@@ -1,4 +1,4 @@
-"""The engine's side of TD actions bound to ROS actions: a goal is a mission, a state machine on the engine's loop.
+"""The engine's side of TD actions bound to ROS actions: a goal is a mission, a state machine driven by the port.
 
 An invoke sends the goal (one mission per component at a time, as for procedures). Once the server accepts,
 a feedback event says so (`queued`, `result: accepted`, with the goal id); then every ROS feedback message
@@ -13,13 +13,19 @@ answered (the terminal feedback follows when the server ends the goal); a query 
 current state, or with the end of the last goal. Every decision that fails a goal is logged.
 
 No thread waits for a goal. The port tells what happens to it through a `GoalListener` (ros/port.py), from
-the ROS client library's threads; each of those calls only posts the news to the loop, which owns the goal's
-machine (`Chase`): its status, whether it was accepted, its feedback held back by `feedback_period`, its
-timers (the mission timeout, the held feedback's) and its end. A goal is started on the loop itself when the
-port can do so without waiting (`QuickGoalStart`: ROS 2's generated `start_X` returns at once), else on the
-robot's lane of the call pool; the other calls into the robot's side (cancel, forget) go to the lane, and what
-comes of them is posted back as callbacks too. The generated package
-keeps the goal's feedback (one buffer) and tells it in order; the loop's queue keeps that order.
+the ROS client library's threads, one call at a time per goal and in order, and each is handled right there
+(ROS 2: in the executor's thread; the ROS 1 bridge: its reader's), under the goal's lock: the `queued`,
+`running` and terminal events go out without a hand-off to the engine's loop, so the first feedback waits
+neither for the loop to wake (a hand-off costs up to a switch interval of the interpreter lock while the
+executor keeps it busy) nor for other work queued on it. The goal's machine (`Chase`) is shared by those calls
+and the loop's own steps: its timers (the mission timeout, the feedback held back by `feedback_period`), a
+query's or cancel's look at it, stopping. The lock keeps a goal's events numbered in order and none after its
+terminal one: whoever ends the goal publishes that one under the lock and marks the goal ended with it, and
+every other step looks at that mark first. The mission table, the ledger and the outbox are safe from any
+thread. A goal is started on the loop itself when the port can do so without waiting (`QuickGoalStart`: ROS
+2's generated `start_X` returns at once), else on the robot's lane of the call pool; the other calls into the
+robot's side (cancel, forget) go to the lane, and a cancel's answer is posted back to the loop. The generated
+package keeps the goal's feedback (one buffer) and tells it in order.
 """
 
 from __future__ import annotations
@@ -27,7 +33,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import partial
 from typing import Any
 
@@ -95,6 +101,9 @@ class Chase:
 
     m: Mission
     held: threading.Event  # set once the machine is done with the mission (stopping waits for it)
+    # held while the goal's state changes and its events are published: by the port's thread (acceptance,
+    # status, feedback) and by the loop (the rest)
+    lock: threading.RLock = field(default_factory=threading.RLock)
     goal: str | None = None  # the port's id of the goal, once start_goal returned or the server accepted
     accepted: bool = False
     status: str = "unknown"  # the latest status the port told
@@ -107,28 +116,29 @@ class Chase:
 
 
 class _Told:
-    """The listener of one goal: each call from the port's threads is posted to the loop (nothing else)."""
+    """The listener of one goal: what the port tells is handled in the port's thread, under the goal's lock (see
+    the module docstring)."""
 
     def __init__(self, runner: GoalRunner, chase: Chase) -> None:
-        self.post = runner.ctx.loop.post
         self.runner = runner
         self.chase = chase
 
     def on_accepted(self, goal: str) -> None:
-        self.post(self.runner._accepted, self.chase, goal)
+        self.runner._accepted(self.chase, goal)
 
     def on_status(self, status: str) -> None:
-        self.post(self.runner._status, self.chase, status)
+        self.runner._status(self.chase, status)
 
     def on_feedback(self, message: Any) -> None:
-        self.post(self.runner._feedback, self.chase, message)
+        self.runner._feedback(self.chase, message)
 
     def on_done(self, end: GoalEnd) -> None:
-        self.post(self.runner._done, self.chase, end)
+        self.runner._done(self.chase, end)
 
 
 class GoalRunner:
-    """Follows the ROS action goals of one robot (see the module docstring); every method runs on the loop."""
+    """Follows the ROS action goals of one robot (see the module docstring): on the loop, except what the port
+    tells (`_accepted`, `_status`, `_feedback`, `_done`), which runs in the port's thread."""
 
     def __init__(self, ctx: RobotContext) -> None:
         self.ctx = ctx
@@ -203,56 +213,71 @@ class GoalRunner:
 
     def _sent(self, chase: Chase, goal: str) -> None:
         """start_goal returned the goal's id."""
-        chase.goal = chase.goal or goal
-        if chase.ended:  # given up or left meanwhile: the port forgets it now (cancelled first when given up)
+        with chase.lock:
+            chase.goal = chase.goal or goal
+            ended = chase.ended
+        if ended:  # given up or left meanwhile: the port forgets it now (cancelled first when given up)
             self._forget(chase, cancel=chase.cancel_when_sent)
 
     def _accepted(self, chase: Chase, goal: str) -> None:
-        if chase.ended:
-            return
-        m = chase.m
-        chase.accepted, chase.goal, m.goal = True, goal, goal
-        if chase.status == "unknown":
-            chase.status = "accepted"
-        self.ctx.outbox.feedback(m, ProcedureStatus("queued", "accepted", "goal accepted"), terminal=False)
+        """(the port's thread) The server accepted the goal: its `queued` event."""
+        with chase.lock:
+            if chase.ended:
+                return
+            m = chase.m
+            chase.accepted, chase.goal, m.goal = True, goal, goal
+            if chase.status == "unknown":
+                chase.status = "accepted"
+            self.ctx.outbox.feedback(m, ProcedureStatus("queued", "accepted", "goal accepted"), terminal=False)
         log.info("%s goal %s accepted", m.action, goal)  # once the event is out: a log line is a write to stderr
 
     def _status(self, chase: Chase, status: str) -> None:
-        if not chase.ended:
-            chase.status = status
+        """(the port's thread) The goal's status changed."""
+        with chase.lock:
+            if not chase.ended:
+                chase.status = status
 
     def _feedback(self, chase: Chase, message: Any) -> None:
-        if chase.ended:
-            return
-        period, now = self.ctx.config.feedback_period, self.ctx.clock()
-        if period <= 0 or (chase.flush is None and now - chase.sent >= period):
-            self._relay(chase, message)
-            return
-        chase.kept = (message,)
-        if chase.flush is None:
-            chase.flush = self.ctx.loop.call_later(chase.sent + period - now, self._flush, chase)
+        """(the port's thread) One feedback message: its `running` event now, or held (feedback_period)."""
+        with chase.lock:
+            if chase.ended:
+                return
+            period, now = self.ctx.config.feedback_period, self.ctx.clock()
+            if period <= 0 or (chase.flush is None and now - chase.sent >= period):
+                self._relay(chase, message)
+                return
+            chase.kept = (message,)
+            if chase.flush is None:
+                chase.flush = self.ctx.loop.call_later(chase.sent + period - now, self._flush, chase)
 
     def _flush(self, chase: Chase) -> None:
         """The held feedback message's turn (feedback_period)."""
-        chase.flush = None
-        if not chase.ended and chase.kept:
-            (message,), chase.kept = chase.kept, ()
-            self._relay(chase, message)
+        with chase.lock:
+            chase.flush = None
+            if not chase.ended and chase.kept:
+                (message,), chase.kept = chase.kept, ()
+                self._relay(chase, message)
 
     def _relay(self, chase: Chase, message: Any) -> None:
+        """Publish a feedback message's `running` event (the goal's lock held)."""
         running = ProcedureStatus("running", _running_word(chase.status))
         chase.sent = self.ctx.clock()
         self.ctx.outbox.feedback(chase.m, running, terminal=False, extra={"feedback": message})
 
     def _done(self, chase: Chase, end: GoalEnd) -> None:
-        """The goal's end as the port told it: its held feedback, then the one terminal event."""
-        if chase.ended:
-            return
+        """(the port's thread) The goal's end as the port told it: its held feedback, then the one terminal
+        event."""
+        with chase.lock:
+            if chase.ended:
+                return
+            if chase.flush is not None:
+                chase.flush.cancel()
+                chase.flush = None
+            self._flush(chase)
+            self._ended(chase, end)
+
+    def _ended(self, chase: Chase, end: GoalEnd) -> None:
         m = chase.m
-        if chase.flush is not None:
-            chase.flush.cancel()
-            chase.flush = None
-        self._flush(chase)
         if not chase.accepted:  # it never ran: refused, or no server took it
             error = end.error or PortCallFailed(end.message)
             rejected = end.status == "rejected"
@@ -268,25 +293,36 @@ class GoalRunner:
 
     def _give_up(self, chase: Chase) -> None:
         """The mission timeout passed: the goal fails, and the server is asked to cancel it."""
-        if chase.ended:
-            return
-        message = f"no result within the mission timeout of {self.ctx.config.mission_timeout:g} s"
-        log.warning("%s goal %s: failed: %s", chase.m.action, chase.goal, message)
-        chase.cancel_when_sent = True  # the server is asked to cancel it as the port forgets it
-        self._end(chase, ProcedureStatus("failed", message=message, reason="timeout"))
+        with chase.lock:
+            if chase.ended:
+                return
+            message = f"no result within the mission timeout of {self.ctx.config.mission_timeout:g} s"
+            log.warning("%s goal %s: failed: %s", chase.m.action, chase.goal, message)
+            chase.cancel_when_sent = True  # the server is asked to cancel it as the port forgets it
+            self._end(chase, ProcedureStatus("failed", message=message, reason="timeout"))
 
     def _end(self, chase: Chase, status: ProcedureStatus, output: Any = None) -> None:
-        """Publish the goal's terminal event and leave it."""
-        if chase.goal is not None and chase.accepted:
-            self._last[chase.m.action] = _Ended(chase.goal, status)
-        self.ctx.outbox.finish(chase.m, status, output=output)
-        self._leave(chase)
+        """Publish the goal's terminal event and leave it, under the goal's lock: no other event of the goal
+        comes after it, from whichever thread (the loop's timeout, the port's end)."""
+        with chase.lock:
+            if chase.ended:
+                return
+            if chase.goal is not None and chase.accepted:
+                self._last[chase.m.action] = _Ended(chase.goal, status)
+            self.ctx.outbox.finish(chase.m, status, output=output)
+            chase.ended = True
+        self._left(chase)
 
     def _leave(self, chase: Chase) -> None:
-        """The machine is done with the goal (ended, or left to the robot at a stop)."""
-        if chase.ended:
-            return
-        chase.ended = True
+        """The machine is done with the goal without an end (left to the robot at a stop)."""
+        with chase.lock:
+            if chase.ended:
+                return
+            chase.ended = True
+        self._left(chase)
+
+    def _left(self, chase: Chase) -> None:
+        """The goal is ended: its timers, the port's record of it, its component."""
         for timer in (chase.deadline, chase.flush):
             if timer is not None:
                 timer.cancel()
