@@ -53,7 +53,7 @@ from td2adaptor.runtime.engine.precheck import FastCheck
 from td2adaptor.runtime.engine.procedure import DEFAULT_MISSION_PATH, ProcedureRunner, answer, answering, requested
 from td2adaptor.runtime.engine.replay import ReplayGuard, Verdict, digest, time_problem
 from td2adaptor.runtime.engine.streams import PropertyStreams, streams
-from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope, references, salvage
+from td2adaptor.runtime.events import Problem, encode, envelope, references, salvage, validator_for
 from td2adaptor.runtime.loop import Lane, Shared, Timer, acquire, release
 from td2adaptor.runtime.ros.port import NoValue, PortError, QuickCall, RobotPort
 from td2adaptor.runtime.ros.procedures import ProcedureStatus, read
@@ -134,7 +134,7 @@ class Engine:
         self.bus = bus
         self.config = config
         self.catalog = catalog or build_catalog(model)
-        self.validator = EventValidator(self.catalog)
+        self.validator = validator_for(self.catalog)
         self.check = FastCheck(self.catalog, self.validator)  # valid events proved so in Rust (precheck.py)
         self.clock = clock
         self.td = td  # the robot's TD as the bus announces it on connecting: cleared on stop
