@@ -163,6 +163,8 @@ class Share:
         self._look_now: Callable[..., None] | None = None  # this process's discovery, to look at once (`follow`)
         self._graph = ""  # which ROS graph its discovery reads (graphwatch.py `Graph.name`; "": unknown)
         self._taken: set[str] = set()  # robots whose session another member took: let go at the next round
+        #: robots this process is starting (its record says so: `_free`, `_admit`), from the claim to the `apply`'s end
+        self._starting: set[str] = set()
         fleet.on_added.append(self._watch)
         fleet.prepare = self._prepare
         fleet.admit = self._admit
@@ -262,6 +264,11 @@ class Share:
         """The robots another member's discovery found that this process looked for and does not see."""
         with self._lock:
             return set(self._unseen)
+
+    def starting(self) -> set[str]:
+        """The robots this process claimed and is starting now."""
+        with self._lock:
+            return set(self._starting)
 
     def admin_robots(self) -> set[str]:
         with self._lock:
@@ -544,7 +551,18 @@ class Share:
                 wanted.append(config)
                 taken.append((robot, status))
         self._waiting = {r: t for r, t in self._waiting.items() if plan.get(r) == self.me.node and r not in served}
-        changes = self.fleet.apply(wanted, ORIGIN)
+        claimed = {robot for robot, _status in taken}
+        if claimed:  # the others leave them to this process while it starts them (`_free`, `_admit`)
+            with self._lock:
+                self._starting = claimed
+            self._publish_record()
+        try:
+            changes = self.fleet.apply(wanted, ORIGIN)
+        finally:
+            with self._lock:
+                self._starting = set()
+            if claimed:
+                self._publish_record()
         changes.removed += released
         for robot, status in taken:
             if robot in changes.added:
@@ -686,7 +704,23 @@ class Share:
         return done
 
     def _free(self, robot: str, status: Status | None, live: set[str], gone: set[str]) -> bool:
-        """May this process claim `robot`, whose retained status is `status`?"""
+        """May this process claim `robot`, whose retained status is `status`? Not while another live member
+        starts it (its record's `starting`): that member serves it at the end of its start, and hands it over then
+        if the plan changed meanwhile (`_admit`), rather than two processes starting it and one throwing its start
+        away."""
+        if self._started_by(robot, live) is not None:
+            return False
+        return self._free_status(robot, status, live, gone)
+
+    def _started_by(self, robot: str, live: set[str]) -> str | None:
+        """The live member other than this one whose record says it is starting `robot`, if one is."""
+        with self._lock:
+            for node in sorted(live - {self.me.node}):
+                if robot in names(self._members.get(node, {}).get("starting")):
+                    return node
+        return None
+
+    def _free_status(self, robot: str, status: Status | None, live: set[str], gone: set[str]) -> bool:
         if status is not None and status.retired and status.owner is not None and status.owner.node in live:
             with self._lock:  # its live owner no longer lists it: the others may drop it too in a moment
                 since = self._retired_at.get(robot, 0.0)
@@ -729,11 +763,20 @@ class Share:
         robot = config.robot
         with self._lock:
             live = self._live()
-            plan, _mine = self._plan(live)
+            plan, mine = self._plan(live)
             status = self._statuses.get(robot)
         owner = plan.get(robot)
         if owner is not None and owner != self.me.node:
-            return f"member {owner} of the fleet serves it now"
+            # a member that listed it during this start (its graph showed it later): the robot is that member's
+            # now; it waits while this process starts it (`_free`), so this start is not thrown away but served
+            # and handed over at the next round, unless that member claimed it all the same (it did not see this
+            # record in time)
+            took = status is not None and status.owner is not None and status.owner.node == owner
+            if robot not in mine or took or self._started_by(robot, {owner}) is not None:
+                return f"member {owner} of the fleet serves it now"
+            log.info(
+                "robot %s: served here until member %s of the fleet takes it (listed by it meanwhile)", robot, owner
+            )
         holder = status.owner if status is not None else None
         if status is not None and status.state == "online" and status.handover is None and holder is not None:
             if holder.node != self.me.node and holder.node in live:
@@ -879,6 +922,7 @@ class Share:
             "found": sorted(self.robots("discovery")),  # what its discovery sees (`_heard`)
             "graph": self._graph,  # which ROS graph that is
             "unseen": sorted(self.unseen()),  # what the others' discovery found and this one does not see
+            "starting": sorted(self.starting()),  # what it claimed and is starting now (`_free`)
             "admin": sorted(self.admin_robots()),  # what it learnt of the admin's entries (fleet status, tests)
             "takeovers": list(self.takeovers),
         }
