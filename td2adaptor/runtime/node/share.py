@@ -145,6 +145,9 @@ class Share:
         self._admin: dict[str, RuntimeConfig] = {}  # the robots admin requests added (retained entries, admin.py)
         self._cleared: set[str] = set()  # entries this process published that another one cleared (`_forget`)
         self._first: dict[str, float] = {}  # robot -> since when a member lists it (`SETTLE`)
+        self._listers: dict[str, set[str]] = {}  # robot -> the live members that listed it at the last plan
+        #: robot -> (live members that stopped listing it, since when): still counted as listing it (`_hold`)
+        self._held: dict[str, tuple[set[str], float]] = {}
         self._planned = False  # a first plan was made (what is listed at the start is given out at once)
         self._due: float | None = None  # when the next robot waiting for `SETTLE` is given out
         self._wake = threading.Event()
@@ -463,15 +466,47 @@ class Share:
         can = self._lists(live, mine)
         listed = set().union(*can.values()) if can else set()
         self._listed = listed
-        self._first = {r: self._first.get(r, now if self._planned else 0.0) for r in listed}
+        can = self._hold(can, live, now)
+        held = set().union(*can.values()) - listed
+        self._first = {r: self._first.get(r, now if self._planned else 0.0) for r in listed | held}
         self._planned = True
         found = self._found_by(live)
         self._asked = {r: t for r, t in self._asked.items() if r in found and r not in mine}
         self._unseen = set(self._asked) if self._look_now is None else self._unseen & set(self._asked)
         ready = {r for r, t in self._first.items() if now - t >= SETTLE or self._heard(r, live, can, found)}
         waiting = [t + SETTLE for r, t in self._first.items() if r not in ready]
+        waiting += [since + SETTLE for _members, since in self._held.values()]
         self._due = min(waiting) if waiting else None
         return assign(ready, live, can), mine
+
+    def _hold(self, can: dict[str, set[str]], live: set[str], now: float) -> dict[str, set[str]]:
+        """(under the lock) `can`, with each robot a live member stopped listing less than `SETTLE` ago still
+        listed by it: a removal settles like an addition. The members stop listing a robot each at its own moment
+        (they read the file, the admin's entry or their ROS graph a little apart), and each removal changes the
+        bound of the plan at once: an unrelated robot went from one member to the other at the first and back at
+        the second, 80 ms later (issue 32). Held, the plan changes once, when the last removal settled. A member
+        that left is not waited for (its robots are taken over at once). The robot's owner, if it no longer lists
+        it, retires it at once all the same (`_reconcile`)."""
+        listers: dict[str, set[str]] = {}
+        for member, robots in can.items():
+            for robot in robots:
+                listers.setdefault(robot, set()).add(member)
+        held: dict[str, tuple[set[str], float]] = {}
+        for robot in set(self._listers) | set(self._held):
+            members, since = self._held.get(robot, (set(), now))
+            dropped = (self._listers.get(robot, set()) - listers.get(robot, set())) & live if self._planned else set()
+            if dropped:
+                members, since = members | dropped, now
+            members = members & (live - listers.get(robot, set()))
+            if members and now - since < SETTLE:
+                held[robot] = (members, since)
+        self._held = held
+        self._listers = listers
+        out = {member: set(robots) for member, robots in can.items()}
+        for robot, (members, _since) in held.items():
+            for member in members:
+                out.setdefault(member, set()).add(robot)
+        return out
 
     def _found_by(self, live: set[str]) -> set[str]:
         """(under the lock) The robots the discovery of a live member (this one included) finds."""
