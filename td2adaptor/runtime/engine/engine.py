@@ -153,6 +153,9 @@ class Engine:
         #: (the loop) `gate(go)` before a ROS action goal is sent, or None: `go(True)` (from any thread) once it
         #: may be sent, `go(False)` when it must not (the robot may be another process's by then, node/share.py)
         self.gate: Callable[[Callable[[bool], None]], None] | None = None
+        #: what happened to the missions the robot's last owner left, the start of the terminal words of each one
+        #: this run cannot follow on (a shared fleet's takeover says who took the robot over: node/share.py)
+        self.restarted = "the edge node restarted"
         self.guard = _guard(config)
         self.ledger = _ledger(config)
         self.missions = MissionTable()  # which mission each component runs (missions.py)
@@ -586,13 +589,13 @@ class Engine:
         follow = follow and procedure.query is not None and behind < self.config.mission_timeout
         follow = follow and self.missions.claim(m, ended) is None  # only when the component is free
         if follow:
-            log.info("following %s mission %s again (the edge node restarted)", r.action, r.mission)
+            log.info("following %s mission %s again (%s)", r.action, r.mission, self.restarted)
             self.outbox.count("resumed")
             assert self._procedures is not None
             self._procedures.resume(m, ended)
             return
         self.outbox.count("restart-failed")
-        message = "the edge node restarted " + _restart_words(r, behind, self.config.mission_timeout)
+        message = f"{self.restarted} {_restart_words(r, behind, self.config.mission_timeout)}"
         log.warning("%s %s: failed: %s", r.action, _which(r), message)
         self.outbox.finish(m, ProcedureStatus("failed", message=message, reason="unreachable"))
 

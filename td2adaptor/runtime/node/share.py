@@ -822,6 +822,9 @@ class Share:
         """(Fleet.prepare) Before the robot is served: what its earlier owners admitted, then record what this
         process admits (admitted.py)."""
         config = engine.config
+        words = self._taken_words(config.robot)
+        if words is not None:
+            engine.restarted = words
         window = config.freshness_window + config.clock_skew
         recorder = Recorder(self.bus, self.root, self.name, config.robot, self.me.node, window, self.book)
         learnt = seed(engine, self.book.of(config.robot), recorder)
@@ -850,6 +853,24 @@ class Share:
             recorder.when_acknowledged(settled)
 
         engine.gate = gate
+
+    def _taken_words(self, robot: str) -> str | None:
+        """What happened to the missions the robot's last owner left, when that was another member of the fleet: the
+        start of the terminal words of each one this process cannot follow on (engine.py `restarted`; the robot's
+        edge node did not restart, another process took the robot over)."""
+        with self._lock:
+            status = self._statuses.get(robot)
+            owner = status.owner if status is not None else None
+            if status is None or owner is None or owner.node == self.me.node:
+                return None
+            if owner.node not in self._members and owner.node not in self._gone:
+                return None  # a process outside the fleet (a plain run) stopped: this one started it again
+        if status.handover == self.me.node:
+            return f"{owner.describe()} handed the robot over to {self.me.describe()} of fleet {self.name}"
+        return (
+            f"another process of fleet {self.name}, {self.me.describe()}, took the robot over after its edge node, "
+            f"{owner.describe()}, was lost"
+        )
 
     def _forget(self) -> None:
         """An entry this process published (an admin request it carried out) was cleared by another member: this
