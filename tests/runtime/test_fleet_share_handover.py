@@ -241,10 +241,13 @@ def test_a_robot_handed_over_by_a_process_that_died_before_it_retired_it_is_reti
 
 def test_a_process_that_claims_a_robot_another_one_is_claiming_leaves_it_to_that_one(tmp_path: Path) -> None:
     """l starts claiming its four robots, whose ROS side takes 3 s to come up; w lists them meanwhile (more than
-    SETTLE after l), gets two of them by the plan, finds them free (l is not online yet) and claims them. Before,
-    l then connected as well and took their sessions from w: w's reconnection took them back, found them l's
-    and went off (`offline`), l's went off in turn, and each robot was `online` by w, by l, `offline`, then
-    `online` again. Now l looks once more right before it connects, and leaves w's robots to w."""
+    SETTLE after l) and gets two of them by the plan. Once, w found them free (l was not online yet) and claimed
+    them; l then connected as well and took their sessions from w: w's reconnection took them back, found them
+    l's and went off (`offline`), l's went off in turn, and each robot was `online` by w, by l, `offline`, then
+    `online` again. Then l looked once more right before it connected and left w's robots to w, its own start of
+    them thrown away. Now w leaves them to l while l's record says it is `starting` them (test_fleet_share_
+    starting.py): l serves all four at the end of its start and hands two over to w, each robot `online`
+    throughout, one session at a time."""
     broker = Mosquitto(tmp_path / "broker")
     broker.start()
     watcher = Watcher(broker)
@@ -267,7 +270,7 @@ def test_a_process_that_claims_a_robot_another_one_is_claiming_leaves_it_to_that
                 return False
             served = {r: p.pid for p in procs for r in record(watcher, p.node).get("robots", [])}
             owners = {r: (last[r].get("owner") or {}).get("pid") for r in robots}
-            return sorted(served) == robots and owners == served
+            return sorted(served) == robots and owners == served and set(owners.values()) == pids
 
         wait(settled, 20, w, late, what=str({r: history(watcher, r) for r in robots}))
         took = time.monotonic() - seen
