@@ -265,6 +265,8 @@ def test_a_robot_whose_hand_over_both_members_died_in_is_retired_by_a_member_tha
         robot = handed()
         assert robot is not None
         other = next(r for r in robots if r != robot)
+        # a let it go (its connection closed cleanly, no will), x takes what it is handed only 10 s after it joined
+        wait(lambda: robot not in record(watcher, a.node).get("robots", [robot]), 10, a, what="a let it go")
         for proc in (a, x):  # both die before the robot was taken or retired
             proc.proc.kill()
             proc.proc.wait(10)

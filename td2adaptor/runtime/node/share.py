@@ -685,7 +685,7 @@ class Share:
             for robot in set(self._orphaned) - set(statuses):
                 del self._orphaned[robot]
             for robot, status in statuses.items():
-                if not orphaned(status, self._gone, live) or robot in listed:
+                if not orphaned(status, self._left(status), live) or robot in listed:
                     self._orphaned.pop(robot, None)
                     continue
                 to = status.handover or ""  # set: `_orphan`
@@ -699,6 +699,15 @@ class Share:
                         log.warning("robot %s: could not retire it: %s", robot, exc)
                         self._orphaned[robot] = None
         return due
+
+    def _left(self, status: Status) -> set[str]:
+        """(under the lock) The members known to have left, for `orphaned`: those whose record was cleared, and the
+        owner of `status` when this process never saw its record (it joined after that process left) but that
+        process was of this host and runs no more, as its own record would have told."""
+        owner = status.owner
+        if owner is None or owner.node in self._gone or owner.node in self._members or status.handover is None:
+            return self._gone
+        return self._gone if lives(owner) else self._gone | {owner.node}
 
     def _retireorphaned(self, config: RuntimeConfig) -> bool:
         """Retire a robot `_orphans` found, on its own session (node/unclaimed.py), as its dead owner would have:
@@ -714,7 +723,7 @@ class Share:
             live = self._live()
             listed = set().union(*self._lists(live, self._mine()).values())
             status = self._statuses.get(robot)
-            if robot in listed or status is None or not orphaned(status, self._gone, live):
+            if robot in listed or status is None or not orphaned(status, self._left(status), live):
                 self._orphaned.pop(robot, None)
                 return False
             dead = status.owner.describe() if status.owner is not None else "a member"
