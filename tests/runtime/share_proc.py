@@ -15,7 +15,8 @@ its top-level settings (test_fleet_share_acl.py).
 With `SHARE_ROBOTS_FILE` (robot ids, separated by white space) the robots are that file's instead of ROBOTS's
 count, and SIGHUP reads it again (as `run` reads its fleet file again). `SHARE_SETTLE` (seconds) is how long the
 process waits at its start before it takes its share (a process slow to take what is handed over to it), and
-`SHARE_GROW_DELAY` how long each robot's ROS side takes to come up (a slow ROS graph: its claim takes that long).
+`SHARE_GROW_DELAY` how long each robot's ROS side takes to come up (a slow ROS graph: its claim takes that long);
+the log says `starting <robots>` as it begins.
 
 With `SHARE_FOUND_FILE` (robot ids) the process also discovers robots (graphwatch.py's `Discovery`), its "graph" that
 file, read at each look: a test lists a robot there as a ROS graph would show it; `SHARE_GRAPH` names that graph
@@ -120,6 +121,7 @@ def main() -> None:
     delay = float(os.environ.get("SHARE_GROW_DELAY", "0"))
 
     def grow(configs: Sequence[RuntimeConfig]) -> RosLink:
+        logging.getLogger("td2adaptor.runtime.share").info("starting %s", " ".join(c.robot for c in configs))
         time.sleep(delay)
         ports = {}
         for c in configs:

@@ -239,12 +239,69 @@ def test_a_robot_handed_over_by_a_process_that_died_before_it_retired_it_is_reti
     assert codes[1:] == [0], codes
 
 
+def test_a_robot_whose_hand_over_both_members_died_in_is_retired_by_a_member_that_joined_later(
+    tmp_path: Path,
+) -> None:
+    """As above, but x is killed too before it retired the robot, and the only survivor, s, joined after both had
+    left: it never saw their records, so it did not know that the process whose hand-over the status names left
+    the fleet, and left the robot "online, handed over" for ever. That process was of this host and runs no
+    more: s retires the robot."""
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    watcher = Watcher(broker)
+    procs: list[Proc] = []
+    try:
+        robots = ["rb_00", "rb_01"]
+        a = Proc(broker, tmp_path, "a", robots)
+        procs.append(a)
+        wait(lambda: all(status(watcher, r).get("state") == "online" for r in robots), 20, a, what="a serves both")
+        x = Proc(broker, tmp_path, "x", robots, SHARE_SETTLE="10")  # takes what it is handed only 10 s later
+        procs.append(x)
+
+        def handed() -> str | None:
+            return next((r for r in robots if (status(watcher, r).get("handover") or {}).get("node") == x.node), None)
+
+        wait(lambda: handed() is not None, 8, a, x, what="a hands one robot over to x")
+        robot = handed()
+        assert robot is not None
+        other = next(r for r in robots if r != robot)
+        # a let it go (its connection closed cleanly, no will), x takes what it is handed only 10 s after it joined
+        wait(lambda: robot not in record(watcher, a.node).get("robots", [robot]), 10, a, what="a let it go")
+        for proc in (a, x):  # both die before the robot was taken or retired
+            proc.proc.kill()
+            proc.proc.wait(10)
+            gone = proc.node
+            wait(lambda: "owner" not in record(watcher, gone), 5, proc, what="its record cleared by its will")  # noqa: B023
+        assert history(watcher, robot)[-1] == ("online", a.pid, x.node), history(watcher, robot)
+        s = Proc(broker, tmp_path, "s", [other])  # joins now: it never saw a or x
+        procs.append(s)
+        joined = time.monotonic()
+        wait(lambda: status(watcher, robot).get("state") == "offline", 15, s, what=str(history(watcher, robot)))
+        took = time.monotonic() - joined
+        last = status(watcher, robot)
+        assert last.get("retired", {}).get("node") == s.node, last
+        assert retained_td_cleared(broker, robot)
+        assert history(watcher, robot)[-2:] == [("online", a.pid, x.node), ("offline", s.pid, None)]
+        wait(lambda: status(watcher, other).get("state") == "online", 15, s, what=str(history(watcher, other)))
+        assert (status(watcher, other).get("owner") or {}).get("pid") == s.pid
+        print(f"retired {took:.2f} s after s joined")
+        assert "Traceback" not in s.log()
+    finally:
+        codes = [p.close() for p in procs]
+        watcher.close()
+        broker.stop()
+    assert codes[2:] == [0], codes
+
+
 def test_a_process_that_claims_a_robot_another_one_is_claiming_leaves_it_to_that_one(tmp_path: Path) -> None:
     """l starts claiming its four robots, whose ROS side takes 3 s to come up; w lists them meanwhile (more than
-    SETTLE after l), gets two of them by the plan, finds them free (l is not online yet) and claims them. Before,
-    l then connected as well and took their sessions from w: w's reconnection took them back, found them l's
-    and went off (`offline`), l's went off in turn, and each robot was `online` by w, by l, `offline`, then
-    `online` again. Now l looks once more right before it connects, and leaves w's robots to w."""
+    SETTLE after l) and gets two of them by the plan. Once, w found them free (l was not online yet) and claimed
+    them; l then connected as well and took their sessions from w: w's reconnection took them back, found them
+    l's and went off (`offline`), l's went off in turn, and each robot was `online` by w, by l, `offline`, then
+    `online` again. Then l looked once more right before it connected and left w's robots to w, its own start of
+    them thrown away. Now w leaves them to l while l's record says it is `starting` them (test_fleet_share_
+    starting.py): l serves all four at the end of its start and hands two over to w, each robot `online`
+    throughout, one session at a time."""
     broker = Mosquitto(tmp_path / "broker")
     broker.start()
     watcher = Watcher(broker)
@@ -267,7 +324,7 @@ def test_a_process_that_claims_a_robot_another_one_is_claiming_leaves_it_to_that
                 return False
             served = {r: p.pid for p in procs for r in record(watcher, p.node).get("robots", [])}
             owners = {r: (last[r].get("owner") or {}).get("pid") for r in robots}
-            return sorted(served) == robots and owners == served
+            return sorted(served) == robots and owners == served and set(owners.values()) == pids
 
         wait(settled, 20, w, late, what=str({r: history(watcher, r) for r in robots}))
         took = time.monotonic() - seen

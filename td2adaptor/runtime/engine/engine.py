@@ -53,7 +53,7 @@ from td2adaptor.runtime.engine.precheck import FastCheck
 from td2adaptor.runtime.engine.procedure import DEFAULT_MISSION_PATH, ProcedureRunner, answer, answering, requested
 from td2adaptor.runtime.engine.replay import ReplayGuard, Store, Verdict, digest, time_problem
 from td2adaptor.runtime.engine.streams import PropertyStreams, streams
-from td2adaptor.runtime.events import EventValidator, Problem, encode, envelope, references, salvage
+from td2adaptor.runtime.events import Problem, encode, envelope, references, salvage, validator_for
 from td2adaptor.runtime.loop import Lane, Shared, Timer, acquire, release
 from td2adaptor.runtime.ros.port import NoValue, PortError, QuickCall, RobotPort
 from td2adaptor.runtime.ros.procedures import ProcedureStatus, read
@@ -133,7 +133,7 @@ class Engine:
         self.bus = bus
         self.config = config
         self.catalog = catalog or build_catalog(model)
-        self.validator = EventValidator(self.catalog)
+        self.validator = validator_for(self.catalog)
         self.check = FastCheck(self.catalog, self.validator)  # valid events proved so in Rust (precheck.py)
         self.clock = clock
         self.td = td  # the robot's TD as the bus announces it on connecting: cleared on stop
@@ -152,6 +152,9 @@ class Engine:
         #: (the loop) `gate(go)` before a ROS action goal is sent, or None: `go(True)` (from any thread) once it
         #: may be sent, `go(False)` when it must not (the robot may be another process's by then, node/share.py)
         self.gate: Callable[[Callable[[bool], None]], None] | None = None
+        #: what happened to the missions the robot's last owner left, the start of the terminal words of each one
+        #: this run cannot follow on (a shared fleet's takeover says who took the robot over: node/share.py)
+        self.restarted = "the edge node restarted"
         self.guard, self.ledger = _state(config)
         self.missions = MissionTable()  # which mission each component runs (missions.py)
         self.outbox = Outbox(bus, config, self.catalog, self.ledger, self.missions)  # what we publish (outbox.py)
@@ -584,13 +587,13 @@ class Engine:
         follow = follow and procedure.query is not None and behind < self.config.mission_timeout
         follow = follow and self.missions.claim(m, ended) is None  # only when the component is free
         if follow:
-            log.info("following %s mission %s again (the edge node restarted)", r.action, r.mission)
+            log.info("following %s mission %s again (%s)", r.action, r.mission, self.restarted)
             self.outbox.count("resumed")
             assert self._procedures is not None
             self._procedures.resume(m, ended)
             return
         self.outbox.count("restart-failed")
-        message = "the edge node restarted " + _restart_words(r, behind, self.config.mission_timeout)
+        message = f"{self.restarted} {_restart_words(r, behind, self.config.mission_timeout)}"
         log.warning("%s %s: failed: %s", r.action, _which(r), message)
         self.outbox.finish(m, ProcedureStatus("failed", message=message, reason="unreachable"))
 

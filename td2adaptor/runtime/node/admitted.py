@@ -136,6 +136,10 @@ def seed(engine: Any, entries: list[dict[str, Any]], recorder: Recorder) -> int:
     return learnt
 
 
+#: ids a robot's recorder keeps the time and digest of, waiting for their invoke's entry (`Recorder.checked`)
+CHECKED_KEPT = 256
+
+
 class Recorder:
     """One robot's entries, published as its engine's guard and ledger write (see the module docstring)."""
 
@@ -153,8 +157,13 @@ class Recorder:
         self._opened: set[str] = set()  # ledger keys of the invokes admitted here (not learnt from an earlier owner)
 
     def checked(self, event_id: str, topic: str, sent: str | None, digest: str | None) -> None:
+        """(the guard, for every new id) Its time and digest, for the entry `opened` publishes right after, on the
+        same turn of the engine's loop, when it is an invoke. Queries, cancels and writes are never opened: only
+        the last `CHECKED_KEPT` are kept (they were kept for ever, one per command a shared robot ever took)."""
         with self._lock:
             self._checked[(event_id, topic)] = (sent, digest)
+            while len(self._checked) > CHECKED_KEPT:
+                del self._checked[next(iter(self._checked))]
 
     def opened(self, key: str, fields: Mapping[str, Any]) -> None:
         event_id, topic = fields.get("event_id"), str(fields.get("topic"))

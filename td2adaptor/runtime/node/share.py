@@ -145,6 +145,9 @@ class Share:
         self._admin: dict[str, RuntimeConfig] = {}  # the robots admin requests added (retained entries, admin.py)
         self._cleared: set[str] = set()  # entries this process published that another one cleared (`_forget`)
         self._first: dict[str, float] = {}  # robot -> since when a member lists it (`SETTLE`)
+        self._listers: dict[str, set[str]] = {}  # robot -> the live members that listed it at the last plan
+        #: robot -> (live members that stopped listing it, since when): still counted as listing it (`_hold`)
+        self._held: dict[str, tuple[set[str], float]] = {}
         self._planned = False  # a first plan was made (what is listed at the start is given out at once)
         self._due: float | None = None  # when the next robot waiting for `SETTLE` is given out
         self._wake = threading.Event()
@@ -163,6 +166,8 @@ class Share:
         self._look_now: Callable[..., None] | None = None  # this process's discovery, to look at once (`follow`)
         self._graph = ""  # which ROS graph its discovery reads (graphwatch.py `Graph.name`; "": unknown)
         self._taken: set[str] = set()  # robots whose session another member took: let go at the next round
+        #: robots this process is starting (its record says so: `_free`, `_admit`), from the claim to the `apply`'s end
+        self._starting: set[str] = set()
         fleet.on_added.append(self._watch)
         fleet.prepare = self._prepare
         fleet.admit = self._admit
@@ -262,6 +267,11 @@ class Share:
         """The robots another member's discovery found that this process looked for and does not see."""
         with self._lock:
             return set(self._unseen)
+
+    def starting(self) -> set[str]:
+        """The robots this process claimed and is starting now."""
+        with self._lock:
+            return set(self._starting)
 
     def admin_robots(self) -> set[str]:
         with self._lock:
@@ -456,15 +466,47 @@ class Share:
         can = self._lists(live, mine)
         listed = set().union(*can.values()) if can else set()
         self._listed = listed
-        self._first = {r: self._first.get(r, now if self._planned else 0.0) for r in listed}
+        can = self._hold(can, live, now)
+        held = set().union(*can.values()) - listed
+        self._first = {r: self._first.get(r, now if self._planned else 0.0) for r in listed | held}
         self._planned = True
         found = self._found_by(live)
         self._asked = {r: t for r, t in self._asked.items() if r in found and r not in mine}
         self._unseen = set(self._asked) if self._look_now is None else self._unseen & set(self._asked)
         ready = {r for r, t in self._first.items() if now - t >= SETTLE or self._heard(r, live, can, found)}
         waiting = [t + SETTLE for r, t in self._first.items() if r not in ready]
+        waiting += [since + SETTLE for _members, since in self._held.values()]
         self._due = min(waiting) if waiting else None
         return assign(ready, live, can), mine
+
+    def _hold(self, can: dict[str, set[str]], live: set[str], now: float) -> dict[str, set[str]]:
+        """(under the lock) `can`, with each robot a live member stopped listing less than `SETTLE` ago still
+        listed by it: a removal settles like an addition. The members stop listing a robot each at its own moment
+        (they read the file, the admin's entry or their ROS graph a little apart), and each removal changes the
+        bound of the plan at once: an unrelated robot went from one member to the other at the first and back at
+        the second, 80 ms later (issue 32). Held, the plan changes once, when the last removal settled. A member
+        that left is not waited for (its robots are taken over at once). The robot's owner, if it no longer lists
+        it, retires it at once all the same (`_reconcile`)."""
+        listers: dict[str, set[str]] = {}
+        for member, robots in can.items():
+            for robot in robots:
+                listers.setdefault(robot, set()).add(member)
+        held: dict[str, tuple[set[str], float]] = {}
+        for robot in set(self._listers) | set(self._held):
+            members, since = self._held.get(robot, (set(), now))
+            dropped = (self._listers.get(robot, set()) - listers.get(robot, set())) & live if self._planned else set()
+            if dropped:
+                members, since = members | dropped, now
+            members = members & (live - listers.get(robot, set()))
+            if members and now - since < SETTLE:
+                held[robot] = (members, since)
+        self._held = held
+        self._listers = listers
+        out = {member: set(robots) for member, robots in can.items()}
+        for robot, (members, _since) in held.items():
+            for member in members:
+                out.setdefault(member, set()).add(robot)
+        return out
 
     def _found_by(self, live: set[str]) -> set[str]:
         """(under the lock) The robots the discovery of a live member (this one included) finds."""
@@ -544,7 +586,18 @@ class Share:
                 wanted.append(config)
                 taken.append((robot, status))
         self._waiting = {r: t for r, t in self._waiting.items() if plan.get(r) == self.me.node and r not in served}
-        changes = self.fleet.apply(wanted, ORIGIN)
+        claimed = {robot for robot, _status in taken}
+        if claimed:  # the others leave them to this process while it starts them (`_free`, `_admit`)
+            with self._lock:
+                self._starting = claimed
+            self._publish_record()
+        try:
+            changes = self.fleet.apply(wanted, ORIGIN)
+        finally:
+            with self._lock:
+                self._starting = set()
+            if claimed:
+                self._publish_record()
         changes.removed += released
         for robot, status in taken:
             if robot in changes.added:
@@ -632,7 +685,7 @@ class Share:
             for robot in set(self._orphaned) - set(statuses):
                 del self._orphaned[robot]
             for robot, status in statuses.items():
-                if not orphaned(status, self._gone, live) or robot in listed:
+                if not orphaned(status, self._left(status), live) or robot in listed:
                     self._orphaned.pop(robot, None)
                     continue
                 to = status.handover or ""  # set: `_orphan`
@@ -646,6 +699,15 @@ class Share:
                         log.warning("robot %s: could not retire it: %s", robot, exc)
                         self._orphaned[robot] = None
         return due
+
+    def _left(self, status: Status) -> set[str]:
+        """(under the lock) The members known to have left, for `orphaned`: those whose record was cleared, and the
+        owner of `status` when this process never saw its record (it joined after that process left) but that
+        process was of this host and runs no more, as its own record would have told."""
+        owner = status.owner
+        if owner is None or owner.node in self._gone or owner.node in self._members or status.handover is None:
+            return self._gone
+        return self._gone if lives(owner) else self._gone | {owner.node}
 
     def _retireorphaned(self, config: RuntimeConfig) -> bool:
         """Retire a robot `_orphans` found, on its own session (node/unclaimed.py), as its dead owner would have:
@@ -661,7 +723,7 @@ class Share:
             live = self._live()
             listed = set().union(*self._lists(live, self._mine()).values())
             status = self._statuses.get(robot)
-            if robot in listed or status is None or not orphaned(status, self._gone, live):
+            if robot in listed or status is None or not orphaned(status, self._left(status), live):
                 self._orphaned.pop(robot, None)
                 return False
             dead = status.owner.describe() if status.owner is not None else "a member"
@@ -686,7 +748,23 @@ class Share:
         return done
 
     def _free(self, robot: str, status: Status | None, live: set[str], gone: set[str]) -> bool:
-        """May this process claim `robot`, whose retained status is `status`?"""
+        """May this process claim `robot`, whose retained status is `status`? Not while another live member
+        starts it (its record's `starting`): that member serves it at the end of its start, and hands it over then
+        if the plan changed meanwhile (`_admit`), rather than two processes starting it and one throwing its start
+        away."""
+        if self._started_by(robot, live) is not None:
+            return False
+        return self._free_status(robot, status, live, gone)
+
+    def _started_by(self, robot: str, live: set[str]) -> str | None:
+        """The live member other than this one whose record says it is starting `robot`, if one is."""
+        with self._lock:
+            for node in sorted(live - {self.me.node}):
+                if robot in names(self._members.get(node, {}).get("starting")):
+                    return node
+        return None
+
+    def _free_status(self, robot: str, status: Status | None, live: set[str], gone: set[str]) -> bool:
         if status is not None and status.retired and status.owner is not None and status.owner.node in live:
             with self._lock:  # its live owner no longer lists it: the others may drop it too in a moment
                 since = self._retired_at.get(robot, 0.0)
@@ -729,11 +807,20 @@ class Share:
         robot = config.robot
         with self._lock:
             live = self._live()
-            plan, _mine = self._plan(live)
+            plan, mine = self._plan(live)
             status = self._statuses.get(robot)
         owner = plan.get(robot)
         if owner is not None and owner != self.me.node:
-            return f"member {owner} of the fleet serves it now"
+            # a member that listed it during this start (its graph showed it later): the robot is that member's
+            # now; it waits while this process starts it (`_free`), so this start is not thrown away but served
+            # and handed over at the next round, unless that member claimed it all the same (it did not see this
+            # record in time)
+            took = status is not None and status.owner is not None and status.owner.node == owner
+            if robot not in mine or took or self._started_by(robot, {owner}) is not None:
+                return f"member {owner} of the fleet serves it now"
+            log.info(
+                "robot %s: served here until member %s of the fleet takes it (listed by it meanwhile)", robot, owner
+            )
         holder = status.owner if status is not None else None
         if status is not None and status.state == "online" and status.handover is None and holder is not None:
             if holder.node != self.me.node and holder.node in live:
@@ -744,6 +831,9 @@ class Share:
         """(Fleet.prepare) Before the robot is served: what its earlier owners admitted, then record what this
         process admits (admitted.py)."""
         config = engine.config
+        words = self._taken_words(config.robot)
+        if words is not None:
+            engine.restarted = words
         window = config.freshness_window + config.clock_skew
         recorder = Recorder(self.bus, self.root, self.name, config.robot, self.me.node, window, self.book)
         learnt = seed(engine, self.book.of(config.robot), recorder)
@@ -772,6 +862,24 @@ class Share:
             recorder.when_acknowledged(settled)
 
         engine.gate = gate
+
+    def _taken_words(self, robot: str) -> str | None:
+        """What happened to the missions the robot's last owner left, when that was another member of the fleet: the
+        start of the terminal words of each one this process cannot follow on (engine.py `restarted`; the robot's
+        edge node did not restart, another process took the robot over)."""
+        with self._lock:
+            status = self._statuses.get(robot)
+            owner = status.owner if status is not None else None
+            if status is None or owner is None or owner.node == self.me.node:
+                return None
+            if owner.node not in self._members and owner.node not in self._gone:
+                return None  # a process outside the fleet (a plain run) stopped: this one started it again
+        if status.handover == self.me.node:
+            return f"{owner.describe()} handed the robot over to {self.me.describe()} of fleet {self.name}"
+        return (
+            f"another process of fleet {self.name}, {self.me.describe()}, took the robot over after its edge node, "
+            f"{owner.describe()}, was lost"
+        )
 
     def _forget(self) -> None:
         """An entry this process published (an admin request it carried out) was cleared by another member: this
@@ -879,6 +987,7 @@ class Share:
             "found": sorted(self.robots("discovery")),  # what its discovery sees (`_heard`)
             "graph": self._graph,  # which ROS graph that is
             "unseen": sorted(self.unseen()),  # what the others' discovery found and this one does not see
+            "starting": sorted(self.starting()),  # what it claimed and is starting now (`_free`)
             "admin": sorted(self.admin_robots()),  # what it learnt of the admin's entries (fleet status, tests)
             "takeovers": list(self.takeovers),
         }
