@@ -1,8 +1,8 @@
 """The property streams' own MQTT connection (runtime/bus/drivenbus.py), on a real mosquitto: served by the
 thread that publishes on it (no network thread), it delivers in order at QoS 1 and 0, reads its
 acknowledgements when stepped, keeps itself alive, reconnects after a broker restart (also when many are
-served together, as a fleet's publishing thread does), and when the second
-connection cannot be made the streams use the robot's own. No mocks."""
+served together, as a fleet's publishing thread does), and when the second connection cannot be made (MQTT
+3.1.1; on MQTT 5 they use the robot's anyway) the streams use the robot's own. No mocks."""
 
 from __future__ import annotations
 
@@ -127,9 +127,12 @@ def test_streams_use_the_robots_own_connection_when_they_cannot_have_their_own(
     broker: Mosquitto, caplog: pytest.LogCaptureFixture
 ) -> None:
     """The stream connection cannot be made (here: the broker is gone when the streams start): one warning,
-    and the events go through the robot's own connection (envelope and WoT form), once it is back."""
+    and the events go through the robot's own connection (envelope and WoT form), once it is back. (On MQTT
+    3.1.1: on MQTT 5 the streams use the robot's connection anyway, test_property_streams.py.)"""
     model = rb1_model()
-    config = RuntimeConfig(robot="solo", bus=broker.url, property_period=0, state_dir="", call_timeout=2)
+    config = RuntimeConfig(
+        robot="solo", bus=broker.url, property_period=0, state_dir="", call_timeout=2, mqtt_version="3.1.1"
+    )
     engine = serve(model, SimPort(model, sim(0.2)), config)
     spec = engine.catalog.find(Kind.PROPERTY, "availability")
     try:

@@ -312,3 +312,33 @@ def test_a_broker_that_drops_packets_stalls_no_other_brokers_reconnection(tmp_pa
             bus.close()
         a.stop()
         b.stop()
+
+
+def test_a_plain_acknowledgement_is_read_without_pahos_decoder(broker: Mosquitto) -> None:
+    """paho's decoder makes two reason codes and a property set for each PUBACK, about half of the serving
+    thread's time per acknowledgement, and a fleet's events are acknowledged a thousand times a second: a plain
+    one (the message id, success) is read without it, and still completes its message (`flush`). (A refusal,
+    an ACL's reason code, still goes through paho's decoder: test_newuser_fleet.py sees it reported.)"""
+    from paho.mqtt import _packet
+
+    decoded = [0]
+    decode = _packet.decode_puback
+
+    def counting(*args: object) -> object:
+        decoded[0] += 1
+        return decode(*args)  # type: ignore[arg-type]
+
+    bus = MqttBus(parse_broker_url(broker.url), client_id="acks-plain")
+    app = AppClient(broker, ["acks/#"])
+    _packet.decode_puback = counting  # type: ignore[assignment]
+    try:
+        bus.connect()
+        for n in range(50):
+            bus.publish(f"acks/{n % 3}", str(n).encode())
+        assert bus.flush(10.0), "every message acknowledged"
+        assert until(lambda: len(app.events) == 50, 10.0), len(app.events)
+        assert decoded[0] == 0, f"paho's decoder read {decoded[0]} of 50 plain acknowledgements"
+    finally:
+        _packet.decode_puback = decode
+        bus.close()
+        app.close()

@@ -12,10 +12,11 @@ through the generated component's per-message callback (`on_<property>`, the por
   `genport.to_plain` gives), encodes it once and splices that text into the event envelope and the WoT form,
   and publishes both: the same event, byte for byte, as the engine's own `encode(envelope(...))` and
   `ThingBus` would give, at `property_qos`;
-* on MQTT each robot's streams publish on a connection of their own that the publishing thread serves itself
-  (drivenbus.py): a publish writes to the socket at once instead of waking the network thread of the robot's
-  connection, which cost the publishing thread most of its time; when the broker will not take that
-  connection, the robot's own is used;
+* on MQTT 5 each robot's streams publish on the robot's own connection, written to its socket at once by the
+  publishing thread (mqttloop.py): the connection asks for no-local, so the broker does not send the values back
+  to the node (whose command filters match their topics), as it did while they had a connection of their own;
+  on MQTT 3.1.1 (no such option) they publish on a connection of their own that the publishing thread serves
+  itself (drivenbus.py), and when the broker will not take that connection, on the robot's own;
 * the rules of property events hold: retained, and only when the value changed (a message equal to the last
   one published for its property is no event);
 * `property_interval` > 0: at most one event per property and interval, the latest message wins, and the
@@ -254,6 +255,8 @@ class Pump:
                     self._ready.append((slot, _LATEST))
                 else:
                     heapq.heappush(self._timers, (due, next(self._order), slot))
+                    if self._timers[0][2] is not slot:
+                        return  # an earlier timer ends the publishing thread's wait anyway: no wake for this one
             if self._idle:
                 self._idle = False
                 self.cond.notify()
@@ -353,6 +356,18 @@ def _plain_bus(bus: Bus) -> Bus:
     return bus.bus if isinstance(bus, ThingBus) else bus
 
 
+def _no_echo(bus: Bus) -> bool:
+    """Whether the broker sends none of what `bus` publishes back to it (MQTT 5's no-local, which the node's
+    connections ask for). Its command filters match the topics of its property values (envelope and WoT form):
+    published on a connection of their own, the broker sent each value back to the node twice (the envelope at
+    QoS 1, acknowledged), for the serving thread to read and drop, 200 a second for a fleet of 100 RB-1s;
+    published on the robot's connection, none comes back. A publish on it is written at once by the publishing
+    thread (mqttloop.py), and its acknowledgement is read by the serving thread instead of this one."""
+    from td2adaptor.runtime.bus.mqttbus import MqttBus
+
+    return isinstance(bus, MqttBus) and bus.no_local and bus.mqtt_version == "5"
+
+
 def _close(bus: DrivenBus) -> None:
     """Send what is unacknowledged (at most 1 s) and disconnect."""
     try:
@@ -405,14 +420,17 @@ class PropertyStreams:
             pump.initial(slot, value)
 
     def _connection(self) -> DrivenBus | None:
-        """The robot's own connection for its streams (drivenbus.py), beside its bus; None: not on MQTT, or
-        the broker would not take a second connection (the streams then go through the robot's bus)."""
+        """The robot's own connection for its streams (drivenbus.py), beside its bus; None: the streams go
+        through the robot's bus: not on MQTT, a bus whose subscriptions ask for no-local (its own values do not
+        come back to it, see `_no_echo`), or the broker would not take a second connection."""
         from td2adaptor.runtime.bus.drivenbus import DrivenBus, twin
         from td2adaptor.runtime.bus.mqttbus import MqttBus
 
         inner = _plain_bus(self.outbox.bus)
         if not isinstance(inner, MqttBus) or isinstance(inner, DrivenBus):
             return None
+        if _no_echo(inner):
+            return None  # the robot's own connection: the broker sends none of the values back to the node
         out = twin(inner)
         try:
             out.connect()

@@ -632,3 +632,75 @@ def test_a_message_costs_the_subscriptions_reader_no_python_per_subscription(
     finally:
         spinner.stop()
         node.destroy_node()
+
+
+def test_messages_close_together_are_taken_in_one_wake_of_the_subscriptions_reader(
+    adaptor: ModuleType, ros_node: Any
+) -> None:
+    """Each wake of the subscriptions reader costs the middleware a pass over every subscription of the node
+    (rcl/rmw add and check each one): a fleet's node of 200 property subscriptions at 2,000 messages a second paid
+    it for nearly every message. Messages that come close together (one a millisecond here) are taken together, a
+    wake at most every `SUBSCRIPTIONS_PERIOD` (5 ms), in order and none lost."""
+    import inspect
+
+    import rclpy
+    from std_msgs.msg import String
+
+    runtime = importlib.import_module(f"{adaptor.__name__}.runtime")
+    node: Any = rclpy.create_node("adaptor_test_coalesced_wakes", context=ros_node.context)
+    qos = runtime.qos_profile("reliable", "volatile", "keep_last", 100)
+    subscribers = [runtime.TopicSubscriber(node, String, f"/coalesced_wakes/t{i}", qos) for i in range(20)]
+    heard: dict[int, list[str]] = {i: [] for i in range(3)}
+    arrived = threading.Semaphore(0)
+
+    def listen(i: int) -> Callable[[Any], None]:
+        def callback(msg: Any) -> None:
+            heard[i].append(msg.data)
+            arrived.release()
+
+        return callback
+
+    for i, subscriber in enumerate(subscribers):
+        subscriber.register()
+        if i in heard:
+            subscriber.add_callback(listen(i))
+    run = runtime._Reader._run.__code__
+    source, first = inspect.getsourcelines(runtime._Reader._run)
+    wait_line = first + next(n for n, line in enumerate(source) if "wait_set.wait(" in line)
+    waits: list[float] = []  # when the reader's loop came to its wait
+
+    def count(frame: Any, event: str, arg: Any) -> Any:
+        if event == "line" and frame.f_lineno == wait_line:
+            waits.append(time.monotonic())
+        return count
+
+    def trace(frame: Any, event: str, arg: Any) -> Any:
+        return count if frame.f_code is run else None
+
+    outer = threading.gettrace()
+    threading.settrace(trace)  # the threads started now: the spinner's and its readers
+    try:
+        spinner = adaptor.spin_in_background(node)
+    finally:
+        threading.settrace(outer)  # type: ignore[arg-type]
+    publishers = {i: node.create_publisher(String, f"/coalesced_wakes/t{i}", qos) for i in heard}
+    sent = 150
+    try:
+        assert until(lambda: all(s.group.served for s in subscribers), 10.0), "the reader serves them all"
+        assert until(lambda: all(p.get_subscription_count() == 1 for p in publishers.values()), 10.0)
+        waits.clear()
+        for n in range(sent):  # one message a millisecond, round the three topics
+            due = time.perf_counter() + 0.001
+            publishers[n % 3].publish(String(data=str(n)))
+            while time.perf_counter() < due:
+                pass
+        for _ in range(sent):
+            assert arrived.acquire(timeout=10.0), heard
+        assert heard == {i: [str(n) for n in range(i, sent, 3)] for i in heard}, "in order, none lost"
+        gaps = sorted(b - a for a, b in zip(waits, waits[1:], strict=False))
+        period = getattr(runtime, "SUBSCRIPTIONS_PERIOD", 0.005)
+        assert len(gaps) >= 5, f"{len(waits)} waits"
+        assert gaps[0] >= period, f"{len(waits)} wakes for {sent} messages, the closest {1000 * gaps[0]:.2f} ms apart"
+    finally:
+        spinner.stop()
+        node.destroy_node()

@@ -54,6 +54,13 @@ from .goals import FEEDBACK_END, CancelOutcome, CancelRequest, GoalOutcome, Goal
 #: how often a wait for a service re-checks whether a server appeared (rclpy's own wait uses 0.25 s)
 POLL_PERIOD = 0.02
 
+#: seconds between two wakes of the subscriptions reader at least: what comes meanwhile is taken together at the
+#: next one. Each wake costs the middleware a pass over every subscription of the node (rcl/rmw add and check
+#: each one), so a fleet's node of hundreds of subscriptions paid that pass for nearly every message; a message
+#: that comes after a quiet moment is still taken at once (at most this late otherwise; a topic faster than its
+#: history depth per this many seconds loses messages it would not have)
+SUBSCRIPTIONS_PERIOD = 0.005
+
 #: serialises the creation of clients, publishers and subscriptions (components may be shared by threads)
 _REGISTER_LOCK = threading.Lock()
 
@@ -159,7 +166,8 @@ class _Reader:
     Why: a Python executor rebuilds its whole wait set (every client, service, timer and subscription of the
     node) for each message or response, about 0.3 ms for one robot and milliseconds for a fleet's node; a wait
     set of only the subscriptions, or only the clients, kept from one turn to the next, costs a fraction of
-    that, and several waiting messages are taken in one turn. Two readers, not one: a fleet's node has a
+    that, and several waiting messages are taken in one turn (the subscriptions reader wakes at most every
+    `SUBSCRIPTIONS_PERIOD`, so that messages close together share a turn). Two readers, not one: a fleet's node has a
     thousand clients, which each message would otherwise put in the wait set again. The responses reader waits
     only on the clients with a call in flight (`begin`/`end`): a wait set is filled anew for every wait (rcl
     empties what was not ready), about half a microsecond per entity, so a fleet's thousand idle clients would
@@ -366,10 +374,17 @@ class _Reader:
                             if responder is not None:
                                 self._respond(responder[1], responder[0])
                     if handles:
+                        woke = time.monotonic()
+                        taken = False
                         for pointer in wait_set.get_ready_entities("subscription"):
                             entry = subscribers.get(pointer)
                             if entry is not None:
                                 self._drain(entry[1], entry[0])
+                                taken = True
+                        if taken:  # what comes within the period waits for the next wake (one pass for all)
+                            rest = woke + SUBSCRIPTIONS_PERIOD - time.monotonic()
+                            if rest > 0:
+                                time.sleep(rest)
         except Exception as exc:  # noqa: BLE001 - a destroyed node or context: the executor takes over again
             if not self._stopping and self.context.ok():
                 self._log(f"the {self.kind} reader stopped: {type(exc).__name__}: {exc}")
