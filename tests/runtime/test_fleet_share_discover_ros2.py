@@ -184,11 +184,14 @@ def test_shared_processes_discover_robots_each_served_by_one_that_sees_it_and_ad
         sims.append(sim_process(rb1_prefix, SECOND, domain=other_domain))
         wait(lambda: one_owner_each(watch, set(SECOND), pids), 30, watch)
         assert until(lambda: time.monotonic() - ready > 1.5, 2)  # the first plans: 1 s after each process joined
+        launched = time.monotonic()
         sims.insert(0, sim_process(rb1_prefix, FIRST, domain=first_domain))
-        appeared = time.monotonic()  # when its simulation said it is ready
+        appeared = time.monotonic()  # when the test read that its simulation is ready
         everyone = {*FIRST, *SECOND}
         wait(lambda: one_owner_each(watch, everyone, pids), 30, watch)
-        online = {r: watch.status_at(r, "online", appeared) or 1e9 for r in FIRST}
+        # online since the launch: on a loaded machine a process can serve a robot before the test has read the
+        # simulation's `ready` (its nodes are in the graph before it prints it; seen in a loaded full run)
+        online = {r: watch.status_at(r, "online", launched) or 1e9 for r in FIRST}
         listed = {r: listed_at(watch, r) or 1e9 for r in FIRST}
         took = max(online[r] - listed[r] for r in FIRST)
         print(f"appeared -> online with one of the processes that see it: max {max(online.values()) - appeared:.2f} s")
@@ -334,11 +337,13 @@ def test_three_shared_processes_discover_reload_under_load_over_bridged_brokers_
         missions.start()
         assert until(lambda: all(len(v) >= 2 for v in missions.sent.values()), 30)
 
+        launched = time.monotonic()
         sims.append(sim_process(rb1_prefix, later, domain=domain))  # robots appear
         appeared = time.monotonic()
         simulations = lambda: [(sim.proc.poll(), sim.stderr_tail(500)) for sim in sims]  # noqa: E731
         wait(lambda: one_owner_each(watch, first | set(later), pids), 30, watch, simulations)
-        took = max((watch.status_at(r, "online", appeared) or 1e9) - appeared for r in later)
+        # from the test's reading of `ready`; online before it (a loaded machine) counts as at once
+        took = max((watch.status_at(r, "online", launched) or 1e9) - appeared for r in later)
         print(f"appeared -> online: max {took:.2f} s")
 
         settings(fleet, site, tmp_path, ("cf_1", "cx_f1"), ("cf_3", "cx_f2"))  # cf_2 leaves, cf_3 joins
