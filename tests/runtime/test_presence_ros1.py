@@ -35,61 +35,75 @@ def package_src(tmp_path_factory: pytest.TempPathFactory, ros1: None) -> Path:
     return package / "src"
 
 
+class Served:
+    """`robot` served through a ROS 1 bridge by an engine on `broker`, and an application watching its topics."""
+
+    def __init__(self, master: Master, package_src: Path, broker: Mosquitto, robot: str) -> None:
+        self.robot = robot
+        model = rb1_model()
+        self.bridge = Ros1Bridge(
+            Layout.of(model),
+            PKG,
+            [(robot, robot)],
+            python=harness.SYSTEM_PYTHON,
+            pythonpath=[harness.interfaces_dir(), package_src],
+            master_uri=master.uri,
+            timeout=10.0,
+            environ=master.env(),
+        )
+        self.bridge.start()
+        self.app = AppClient(broker, [f"td2adaptor/{robot}/#"])
+        config = RuntimeConfig(
+            robot=robot,
+            bus=broker.url,
+            ros_master_uri=master.uri,
+            poll_period=0.05,
+            property_period=0,
+            call_timeout=10.0,
+            presence_period=0.2,
+            state_dir="",
+        )
+        self.engine = serve(model, self.bridge.port(robot), config, distro="ros1")
+
+    def status(self) -> dict[str, Any]:
+        with self.app.cond:
+            topic = f"td2adaptor/{self.robot}/status"
+            found = [e["payload"] for t, e in self.app.events if t == topic and "payload" in e]
+        return found[-1] if found else {}
+
+    def answered_absent_at_once(self, correlation: str) -> None:
+        """An invoke now ends at once (not after call_timeout, 10 s) with the error code `absent`."""
+        sent = time.monotonic()
+        topic = f"td2adaptor/{self.robot}/GoToComponent/gotoRun"
+        self.app.send(topic, {"correlation": correlation, "payload": GOAL})
+        self.app.wait(terminal("feedback", correlation), timeout=15)
+        assert time.monotonic() - sent < 3.0
+        errors = [e for _, e in self.app.events if e.get("type") == "error" and e.get("correlation") == correlation]
+        assert [e["payload"]["code"] for e in errors] == ["absent"]
+
+    def close(self) -> None:
+        self.engine.stop()
+        self.bridge.close()
+        self.app.close()
+
+
 def test_a_ros1_robot_is_absent_when_its_nodes_stop_and_present_again(
     master: Master, package_src: Path, broker: Mosquitto
 ) -> None:
+    served = Served(master, package_src, broker, ROBOT)
     interfaces = harness.interfaces_dir()
-    model = rb1_model()
-    bridge = Ros1Bridge(
-        Layout.of(model),
-        PKG,
-        [(ROBOT, ROBOT)],
-        python=harness.SYSTEM_PYTHON,
-        pythonpath=[interfaces, package_src],
-        master_uri=master.uri,
-        timeout=10.0,
-        environ=master.env(),
-    )
-    bridge.start()
-    app = AppClient(broker, [f"td2adaptor/{ROBOT}/#"])
-
-    def status() -> dict[str, Any]:
-        with app.cond:
-            found = [e["payload"] for t, e in app.events if t == f"td2adaptor/{ROBOT}/status" and "payload" in e]
-        return found[-1] if found else {}
-
-    config = RuntimeConfig(
-        robot=ROBOT,
-        bus=broker.url,
-        ros_master_uri=master.uri,
-        poll_period=0.05,
-        property_period=0,
-        call_timeout=10.0,
-        presence_period=0.2,
-        state_dir="",
-    )
-    engine = serve(model, bridge.port(ROBOT), config, distro="ros1")
     try:
         with harness.run_sim(master, interfaces, ROBOT, "--duration", "0.3"):
-            assert until(lambda: status().get("robot") == "present", 20.0), status()
-            app.send(f"td2adaptor/{ROBOT}/GoToComponent/gotoRun", {"correlation": "there", "payload": GOAL})
-            app.wait(terminal("feedback", "there"), timeout=20)
-        assert until(lambda: status().get("robot") == "absent", 10.0), status()
-        assert "gotoRun" in status()["missing"]
-        sent = time.monotonic()
-        app.send(f"td2adaptor/{ROBOT}/GoToComponent/gotoRun", {"correlation": "gone", "payload": GOAL})
-        app.wait(terminal("feedback", "gone"), timeout=15)
-        assert time.monotonic() - sent < 3.0  # at once, not after call_timeout (10 s)
-        codes = [
-            e["payload"]["code"] for _, e in app.events if e.get("type") == "error" and e.get("correlation") == "gone"
-        ]
-        assert codes == ["absent"]
+            assert until(lambda: served.status().get("robot") == "present", 20.0), served.status()
+            served.app.send(f"td2adaptor/{ROBOT}/GoToComponent/gotoRun", {"correlation": "there", "payload": GOAL})
+            served.app.wait(terminal("feedback", "there"), timeout=20)
+        assert until(lambda: served.status().get("robot") == "absent", 10.0), served.status()
+        assert "gotoRun" in served.status()["missing"]
+        served.answered_absent_at_once("gone")
         with harness.run_sim(master, interfaces, ROBOT, "--duration", "0.3"):
-            assert until(lambda: status().get("robot") == "present", 20.0), status()
+            assert until(lambda: served.status().get("robot") == "present", 20.0), served.status()
     finally:
-        engine.stop()
-        bridge.close()
-        app.close()
+        served.close()
 
 
 def test_a_ros1_robot_killed_without_unregistering_is_absent_and_an_invoke_is_answered_at_once(
@@ -98,58 +112,18 @@ def test_a_ros1_robot_killed_without_unregistering_is_absent_and_an_invoke_is_an
     """A ROS 1 node killed (SIGKILL, a crash) stays registered with the master, which keeps listing its services;
     the edge node finds it dead (its XML-RPC API refuses connections) rather than calling it for `call_timeout`."""
     robot = "killed_ros1"
+    served = Served(master, package_src, broker, robot)
     interfaces = harness.interfaces_dir()
-    model = rb1_model()
-    bridge = Ros1Bridge(
-        Layout.of(model),
-        PKG,
-        [(robot, robot)],
-        python=harness.SYSTEM_PYTHON,
-        pythonpath=[interfaces, package_src],
-        master_uri=master.uri,
-        timeout=10.0,
-        environ=master.env(),
-    )
-    bridge.start()
-    app = AppClient(broker, [f"td2adaptor/{robot}/#"])
-
-    def status() -> dict[str, Any]:
-        with app.cond:
-            found = [e["payload"] for t, e in app.events if t == f"td2adaptor/{robot}/status" and "payload" in e]
-        return found[-1] if found else {}
-
-    config = RuntimeConfig(
-        robot=robot,
-        bus=broker.url,
-        ros_master_uri=master.uri,
-        poll_period=0.05,
-        property_period=0,
-        call_timeout=10.0,
-        presence_period=0.2,
-        state_dir="",
-    )
-    engine = serve(model, bridge.port(robot), config, distro="ros1")
     try:
         with harness.run_sim(master, interfaces, robot, "--duration", "0.3") as sim:
-            assert until(lambda: status().get("robot") == "present", 20.0), status()
+            assert until(lambda: served.status().get("robot") == "present", 20.0), served.status()
             sim.process.kill()
             sim.process.wait()
             killed = time.monotonic()
-            assert until(lambda: status().get("robot") == "absent", 10.0), status()
+            assert until(lambda: served.status().get("robot") == "absent", 10.0), served.status()
             assert time.monotonic() - killed < 5.0
-            sent = time.monotonic()
-            app.send(f"td2adaptor/{robot}/GoToComponent/gotoRun", {"correlation": "dead", "payload": GOAL})
-            app.wait(terminal("feedback", "dead"), timeout=15)
-            assert time.monotonic() - sent < 3.0  # at once, not after call_timeout (10 s)
-            codes = [
-                e["payload"]["code"]
-                for _, e in app.events
-                if e.get("type") == "error" and e.get("correlation") == "dead"
-            ]
-            assert codes == ["absent"]
+            served.answered_absent_at_once("dead")
         with harness.run_sim(master, interfaces, robot, "--duration", "0.3"):  # the same node name, again
-            assert until(lambda: status().get("robot") == "present", 20.0), status()
+            assert until(lambda: served.status().get("robot") == "present", 20.0), served.status()
     finally:
-        engine.stop()
-        bridge.close()
-        app.close()
+        served.close()
