@@ -189,11 +189,16 @@ def test_no_runtime_module_imports_a_private_name_of_another() -> None:
     assert bad == []
 
 
+#: the standard library's public names that start with an underscore (`os._exit`: leave without running a
+#: dying process's clean-up, the ROS 1 bridge's child when its parent is gone)
+PUBLIC_UNDERSCORED = frozenset({"_exit"})
+
+
 def test_no_runtime_module_uses_private_members_it_does_not_define() -> None:
     bad = []
     for path in _modules().values():
         base = EXTENDS.get(path.relative_to(RUNTIME).as_posix())
-        bad += _private_uses(path, _defined(base) if base else frozenset())
+        bad += _private_uses(path, PUBLIC_UNDERSCORED | (_defined(base) if base else frozenset()))
     assert bad == []
 
 
