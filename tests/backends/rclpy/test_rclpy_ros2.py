@@ -567,21 +567,20 @@ def test_call_then_sends_nothing_without_a_server_and_times_out_on_a_silent_one(
     assert not never.calls
 
 
-def test_a_message_costs_the_subscriptions_reader_no_python_per_subscription(
-    adaptor: ModuleType, ros_node: Any
-) -> None:
-    """A fleet's node has hundreds of subscriptions, and every message wakes the subscriptions reader: the
-    Python it runs for one message (line events of `_Reader._run`, traced) does not grow with them. The ready
-    subscriptions are found by pointer, and the wait set is refilled without a Python loop (rcl empties it at
-    each wait). Messages still come in order and none is lost, also when several subscriptions are ready."""
+def _listening(
+    adaptor: ModuleType, ros_node: Any, name: str, count: int, heard_on: tuple[int, ...]
+) -> tuple[ModuleType, Any, Any, list[Any], dict[int, list[str]], threading.Semaphore]:
+    """A node `adaptor_test_<name>` with `count` registered String subscribers on `/<name>/t<i>` (the runtime,
+    the node, their QoS, the subscribers); those of `heard_on` record what they hear (`heard`), and release the
+    semaphore (`arrived`) once per message."""
     import rclpy
     from std_msgs.msg import String
 
     runtime = importlib.import_module(f"{adaptor.__name__}.runtime")
-    node: Any = rclpy.create_node("adaptor_test_many_subscriptions", context=ros_node.context)
+    node: Any = rclpy.create_node(f"adaptor_test_{name}", context=ros_node.context)
     qos = runtime.qos_profile("reliable", "volatile", "keep_last", 100)
-    subscribers = [runtime.TopicSubscriber(node, String, f"/many_subscriptions/t{i}", qos) for i in range(200)]
-    heard: dict[int, list[str]] = {i: [] for i in (7, 8, 9)}
+    subscribers = [runtime.TopicSubscriber(node, String, f"/{name}/t{i}", qos) for i in range(count)]
+    heard: dict[int, list[str]] = {i: [] for i in heard_on}
     arrived = threading.Semaphore(0)
 
     def listen(i: int) -> Callable[[Any], None]:
@@ -595,6 +594,21 @@ def test_a_message_costs_the_subscriptions_reader_no_python_per_subscription(
         subscriber.register()
         if i in heard:
             subscriber.add_callback(listen(i))
+    return runtime, node, qos, subscribers, heard, arrived
+
+
+def test_a_message_costs_the_subscriptions_reader_no_python_per_subscription(
+    adaptor: ModuleType, ros_node: Any
+) -> None:
+    """A fleet's node has hundreds of subscriptions, and every message wakes the subscriptions reader: the
+    Python it runs for one message (line events of `_Reader._run`, traced) does not grow with them. The ready
+    subscriptions are found by pointer, and the wait set is refilled without a Python loop (rcl empties it at
+    each wait). Messages still come in order and none is lost, also when several subscriptions are ready."""
+    from std_msgs.msg import String
+
+    runtime, node, qos, subscribers, heard, arrived = _listening(
+        adaptor, ros_node, "many_subscriptions", 200, (7, 8, 9)
+    )
     lines = [0]
     run = runtime._Reader._run.__code__
 
@@ -643,27 +657,9 @@ def test_messages_close_together_are_taken_in_one_wake_of_the_subscriptions_read
     wake at most every `SUBSCRIPTIONS_PERIOD` (5 ms), in order and none lost."""
     import inspect
 
-    import rclpy
     from std_msgs.msg import String
 
-    runtime = importlib.import_module(f"{adaptor.__name__}.runtime")
-    node: Any = rclpy.create_node("adaptor_test_coalesced_wakes", context=ros_node.context)
-    qos = runtime.qos_profile("reliable", "volatile", "keep_last", 100)
-    subscribers = [runtime.TopicSubscriber(node, String, f"/coalesced_wakes/t{i}", qos) for i in range(20)]
-    heard: dict[int, list[str]] = {i: [] for i in range(3)}
-    arrived = threading.Semaphore(0)
-
-    def listen(i: int) -> Callable[[Any], None]:
-        def callback(msg: Any) -> None:
-            heard[i].append(msg.data)
-            arrived.release()
-
-        return callback
-
-    for i, subscriber in enumerate(subscribers):
-        subscriber.register()
-        if i in heard:
-            subscriber.add_callback(listen(i))
+    runtime, node, qos, subscribers, heard, arrived = _listening(adaptor, ros_node, "coalesced_wakes", 20, (0, 1, 2))
     run = runtime._Reader._run.__code__
     source, first = inspect.getsourcelines(runtime._Reader._run)
     wait_line = first + next(n for n, line in enumerate(source) if "wait_set.wait(" in line)
