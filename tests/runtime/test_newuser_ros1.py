@@ -158,3 +158,34 @@ def test_a_run_stopped_while_its_ros1_bridge_waits_for_the_master_leaves_no_brid
             if _running(pid):
                 os.kill(pid, signal.SIGKILL)
         run.close()
+
+
+def test_a_ros1_bridge_that_waits_for_a_master_that_is_not_up_says_so(package_src: Path) -> None:
+    """`run --ros 1` with no master up waited its start timeout (30 s) and said only "the ROS 1 bridge did not
+    answer init within 30 s" (beside rospy's own "will keep trying"): it now names the master that does not
+    answer and how to name another."""
+    from td2adaptor.runtime.ros.bridge import Ros1Bridge
+    from td2adaptor.runtime.ros.genport import Layout
+    from td2adaptor.runtime.ros.port import RosSetupError
+    from tests.ports import free_port
+
+    nobody = f"http://127.0.0.1:{free_port()}/"
+    environ = {k: v for k, v in os.environ.items() if not k.startswith("ROS_")}
+    bridge = Ros1Bridge(
+        Layout.of(rb1_model()),
+        "robotnik_rb_1_adaptor",
+        [("no_master", "no_master")],
+        python=harness.SYSTEM_PYTHON,
+        pythonpath=[harness.interfaces_dir(), package_src],
+        master_uri=nobody,
+        environ=environ,
+        start_timeout=3.0,
+    )
+    try:
+        with pytest.raises(RosSetupError) as failed:
+            bridge.start()
+    finally:
+        bridge.close()
+    said = str(failed.value)
+    assert f"the ROS 1 master {nobody} does not answer (Connection refused)" in said, said
+    assert "--master-uri (or ROS_MASTER_URI)" in said and "init" not in said, said

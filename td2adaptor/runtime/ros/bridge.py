@@ -30,12 +30,14 @@ import logging
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import tempfile
 import threading
 import time
 import traceback
+import urllib.parse
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -104,6 +106,22 @@ def _inside(path: str, root: str) -> bool:
         return os.path.commonpath([os.path.abspath(path), root]) == root
     except ValueError:
         return False
+
+
+#: the master rospy uses when ROS_MASTER_URI is not set
+DEFAULT_MASTER = "http://localhost:11311"
+
+
+def master_unreachable(uri: str, timeout: float = 2.0) -> str | None:
+    """Why a TCP connection to the ROS 1 master at `uri` fails (None when it connects)."""
+    parsed = urllib.parse.urlsplit(uri)
+    try:
+        with socket.create_connection((parsed.hostname or "localhost", parsed.port or 11311), timeout=timeout):
+            return None
+    except OSError as exc:
+        return exc.strerror or str(exc) or "no answer"
+    except ValueError as exc:  # a port that is no number
+        return str(exc)
 
 
 def child_environment(environ: Mapping[str, str], pythonpath: Sequence[str], master_uri: str | None) -> dict[str, str]:
@@ -235,6 +253,14 @@ class Ros1Bridge:
             raise
         except PortError as exc:
             self._kill()
+            master = self.master_uri or self.environ.get("ROS_MASTER_URI") or DEFAULT_MASTER
+            unreachable = master_unreachable(master) if isinstance(exc, PortTimeout) else None
+            if unreachable is not None:  # rospy waits for ever for a master that is not up: say so, not "init"
+                raise RosSetupError(
+                    f"the ROS 1 bridge under {self.python} did not start: the ROS 1 master {master} does not answer "
+                    f"({unreachable}): is it running (roscore)? --master-uri (or ROS_MASTER_URI) names the one the "
+                    "robots use"
+                ) from None
             raise RosSetupError(f"the ROS 1 bridge under {self.python} did not start: {exc}") from None
         except BaseException:  # interrupted (Ctrl-C while rospy waits for a master that is not up): no orphan
             self._kill(at_once=True)
