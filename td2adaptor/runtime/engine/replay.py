@@ -110,9 +110,10 @@ def _instant(text: str) -> float | str:
 
 
 def open_store(path: Path | None, *, timeout: float) -> sqlite3.Connection:
-    """The robot's SQLite file (in memory without a path), shared by the replay guard and the mission ledger:
-    one connection each, any thread, autocommit; WAL with synchronous NORMAL, so a write costs no fsync of its
-    own and a crash of the process loses nothing committed. `timeout`: how long a write waits for the other's."""
+    """A connection to the robot's SQLite file (in memory without a path), which the replay guard and the mission
+    ledger share (`Store`): any thread, autocommit; WAL with synchronous NORMAL, so a write costs no fsync of its
+    own and a crash of the process loses nothing committed. `timeout`: how long a write waits for another
+    connection's (another process of the machine, or a test's)."""
     target = ":memory:"
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
