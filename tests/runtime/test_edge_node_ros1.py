@@ -499,7 +499,7 @@ def test_roslaunch_edge_node_serves_a_robot_over_mosquitto_and_stops_on_sigint(
         assert f"serving {ROBOT} (namespace {ROBOT})" in run.output(), run.output()
         # (roslaunch runs the `td2adaptor` on PATH with the workspace's PYTHONPATH: the start line's words are
         # checked by the rosrun test, which runs this checkout)
-        assert "/usr/bin/python3, package robotnik_rb_1_adaptor" in run.output()
+        assert "/usr/bin/python3" in run.output() and "package robotnik_rb_1_adaptor" in run.output()
         goal = {"procedure": {"goals": [{"pose": {"x": 2.0, "y": 1.0, "theta": 0.0}}]}}
         app.send(f"td2adaptor/{ROBOT}/GoToComponent/gotoRun", {"correlation": "launch", "payload": goal})
         app.wait(terminal("feedback", "launch"), timeout=20)
