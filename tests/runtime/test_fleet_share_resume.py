@@ -99,13 +99,19 @@ def test_a_resumed_process_runs_nothing_it_read_on_a_session_taken_over(
         # recovery ends it): then it is the hung one's, finished too
         members = retained(broker, "td2adaptor/.fleet/shared/members/+")
         node = {e["owner"]["pid"]: e["owner"]["node"] for e in members.values() if e}
-        entries = {e["id"]: e for e in retained(broker, "td2adaptor/.fleet/shared/admitted/+/+").values() if e}
+        ended = {"finished"} if not actions else {"finished", "failed"}
+
+        def admitted() -> dict[str, Any]:
+            return {e["id"]: e for e in retained(broker, "td2adaptor/.fleet/shared/admitted/+/+").values() if e}
+
+        # an adopted goal's entry is ended when its new owner ends it, which may come after the hand-over settled
+        until(lambda: {admitted().get(i, {}).get("state") for i in sent} <= ended, 20)
+        entries = admitted()
         kept = {i: (entries[i]["owner"], entries[i].get("state")) for i in sent}
         # a procedure is followed on by whoever serves the robot next; a ROS action goal here is served by each
         # process's own simulated action servers (share_proc's SimActions), so a goal still running when the robot
         # was handed back cannot be followed by its new owner, which ends it `failed` with the takeover's words (a
         # real ROS 2 server is one for every process). Either way the entry is ended, never left admitted
-        ended = {"finished"} if not actions else {"finished", "failed"}
         assert {state for _owner, state in kept.values()} <= ended, kept
         assert {owner for owner, _state in kept.values()} <= {node[other.pid], node[frozen.pid]}, (kept, node)
         adopted = [i for i, (owner, _state) in kept.items() if owner == node[frozen.pid]]
