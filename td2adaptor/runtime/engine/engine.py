@@ -90,13 +90,12 @@ def _state(config: RuntimeConfig) -> tuple[ReplayGuard, Ledger]:
     window, skew = config.freshness_window, config.clock_skew
     try:
         store = Store(path)
+        try:
+            return ReplayGuard(store, window=window, skew=skew), Ledger(store, keep=keep)
+        except sqlite3.Error:  # a file that is no database of ours
+            store.db.close()
+            raise
     except (OSError, sqlite3.Error) as exc:
-        log.warning("event ids and missions kept in memory only (%s: %s): a restart forgets them", path, exc)
-        store = Store(None)
-    try:
-        return ReplayGuard(store, window=window, skew=skew), Ledger(store, keep=keep)
-    except sqlite3.Error as exc:  # a file that is no database of ours
-        store.db.close()
         log.warning("event ids and missions kept in memory only (%s: %s): a restart forgets them", path, exc)
         store = Store(None)
         return ReplayGuard(store, window=window, skew=skew), Ledger(store, keep=keep)
