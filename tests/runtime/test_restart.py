@@ -118,6 +118,7 @@ def test_what_cannot_be_followed_on_ends_failed_once_and_an_unsent_end_is_sent(t
     for _ in range(2):  # the second start finds nothing left to do
         engine = serve(model, SimPort(model, robot), _config(tmp_path), broker=broker)
         engine.stop()
+    assert app.bus.drain(30.0)  # the local broker delivers on its own thread: every event published has come
     terminals = {
         c: [e for e in app.of("feedback", c) if e["payload"]["terminal"]]
         for c in ("unanswered", "blind", "goal", "ended", "stale")
