@@ -257,7 +257,7 @@ def test_a_wait_for_a_service_cut_short_by_the_call_timeout_says_how_long_in_pla
 HANG = """
 from robotnik_rb_1_adaptor import *
 c = GoToComponent("hang", timeout=0.5)
-out = [c.call_gotoQuery(mission_id=7).state.header.id]   # answered: the connection is now persistent
+out = [c.call_gotoQuery(mission_id=7, timeout=30).state.header.id]   # answered: the connection is now persistent
 for _ in range(2):   # on the persistent connection, then on a fresh one
     t = time.monotonic()
     try:
@@ -276,7 +276,7 @@ def test_server_that_never_answers_raises_call_timeout(master: Master, path: lis
     assert out[0] == 7
     for attempt in out[1:]:
         assert attempt[:3] == ["CallTimeout", name, 0.5]
-        assert 0.45 <= attempt[3] < 1.5
+        assert 0.45 <= attempt[3] < 5.0  # the 0.5 s applied (a loaded machine may add a few seconds), not a hang
 
 
 NO_MESSAGE = """
