@@ -29,7 +29,8 @@ ROBOT = "scaf_ros1"
 
 @pytest.fixture(scope="module")
 def sim(master: Master) -> Iterator[Sim]:
-    with harness.run_sim(master, harness.interfaces_dir(), ROBOT, "--duration", "0.5") as s:
+    # a pick long enough for a poll to see it running on a loaded machine
+    with harness.run_sim(master, harness.interfaces_dir(), ROBOT, "--duration", "2.0") as s:
         yield s
 
 
