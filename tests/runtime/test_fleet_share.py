@@ -151,8 +151,9 @@ class Procs:
             assert proc.stdout.readline().startswith("ready"), self.logs()
         return started
 
-    def logs(self) -> str:
-        return "\n".join((self.tmp / f"proc{i}.log").read_text()[-3000:] for i in range(len(self.procs)))
+    def logs(self, *, whole: bool = False) -> str:
+        texts = [(self.tmp / f"proc{i}.log").read_text() for i in range(len(self.procs))]
+        return "\n".join(f"--- proc{i}\n{t if whole else t[-3000:]}" for i, t in enumerate(texts))
 
     def runs_of(self) -> Counter[str]:
         """How often each goal x was started, over every process."""
@@ -189,7 +190,7 @@ def served_by(watcher: Watcher, pids: set[int], robots: int = ROBOTS) -> bool:
     return len(owners) == robots and all(s == "online" and p in pids for s, p in owners.values())
 
 
-def every_invoke_answered(load: Load, watcher: Watcher) -> None:
+def every_invoke_answered(load: Load, watcher: Watcher, procs: Procs | None = None) -> None:
     """Every invoke gets its terminal event, also one the killed process had read in its last moment (it did not
     acknowledge it before admitting it: the broker gave it to the next owner) or one that reached the old owner
     of a robot handed over after its engine stopped (not acknowledged either). Nothing is sent again."""
@@ -197,7 +198,17 @@ def every_invoke_answered(load: Load, watcher: Watcher) -> None:
     def unanswered() -> set[str]:
         return set(load.sent) - set(watcher.terminals())
 
-    assert until(lambda: not unanswered(), 30), [(load.sent[i][0], load.sent_at[i]) for i in unanswered()]
+    if until(lambda: not unanswered(), 30):
+        return
+    missing = sorted(unanswered(), key=lambda i: load.sent_at[i])
+    robots = {load.sent[i][0] for i in missing}
+    # what a failure needs to be understood (a whole run at load 28 once left two robots' invokes unanswered)
+    timeline = [(round(t, 2), r, p.get("state"), (p.get("owner") or {}).get("pid")) for t, r, p in watcher.statuses()]
+    lines = [f"unanswered: {[(load.sent[i][0], round(load.sent_at[i], 2), i[:8]) for i in missing]}"]
+    lines.append(f"statuses of {sorted(robots)}: {[s for s in timeline if s[1] in robots]}")
+    if procs is not None:
+        lines.append(procs.logs(whole=True))
+    raise AssertionError("\n".join(lines))
 
 
 def retained(broker: Mosquitto, pattern: str) -> dict[str, dict[str, Any]]:
@@ -291,7 +302,7 @@ def test_three_processes_share_30_robots_and_a_killed_ones_robots_are_taken_over
         resender.close()
         assert until(lambda: all(len(watcher.terminals().get(i, [])) > terminals_before[i] for i in before_kill), 15)
         # every invoke ends, once, and no mission ran twice
-        every_invoke_answered(load, watcher)
+        every_invoke_answered(load, watcher, procs)
         ends = watcher.terminals()
         outcomes = {i: {(p["state"], p.get("seq")) for p in ends[i]} for i in load.sent}
         assert all(len(o) == 1 for o in outcomes.values()), [o for o in outcomes.values() if len(o) > 1][:5]
@@ -446,7 +457,7 @@ def test_the_same_over_a_site_broker_bridged_to_a_central_one(tmp_path: Path) ->
         assert len(back) == 5 and max(back.values()) <= 5.0, back
         time.sleep(2)
         load.stop()
-        every_invoke_answered(load, watcher)
+        every_invoke_answered(load, watcher, procs)
         ends = watcher.terminals()
         assert all(len({(p["state"], p.get("seq")) for p in ends[i]}) == 1 for i in load.sent)
         assert max(procs.runs_of().values()) == 1
@@ -566,7 +577,7 @@ def test_a_process_that_hangs_is_noticed_by_its_keepalive_and_rejoins_without_a_
         load.stop()
         # every invoke is answered, also one the hung process had read just before it froze (it acknowledges a
         # command only once admitted: the broker gave it to the other process)
-        every_invoke_answered(load, watcher)
+        every_invoke_answered(load, watcher, procs)
         assert max(procs.runs_of().values()) == 1
         ends = watcher.terminals()
         assert all(len({(p["state"], p.get("seq")) for p in ends[i]}) == 1 for i in load.sent)
