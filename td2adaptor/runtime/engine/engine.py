@@ -591,10 +591,25 @@ class Engine:
             assert self._procedures is not None
             self._procedures.resume(m, ended)
             return
+        if self._rejoin(r, m, behind, ended):
+            return
         self.outbox.count("restart-failed")
         message = f"{self.restarted} {_restart_words(r, behind, self.config.mission_timeout)}"
         log.warning("%s %s: failed: %s", r.action, _which(r), message)
         self.outbox.finish(m, ProcedureStatus("failed", message=message, reason="unreachable"))
+
+    def _rejoin(self, r: Record, m: Mission, behind: float, ended: threading.Event) -> bool:
+        """Follow on a ROS action goal the last run left (the server accepted it: its id is known), by its id,
+        when the port can and its component is free; whether it is followed (goals.py `rejoin`)."""
+        goals = self._goals
+        if r.kind != "goal" or r.goal is None or r.state is None or behind >= self.config.mission_timeout:
+            return False
+        if goals is None or not goals.can_rejoin() or self.missions.claim(m, ended) is not None:
+            return False
+        log.info("following %s goal %s again (%s)", r.action, r.goal, self.restarted)
+        self.outbox.count("rejoined")
+        goals.rejoin(m, ended, self.restarted)
+        return True
 
     def _invoke(
         self, spec: EventSpec, procedure: Procedure, event: dict[str, Any], topic: str, *, goal: bool = False
