@@ -80,7 +80,7 @@ _RUNNING = (_PENDING, _ACTIVE, _PREEMPTING, _RECALLING)
 _CANCELING = (_PREEMPTING, _RECALLING, _PREEMPTED, _RECALLED)
 #: actionlib's CommState values a followed goal (`ActionGoalClient.rejoin`) starts in: PENDING (a goal the server
 #: no longer lists then ends lost), and WAITING_FOR_RESULT (its status says it ended: the result is on its way)
-_COMM_PENDING, _WAITING_FOR_RESULT = 1, 6
+_COMM_PENDING, _WAITING_FOR_RESULT = 1, 3
 #: seconds a followed goal that the status list says has ended waits for its result: the server published it
 #: before this client followed the goal, and actionlib never sends it again; its end is then the status's
 RESULT_WAIT = 1.0
