@@ -618,18 +618,21 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
             self.send_now(handle)
         return handle
 
-    def _follow(self, client: actionlib.ActionClient, handle: GoalHandle[ResultT, FeedbackT]) -> Any:
+    def _follow(
+        self, client: actionlib.ActionClient, handle: GoalHandle[ResultT, FeedbackT]
+    ) -> actionlib.ClientGoalHandle:
         """actionlib's handle of a goal the server took from another client: tracked from the status list as
         one of its own (PENDING: a status list without it makes it lost), never sent."""
-        manager: Any = client.manager
+        manager = client.manager
         action_goal = manager.ActionGoal()
         action_goal.goal_id.id = handle.goal_id
-        comm = vars(actionlib.action_client)["CommStateMachine"]
-        machine = comm(action_goal, handle.transition, None, manager.send_goal_fn, manager.cancel_fn)
+        machine = actionlib.CommStateMachine(
+            action_goal, handle.transition, None, manager.send_goal_fn, manager.cancel_fn
+        )
         machine.state = _COMM_PENDING
         with manager.list_mutex:
             manager.statuses.append(weakref.ref(machine))
-        return vars(actionlib.action_client)["ClientGoalHandle"](machine)
+        return actionlib.ClientGoalHandle(machine)
 
     def send_now(self, handle: GoalHandle[ResultT, FeedbackT]) -> None:
         """Send `handle`'s goal to the server (there now) when it is its turn (GOAL_REQUESTS), else put it in
