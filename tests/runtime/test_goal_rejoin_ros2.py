@@ -37,8 +37,8 @@ from tests.runtime.rclpy_robot import generate_rclpy
 
 pytest_plugins = ["tests.ros2.fixtures"]  # ros2_domain
 
-#: feedback messages of the long goal, STEP (0.05 s) apart: 15 s, longer than a kill and a start take
-LONG = 300
+#: feedback messages of the long goal, STEP (0.05 s) apart: 20 s, longer than a kill and a start take (loaded)
+LONG = 400
 
 
 @pytest.fixture(scope="module")
@@ -174,7 +174,7 @@ def test_a_goal_that_ended_while_no_node_followed_it_gets_its_real_end(
         node.wait_ready()
         goals_answered(app, "rejoin_b")
         robots.drain()
-        event_id = start_goal(app, "rejoin_b", 40)  # 2 s
+        event_id = start_goal(app, "rejoin_b", 100)  # 5 s: killed well before its end
         app.wait(lambda ev: running(ev, event_id, 1), timeout=30)
         node.proc.kill()
         node.proc.wait(10)

@@ -1463,6 +1463,7 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         self._probes: list[_Future] = []  # probes not answered yet
         self._missing = 0  # checks in a row that found no server in the graph
         self._rejoined = False  # followed by its id (`rejoin`), not sent by this handle
+        self._listed = False  # a status list of the server showed the goal
 
     # hooks of GoalRecord
 
@@ -1660,6 +1661,7 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
     def status_message(self, code: int) -> None:
         """The goal's status in a status message of the server (executor's thread)."""
         self._heard = time.monotonic()
+        self._listed = True
         if code in (1, 2, 3):
             self._set_status(GOAL_STATUS[code])
         elif code in (4, 5, 6):
@@ -1676,6 +1678,10 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
             again = (
                 raw is not None and self._ended_at > 0 and now - max(self._ended_at, self._result_asked) >= RESULT_AGAIN
             )
+            # a goal followed by its id that no status list shows (the server may not know it) and whose result
+            # request got no answer: the request may have been dropped right after discovery; asked again
+            unseen = self._rejoined and not self._listed and now - self._result_asked >= RESULT_AGAIN
+            again = again or (raw is not None and unseen)
         ready = cast(_ActionClientApi, self._client).server_is_ready
         if waiting and not queued:
             if ready():
