@@ -10,7 +10,11 @@ goal is `lost`: on ROS 2 after `action_server_timeout` of silence; through the R
 bridge dies): `unreachable`), with the server's result in `output` and its status word in `result`. A cancel
 event asks the server to cancel the goal followed and is answered with a state event once the server
 answered (the terminal feedback follows when the server ends the goal); a query answers with the goal's
-current state, or with the end of the last goal. Every decision that fails a goal is logged.
+current state, or with the end of the last goal. Every decision that fails a goal is logged. A goal the last
+run of the node (or the robot's last owner in a shared fleet) left in flight is followed on by its id
+(`rejoin`, when the port can: `GoalRejoin`): no `queued` event again, its feedback numbered on from the
+ledger's, its real end; lost (the server does not know it, or is gone), it ends `failed` with words that say
+what happened to the node first.
 
 No thread waits for a goal. The port tells what happens to it through a `GoalListener` (ros/port.py), from
 the ROS client library's threads, one call at a time per goal and in order, and each is handled right there
