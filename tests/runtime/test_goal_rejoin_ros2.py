@@ -149,8 +149,11 @@ def test_a_goal_in_flight_is_followed_on_by_the_restarted_node(
         before = len({e["id"] for e in feedback(app.events, event_id)})
         assert not any(e["payload"]["terminal"] for e in feedback(app.events, event_id))
 
+        started = time.monotonic()
         again = RunProcess(run_args(fibo_run, config), env=environ)
         again.wait_ready()
+        assert until(lambda: len({e["id"] for e in feedback(app.events, event_id)}) > before, 60)
+        print(f"start again -> the goal's feedback relayed again: {time.monotonic() - started:.2f} s")
         app.wait(terminal("feedback", event_id), timeout=60)
         check_followed_on(feedback(app.events, event_id), before, LONG)
         assert "following fibonacci goal" in again.output(), again.output()[-3000:]
@@ -276,9 +279,12 @@ def test_a_goal_in_flight_is_followed_on_by_the_process_that_takes_the_robot_ove
         goals_answered(app, "rejoin_s1")
         event_id = start_goal(app, "rejoin_s1")
         app.wait(lambda ev: running(ev, event_id), timeout=30)
+        killed = time.monotonic()
         victim.proc.kill()
         victim.proc.wait(10)
         before = len({e["id"] for e in feedback(app.events, event_id)})
+        assert until(lambda: len({e["id"] for e in feedback(app.events, event_id)}) > before, 60)
+        print(f"kill -9 -> the goal's feedback relayed again by the new owner: {time.monotonic() - killed:.2f} s")
 
         app.wait(terminal("feedback", event_id), timeout=60)
         assert owners(app)["rejoin_s1"] == ("online", survivor.proc.pid)
