@@ -134,3 +134,31 @@ def test_a_goal_that_ended_while_no_node_followed_it_ends_as_its_status_says(
         node.stop()
         robot.stop()
         app.close()
+
+
+def test_a_goal_whose_server_restarted_meanwhile_ends_failed_saying_so(
+    build: tuple[Model, Path, Path], master: Master, broker: Mosquitto, tmp_path: Path
+) -> None:
+    robot = robot_process(master, build[2], "rejoin_three")
+    node = Node(build, master, broker, "rejoin_three", tmp_path / "state")
+    app = AppClient(broker.url, ["td2adaptor/rejoin_three/#"])
+    try:
+        node.start()
+        event_id = send_goal(app, "rejoin_three", 400)  # 20 s
+        app.wait(lambda ev: running(ev, event_id, 1), timeout=30)
+        goal = feedback(app.events, event_id)[0]["payload"]["goal"]
+        node.stop()
+        robot.stop()  # the robot restarts: its new action server never had the goal
+        robot = robot_process(master, build[2], "rejoin_three")
+        node.start()
+        app.wait(terminal("feedback", event_id), timeout=60)
+        ends = [e["payload"] for e in once(feedback(app.events, event_id)) if e["payload"]["terminal"]]
+        assert len(ends) == 1, ends
+        assert (ends[0]["state"], ends[0]["reason"]) == ("failed", "unreachable"), ends[0]
+        words = ends[0]["message"]
+        assert words.startswith(f"the edge node restarted while it followed this goal ({goal})"), words
+        assert f"the action server does not know goal {goal}" in words and words.endswith("unknown"), words
+    finally:
+        node.stop()
+        robot.stop()
+        app.close()
