@@ -57,6 +57,10 @@ SEND_ASYNC = Method("send_{}_async", ("goal", "*", "timeout"), ("rclpy",))
 START = Method(
     "start_{}", ("goal", "*", "on_accepted", "on_status", "on_feedback", "on_done", "timeout", "feedback_grace")
 )
+#: follow a goal the server accepted from another client (a restarted or another edge process) by its id
+REJOIN = Method(
+    "rejoin_{}", ("goal_id", "*", "on_accepted", "on_status", "on_feedback", "on_done", "timeout", "feedback_grace")
+)
 
 # -- per subscribed property
 GET = Method("get_{}_value", ("*", "timeout"))
@@ -78,7 +82,7 @@ SERVERS_READY = Method("servers_ready", ())
 ATTRIBUTES = ("robot_name", "timeout", "wait_timeout", "node")
 
 SERVICE = (CONSTRUCT_REQUEST, CALL, CALL_ASYNC, CALL_THEN)
-ACTION = (CONSTRUCT_GOAL, SEND, SEND_ASYNC, START)
+ACTION = (CONSTRUCT_GOAL, SEND, SEND_ASYNC, START, REJOIN)
 SUBSCRIBER = (GET, ON, ON_SERIALIZED)
 PUBLISHER = (CONSTRUCT_MESSAGE, PUBLISH)
 

@@ -62,7 +62,7 @@ def main() -> None:
                 emit(event="end", ns=namespace, status="aborted")
                 return
             time.sleep(step)
-        handle.set_succeeded(FibonacciResult(sequence=sequence(order)), "done")
+        handle.set_succeeded(FibonacciResult(sequence=sequence(min(order, 40))), "done")  # int32: as on ROS 2
         emit(event="end", ns=namespace, status="succeeded")
 
     def on_goal(handle: Any) -> None:

@@ -2,9 +2,11 @@
 takes the robot over (node/share.py, docs/fleet.md "Several processes share a fleet"): real mosquitto, real
 processes (tests/runtime/share_proc.py with `SHARE_ACTIONS`: the robots' action is a ROS action, simulated).
 
-A ROS action goal an earlier owner sent is not taken over (the new owner cannot re-attach to it), so it ends
-`failed` with `reason: unreachable`. Its words said "the edge node restarted", which nothing had: another process
-took the robot over after its owner was lost. They say that now, naming both processes; the codes stay.
+A ROS action goal an earlier owner sent is followed on by the new owner by its id (test_goal_rejoin_ros2.py, on a
+real ROS 2 server); here each process has simulated action servers of its own, so the new owner's server does not
+know the goal (as after a robot's restart): it ends `failed` with `reason: unreachable`. Its words said "the edge
+node restarted", which nothing had: another process took the robot over after its owner was lost. They say that
+now, naming both processes, and why the goal could not be followed on; the codes stay.
 """
 
 from __future__ import annotations
@@ -65,6 +67,7 @@ def test_a_goal_in_flight_on_a_killed_process_ends_saying_another_process_took_t
         assert words.startswith(f"another process of fleet shared, process {survivor.pid} on "), words
         assert f"took the robot over after its edge node, process {victim.pid} on " in words, words
         assert "), was lost while it followed this goal (" in words and "its outcome is unknown" in words, words
+        assert "), and following it on failed: the action server does not know goal " in words, words
         assert watcher.owners()[robot] == ("online", survivor.pid)
         # docs/fleet.md quotes these words: its placeholders match what was said
         quoted = re.search(r'"(another process of fleet F, .*?: its outcome is unknown)"', " ".join(DOC.split()))

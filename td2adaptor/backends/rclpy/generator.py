@@ -194,6 +194,7 @@ class ActionView:
     doc: str
     async_doc: str
     start_doc: str
+    rejoin_doc: str
 
 
 @dataclass
@@ -605,6 +606,17 @@ class Builder:
                     "feedback(), result() and cancel() read the same record; request_cancel(on_done) cancels "
                     "without waiting. Raises only TypeError (a goal of another type) and ValueError (a bad "
                     "timeout).",
+                ],
+                "        ",
+            ),
+            rejoin_doc=docstring(
+                [
+                    f"Follow the goal goal_id (its 32 hex digits) that the server accepted from another client (this "
+                    f"process before a restart, another process), as {api.START(action.name)} follows its own: its "
+                    "GoalHandle at once, on_accepted() once the server is there, then its status, the feedback from "
+                    "now on and exactly one on_done(outcome). The server answers the goal's result request: its "
+                    "real end, or, when it does not know the goal (ended longer ago than it keeps results, or "
+                    "never its), the goal ends lost. Raises only ValueError (a bad id or timeout).",
                 ],
                 "        ",
             ),

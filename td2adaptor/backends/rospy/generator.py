@@ -148,6 +148,7 @@ class ActionView:
     construct_doc: str
     send_doc: str
     start_doc: str
+    rejoin_doc: str
 
 
 @dataclass(frozen=True)
@@ -449,6 +450,19 @@ def _action_view(action: ActionEndpoint, types: TypeTable, imports: _Imports, di
         ],
         " " * 8,
     )
+    rejoin_doc = docstring(
+        [],
+        [
+            f"Follow the goal goal_id that the server took from another client (this process before a restart, "
+            f"another process), as {api.START(action.name)} follows its own: its GoalHandle at once, on_accepted() "
+            "once the server reports the goal, then its status, the feedback from now on and exactly one "
+            "on_done(outcome): the result the server publishes; for a goal that ended before it was followed, the "
+            "end its status tells, without a result (actionlib sends a result once); lost when the server does "
+            "not list the goal (it ended a while ago, or never its). Raises only ValueError (an empty id, a bad "
+            "timeout) and NotInitialized.",
+        ],
+        " " * 8,
+    )
     construct_doc = docstring(
         [f"The goal of {action.name}."],
         ["Keyword arguments are the goal's fields; nested messages may also be mappings of their fields."],
@@ -466,6 +480,7 @@ def _action_view(action: ActionEndpoint, types: TypeTable, imports: _Imports, di
         construct_doc=construct_doc,
         send_doc=send_doc,
         start_doc=start_doc,
+        rejoin_doc=rejoin_doc,
     )
 
 

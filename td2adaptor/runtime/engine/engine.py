@@ -19,7 +19,8 @@ Policies (documented in README of the generated events):
   it is answered with an error, and an event older than the freshness window is answered with an error
   instead of run; ids are remembered across restarts;
 * missions outlive the node (ledger.py): a restarted node follows again each procedure mission the last run
-  left in flight (its mission id known) and ends every other one `failed`, so each gets exactly one terminal
+  left in flight (its mission id known) and each ROS action goal (by its goal id, goals.py `rejoin`) and ends
+  every other one `failed`, so each gets exactly one terminal
   event; an invoke sent again under its id is answered with the mission's last feedback event again (its
   current state, or its terminal event);
 * feedback carries `correlation` (the requester's, else the invoke event's id) and `payload.seq` 1, 2, ...
@@ -554,8 +555,9 @@ class Engine:
 
     def _recover(self) -> None:
         """Finish what the last run of this node left (see ledger.py): follow each procedure mission again
-        whose mission id the robot gave, publish a terminal event stored but maybe not sent, and end every
-        other mission `failed`: whatever happened on the robot meanwhile, each gets one terminal event."""
+        whose mission id the robot gave, and each ROS action goal the server accepted by its id, publish a
+        terminal event stored but maybe not sent, and end every other mission `failed`: whatever happened on the
+        robot meanwhile, each gets one terminal event."""
         for record in self.ledger.pending():
             try:
                 self._recover_one(record)
@@ -591,10 +593,25 @@ class Engine:
             assert self._procedures is not None
             self._procedures.resume(m, ended)
             return
+        if self._rejoin(r, m, behind, ended):
+            return
         self.outbox.count("restart-failed")
         message = f"{self.restarted} {_restart_words(r, behind, self.config.mission_timeout)}"
         log.warning("%s %s: failed: %s", r.action, _which(r), message)
         self.outbox.finish(m, ProcedureStatus("failed", message=message, reason="unreachable"))
+
+    def _rejoin(self, r: Record, m: Mission, behind: float, ended: threading.Event) -> bool:
+        """Follow on a ROS action goal the last run left (the server accepted it: its id is known), by its id,
+        when the port can and its component is free; whether it is followed (goals.py `rejoin`)."""
+        goals = self._goals
+        if r.kind != "goal" or r.goal is None or r.state is None or behind >= self.config.mission_timeout:
+            return False
+        if goals is None or not goals.can_rejoin() or self.missions.claim(m, ended) is not None:
+            return False
+        log.info("following %s goal %s again (%s)", r.action, r.goal, self.restarted)
+        self.outbox.count("rejoined")
+        goals.rejoin(m, ended, self.restarted)
+        return True
 
     def _invoke(
         self, spec: EventSpec, procedure: Procedure, event: dict[str, Any], topic: str, *, goal: bool = False

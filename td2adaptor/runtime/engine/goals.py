@@ -10,7 +10,11 @@ goal is `lost`: on ROS 2 after `action_server_timeout` of silence; through the R
 bridge dies): `unreachable`), with the server's result in `output` and its status word in `result`. A cancel
 event asks the server to cancel the goal followed and is answered with a state event once the server
 answered (the terminal feedback follows when the server ends the goal); a query answers with the goal's
-current state, or with the end of the last goal. Every decision that fails a goal is logged.
+current state, or with the end of the last goal. Every decision that fails a goal is logged. A goal the last
+run of the node (or the robot's last owner in a shared fleet) left in flight is followed on by its id
+(`rejoin`, when the port can: `GoalRejoin`): no `queued` event again, its feedback numbered on from the
+ledger's, its real end; lost (the server does not know it, or is gone), it ends `failed` with words that say
+what happened to the node first.
 
 No thread waits for a goal. The port tells what happens to it through a `GoalListener` (ros/port.py), from
 the ROS client library's threads, one call at a time per goal and in order, and each is handled right there
@@ -41,7 +45,7 @@ from td2adaptor.model.events import GOAL_WORDS, EventSpec, Kind
 from td2adaptor.runtime.engine.context import RobotContext
 from td2adaptor.runtime.engine.missions import Mission
 from td2adaptor.runtime.loop import Timer
-from td2adaptor.runtime.ros.port import GoalEnd, GoalPort, PortCallFailed, PortError, QuickGoalStart
+from td2adaptor.runtime.ros.port import GoalEnd, GoalPort, GoalRejoin, PortCallFailed, PortError, QuickGoalStart
 from td2adaptor.runtime.ros.procedures import ProcedureStatus
 from td2adaptor.runtime.ros.words import INTERNAL, describe
 
@@ -113,6 +117,9 @@ class Chase:
     kept: tuple[Any, ...] = ()  # the latest feedback message held back by feedback_period (one or none)
     sent: float = float("-inf")  # when the last feedback event went out (feedback_period)
     flush: Timer | None = None  # when the held message goes out
+    #: a goal the last run (or owner) left, followed on by its id (`GoalRunner.rejoin`): the start of the words
+    #: of its end if it is lost (what happened to the robot's edge node), else None
+    rejoined: str | None = None
 
 
 class _Told:
@@ -169,6 +176,36 @@ class GoalRunner:
             return
         self._send(chase, port)
 
+    def can_rejoin(self) -> bool:
+        """Whether the port can follow a goal it did not send, by its id (`GoalRejoin`)."""
+        return isinstance(self.ctx.port, GoalRejoin)
+
+    def rejoin(self, m: Mission, held: threading.Event, words: str) -> None:
+        """Follow on the goal `m.goal` that the last run of the node (or the robot's last owner) left in flight
+        (the engine's recovery; its component claimed with `held`): its feedback from now on, numbered on from
+        the ledger's, and its one terminal event. `words` say what happened to the node that sent it; they start
+        the terminal event's words if the goal is lost (the server does not know it any more, or is gone)."""
+        ctx = self.ctx
+        port = ctx.port
+        assert isinstance(port, GoalRejoin) and m.goal is not None
+        status = "executing" if m.state == "running" else "accepted"
+        chase = Chase(m, held, goal=m.goal, accepted=True, status=status, rejoined=words)
+        self._chases[id(m)] = chase
+        wait = max(0.0, m.started + ctx.config.mission_timeout - ctx.clock())
+        chase.deadline = ctx.loop.call_later(wait, self._give_up, chase)
+        listener, goal, timeout = _Told(self, chase), m.goal, ctx.config.call_timeout
+
+        def follow() -> None:
+            try:
+                port.rejoin_goal(m.component, m.action, goal, timeout, listener)
+            except PortError as exc:
+                ctx.loop.post(self._done, chase, GoalEnd("lost", message=str(exc) or describe(exc), error=exc))
+            except Exception:  # the last line of defence: report, never crash
+                log.exception("following %s goal %s again failed internally", m.action, goal)
+                ctx.loop.post(self._done, chase, GoalEnd("lost", message=INTERNAL, error=PortCallFailed(INTERNAL)))
+
+        ctx.lane.submit(follow)
+
     def _gated(self, chase: Chase, go: bool) -> None:
         """The gate's answer: send the goal, or (the robot may be another process's now) end it unsent."""
         if chase.ended:  # given up or left meanwhile (the engine stops): never sent
@@ -222,7 +259,7 @@ class GoalRunner:
     def _accepted(self, chase: Chase, goal: str) -> None:
         """(the port's thread) The server accepted the goal: its `queued` event."""
         with chase.lock:
-            if chase.ended:
+            if chase.ended or chase.rejoined is not None:  # a goal followed on was accepted long ago: no event
                 return
             m = chase.m
             chase.accepted, chase.goal, m.goal = True, goal, goal
@@ -287,6 +324,10 @@ class GoalRunner:
             self._end(chase, ProcedureStatus("failed", word, message, reason=error.reason))
             return
         status = goal_status(end.status, True, end.message)
+        if chase.rejoined is not None and end.status == "lost":  # what became of it is not known
+            why = end.message or _ENDS["lost"]
+            words = f"{chase.rejoined} while it followed this goal ({chase.goal}), and following it on failed: {why}"
+            status = ProcedureStatus("failed", status.result, f"{words}: its outcome is unknown", reason=status.reason)
         if status.state == "failed":
             log.warning("%s goal %s: failed: %s", m.action, chase.goal, status.message)
         self._end(chase, status, output=end.result)

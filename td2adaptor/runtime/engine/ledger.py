@@ -15,9 +15,9 @@ not each is written; instead the numbering is reserved `SEQ_BLOCK` ahead, so a r
 number already published (the next one may skip some: a gap, never a repeat).
 
 At the next start, `pending()` gives every mission not done: the engine follows a procedure again (its
-mission id is known) or ends it `failed` ("the edge node restarted ..."), and publishes again a terminal
-event it had stored but maybe not sent. Done rows are dropped after `keep` seconds (the replay window: a
-resent invoke older than that is refused as expired anyway).
+mission id is known) and a ROS action goal (by the goal id the server gave it), or ends it `failed` ("the edge
+node restarted ..."), and publishes again a terminal event it had stored but maybe not sent. Done rows are
+dropped after `keep` seconds (the replay window: a resent invoke older than that is refused as expired anyway).
 """
 
 from __future__ import annotations

@@ -13,8 +13,9 @@ one JSON object per line, requests handled concurrently:
                      {"goal": tag, "event": "accepted" | "status" | "feedback" | "done", "value": ...}
 
 A ROS action goal is followed by callbacks on both sides: the parent names each goal it starts with a tag
-(`start_goal`'s first argument), the child's `GoalListener` writes what happens to the goal as lines carrying
-that tag, in order, and the parent's reader thread tells them to the goal's listener; a cancel request is
+(`start_goal`'s first argument; `rejoin_goal`'s, for a goal it follows by its id), the child's `GoalListener`
+writes what happens to the goal as lines carrying that tag, in order, and the parent's reader thread tells them
+to the goal's listener; a cancel request is
 answered when the server answers (`request_cancel`), not waited for. No parent thread waits for a goal.
 `BridgePort` is the `RobotPort` of one robot on a bridge. A bridge that dies fails its calls as
 `PortUnavailable`, ends the goals it followed as lost, and is restarted by the next call (at most every
@@ -460,15 +461,18 @@ class Ros1Bridge:
         # the child bounds each call by wait_timeout + timeout; the margin covers the pipe and the scheduler
         return self._request(robot, op, args, timeout + self.wait_timeout + 5.0)
 
-    def start_goal(self, robot: str, args: list[Any], listener: GoalListener, timeout: float) -> str:
-        """Start a goal in the child, followed by `listener` (told by the reader's thread); its id."""
+    def start_goal(
+        self, robot: str, args: list[Any], listener: GoalListener, timeout: float, op: str = "start_goal"
+    ) -> str:
+        """Start a goal in the child (`op` "rejoin_goal": follow one the server has, by its id), followed by
+        `listener` (told by the reader's thread); its id."""
         self._ensure_started()
         with self._lock:
             tag = f"g{self._next_id}"
             self._next_id += 1
             self._listeners[tag] = listener  # before the request: the child may tell before it answers
         try:
-            return str(self._request(robot, "start_goal", [tag, *args], timeout + self.wait_timeout + 5.0))
+            return str(self._request(robot, op, [tag, *args], timeout + self.wait_timeout + 5.0))
         except BaseException:
             with self._lock:
                 self._listeners.pop(tag, None)
@@ -578,6 +582,12 @@ class BridgePort:
         goal = self.bridge.start_goal(self.robot, [component, action, dict(payload), timeout], listener, timeout)
         self._listeners[(component, action, goal)] = listener
         return goal
+
+    def rejoin_goal(self, component: str, action: str, goal: str, timeout: float, listener: GoalListener) -> None:
+        """Follow in the child a goal the server took from another client, by its id (`GoalRejoin`)."""
+        args = [component, action, goal, timeout]
+        self.bridge.start_goal(self.robot, args, listener, timeout, op="rejoin_goal")
+        self._listeners[(component, action, goal)] = listener
 
     def request_cancel(self, component: str, action: str, goal: str, timeout: float, on_done: CancelDone) -> None:
         self.bridge.ask(
@@ -703,6 +713,10 @@ def _serve(requests: IO[str], replies: IO[str]) -> int:
             elif op == "start_goal":
                 tag, component, action, payload, timeout = args
                 goal = port.start_goal(component, action, payload, timeout, _Relay(str(tag), reply))
+                reply({"id": rid, "ok": goal})
+            elif op == "rejoin_goal":
+                tag, component, action, goal, timeout = args
+                port.rejoin_goal(component, action, goal, timeout, _Relay(str(tag), reply))
                 reply({"id": rid, "ok": goal})
             elif op == "request_cancel":
 

@@ -538,6 +538,31 @@ class GeneratedPort:
                 self._goals[(component, action, follower.goal_id)] = follower
         return follower.goal_id
 
+    def rejoin_goal(self, component: str, action: str, goal: str, timeout: float, listener: GoalListener) -> None:
+        """Follow a goal the server accepted from another client by its id (`GoalRejoin`), through the generated
+        `rejoin_<action>`: told to `listener` as a goal this port started."""
+        rejoin = self._method(component, api.REJOIN(action))
+        follower = GoalFollower(listener)
+
+        def run() -> Any:
+            return rejoin(
+                goal,
+                on_accepted=follower.accepted_cb,
+                on_status=follower.status_cb,
+                on_feedback=follower.feedback_cb,
+                on_done=follower.done_cb,
+                timeout=timeout,
+                feedback_grace=self.feedback_grace,
+            )
+
+        handle = self._guarded(component, run)
+        if self.server_timeout is not None and hasattr(handle, "server_timeout"):
+            handle.server_timeout = self.server_timeout
+        follower.ready(handle)
+        with self._goals_lock:
+            if not follower.closed:  # ended already: nothing to keep
+                self._goals[(component, action, follower.goal_id)] = follower
+
     def _follower(self, component: str, action: str, goal: str) -> GoalFollower | None:
         with self._goals_lock:
             return self._goals.get((component, action, goal))

@@ -219,6 +219,21 @@ class GoalPort(Protocol):
 
 
 @runtime_checkable
+class GoalRejoin(Protocol):
+    """A `GoalPort` that can follow a goal it did not send, by its id: one the server accepted from this robot's
+    edge node before it restarted, or from another process of a shared fleet that owned the robot (ROS 2's
+    action feedback and status are broadcast to every client, and any client may ask a goal's result by its
+    id; ROS 1's actionlib broadcasts status, feedback and result with the goal's id)."""
+
+    def rejoin_goal(self, component: str, action: str, goal: str, timeout: float, listener: GoalListener) -> None:
+        """Follow goal `goal` without waiting: `listener` is told as for a goal `start_goal` sent (on_accepted
+        once the server is there, its status, its feedback from now on, then exactly one on_done: the goal's real
+        end, or `lost` with the reason when the server does not know the goal, or no server is there within
+        `timeout`). Raises `PortError` only when it cannot be followed at all (no such action, a bad id)."""
+        ...
+
+
+@runtime_checkable
 class QuickGoalStart(Protocol):
     """A `GoalPort` that can often send a goal without waiting for anything (ROS 2's generated `start_X` returns
     at once): the engine then starts the goal on its loop, one thread hand-off fewer before the goal is sent,

@@ -100,6 +100,10 @@ def fibonacci(count: int) -> list[int]:
     return seq[: max(count + 1, 2)]
 
 
+#: how many ended goals a simulated server keeps the end of (for a follower by id: `SimActions.rejoin`)
+ENDS_KEPT = 100
+
+
 class _SimGoal:
     def __init__(self, listener: GoalListener, order: int) -> None:
         self.listener = listener
@@ -121,6 +125,7 @@ class SimActions:
         self._due: list[tuple[float, int, Callable[[], None]]] = []
         self._order = itertools.count()
         self._goals: dict[str, _SimGoal] = {}
+        self._ended: dict[str, GoalEnd] = {}  # the last ENDS_KEPT ends, by goal (a ROS 2 server keeps results too)
         self.thread = threading.Thread(target=self._run, name="sim-actions", daemon=True)
         self.thread.start()
 
@@ -173,7 +178,33 @@ class SimActions:
         state.over = True
         with self._cond:
             self._goals.pop(goal, None)
+            self._ended[goal] = end
+            while len(self._ended) > ENDS_KEPT:
+                del self._ended[next(iter(self._ended))]
         state.listener.on_done(end)
+
+    def rejoin(self, goal: str, listener: GoalListener) -> None:
+        """Follow a goal started through another listener (a node before its restart) from now on, in the
+        servers' thread (between two of its steps): its end, if it ended and is still kept; lost when the server
+        does not know it."""
+
+        def follow() -> None:
+            with self._cond:
+                state = self._goals.get(goal)
+                end = self._ended.get(goal)
+                if state is not None:
+                    state.listener = listener
+            if state is not None:
+                listener.on_accepted(goal)
+                listener.on_status("executing")
+            elif end is not None:
+                listener.on_accepted(goal)
+                listener.on_done(end)
+            else:
+                error = PortCallFailed(f"the action server does not know goal {goal}")
+                listener.on_done(GoalEnd("lost", message=str(error), error=error))
+
+        self._later(0.0, follow)
 
     def cancel(self, goal: str, on_done: CancelDone) -> None:
         with self._cond:
@@ -294,6 +325,14 @@ class SimPort:
     ) -> str | None:
         """`start_goal`, which never waits here (`QuickGoalStart`)."""
         return self.start_goal(component, action, payload, timeout, listener)
+
+    def rejoin_goal(self, component: str, action: str, goal: str, timeout: float, listener: GoalListener) -> None:
+        """Follow a goal the simulated servers have by its id (`GoalRejoin`)."""
+        if self.actions is None:
+            raise PortCallFailed("the simulation has no ROS actions")
+        if self.down:
+            raise PortUnavailable(f"the action server of {action} is not available")
+        self.actions.rejoin(goal, listener)
 
     def request_cancel(self, component: str, action: str, goal: str, timeout: float, on_done: CancelDone) -> None:
         if self.actions is None:

@@ -695,3 +695,36 @@ def test_goal_ids_are_distinct_and_start_x_reads_no_random_bytes_from_the_system
     ids = [h.goal_id for h in handles]
     assert len(set(ids)) == 20 and all(len(i) == 32 and int(i, 16) >= 0 for i in ids)
     assert done.wait(15) and all(o.status == "succeeded" for o in ends), ends
+
+
+def test_rejoin_follows_a_goal_another_client_sent_by_its_id(
+    fibo_adaptor: ModuleType, fibo: Any, ros_node: Any
+) -> None:
+    """`rejoin_X` (issue 32): a second client (another component, its own ActionClient) follows a running goal by
+    its id: on_accepted, the feedback from then on, in order, and one on_done with the server's result; a goal id
+    the server does not know ends lost at once (never hangs); a malformed id is refused."""
+    sent = fibo.start_fibonacci(fibo.construct_fibonacci_Goal(order=40))  # 2 s
+    first = next(iter(sent.feedback(timeout=5.0)))
+    assert list(first.sequence) == _sequence(1)
+    other = fibo_adaptor.MathComponent(ros_node, ROBOT, timeout=10.0, wait_timeout=15.0)
+    told: list[str] = []
+    seen: list[int] = []
+    ended = threading.Event()
+    handle = other.rejoin_fibonacci(
+        sent.goal_id,
+        on_accepted=lambda: told.append("accepted"),
+        on_feedback=lambda fb: seen.append(len(fb.sequence)),
+        on_done=lambda outcome: (told.append(outcome.status), ended.set()),
+    )
+    assert handle.goal_id == sent.goal_id
+    assert ended.wait(15.0)
+    assert told == ["accepted", "succeeded"], told
+    assert list(handle.result(timeout=1.0).sequence) == _sequence(40)
+    assert seen and seen == sorted(seen) and seen[-1] == 41 and len(seen) >= 10, seen  # the rest of its feedback
+
+    stranger = other.rejoin_fibonacci("ab" * 16)
+    with pytest.raises(fibo_adaptor.CallFailed, match="does not know goal " + "ab" * 16):
+        stranger.result(timeout=10.0)
+    assert stranger.outcome is not None and stranger.outcome.status == "lost"
+    with pytest.raises(ValueError, match="32 hexadecimal digits"):
+        other.rejoin_fibonacci("not-a-goal")

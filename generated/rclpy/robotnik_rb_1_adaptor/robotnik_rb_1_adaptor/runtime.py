@@ -1249,6 +1249,18 @@ class _RequestingActionClient(ActionClient):
             if goal is not None:
                 goal.status_message(int(status.status))
 
+    def handle_of(self, goal_id: Any) -> _ClientGoalHandle:
+        """rclpy's handle of a goal the server accepted from another client (`GoalHandle.rejoin`): its feedback,
+        status and result are the server's to give to any client that names the goal's id. rclpy's own
+        bookkeeping (7.1, Jazzy) learns it too, as `_accepted_by_status` does."""
+        action_type: Any = getattr(self, "_action_type", None)
+        response = action_type.Impl.SendGoalService.Response(accepted=True)
+        raw: Any = cast(Any, ClientGoalHandle)(self, goal_id, response)
+        handles: dict[bytes, Any] | None = getattr(self, "_goal_handles", None)
+        if handles is not None:
+            handles[bytes(goal_id.uuid)] = weakref.ref(raw)
+        return cast(_ClientGoalHandle, raw)
+
     def _accepted_by_status(self, statuses: Any) -> None:
         """Complete the goal requests still waiting for a response whose goal `statuses` (a GoalStatusArray)
         lists: the server accepted them (see the class docstring). rclpy's own bookkeeping (7.1, Jazzy); with
@@ -1374,6 +1386,9 @@ class _Ticker:
             self._timer.cancel()
 
 
+#: the "goal" of a handle that follows a goal the server already has (`GoalHandle.rejoin`): nothing to send
+_REJOIN = object()
+
 #: the ticker of each node with goals (by the node's id)
 _TICKERS: dict[int, _Ticker] = {}
 
@@ -1447,6 +1462,8 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         self._probed = self._heard  # when the last probe was sent
         self._probes: list[_Future] = []  # probes not answered yet
         self._missing = 0  # checks in a row that found no server in the graph
+        self._rejoined = False  # followed by its id (`rejoin`), not sent by this handle
+        self._listed = False  # a status list of the server showed the goal
 
     # hooks of GoalRecord
 
@@ -1506,15 +1523,48 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         if cast(_ActionClientApi, self._client).server_is_ready():
             self._send()
 
+    def rejoin(self, goal_id: str, wait_timeout: float) -> None:
+        """Follow the goal `goal_id` (32 hex digits) that the server accepted from another client (this process
+        before a restart, another process): now, or once its server is there (at most `wait_timeout` seconds
+        from now). Nothing is sent but the result request, which any client may make by the goal's id."""
+        self._goal_id = _new_uuid(uuid=list(bytes.fromhex(goal_id)))
+        self.uuid = bytes(self._goal_id.uuid)
+        self.goal_id = self.uuid.hex()
+        self._rejoined = True
+        self.begin(_REJOIN, wait_timeout)
+
     def _send(self) -> None:
         """The server is there: send the goal request when it is the goal's turn (GOAL_REQUESTS)."""
         with self._cond:
             if self._goal is None or self._outcome is not None or self._queued:
                 return
-            self._accept_deadline = time.monotonic() + self.timeout
-            self._queued = True
-        if self._client.admit(self):
+            if self._goal is _REJOIN:  # a goal the server has: follow it from here
+                self._goal = None
+                rejoin = True
+            else:
+                rejoin = False
+                self._accept_deadline = time.monotonic() + self.timeout
+                self._queued = True
+        if rejoin:
+            self._attach()
+        elif self._client.admit(self):
             self.transmit()
+
+    def _attach(self) -> None:
+        """Follow a goal the server accepted from another client (`rejoin`): it counts as accepted, its status
+        and feedback come as the server broadcasts them, and its result request tells how it ends (or that the
+        server does not know it)."""
+        raw = self._client.handle_of(self._goal_id)
+        with self._cond:
+            self._raw = raw
+            self._heard = time.monotonic()
+        if not self._accept():  # given up meanwhile
+            return
+        self._ask_result(raw)
+        with self._cond:
+            unsent = [request for request in self._cancels if not request.sent]
+        for request in unsent:
+            self._send_cancel(request)
 
     def transmit(self) -> None:
         """Send the goal request (admitted: it holds one of the client's GOAL_REQUESTS)."""
@@ -1594,6 +1644,8 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
             self._end(GoalOutcome("canceled", result, GoalCanceled(self.action, result)), by_server=True)
         elif code == 6:
             self._end(GoalOutcome("aborted", result, GoalAborted(self.action, result)), by_server=True)
+        elif self._rejoined:  # followed by its id: the server forgot it (it ended long ago), or never had it
+            self._lose(CallFailed(self.action, f"the action server does not know goal {self.goal_id}", result), result)
         else:  # the server does not know the goal (any more)
             self._lose(CallFailed(self.action, f"the goal ended with status {code}", result), result)
 
@@ -1609,6 +1661,7 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
     def status_message(self, code: int) -> None:
         """The goal's status in a status message of the server (executor's thread)."""
         self._heard = time.monotonic()
+        self._listed = True
         if code in (1, 2, 3):
             self._set_status(GOAL_STATUS[code])
         elif code in (4, 5, 6):
@@ -1625,6 +1678,10 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
             again = (
                 raw is not None and self._ended_at > 0 and now - max(self._ended_at, self._result_asked) >= RESULT_AGAIN
             )
+            # a goal followed by its id that no status list shows (the server may not know it) and whose result
+            # request got no answer: the request may have been dropped right after discovery; asked again
+            unseen = self._rejoined and not self._listed and now - self._result_asked >= RESULT_AGAIN
+            again = again or (raw is not None and unseen)
         ready = cast(_ActionClientApi, self._client).server_is_ready
         if waiting and not queued:
             if ready():
@@ -1808,7 +1865,8 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
     `start` sends a goal without waiting and returns its GoalHandle at once: what happens is told to its
     callbacks (see GoalHandle). `send` waits at most `wait_timeout` for a server (ServiceUnavailable), then at
     most `timeout` for the server to accept the goal (CallTimeout; GoalRejected when it refuses), and returns
-    the accepted goal's GoalHandle. Both follow the goal the same way.
+    the accepted goal's GoalHandle. Both follow the goal the same way; `rejoin` follows a goal the server
+    accepted from another client (a restarted or another process) by its id, the same way too.
     """
 
     def __init__(self, node: Node, action_type: Any, name: str) -> None:
@@ -1864,6 +1922,35 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
             self.name, self.node, self._client(), timeout, on_accepted, on_status, on_feedback, on_done, grace
         )
         handle.begin(goal, wait_timeout)
+        return handle
+
+    def rejoin(
+        self,
+        goal_id: str,
+        timeout: float,
+        wait_timeout: float,
+        *,
+        on_accepted: Callable[[], None] | None = None,
+        on_status: Callable[[str], None] | None = None,
+        on_feedback: Callable[[FeedbackT], None] | None = None,
+        on_done: Callable[[GoalOutcome[ResultT]], None] | None = None,
+        feedback_grace: float | None = None,
+    ) -> GoalHandle[ResultT, FeedbackT]:
+        """Follow the goal `goal_id` (its 32 hex digits) that the server accepted from another client (this
+        process before a restart, another process), without waiting: its GoalHandle at once, then the callbacks
+        as for `start`, from on_accepted (at once, once the server is there) on. Feedback comes from now on;
+        the end is the server's answer to the goal's result request: lost (CallFailed) when the server does not
+        know the goal (it ended longer ago than the server keeps results, or it never had it), or when no server
+        is there within `wait_timeout`. Raises only ValueError (a bad id or timeout)."""
+        timeout, wait_timeout = check_timeout(timeout, "timeout"), check_timeout(wait_timeout, "wait_timeout")
+        text = str(goal_id).strip().lower()
+        if len(text) != 32 or any(c not in "0123456789abcdef" for c in text):
+            raise ValueError(f"{self.name}: a goal id is 32 hexadecimal digits, not {goal_id!r}")
+        grace = FEEDBACK_GRACE if feedback_grace is None else feedback_grace
+        handle = GoalHandle[ResultT, FeedbackT](
+            self.name, self.node, self._client(), timeout, on_accepted, on_status, on_feedback, on_done, grace
+        )
+        handle.rejoin(text, wait_timeout)
         return handle
 
     def send(self, goal: GoalT, timeout: float, wait_timeout: float) -> GoalHandle[ResultT, FeedbackT]:

@@ -17,6 +17,7 @@ import itertools
 import threading
 import time
 import uuid
+import weakref
 import xmlrpc.client
 from collections.abc import Callable
 from typing import Any, Generic, TypeVar, cast
@@ -77,6 +78,14 @@ _WAITING_FOR_CANCEL_ACK, _DONE = 4, 7
 _RUNNING = (_PENDING, _ACTIVE, _PREEMPTING, _RECALLING)
 #: the statuses that answer a cancel request with "canceling"
 _CANCELING = (_PREEMPTING, _RECALLING, _PREEMPTED, _RECALLED)
+#: actionlib's CommState values a followed goal (`ActionGoalClient.rejoin`) starts in: PENDING (a goal the server
+#: no longer lists then ends lost), and WAITING_FOR_RESULT (its status says it ended: the result is on its way)
+_COMM_PENDING, _WAITING_FOR_RESULT = 1, 3
+#: seconds a followed goal that the status list says has ended waits for its result: the server published it
+#: before this client followed the goal, and actionlib never sends it again; its end is then the status's
+RESULT_WAIT = 1.0
+#: the "goal" of a handle that follows a goal the server already has (`ActionGoalClient.rejoin`): nothing to send
+_REJOIN = object()
 
 
 class _Clock:
@@ -200,6 +209,7 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         self._admitted = False  # sent and not reported yet: holds one of the client's GOAL_REQUESTS
         self._reason = ""  # the server's words with the latest status
         self._missing = 0  # liveness checks in a row that found no server connected
+        self.rejoined = False  # followed by its id (`ActionGoalClient.rejoin`), not sent by this handle
 
     @property
     def reason(self) -> str:
@@ -280,6 +290,8 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
                 self._answer(request, CancelOutcome(code in _CANCELING))
         if comm == _DONE:
             self._finish(code, text, raw.get_result())
+        elif comm == _WAITING_FOR_RESULT and self.rejoined:  # its result may have been sent before we followed it
+            _CLOCK.later(RESULT_WAIT, lambda: self._finish(code, text, None))
         self._give_back()
 
     def _finish(self, code: int, text: str, result: Any) -> None:
@@ -293,6 +305,9 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
             outcome = GoalOutcome("aborted", result, GoalAborted(self.action, result, text), text)
         elif code in (_PREEMPTED, _RECALLED):
             outcome = GoalOutcome("canceled", result, GoalCanceled(self.action, result, text), text)
+        elif self.rejoined:  # followed by its id: the server forgot it (it ended a while ago), or never had it
+            failed = CallFailed(self.action, f"the action server does not know goal {self.goal_id}", result)
+            outcome = GoalOutcome("lost", result, failed, text)
         else:
             failed = CallFailed(self.action, f"the goal was lost (status {code}: the server forgot it)", result)
             outcome = GoalOutcome("lost", result, failed, text)
@@ -356,7 +371,7 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         if self._lose(error, unless_accepted=True):
             with self._cond:
                 raw, self._goal = self._raw, None
-            if raw is not None:
+            if raw is not None and not self.rejoined:  # a goal followed by its id is not ours to cancel
                 _CLOCK.later(0.0, raw.cancel)
 
     def _send_cancel(self, request: CancelRequest) -> None:
@@ -567,6 +582,58 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
             self.send_now(handle)
         return handle
 
+    def rejoin(
+        self,
+        goal_id: str,
+        timeout: float,
+        wait_timeout: float,
+        *,
+        on_accepted: Callable[[], None] | None = None,
+        on_status: Callable[[str], None] | None = None,
+        on_feedback: Callable[[FeedbackT], None] | None = None,
+        on_done: Callable[[GoalOutcome[ResultT]], None] | None = None,
+        feedback_grace: float | None = None,
+    ) -> GoalHandle[ResultT, FeedbackT]:
+        """Follow the goal `goal_id` that the server took from another client (this process before a restart,
+        another process), without waiting: its GoalHandle at once, then the callbacks as for `start`, from
+        on_accepted (once the server reports the goal) on. Feedback comes from now on; the end is the result the
+        server publishes, or, for a goal that ended before it was followed (the server lists its status a few
+        seconds more, not its result), the status's end without a result after RESULT_WAIT; lost (CallFailed)
+        when the server does not list the goal, or no server is there within `wait_timeout`. Raises only
+        ValueError (an empty id, a bad timeout) and NotInitialized."""
+        timeout, wait_timeout = check_timeout(timeout, "timeout"), check_timeout(wait_timeout, "wait_timeout")
+        text = str(goal_id).strip()
+        if not text:
+            raise ValueError(f"{self.name}: a goal id must not be empty")
+        self.register()
+        grace = FEEDBACK_GRACE if feedback_grace is None else feedback_grace
+        handle = GoalHandle[ResultT, FeedbackT](
+            self.name, timeout, self, text, on_accepted, on_status, on_feedback, on_done, grace
+        )
+        handle.rejoined = True
+        with self._goals_lock:
+            self._goals[text] = handle
+        handle.begin(_REJOIN, wait_timeout)
+        if self.server_ready(ask=False):
+            self.send_now(handle)
+        return handle
+
+    def _follow(
+        self, client: actionlib.ActionClient, handle: GoalHandle[ResultT, FeedbackT]
+    ) -> actionlib.ClientGoalHandle:
+        """actionlib's handle of a goal the server took from another client: tracked from the status list as
+        one of its own (PENDING: a status list without it makes it lost), never sent."""
+        manager = client.manager
+        action_goal = manager.ActionGoal()
+        action_goal.goal_id.id = handle.goal_id
+        machine = actionlib.CommStateMachine(
+            action_goal, handle.transition, None, manager.send_goal_fn, manager.cancel_fn
+        )
+        machine.state = _COMM_PENDING
+        with manager.list_mutex:
+            manager.statuses.append(weakref.ref(machine))
+        return actionlib.ClientGoalHandle(machine)
+
     def send_now(self, handle: GoalHandle[ResultT, FeedbackT]) -> None:
         """Send `handle`'s goal to the server (there now) when it is its turn (GOAL_REQUESTS), else put it in
         line."""
@@ -611,7 +678,10 @@ class ActionGoalClient(Generic[GoalT, ResultT, FeedbackT]):
             with self._goals_lock:
                 self._next_id = handle.goal_id
                 try:
-                    raw = client.send_goal(goal, transition_cb=handle.transition)
+                    if goal is _REJOIN:
+                        raw = self._follow(client, handle)
+                    else:
+                        raw = client.send_goal(goal, transition_cb=handle.transition)
                 finally:
                     self._next_id = ""
         except Exception as exc:  # noqa: BLE001 - rospy's words, for whoever follows the goal

@@ -1,4 +1,6 @@
 # The parts of actionlib (ROS 1 actions) that the generated adaptor uses.
+import threading
+import weakref
 from collections.abc import Callable
 from typing import Any
 
@@ -6,16 +8,31 @@ import rospy
 
 class CommStateMachine:
     action_goal: Any
+    state: int
+    def __init__(
+        self,
+        action_goal: Any,
+        transition_cb: Callable[[ClientGoalHandle], None] | None,
+        feedback_cb: Callable[[ClientGoalHandle, Any], None] | None,
+        send_goal_fn: Callable[[Any], None] | None,
+        send_cancel_fn: Callable[[Any], None] | None,
+    ) -> None: ...
 
 class ClientGoalHandle:
     comm_state_machine: CommStateMachine
+    def __init__(self, comm_state_machine: CommStateMachine) -> None: ...
     def cancel(self) -> None: ...
     def get_comm_state(self) -> int: ...
     def get_goal_status(self) -> int: ...
     def get_goal_status_text(self) -> str: ...
     def get_result(self) -> Any: ...
 
-class GoalManager: ...
+class GoalManager:
+    ActionGoal: type[Any]
+    list_mutex: threading.RLock
+    statuses: list[weakref.ref[CommStateMachine]]
+    send_goal_fn: Callable[[Any], None] | None
+    cancel_fn: Callable[[Any], None] | None
 
 class ActionClient:
     manager: GoalManager

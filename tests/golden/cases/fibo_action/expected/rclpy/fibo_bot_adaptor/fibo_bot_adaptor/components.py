@@ -175,6 +175,37 @@ class MathComponent:
             feedback_grace=feedback_grace,
         )
 
+    def rejoin_fibonacci(
+        self,
+        goal_id: str,
+        *,
+        on_accepted: Callable[[], None] | None = None,
+        on_status: Callable[[str], None] | None = None,
+        on_feedback: Callable[[Fibonacci.Feedback], None] | None = None,
+        on_done: Callable[[GoalOutcome[Fibonacci.Result]], None] | None = None,
+        timeout: float | None = None,
+        feedback_grace: float | None = None,
+    ) -> GoalHandle[Fibonacci.Result, Fibonacci.Feedback]:
+        """Follow the goal goal_id (its 32 hex digits) that the server accepted from another client (this process
+        before a restart, another process), as start_fibonacci follows its own: its GoalHandle at once,
+        on_accepted() once the server is there, then its status, the feedback from now on and exactly one
+        on_done(outcome). The server answers the goal's result request: its real end, or, when it does not know
+        the goal (ended longer ago than it keeps results, or never its), the goal ends lost. Raises only
+        ValueError (a bad id or timeout).
+        """
+        if not self._registered:
+            self.register()
+        return self._fibonacci.rejoin(
+            goal_id,
+            self.timeout if timeout is None else timeout,
+            self.wait_timeout,
+            on_accepted=on_accepted,
+            on_status=on_status,
+            on_feedback=on_feedback,
+            on_done=on_done,
+            feedback_grace=feedback_grace,
+        )
+
     def get_chatter_value(
         self,
         *,

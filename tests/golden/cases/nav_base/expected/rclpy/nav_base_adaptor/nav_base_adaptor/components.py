@@ -190,6 +190,37 @@ class NavigationComponent:
             feedback_grace=feedback_grace,
         )
 
+    def rejoin_navigateToPose(
+        self,
+        goal_id: str,
+        *,
+        on_accepted: Callable[[], None] | None = None,
+        on_status: Callable[[str], None] | None = None,
+        on_feedback: Callable[[NavigateToPose.Feedback], None] | None = None,
+        on_done: Callable[[GoalOutcome[NavigateToPose.Result]], None] | None = None,
+        timeout: float | None = None,
+        feedback_grace: float | None = None,
+    ) -> GoalHandle[NavigateToPose.Result, NavigateToPose.Feedback]:
+        """Follow the goal goal_id (its 32 hex digits) that the server accepted from another client (this process
+        before a restart, another process), as start_navigateToPose follows its own: its GoalHandle at once,
+        on_accepted() once the server is there, then its status, the feedback from now on and exactly one
+        on_done(outcome). The server answers the goal's result request: its real end, or, when it does not know
+        the goal (ended longer ago than it keeps results, or never its), the goal ends lost. Raises only
+        ValueError (a bad id or timeout).
+        """
+        if not self._registered:
+            self.register()
+        return self._navigateToPose.rejoin(
+            goal_id,
+            self.timeout if timeout is None else timeout,
+            self.wait_timeout,
+            on_accepted=on_accepted,
+            on_status=on_status,
+            on_feedback=on_feedback,
+            on_done=on_done,
+            feedback_grace=feedback_grace,
+        )
+
 
 class DockingComponent:
     """DockingComponent: the actions dockRobot, undockRobot of Nav Base.
@@ -368,6 +399,37 @@ class DockingComponent:
             feedback_grace=feedback_grace,
         )
 
+    def rejoin_dockRobot(
+        self,
+        goal_id: str,
+        *,
+        on_accepted: Callable[[], None] | None = None,
+        on_status: Callable[[str], None] | None = None,
+        on_feedback: Callable[[DockRobot.Feedback], None] | None = None,
+        on_done: Callable[[GoalOutcome[DockRobot.Result]], None] | None = None,
+        timeout: float | None = None,
+        feedback_grace: float | None = None,
+    ) -> GoalHandle[DockRobot.Result, DockRobot.Feedback]:
+        """Follow the goal goal_id (its 32 hex digits) that the server accepted from another client (this process
+        before a restart, another process), as start_dockRobot follows its own: its GoalHandle at once,
+        on_accepted() once the server is there, then its status, the feedback from now on and exactly one
+        on_done(outcome). The server answers the goal's result request: its real end, or, when it does not know
+        the goal (ended longer ago than it keeps results, or never its), the goal ends lost. Raises only
+        ValueError (a bad id or timeout).
+        """
+        if not self._registered:
+            self.register()
+        return self._dockRobot.rejoin(
+            goal_id,
+            self.timeout if timeout is None else timeout,
+            self.wait_timeout,
+            on_accepted=on_accepted,
+            on_status=on_status,
+            on_feedback=on_feedback,
+            on_done=on_done,
+            feedback_grace=feedback_grace,
+        )
+
     def construct_undockRobot_Goal(
         self,
         *,
@@ -458,6 +520,37 @@ class DockingComponent:
             self.register()
         return self._undockRobot.start(
             self.construct_undockRobot_Goal() if goal is None else goal,
+            self.timeout if timeout is None else timeout,
+            self.wait_timeout,
+            on_accepted=on_accepted,
+            on_status=on_status,
+            on_feedback=on_feedback,
+            on_done=on_done,
+            feedback_grace=feedback_grace,
+        )
+
+    def rejoin_undockRobot(
+        self,
+        goal_id: str,
+        *,
+        on_accepted: Callable[[], None] | None = None,
+        on_status: Callable[[str], None] | None = None,
+        on_feedback: Callable[[UndockRobot.Feedback], None] | None = None,
+        on_done: Callable[[GoalOutcome[UndockRobot.Result]], None] | None = None,
+        timeout: float | None = None,
+        feedback_grace: float | None = None,
+    ) -> GoalHandle[UndockRobot.Result, UndockRobot.Feedback]:
+        """Follow the goal goal_id (its 32 hex digits) that the server accepted from another client (this process
+        before a restart, another process), as start_undockRobot follows its own: its GoalHandle at once,
+        on_accepted() once the server is there, then its status, the feedback from now on and exactly one
+        on_done(outcome). The server answers the goal's result request: its real end, or, when it does not know
+        the goal (ended longer ago than it keeps results, or never its), the goal ends lost. Raises only
+        ValueError (a bad id or timeout).
+        """
+        if not self._registered:
+            self.register()
+        return self._undockRobot.rejoin(
+            goal_id,
             self.timeout if timeout is None else timeout,
             self.wait_timeout,
             on_accepted=on_accepted,

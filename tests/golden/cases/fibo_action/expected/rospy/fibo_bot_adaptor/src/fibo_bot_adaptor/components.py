@@ -149,6 +149,35 @@ class MathComponent:
             feedback_grace=feedback_grace,
         )
 
+    def rejoin_fibonacci(
+        self,
+        goal_id: str,
+        *,
+        on_accepted: Callable[[], None] | None = None,
+        on_status: Callable[[str], None] | None = None,
+        on_feedback: Callable[[FibonacciFeedback], None] | None = None,
+        on_done: Callable[[GoalOutcome[FibonacciResult]], None] | None = None,
+        timeout: float | None = None,
+        feedback_grace: float | None = None,
+    ) -> GoalHandle[FibonacciResult, FibonacciFeedback]:
+        """Follow the goal goal_id that the server took from another client (this process before a restart, another
+        process), as start_fibonacci follows its own: its GoalHandle at once, on_accepted() once the server reports
+        the goal, then its status, the feedback from now on and exactly one on_done(outcome): the result the server
+        publishes; for a goal that ended before it was followed, the end its status tells, without a result
+        (actionlib sends a result once); lost when the server does not list the goal (it ended a while ago, or never
+        its). Raises only ValueError (an empty id, a bad timeout) and NotInitialized.
+        """
+        return self._act_fibonacci.rejoin(
+            goal_id,
+            self._timeout(timeout),
+            self.wait_timeout,
+            on_accepted=on_accepted,
+            on_status=on_status,
+            on_feedback=on_feedback,
+            on_done=on_done,
+            feedback_grace=feedback_grace,
+        )
+
     def get_chatter_value(self, *, timeout: float | None = None) -> String:
         """The latest std_msgs/String message on /{{robotName}}/chatter, waiting at most timeout seconds (by default
         self.timeout) for the first one. Raises NoMessage when none arrives in time.

@@ -178,6 +178,35 @@ class NavigationComponent:
             feedback_grace=feedback_grace,
         )
 
+    def rejoin_navigateToPose(
+        self,
+        goal_id: str,
+        *,
+        on_accepted: Callable[[], None] | None = None,
+        on_status: Callable[[str], None] | None = None,
+        on_feedback: Callable[[NavigateToPoseFeedback], None] | None = None,
+        on_done: Callable[[GoalOutcome[NavigateToPoseResult]], None] | None = None,
+        timeout: float | None = None,
+        feedback_grace: float | None = None,
+    ) -> GoalHandle[NavigateToPoseResult, NavigateToPoseFeedback]:
+        """Follow the goal goal_id that the server took from another client (this process before a restart, another
+        process), as start_navigateToPose follows its own: its GoalHandle at once, on_accepted() once the server
+        reports the goal, then its status, the feedback from now on and exactly one on_done(outcome): the result the
+        server publishes; for a goal that ended before it was followed, the end its status tells, without a result
+        (actionlib sends a result once); lost when the server does not list the goal (it ended a while ago, or never
+        its). Raises only ValueError (an empty id, a bad timeout) and NotInitialized.
+        """
+        return self._act_navigateToPose.rejoin(
+            goal_id,
+            self._timeout(timeout),
+            self.wait_timeout,
+            on_accepted=on_accepted,
+            on_status=on_status,
+            on_feedback=on_feedback,
+            on_done=on_done,
+            feedback_grace=feedback_grace,
+        )
+
     def _timeout(self, timeout: float | None) -> float:
         return self.timeout if timeout is None else check_timeout(timeout, "timeout")
 
@@ -325,6 +354,35 @@ class DockingComponent:
             feedback_grace=feedback_grace,
         )
 
+    def rejoin_dockRobot(
+        self,
+        goal_id: str,
+        *,
+        on_accepted: Callable[[], None] | None = None,
+        on_status: Callable[[str], None] | None = None,
+        on_feedback: Callable[[DockRobotFeedback], None] | None = None,
+        on_done: Callable[[GoalOutcome[DockRobotResult]], None] | None = None,
+        timeout: float | None = None,
+        feedback_grace: float | None = None,
+    ) -> GoalHandle[DockRobotResult, DockRobotFeedback]:
+        """Follow the goal goal_id that the server took from another client (this process before a restart, another
+        process), as start_dockRobot follows its own: its GoalHandle at once, on_accepted() once the server reports
+        the goal, then its status, the feedback from now on and exactly one on_done(outcome): the result the server
+        publishes; for a goal that ended before it was followed, the end its status tells, without a result
+        (actionlib sends a result once); lost when the server does not list the goal (it ended a while ago, or never
+        its). Raises only ValueError (an empty id, a bad timeout) and NotInitialized.
+        """
+        return self._act_dockRobot.rejoin(
+            goal_id,
+            self._timeout(timeout),
+            self.wait_timeout,
+            on_accepted=on_accepted,
+            on_status=on_status,
+            on_feedback=on_feedback,
+            on_done=on_done,
+            feedback_grace=feedback_grace,
+        )
+
     def construct_undockRobot_Goal(
         self,
         *,
@@ -390,6 +448,35 @@ class DockingComponent:
         """
         return self._act_undockRobot.start(
             self.construct_undockRobot_Goal() if goal is None else goal,
+            self._timeout(timeout),
+            self.wait_timeout,
+            on_accepted=on_accepted,
+            on_status=on_status,
+            on_feedback=on_feedback,
+            on_done=on_done,
+            feedback_grace=feedback_grace,
+        )
+
+    def rejoin_undockRobot(
+        self,
+        goal_id: str,
+        *,
+        on_accepted: Callable[[], None] | None = None,
+        on_status: Callable[[str], None] | None = None,
+        on_feedback: Callable[[UndockRobotFeedback], None] | None = None,
+        on_done: Callable[[GoalOutcome[UndockRobotResult]], None] | None = None,
+        timeout: float | None = None,
+        feedback_grace: float | None = None,
+    ) -> GoalHandle[UndockRobotResult, UndockRobotFeedback]:
+        """Follow the goal goal_id that the server took from another client (this process before a restart, another
+        process), as start_undockRobot follows its own: its GoalHandle at once, on_accepted() once the server
+        reports the goal, then its status, the feedback from now on and exactly one on_done(outcome): the result the
+        server publishes; for a goal that ended before it was followed, the end its status tells, without a result
+        (actionlib sends a result once); lost when the server does not list the goal (it ended a while ago, or never
+        its). Raises only ValueError (an empty id, a bad timeout) and NotInitialized.
+        """
+        return self._act_undockRobot.rejoin(
+            goal_id,
             self._timeout(timeout),
             self.wait_timeout,
             on_accepted=on_accepted,
