@@ -208,9 +208,10 @@ class Recorder:
         self._publish(entry)
 
     def withdraw(self) -> None:
-        """The robot's session was lost before a mission started (`AckedPort`): its next owner may have run the
-        invoke already, whose entry this process's own overwrote. Put back the entry of each invoke admitted here
-        that another owner admitted too, as it published it last, and record nothing more."""
+        """The robot's session was lost before a mission started (`AckedPort`), or its connection stopped serving
+        (share.py: taken over): its next owner may have run the invoke already, or ended it, whose entry this
+        process's own overwrote. Put back the entry of each invoke admitted here that another owner admitted too,
+        as it published it last, and record nothing more (not the end this process's stop gives a mission)."""
         with self._lock:
             self.lost = True
             keys = [entry_key(str(e["id"]), str(e["topic"])) for k, e in self._entries.items() if k in self._opened]
