@@ -14,8 +14,12 @@ directories apart, as on two hosts.
 from __future__ import annotations
 
 import signal
+import subprocess
 import time
 import uuid
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +44,48 @@ def goal(n: int) -> dict[str, Any]:
     return {"order": 3 + n}
 
 
+@dataclass
+class Hosts:
+    """Two share_proc processes with state directories apart, as on two hosts, that share the ROBOTS robots, two
+    each: `frozen` is the one a test hangs."""
+
+    broker: Mosquitto
+    procs: Procs
+    watcher: Watcher
+    sender: AppClient
+    frozen: subprocess.Popen[str]
+    other: subprocess.Popen[str]
+
+    def parts(self) -> tuple[Mosquitto, Procs, Watcher, AppClient, subprocess.Popen[str], subprocess.Popen[str]]:
+        return self.broker, self.procs, self.watcher, self.sender, self.frozen, self.other
+
+    def settled(self) -> bool:
+        """Each process serves two of the robots."""
+        pids = {self.frozen.pid, self.other.pid}
+        return served_by(self.watcher, pids, ROBOTS) and set(shares(self.watcher, pids).values()) == {2}
+
+    def robots_of(self, proc: subprocess.Popen[str]) -> list[str]:
+        return [r for r, (_s, pid) in self.watcher.owners().items() if pid == proc.pid]
+
+
+@contextmanager
+def two_hosts(tmp_path: Path) -> Iterator[Hosts]:
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    procs = Procs(broker, tmp_path, ROBOTS, hosts=True)
+    watcher = Watcher(broker)
+    sender = AppClient(broker, ["test/nothing"])
+    try:
+        hosts = Hosts(broker, procs, watcher, sender, *procs.start_many(2))
+        assert until(hosts.settled, 60), procs.logs()
+        yield hosts
+    finally:
+        sender.close()
+        watcher.close()
+        procs.close()
+        broker.stop()
+
+
 @pytest.mark.parametrize(
     ("actions", "topic", "payload"),
     [pytest.param("", INVOKE, procedure, id="procedure"), pytest.param("1", GOAL, goal, id="ros-action-goal")],
@@ -48,18 +94,9 @@ def test_a_resumed_process_runs_nothing_it_read_on_a_session_taken_over(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, actions: str, topic: str, payload: Any
 ) -> None:
     monkeypatch.setenv("SHARE_ACTIONS", actions)
-    broker = Mosquitto(tmp_path / "broker")
-    broker.start()
-    procs = Procs(broker, tmp_path, ROBOTS, hosts=True)
-    watcher = Watcher(broker)
-    sender = AppClient(broker, ["test/nothing"])
-    try:
-        started = procs.start_many(2)
-        pids = {p.pid for p in started}
-        assert until(lambda: served_by(watcher, pids, ROBOTS) and set(shares(watcher, pids).values()) == {2}, 60)
-        frozen, other = started
-        theirs = [r for r, (_s, pid) in watcher.owners().items() if pid == frozen.pid]
-        others = [r for r, (_s, pid) in watcher.owners().items() if pid == other.pid]
+    with two_hosts(tmp_path) as hosts:
+        broker, procs, watcher, sender, frozen, other = hosts.parts()
+        theirs, others = hosts.robots_of(frozen), hosts.robots_of(other)
         stopped = time.monotonic()  # what came before (the first shares' hand-overs) is no grab
         frozen.send_signal(signal.SIGSTOP)
         try:
@@ -78,7 +115,7 @@ def test_a_resumed_process_runs_nothing_it_read_on_a_session_taken_over(
         finally:
             frozen.send_signal(signal.SIGCONT)
         # it lets the robot go, takes a share again by hand-over, and runs none of the commands a second time
-        assert until(lambda: served_by(watcher, pids, ROBOTS) and set(shares(watcher, pids).values()) == {2}, 30), (
+        assert until(hosts.settled, 30), (
             watcher.owners(),
             procs.logs(),
         )
@@ -117,11 +154,6 @@ def test_a_resumed_process_runs_nothing_it_read_on_a_session_taken_over(
         assert {owner for owner, _state in kept().values()} <= {node[other.pid], node[frozen.pid]}, (kept(), node)
         adopted = [i for i in sent if entries[i]["owner"] == node[frozen.pid]]
         assert all("latest" in entries[i] for i in adopted), [entries[i] for i in adopted]  # adopted, not its own
-    finally:
-        sender.close()
-        watcher.close()
-        procs.close()
-        broker.stop()
 
 
 def test_a_resumed_process_leaves_the_entry_of_a_goal_taken_over_to_its_new_owner(
@@ -134,17 +166,9 @@ def test_a_resumed_process_leaves_the_entry_of_a_goal_taken_over_to_its_new_owne
     entry (its "retired" end, recorded over the new owner's, stayed: a resend would be answered with a terminal
     event nobody had received)."""
     monkeypatch.setenv("SHARE_ACTIONS", "1")
-    broker = Mosquitto(tmp_path / "broker")
-    broker.start()
-    procs = Procs(broker, tmp_path, ROBOTS, hosts=True)
-    watcher = Watcher(broker)
-    sender = AppClient(broker, ["test/nothing"])
-    try:
-        started = procs.start_many(2)
-        pids = {p.pid for p in started}
-        assert until(lambda: served_by(watcher, pids, ROBOTS) and set(shares(watcher, pids).values()) == {2}, 60)
-        frozen, other = started
-        robot = next(r for r, (_s, pid) in watcher.owners().items() if pid == frozen.pid)
+    with two_hosts(tmp_path) as hosts:
+        broker, procs, watcher, sender, frozen, other = hosts.parts()
+        robot = hosts.robots_of(frozen)[0]
         event_id = uuid.uuid4().hex  # a goal of 2000 steps of 0.05 s: still running long after the test
         sender.send(
             GOAL.format(robot=robot),
@@ -165,7 +189,7 @@ def test_a_resumed_process_leaves_the_entry_of_a_goal_taken_over_to_its_new_owne
             assert until(lambda: event_id in watcher.terminals(), 30), procs.logs()
         finally:
             frozen.send_signal(signal.SIGCONT)
-        assert until(lambda: served_by(watcher, pids, ROBOTS) and set(shares(watcher, pids).values()) == {2}, 30), (
+        assert until(hosts.settled, 30), (
             watcher.owners(),
             procs.logs(),
         )
@@ -183,8 +207,3 @@ def test_a_resumed_process_leaves_the_entry_of_a_goal_taken_over_to_its_new_owne
         kept = entry()
         assert (kept.get("owner"), kept.get("phase")) == (node[other.pid], "done"), (kept, node, procs.logs())
         assert orjson.loads(kept["latest"])["payload"]["message"] == ended["message"], kept
-    finally:
-        sender.close()
-        watcher.close()
-        procs.close()
-        broker.stop()
