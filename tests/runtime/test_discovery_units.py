@@ -135,3 +135,22 @@ def test_the_ros1_graph_is_named_by_its_master_the_same_however_its_uri_is_spelt
     assert names == {f"ros1 master localhost:11311 on {socket.gethostname()}"}
     assert ros1_graph("http://Master.Site:11312/", {}).name == "ros1 master master.site:11312"
     assert ros1_graph(None, {"ROS_MASTER_URI": "http://10.0.0.2:11311"}).name == "ros1 master 10.0.0.2:11311"
+
+
+def test_a_ros1_master_that_does_not_answer_is_said_in_one_wording_naming_it_and_how_to_name_another() -> None:
+    """The ROS 1 graph's look (discovery, graphwatch.py) and the ROS 1 bridge's start (bridge.py) said each in
+    their own words that the master does not answer (one asked "is it running?", the other named roscore): one
+    sentence now (ros/words.py), naming the master and the three ways to name another."""
+    from td2adaptor.runtime.node.graphwatch import Ros1Graph, Signature
+    from td2adaptor.runtime.ros.bridge import master_unreachable
+    from tests.ports import free_port
+
+    nobody = f"http://127.0.0.1:{free_port()}/"
+    with pytest.raises(OSError) as looked:
+        Ros1Graph(nobody).robots(Signature(("x",), (), ()), set())
+    said = str(looked.value)
+    assert said == master_unreachable(nobody), (said, master_unreachable(nobody))
+    assert said.startswith(f"the ROS 1 master {nobody} does not answer (Connection refused): "), said
+    for way in ("roscore", "--master-uri", "ros_master_uri", "ROS_MASTER_URI"):
+        assert way in said, (way, said)
+    assert "Errno" not in said and "Error" not in said, said

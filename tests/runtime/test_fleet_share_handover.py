@@ -182,6 +182,40 @@ def test_a_robot_handed_over_to_a_process_that_drops_it_while_its_owner_drops_it
     print(json.dumps({"history": history(watcher, robot)}))
 
 
+def no_traceback(procs: list[Proc]) -> None:
+    for proc in procs:
+        assert "Traceback" not in proc.log(), proc.log()
+
+
+def stop_all(procs: list[Proc], watcher: Watcher) -> list[int | None]:
+    """Stop the processes (SIGTERM) and the watcher: the processes' exit codes."""
+    codes = [p.close() for p in procs]
+    watcher.close()
+    return codes
+
+
+def hand_one_over_slowly(
+    broker: Mosquitto, tmp_path: Path, watcher: Watcher, procs: list[Proc]
+) -> tuple[Proc, Proc, str, str, float]:
+    """a serves rb_00 and rb_01; x joins and takes what it is handed only 10 s later (SHARE_SETTLE): a hands one
+    over to x. (a, x, the robot handed over, the other one, when x had joined: time.monotonic())"""
+    robots = ["rb_00", "rb_01"]
+    a = Proc(broker, tmp_path, "a", robots)
+    procs.append(a)
+    wait(lambda: all(status(watcher, r).get("state") == "online" for r in robots), 20, a, what="a serves both")
+    x = Proc(broker, tmp_path, "x", robots, SHARE_SETTLE="10")  # takes what it is handed only 10 s later
+    procs.append(x)
+    joined = time.monotonic()
+
+    def handed() -> str | None:
+        return next((r for r in robots if (status(watcher, r).get("handover") or {}).get("node") == x.node), None)
+
+    wait(lambda: handed() is not None, 8, a, x, what="a hands one robot over to x")
+    robot = handed()
+    assert robot is not None
+    return a, x, robot, next(r for r in robots if r != robot), joined
+
+
 def test_a_robot_handed_over_by_a_process_that_died_before_it_retired_it_is_retired_by_a_survivor(
     tmp_path: Path,
 ) -> None:
@@ -193,21 +227,7 @@ def test_a_robot_handed_over_by_a_process_that_died_before_it_retired_it_is_reti
     watcher = Watcher(broker)
     procs: list[Proc] = []
     try:
-        robots = ["rb_00", "rb_01"]
-        a = Proc(broker, tmp_path, "a", robots)
-        procs.append(a)
-        wait(lambda: all(status(watcher, r).get("state") == "online" for r in robots), 20, a, what="a serves both")
-        x = Proc(broker, tmp_path, "x", robots, SHARE_SETTLE="10")  # takes what it is handed only 10 s later
-        procs.append(x)
-        started = time.monotonic()
-
-        def handed() -> str | None:
-            return next((r for r in robots if (status(watcher, r).get("handover") or {}).get("node") == x.node), None)
-
-        wait(lambda: handed() is not None, 8, a, x, what="a hands one robot over to x")
-        robot = handed()
-        assert robot is not None
-        other = next(r for r in robots if r != robot)
+        a, x, robot, other, started = hand_one_over_slowly(broker, tmp_path, watcher, procs)
         a.reload([other])
         wait(lambda: robot not in record(watcher, a.node).get("can", [robot]), 5, a, what="a dropped it")
         a.proc.kill()  # before it retired it (it would, 2 s after x dropped it too)
@@ -251,20 +271,7 @@ def test_a_robot_whose_hand_over_both_members_died_in_is_retired_by_a_member_tha
     watcher = Watcher(broker)
     procs: list[Proc] = []
     try:
-        robots = ["rb_00", "rb_01"]
-        a = Proc(broker, tmp_path, "a", robots)
-        procs.append(a)
-        wait(lambda: all(status(watcher, r).get("state") == "online" for r in robots), 20, a, what="a serves both")
-        x = Proc(broker, tmp_path, "x", robots, SHARE_SETTLE="10")  # takes what it is handed only 10 s later
-        procs.append(x)
-
-        def handed() -> str | None:
-            return next((r for r in robots if (status(watcher, r).get("handover") or {}).get("node") == x.node), None)
-
-        wait(lambda: handed() is not None, 8, a, x, what="a hands one robot over to x")
-        robot = handed()
-        assert robot is not None
-        other = next(r for r in robots if r != robot)
+        a, x, robot, other, _started = hand_one_over_slowly(broker, tmp_path, watcher, procs)
         # a let it go (its connection closed cleanly, no will), x takes what it is handed only 10 s after it joined
         wait(lambda: robot not in record(watcher, a.node).get("robots", [robot]), 10, a, what="a let it go")
         for proc in (a, x):  # both die before the robot was taken or retired

@@ -15,7 +15,7 @@ from pathlib import Path
 from td2adaptor.runtime.node.shareplan import assign
 from tests.runtime.broker import Mosquitto
 from tests.runtime.test_fleet_share import Watcher
-from tests.runtime.test_fleet_share_handover import Proc, history, wait
+from tests.runtime.test_fleet_share_handover import Proc, history, no_traceback, stop_all, wait
 
 SETTLE = 2.0  # share.SETTLE in the processes (0.75 s by default): room for a loaded machine between the two reads
 APART = 0.3  # seconds between the two members' reads of the changed fleet
@@ -76,9 +76,7 @@ def test_a_robot_the_members_stop_listing_a_moment_apart_moves_no_other_robot_ba
         )
         for robot in set(robots) - {gone}:
             assert len(history(watcher, robot)) == served[robot], (robot, history(watcher, robot))
-        for proc in procs:
-            assert "Traceback" not in proc.log(), proc.log()
+        no_traceback(procs)
     finally:
-        codes = [p.close() for p in procs]
-        watcher.close()
+        codes = stop_all(procs, watcher)
     assert codes == [0, 0]

@@ -14,11 +14,16 @@ directories apart, as on two hosts.
 from __future__ import annotations
 
 import signal
+import subprocess
 import time
 import uuid
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import orjson
 import pytest
 
 from td2adaptor.runtime.events import now_rfc3339
@@ -39,6 +44,48 @@ def goal(n: int) -> dict[str, Any]:
     return {"order": 3 + n}
 
 
+@dataclass
+class Hosts:
+    """Two share_proc processes with state directories apart, as on two hosts, that share the ROBOTS robots, two
+    each: `frozen` is the one a test hangs."""
+
+    broker: Mosquitto
+    procs: Procs
+    watcher: Watcher
+    sender: AppClient
+    frozen: subprocess.Popen[str]
+    other: subprocess.Popen[str]
+
+    def parts(self) -> tuple[Mosquitto, Procs, Watcher, AppClient, subprocess.Popen[str], subprocess.Popen[str]]:
+        return self.broker, self.procs, self.watcher, self.sender, self.frozen, self.other
+
+    def settled(self) -> bool:
+        """Each process serves two of the robots."""
+        pids = {self.frozen.pid, self.other.pid}
+        return served_by(self.watcher, pids, ROBOTS) and set(shares(self.watcher, pids).values()) == {2}
+
+    def robots_of(self, proc: subprocess.Popen[str]) -> list[str]:
+        return [r for r, (_s, pid) in self.watcher.owners().items() if pid == proc.pid]
+
+
+@contextmanager
+def two_hosts(tmp_path: Path) -> Iterator[Hosts]:
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    procs = Procs(broker, tmp_path, ROBOTS, hosts=True)
+    watcher = Watcher(broker)
+    sender = AppClient(broker, ["test/nothing"])
+    try:
+        hosts = Hosts(broker, procs, watcher, sender, *procs.start_many(2))
+        assert until(hosts.settled, 60), procs.logs()
+        yield hosts
+    finally:
+        sender.close()
+        watcher.close()
+        procs.close()
+        broker.stop()
+
+
 @pytest.mark.parametrize(
     ("actions", "topic", "payload"),
     [pytest.param("", INVOKE, procedure, id="procedure"), pytest.param("1", GOAL, goal, id="ros-action-goal")],
@@ -47,18 +94,9 @@ def test_a_resumed_process_runs_nothing_it_read_on_a_session_taken_over(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, actions: str, topic: str, payload: Any
 ) -> None:
     monkeypatch.setenv("SHARE_ACTIONS", actions)
-    broker = Mosquitto(tmp_path / "broker")
-    broker.start()
-    procs = Procs(broker, tmp_path, ROBOTS, hosts=True)
-    watcher = Watcher(broker)
-    sender = AppClient(broker, ["test/nothing"])
-    try:
-        started = procs.start_many(2)
-        pids = {p.pid for p in started}
-        assert until(lambda: served_by(watcher, pids, ROBOTS) and set(shares(watcher, pids).values()) == {2}, 60)
-        frozen, other = started
-        theirs = [r for r, (_s, pid) in watcher.owners().items() if pid == frozen.pid]
-        others = [r for r, (_s, pid) in watcher.owners().items() if pid == other.pid]
+    with two_hosts(tmp_path) as hosts:
+        broker, procs, watcher, sender, frozen, other = hosts.parts()
+        theirs, others = hosts.robots_of(frozen), hosts.robots_of(other)
         stopped = time.monotonic()  # what came before (the first shares' hand-overs) is no grab
         frozen.send_signal(signal.SIGSTOP)
         try:
@@ -77,7 +115,7 @@ def test_a_resumed_process_runs_nothing_it_read_on_a_session_taken_over(
         finally:
             frozen.send_signal(signal.SIGCONT)
         # it lets the robot go, takes a share again by hand-over, and runs none of the commands a second time
-        assert until(lambda: served_by(watcher, pids, ROBOTS) and set(shares(watcher, pids).values()) == {2}, 30), (
+        assert until(hosts.settled, 30), (
             watcher.owners(),
             procs.logs(),
         )
@@ -94,30 +132,78 @@ def test_a_resumed_process_runs_nothing_it_read_on_a_session_taken_over(
         }
         assert not grabbed, (grabbed, procs.logs())
         # and what the broker keeps of each command for a later owner (node/admitted.py) is the other's, which ran
-        # it: the hung process's own entry (admitted, never run) did not stay. When the robot came back to the hung
-        # process by hand-over before the other had marked the entry done, the hung one adopted it (its
-        # recovery ends it): then it is the hung one's, finished too
+        # it, finished (its terminal event is the one the application got): the hung process's own entry (admitted,
+        # never run) did not stay, nor did the end its stop gave it (`failed`, "retired": recorded over the other's
+        # when its robot's session was found taken before its goal's gate had put the other's entry back). When
+        # the robot came back to the hung process by hand-over before the other had marked the entry done, the hung
+        # one adopted it (its recovery ends it): then it is the hung one's, finished too
         members = retained(broker, "td2adaptor/.fleet/shared/members/+")
         node = {e["owner"]["pid"]: e["owner"]["node"] for e in members.values() if e}
-        ended = {"finished"} if not actions else {"finished", "failed"}
 
         def admitted() -> dict[str, Any]:
             return {e["id"]: e for e in retained(broker, "td2adaptor/.fleet/shared/admitted/+/+").values() if e}
 
-        # an adopted goal's entry is ended when its new owner ends it, which may come after the hand-over settled
-        until(lambda: {admitted().get(i, {}).get("state") for i in sent} <= ended, 20)
+        def kept() -> dict[str, tuple[str | None, str | None]]:
+            entries = admitted()
+            return {i: (entries.get(i, {}).get("owner"), entries.get(i, {}).get("state")) for i in sent}
+
+        # the hung process puts the other's entry back once its robot's connection stopped serving, and again once
+        # its goal's gate settles, which may come after the hand-over settled
+        assert until(lambda: {state for _owner, state in kept().values()} == {"finished"}, 20), (kept(), procs.logs())
         entries = admitted()
-        kept = {i: (entries[i]["owner"], entries[i].get("state")) for i in sent}
-        # a procedure is followed on by whoever serves the robot next; a ROS action goal here is served by each
-        # process's own simulated action servers (share_proc's SimActions), so a goal still running when the robot
-        # was handed back cannot be followed by its new owner, which ends it `failed` with the takeover's words (a
-        # real ROS 2 server is one for every process). Either way the entry is ended, never left admitted
-        assert {state for _owner, state in kept.values()} <= ended, kept
-        assert {owner for owner, _state in kept.values()} <= {node[other.pid], node[frozen.pid]}, (kept, node)
-        adopted = [i for i, (owner, _state) in kept.items() if owner == node[frozen.pid]]
+        assert {owner for owner, _state in kept().values()} <= {node[other.pid], node[frozen.pid]}, (kept(), node)
+        adopted = [i for i in sent if entries[i]["owner"] == node[frozen.pid]]
         assert all("latest" in entries[i] for i in adopted), [entries[i] for i in adopted]  # adopted, not its own
-    finally:
-        sender.close()
-        watcher.close()
-        procs.close()
-        broker.stop()
+
+
+def test_a_resumed_process_leaves_the_entry_of_a_goal_taken_over_to_its_new_owner(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A goal runs when its process hangs; another takes the robot over and ends the goal (its own action servers
+    cannot follow it): its terminal event is the one the application gets, and the admitted entry the broker keeps
+    for a later owner (answered again from it) is the new owner's. On SIGCONT the hung process finds the robot's
+    session taken and stops serving it: the goal it still had in flight is not its to end, on the bus nor in the
+    entry (its "retired" end, recorded over the new owner's, stayed: a resend would be answered with a terminal
+    event nobody had received)."""
+    monkeypatch.setenv("SHARE_ACTIONS", "1")
+    with two_hosts(tmp_path) as hosts:
+        broker, procs, watcher, sender, frozen, other = hosts.parts()
+        robot = hosts.robots_of(frozen)[0]
+        event_id = uuid.uuid4().hex  # a goal of 2000 steps of 0.05 s: still running long after the test
+        sender.send(
+            GOAL.format(robot=robot),
+            {"id": event_id, "time": now_rfc3339(), "correlation": event_id, "payload": {"order": 2000}},
+        )
+
+        def states() -> list[str]:
+            return [
+                str(e["payload"].get("state"))
+                for _t, topic, e in watcher.timed()
+                if topic.endswith("/feedback") and e.get("correlation") == event_id
+            ]
+
+        assert until(lambda: "running" in states(), 30), procs.logs()
+        frozen.send_signal(signal.SIGSTOP)
+        try:
+            assert until(lambda: served_by(watcher, {other.pid}, ROBOTS), 20), (watcher.owners(), procs.logs())
+            assert until(lambda: event_id in watcher.terminals(), 30), procs.logs()
+        finally:
+            frozen.send_signal(signal.SIGCONT)
+        assert until(hosts.settled, 30), (
+            watcher.owners(),
+            procs.logs(),
+        )
+        members = retained(broker, "td2adaptor/.fleet/shared/members/+")
+        node = {e["owner"]["pid"]: e["owner"]["node"] for e in members.values() if e}
+        (ended,) = watcher.terminals()[event_id]  # one terminal event: the new owner's
+        assert ended["state"] == "failed", ended
+
+        def entry() -> dict[str, Any]:
+            entries = retained(broker, "td2adaptor/.fleet/shared/admitted/+/+").values()
+            return next((e for e in entries if e and e.get("id") == event_id), {})
+
+        # the hung process's stop of the robot (halted, taken over) is behind the settled shares; its entry, had it
+        # written one, would be on the broker before the shares settled (the member connection's order)
+        kept = entry()
+        assert (kept.get("owner"), kept.get("phase")) == (node[other.pid], "done"), (kept, node, procs.logs())
+        assert orjson.loads(kept["latest"])["payload"]["message"] == ended["message"], kept

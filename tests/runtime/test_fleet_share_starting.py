@@ -15,7 +15,7 @@ from pathlib import Path
 
 from tests.runtime.broker import Mosquitto
 from tests.runtime.test_fleet_share import Watcher
-from tests.runtime.test_fleet_share_handover import Proc, history, wait
+from tests.runtime.test_fleet_share_handover import Proc, history, no_traceback, stop_all, wait
 
 START = 4.0  # seconds each member's start of its robots takes (SHARE_GROW_DELAY)
 
@@ -70,9 +70,7 @@ def test_a_robot_listed_by_another_member_during_its_start_is_served_at_its_end_
         assert at_moved - at_kept <= 1.0, history(watcher, moved)
         assert history(watcher, moved) == [("online", a.pid, None), ("online", a.pid, b.node), ("online", b.pid, None)]
         assert history(watcher, kept) == [("online", a.pid, None)]
-        for proc in procs:
-            assert "Traceback" not in proc.log(), proc.log()
+        no_traceback(procs)
     finally:
-        codes = [p.close() for p in procs]
-        watcher.close()
+        codes = stop_all(procs, watcher)
     assert codes == [0, 0]

@@ -188,4 +188,4 @@ def test_a_ros1_bridge_that_waits_for_a_master_that_is_not_up_says_so(package_sr
         bridge.close()
     said = str(failed.value)
     assert f"the ROS 1 master {nobody} does not answer (Connection refused)" in said, said
-    assert "--master-uri (or ROS_MASTER_URI)" in said and "init" not in said, said
+    assert "--master-uri, the ros_master_uri setting or ROS_MASTER_URI" in said and "init" not in said, said

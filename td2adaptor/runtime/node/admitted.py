@@ -22,6 +22,7 @@ import logging
 import threading
 import time
 from collections.abc import Callable, Mapping
+from functools import partial
 from typing import Any
 
 import orjson
@@ -51,24 +52,37 @@ class Book:
         self._lock = threading.Lock()
         self._entries: dict[str, dict[str, dict[str, Any]]] = {}  # robot -> key -> entry
         self._before: dict[str, dict[str, dict[str, Any]]] = {}  # robot -> key -> the entry of its owner before
+        # (robot, key) -> (owner, its entry's time, what to call with the entry before it once the broker echoed it)
+        self._awaited: dict[tuple[str, str], tuple[str, Any, Callable[[dict[str, Any]], None]]] = {}
 
     def take(self, message: Message) -> None:
         parts = message.topic.split("/")
         robot, key = parts[-2], parts[-1]
+        call: tuple[Callable[[dict[str, Any]], None], dict[str, Any]] | None = None
         with self._lock:
             if not message.payload:
                 self._entries.get(robot, {}).pop(key, None)
                 self._before.get(robot, {}).pop(key, None)
+                self._awaited.pop((robot, key), None)
                 return
             try:
                 entry = orjson.loads(message.payload)
             except orjson.JSONDecodeError:
                 return
-            if isinstance(entry, dict):
-                old = self._entries.setdefault(robot, {}).get(key)
-                if old is not None and old.get("owner") != entry.get("owner"):
-                    self._before.setdefault(robot, {})[key] = old
-                self._entries[robot][key] = entry
+            if not isinstance(entry, dict):
+                return
+            old = self._entries.setdefault(robot, {}).get(key)
+            if old is not None and old.get("owner") != entry.get("owner"):
+                self._before.setdefault(robot, {})[key] = old
+            self._entries[robot][key] = entry
+            awaited = self._awaited.get((robot, key))
+            if awaited is not None and awaited[:2] == (entry.get("owner"), entry.get("at")):
+                del self._awaited[(robot, key)]
+                before = self._before.get(robot, {}).get(key)
+                if before is not None and before.get("owner") != entry.get("owner"):
+                    call = (awaited[2], before)
+        if call is not None:
+            call[0](call[1])
 
     def theirs(self, robot: str, key: str, me: str) -> dict[str, Any] | None:
         """The last entry of `key` that an owner other than `me` published, as far as the broker has told."""
@@ -77,6 +91,20 @@ class Book:
                 if entry is not None and entry.get("owner") != me:
                     return entry
         return None
+
+    def theirs_now_and_after(
+        self, robot: str, key: str, mine: Mapping[str, Any], then: Callable[[dict[str, Any]], None]
+    ) -> dict[str, Any] | None:
+        """The last entry of `key` another owner than `mine`'s published as far as the broker has told (`theirs`),
+        and `then(entry)` with the one before `mine` once the broker echoes it (unless it did already): the broker
+        sends everything it had before it first, also when this process's connection was lost meanwhile (a hung
+        process's, dropped by its keepalive) and the others' entry came back retained on the new one."""
+        me = str(mine.get("owner"))
+        with self._lock:
+            latest = self._entries.get(robot, {}).get(key)
+            if latest is None or (latest.get("owner"), latest.get("at")) != (me, mine.get("at")):
+                self._awaited[(robot, key)] = (me, mine.get("at"), then)
+        return self.theirs(robot, key, me)
 
     def of(self, robot: str) -> list[dict[str, Any]]:
         with self._lock:
@@ -208,16 +236,23 @@ class Recorder:
         self._publish(entry)
 
     def withdraw(self) -> None:
-        """The robot's session was lost before a mission started (`AckedPort`): its next owner may have run the
-        invoke already, whose entry this process's own overwrote. Put back the entry of each invoke admitted here
-        that another owner admitted too, as it published it last, and record nothing more."""
+        """The robot's session was lost before a mission started (`AckedPort`), or its connection stopped serving
+        (share.py: taken over): its next owner may have run the invoke already, or ended it, whose entry this
+        process's own overwrote. Put back the entry of each invoke admitted here that another owner admitted too,
+        as it published it last, and record nothing more (not the end this process's stop gives a mission)."""
         with self._lock:
             self.lost = True
-            keys = [entry_key(str(e["id"]), str(e["topic"])) for k, e in self._entries.items() if k in self._opened]
-        for key in keys:
-            theirs = None if self.book is None else self.book.theirs(self.robot, key, self.owner)
+            mine = [dict(e) for k, e in self._entries.items() if k in self._opened]
+        for entry in mine:
+            if self.book is None:
+                continue
+            key = entry_key(str(entry["id"]), str(entry["topic"]))
+            topic = admitted_topic(self.root, self.fleet, self.robot, key)
+            # this process's own entry may reach the broker later than the others' (its connection lost, its
+            # entry sent on the next one): put back then what the broker had before it
+            theirs = self.book.theirs_now_and_after(self.robot, key, entry, partial(self._send, topic))
             if theirs is not None:
-                self._send(admitted_topic(self.root, self.fleet, self.robot, key), theirs)
+                self._send(topic, theirs)
 
     def _publish(self, entry: Mapping[str, Any]) -> None:
         if self.lost:

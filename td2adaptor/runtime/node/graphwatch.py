@@ -38,6 +38,7 @@ from td2adaptor.model.events import ALL_ROBOTS, ROBOT_ID
 from td2adaptor.runtime.config import ConfigError, RuntimeConfig
 from td2adaptor.runtime.node.fleet import Changes
 from td2adaptor.runtime.node.ros1nodes import TimeoutTransport, alive
+from td2adaptor.runtime.ros.words import DEFAULT_MASTER, master_silent
 
 log = logging.getLogger("td2adaptor.runtime.fleet")
 
@@ -143,11 +144,7 @@ class Ros1Graph:
         try:
             code, message, state = master.getSystemState(CALLER_ID)
         except OSError as exc:  # said once by the watcher, so say which master and how to name another
-            reason = exc.strerror or str(exc) or "no answer"
-            raise OSError(
-                f"the ROS 1 master {self.master_uri} does not answer ({reason}): is it running? "
-                "--master-uri (or ROS_MASTER_URI) names the one the robots use"
-            ) from exc
+            raise OSError(master_silent(self.master_uri, exc)) from exc
         if code != 1:
             raise OSError(f"the ROS 1 master refused getSystemState: {message}")
         publishers, _subscribers, services = state
@@ -313,7 +310,7 @@ def ros1_graph(master_uri: str | None, env: Mapping[str, str]) -> Graph:
     """The ROS 1 graph of the master at `master_uri` (None: `ROS_MASTER_URI`, else ROS's default). Its name is
     the master's host and port, however the URI spells them, and this host's name for a loopback master: the
     processes of a shared fleet compare the names to tell whether they read one graph."""
-    uri = master_uri or env.get("ROS_MASTER_URI") or "http://localhost:11311"
+    uri = master_uri or env.get("ROS_MASTER_URI") or DEFAULT_MASTER
     if not re.match(r"^https?://", uri):
         raise ConfigError(f"ROS master URI {uri!r} must be http://host:port")
     try:

@@ -847,6 +847,9 @@ class Share:
         def taken() -> bool:  # its session maybe another member's: lost (taken over, or the broker dropped it)
             return engine.failure is not None or not getattr(raw, "connected", True)
 
+        # the robot's connection stopped serving (its session taken over): what its engine ends from now on (the
+        # stop's "retired" end of a goal in flight) is the next owner's to record, not written over its entries
+        engine.on_halt.append(lambda _reason: recorder.withdraw())
         engine.port = AckedPort(engine.port, recorder.acknowledged, config.robot, taken, recorder.withdraw)
         engine.kept = recorder.when_acknowledged  # a command is acknowledged once its entry is the broker's
 

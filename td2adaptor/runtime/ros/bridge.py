@@ -61,7 +61,7 @@ from td2adaptor.runtime.ros.port import (
     StalePackage,
     StartResult,
 )
-from td2adaptor.runtime.ros.words import import_failure, setup_failure
+from td2adaptor.runtime.ros.words import DEFAULT_MASTER, import_failure, master_silent, setup_failure
 
 ENV_PYTHON = "TD2ADAPTOR_ROS1_PYTHON"
 log = logging.getLogger("td2adaptor.runtime")
@@ -109,20 +109,17 @@ def _inside(path: str, root: str) -> bool:
         return False
 
 
-#: the master rospy uses when ROS_MASTER_URI is not set
-DEFAULT_MASTER = "http://localhost:11311"
-
-
 def master_unreachable(uri: str, timeout: float = 2.0) -> str | None:
-    """Why a TCP connection to the ROS 1 master at `uri` fails (None when it connects)."""
+    """Why a TCP connection to the ROS 1 master at `uri` fails, in words (words.py `master_silent`; None when
+    it connects)."""
     parsed = urllib.parse.urlsplit(uri)
     try:
         with socket.create_connection((parsed.hostname or "localhost", parsed.port or 11311), timeout=timeout):
             return None
     except OSError as exc:
-        return exc.strerror or str(exc) or "no answer"
+        return master_silent(uri, exc)
     except ValueError as exc:  # a port that is no number
-        return str(exc)
+        return master_silent(uri, str(exc))
 
 
 def child_environment(environ: Mapping[str, str], pythonpath: Sequence[str], master_uri: str | None) -> dict[str, str]:
@@ -257,11 +254,7 @@ class Ros1Bridge:
             master = self.master_uri or self.environ.get("ROS_MASTER_URI") or DEFAULT_MASTER
             unreachable = master_unreachable(master) if isinstance(exc, PortTimeout) else None
             if unreachable is not None:  # rospy waits for ever for a master that is not up: say so, not "init"
-                raise RosSetupError(
-                    f"the ROS 1 bridge under {self.python} did not start: the ROS 1 master {master} does not answer "
-                    f"({unreachable}): is it running (roscore)? --master-uri (or ROS_MASTER_URI) names the one the "
-                    "robots use"
-                ) from None
+                raise RosSetupError(f"the ROS 1 bridge under {self.python} did not start: {unreachable}") from None
             raise RosSetupError(f"the ROS 1 bridge under {self.python} did not start: {exc}") from None
         except BaseException:  # interrupted (Ctrl-C while rospy waits for a master that is not up): no orphan
             self._kill(at_once=True)

@@ -11,6 +11,20 @@ from td2adaptor.runtime.ros.port import NoValue, PortError, PortTimeout, PortUna
 
 INTERNAL = "internal error in the edge node (its log has the details)"
 
+#: the ROS 1 master rospy uses when none is named (ROS_MASTER_URI unset)
+DEFAULT_MASTER = "http://localhost:11311"
+
+
+def master_silent(uri: str, why: str | OSError) -> str:
+    """That the ROS 1 master at `uri` does not answer (`why`: the reason, or the error of the connection): which
+    master, and how to name another. One wording for the ROS 1 bridge's start (bridge.py) and the ROS 1 graph's
+    look (node/graphwatch.py), which said it each in their own words."""
+    reason = why if isinstance(why, str) else why.strerror or str(why) or "no answer"
+    return (
+        f"the ROS 1 master {uri} does not answer ({reason}): is it running (roscore)? Name the one the robots use "
+        "with --master-uri, the ros_master_uri setting or ROS_MASTER_URI"
+    )
+
 
 def describe(exc: BaseException) -> str:
     """What went wrong with a robot call, without internal class names."""
