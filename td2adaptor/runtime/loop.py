@@ -175,7 +175,8 @@ class Loop:
                     item = inbox.get_nowait()
                 except queue.Empty:
                     break
-                if self._timers and self._timers[0][0] <= self.clock():  # due timers keep their turn
+                timers = self._timers  # one read: another thread may replace it (`_drop` rebuilding the heap)
+                if timers and timers[0][0] <= self.clock():  # due timers keep their turn
                     self._due()
             else:
                 return
