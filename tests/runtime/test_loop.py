@@ -85,6 +85,32 @@ def test_cancelled_timers_do_not_pile_up_in_the_loop_and_the_others_still_run_in
     assert ran == [0, 1000, 2000, 3000, 4000]
 
 
+def test_timers_cancelled_from_other_threads_while_the_loop_runs_its_own_leave_it_serving(loop: Loop) -> None:
+    ran: list[int] = []
+    stop = threading.Event()
+
+    def churn() -> None:  # the port's threads: a guard set and cancelled for each answered call
+        while not stop.is_set():
+            for _ in range(200):
+                loop.call_later(25, ran.append, -1).cancel()
+
+    churners = [threading.Thread(target=churn) for _ in range(2)]
+    for thread in churners:
+        thread.start()
+    try:
+        done = threading.Event()
+        for i in range(300):  # the loop's own short timers (polls), due while the heap is rebuilt
+            loop.call_later(i / 1000, ran.append, i)
+        loop.call_later(0.35, done.set)
+        assert done.wait(10)
+    finally:
+        stop.set()
+        for thread in churners:
+            thread.join(10)
+    assert sorted(ran) == list(range(300)), "a timer was lost, or a cancelled one ran"
+    assert loop.thread.is_alive()
+
+
 def test_a_timer_set_from_another_thread_wakes_a_loop_asleep_until_a_later_one(loop: Loop) -> None:
     done = threading.Event()
     loop.call_later(60, done.set)  # the loop sleeps until this one
