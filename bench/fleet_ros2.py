@@ -228,6 +228,8 @@ class Figures:
     busy: int = 0
     no_terminal: int = 0
     lost: int = 0
+    load_start: float = 0.0  # wall-clock time (time.time()) the load phase began
+    samples: list[tuple[float, float | None, str]] = field(default_factory=list)  # (sent, first feedback, robot)
 
 
 class Deployment:
@@ -348,6 +350,7 @@ def measure(ctx: Context, robots: list[str], size: int, tag: str, idle_s: float,
         sent: list[str] = []
         n = len(robots)
         c0, s0, m0, t1 = cpu_seconds(dep.pids), cpu_seconds(sim_pid), machine_busy(), time.perf_counter()
+        fig.load_start = time.time() - (time.perf_counter() - t1)
         counted = t1
         for k in range(int(load_s * n)):
             due = t1 + k / n
@@ -370,6 +373,7 @@ def measure(ctx: Context, robots: list[str], size: int, tag: str, idle_s: float,
             missions = [w.missions[c] for c in sent]
         fig.missions = len(missions)
         for m in missions:
+            fig.samples.append((m.sent - t1, None if m.first is None else m.first - m.sent, m.robot))
             if m.first is not None:
                 fig.first_feedback.append(m.first - m.sent)
             if m.terminal_seq is None:
@@ -450,6 +454,12 @@ def main() -> None:
         default="message",
         help="message (with property_interval 1, docs/fleet.md's advice) or sample (property_period 1)",
     )
+    parser.add_argument(
+        "--dump",
+        type=Path,
+        help="write every load-phase mission (seconds since the load began, invoke -> first feedback) as JSON, "
+        "to find when the slow ones happen",
+    )
     args = parser.parse_args()
     if not env.ros2_available():
         print("ROS 2 Jazzy wheels not installed (bash .ci/setup-ros2.sh): skipped")
@@ -503,6 +513,12 @@ def main() -> None:
             watcher.close()
             sim.stop()
     report(base, runs)
+    if args.dump is not None:
+        dumped = {
+            name: {"load_start": f.load_start, "missions": [list(sample) for sample in f.samples]}
+            for name, f in [("baseline", base), *runs]
+        }
+        args.dump.write_text(json.dumps(dumped), encoding="utf-8")
     print(f"(median first feedback, baseline: {statistics.median(base.first_feedback) * 1000:.1f} ms)")
     shutil.rmtree(work, ignore_errors=True)
 

@@ -280,6 +280,9 @@ def run(
         _fail("run", str(exc))  # a robot another process serves too (OwnerConflict): exit 1, saying which
     finally:
         signal.signal(signal.SIGTERM, previous)
+    from td2adaptor.support.gcpause import freeze_startup
+
+    freeze_startup()  # the collector's full passes no longer walk what starting made (every robot's engine)
     watched = None
     if config_file is not None and node.fleet is not None:
         from td2adaptor.runtime.node.fleetfile import FleetFile

@@ -33,23 +33,37 @@ log = logging.getLogger("td2adaptor.runtime")
 CALL_THREADS = 32
 #: calls of one robot in flight at once (its other calls wait for one of these to end)
 ROBOT_CALLS = 8
+#: cancelled timers a loop's heap holds at least before it is rebuilt without them (when they are most of it)
+COMPACT_AT = 64
 
 Task = Callable[[], None]
 
 
 class Timer:
-    """A callback due at `when` (the loop's clock); `cancel()` it before then and it does not run."""
+    """A callback due at `when` (the loop's clock); `cancel()` it before then and it does not run.
 
-    __slots__ = ("args", "cancelled", "fn", "when")
+    A cancelled timer lets go of its callback and arguments at once, and the loop drops cancelled timers from
+    its heap once they are most of it: a long timer cancelled early (a quick call's guard, 25 s by default; a
+    goal's mission timeout, 600 s) kept every object its callback reached alive until it was due, thousands of
+    them in a busy fleet, and each full pass of Python's garbage collector walked them all while every thread
+    waited (100 RB-1s at 1 mission/s: about 60,000 more objects within 30 s; docs/fleet.md)."""
 
-    def __init__(self, when: float, fn: Callable[..., None], args: tuple[Any, ...]) -> None:
+    __slots__ = ("_loop", "args", "cancelled", "fn", "queued", "when")
+
+    def __init__(self, when: float, fn: Callable[..., None], args: tuple[Any, ...], loop: Loop | None = None) -> None:
         self.when = when
         self.fn = fn
         self.args = args
         self.cancelled = False
+        self.queued = False  # in its loop's heap (under the loop's lock)
+        self._loop = loop
 
     def cancel(self) -> None:
-        self.cancelled = True
+        loop = self._loop
+        if loop is None:
+            self.cancelled, self.fn, self.args = True, _nothing, ()
+            return
+        loop._drop(self)
 
 
 class Loop:
@@ -60,6 +74,7 @@ class Loop:
         self.clock = clock
         self._inbox: queue.SimpleQueue[tuple[Callable[..., None], tuple[Any, ...]] | None] = queue.SimpleQueue()
         self._timers: list[tuple[float, int, Timer]] = []  # a heap; pushed under _lock from other threads
+        self._cancelled = 0  # timers of the heap cancelled (under _lock)
         self._lock = threading.Lock()
         self._order = itertools.count()
         self.thread = threading.Thread(target=self._run, name=name, daemon=True)
@@ -75,9 +90,10 @@ class Loop:
 
     def call_later(self, delay: float, fn: Callable[..., None], *args: Any) -> Timer:
         """Run `fn(*args)` on the loop's thread in `delay` seconds, unless cancelled first (any thread)."""
-        timer = Timer(self.clock() + max(0.0, delay), fn, args)
+        timer = Timer(self.clock() + max(0.0, delay), fn, args, self)
         with self._lock:
             heapq.heappush(self._timers, (timer.when, next(self._order), timer))
+            timer.queued = True
         if not self.on_loop():  # the loop may sleep until a later timer: it looks again
             self._inbox.put((_nothing, ()))
         return timer
@@ -106,6 +122,21 @@ class Loop:
             raise value
         return value
 
+    def _drop(self, timer: Timer) -> None:
+        """Cancel `timer` (Timer.cancel, any thread): it lets go of its callback now, and the heap is rebuilt
+        without the cancelled timers once they are more than half of it (and `COMPACT_AT` at least)."""
+        with self._lock:
+            if timer.cancelled:
+                return
+            timer.cancelled, timer.fn, timer.args = True, _nothing, ()
+            if not timer.queued:
+                return
+            self._cancelled += 1
+            if self._cancelled >= COMPACT_AT and 2 * self._cancelled > len(self._timers):
+                kept = [entry for entry in self._timers if not entry[2].cancelled]
+                heapq.heapify(kept)
+                self._timers, self._cancelled = kept, 0
+
     def stop(self, timeout: float = 5.0) -> None:
         """End the thread after what was posted so far (timers not yet due are dropped)."""
         self._inbox.put(None)
@@ -123,8 +154,12 @@ class Loop:
                 if wait > 0 and not timer.cancelled:
                     return wait
                 heapq.heappop(self._timers)
-            if not timer.cancelled:
-                _safely(timer.fn, timer.args)
+                timer.queued = False
+                if timer.cancelled:
+                    self._cancelled -= 1
+                    continue
+                fn, args = timer.fn, timer.args
+            _safely(fn, args)
 
     def _run(self) -> None:
         inbox = self._inbox
@@ -140,7 +175,8 @@ class Loop:
                     item = inbox.get_nowait()
                 except queue.Empty:
                     break
-                if self._timers and self._timers[0][0] <= self.clock():  # due timers keep their turn
+                timers = self._timers  # one read: another thread may replace it (`_drop` rebuilding the heap)
+                if timers and timers[0][0] <= self.clock():  # due timers keep their turn
                     self._due()
             else:
                 return

@@ -2,17 +2,19 @@
 
 from __future__ import annotations
 
+import gc
 import subprocess
 import sys
 import threading
 import time
+import weakref
 from pathlib import Path
 from typing import Any
 
 import pytest
 
 from td2adaptor.runtime import LocalBroker, RuntimeConfig, serve
-from td2adaptor.runtime.loop import CALL_THREADS, CallPool, Lane, Loop
+from td2adaptor.runtime.loop import CALL_THREADS, COMPACT_AT, CallPool, Lane, Loop, Timer
 from td2adaptor.runtime.ros.simport import SimPort
 from tests.runtime.rb1 import GOAL, LocalApp, rb1_model, sim, terminal
 
@@ -54,6 +56,59 @@ def test_timers_run_when_due_in_order_and_a_cancelled_one_never(loop: Loop) -> N
     assert done.wait(5)
     assert ran == ["early", "late"]
     assert time.monotonic() - begin >= 0.19
+
+
+class _Held:
+    """Something a timer's callback holds (a weak reference says whether it is still alive)."""
+
+
+def test_a_cancelled_timer_lets_go_of_what_its_callback_holds_at_once(loop: Loop) -> None:
+    held = _Held()
+    alive = weakref.ref(held)
+    timer = loop.call_later(600, lambda _held: None, held)  # a goal's mission timeout, cancelled when it ends
+    del held
+    timer.cancel()
+    assert alive() is None, "a cancelled timer kept its callback's objects alive until it would have been due"
+
+
+def test_cancelled_timers_do_not_pile_up_in_the_loop_and_the_others_still_run_in_order(loop: Loop) -> None:
+    ran: list[int] = []
+    done = threading.Event()
+    for i in range(5_000):  # a quick call's guard each: set, then cancelled when the call is answered
+        loop.call_later(25 + i / 1000, ran.append, -i).cancel()
+        if i % 1000 == 0:
+            loop.call_later(0.05 + i / 100_000, ran.append, i)
+    loop.call_later(0.2, done.set)
+    timers = sum(isinstance(o, Timer) for o in gc.get_objects())
+    assert timers <= 2 * COMPACT_AT + 10, f"{timers} timers alive after 5,000 were cancelled"
+    assert done.wait(5)
+    assert ran == [0, 1000, 2000, 3000, 4000]
+
+
+def test_timers_cancelled_from_other_threads_while_the_loop_runs_its_own_leave_it_serving(loop: Loop) -> None:
+    ran: list[int] = []
+    stop = threading.Event()
+
+    def churn() -> None:  # the port's threads: a guard set and cancelled for each answered call
+        while not stop.is_set():
+            for _ in range(200):
+                loop.call_later(25, ran.append, -1).cancel()
+
+    churners = [threading.Thread(target=churn) for _ in range(2)]
+    for thread in churners:
+        thread.start()
+    try:
+        done = threading.Event()
+        for i in range(300):  # the loop's own short timers (polls), due while the heap is rebuilt
+            loop.call_later(i / 1000, ran.append, i)
+        loop.call_later(0.35, done.set)
+        assert done.wait(10)
+    finally:
+        stop.set()
+        for thread in churners:
+            thread.join(10)
+    assert sorted(ran) == list(range(300)), "a timer was lost, or a cancelled one ran"
+    assert loop.thread.is_alive()
 
 
 def test_a_timer_set_from_another_thread_wakes_a_loop_asleep_until_a_later_one(loop: Loop) -> None:
