@@ -99,11 +99,14 @@ def main() -> None:
         discovery = Discovery(served, graph, sig, _config, grace=10.0)
         discovery.start()
         time.sleep(1.0)  # the first look, which finds them all
+        scans = discovery.scans
         busy = _idle_cpu(args.seconds)
+        scans = discovery.scans - scans
         discovery.stop()
         print(
             f"discovery running, every robot served: {100 * (busy - idle):.2f} % of one core "
-            f"(the process {100 * busy:.2f} %, without discovery {100 * idle:.2f} %)"
+            f"(the process {100 * busy:.2f} %, without discovery {100 * idle:.2f} %), {scans} looks in "
+            f"{args.seconds:g} s"
         )
         node.destroy_node()
     finally:
