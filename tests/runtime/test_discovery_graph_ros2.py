@@ -92,3 +92,42 @@ def test_a_robot_that_appears_in_the_ros2_graph_is_found_at_once_not_at_the_next
         graph_node.destroy_node()
         rclpy.shutdown(context=robot)
         rclpy.shutdown(context=edge)
+
+
+class Nodes:
+    """A graph whose nodes the test changes, its readings counted (the scheduling of the looks alone, no ROS)."""
+
+    name = ""
+
+    def __init__(self) -> None:
+        self.nodes: frozenset[tuple[str, str]] = frozenset()
+        self.looks: list[float] = []
+
+    def stamp(self) -> frozenset[tuple[str, str]]:
+        return self.nodes
+
+    def robots(self, sig: Signature, known: set[str]) -> set[str]:
+        self.looks.append(time.monotonic())
+        return set()
+
+
+def test_a_change_of_the_graphs_nodes_makes_one_look_at_once_and_two_after_it_and_no_change_none() -> None:
+    graph = Nodes()
+    sig = Signature(services=("gw_ping",), actions=(), published=())
+    discovery = Discovery(Robots(), graph, sig, lambda rid, ns: RuntimeConfig(robot=rid), grace=5.0, period=PERIOD)
+    try:
+        discovery.start()
+        deadline = time.monotonic() + 10
+        while not graph.looks and time.monotonic() < deadline:
+            time.sleep(0.01)
+        time.sleep(0.5)  # glances that see no change
+        assert len(graph.looks) == 1, graph.looks
+        changed = time.monotonic()
+        graph.nodes = frozenset({("gw_robot", "/gw_b")})
+        time.sleep(1.5)
+        after = [t - changed for t in graph.looks[1:]]
+        # at once (the next glance), then 0.1 and 0.3 s later (fewer when a look was late and two fell due together);
+        # never a second look at once, nor a look without a change
+        assert 1 <= len(after) <= 3 and after[0] < 1.0, after
+    finally:
+        discovery.stop()

@@ -275,7 +275,9 @@ class Discovery:
                 self._kick.clear()
                 return
             if glance and stamp is not None and self._changed(stamp):
-                self.look_now(*TRAIL)
+                with self._kicks_lock:  # not `look_now`: its kick would make a second look at once
+                    now = time.monotonic()
+                    self._kicks = sorted([*self._kicks, *(now + d for d in TRAIL)])
                 return
 
     def _changed(self, stamp: Callable[[], Any]) -> bool:
