@@ -5,7 +5,10 @@ The robots are the RB-1 simulation (`--count N`, one process, rclpy's EventsExec
 graph as the edge node does (`runtime/node/graphwatch.py`'s `Ros2Graph` on an rclpy node that is not spun),
 first with no robot known (every namespace checked in full: the look that finds them), then with all of them
 known (served: each checked by its first service only, the steady state), and reports the CPU time of the
-looks (`time.process_time`, this process only) per look and as a share of one core at the edge node's period.
+looks (`time.process_time`, this process only) per look and as a share of one core at the edge node's period;
+then the glance at the graph's nodes discovery takes every `GRAPH_GAP` between two looks (`Ros2Graph.stamp`:
+a robot that appears is looked for at once), and the whole of it as the edge node runs it: a `Discovery` with
+every robot served, the process's CPU over `--seconds` with it running minus the same without it.
 Needs the ROS 2 extra. Run: `.venv/bin/python bench/fleet_discovery_ros2.py [--robots 100] [--seconds 10]`.
 """
 
@@ -15,6 +18,7 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -35,7 +39,8 @@ def main() -> None:
     prefix = build_interfaces()
     env.load_prefix(prefix)
     import td2adaptor
-    from td2adaptor.runtime.node.graphwatch import PERIOD, Ros2Graph, signature
+    from td2adaptor.runtime.node import graphwatch
+    from td2adaptor.runtime.node.graphwatch import PERIOD, Discovery, Ros2Graph, robot_id, signature
 
     result = td2adaptor.compile(
         REPO / "examples/robotnik_rb1/rb1.tm.json", interfaces=[REPO / "examples/robotnik_rb1/interfaces"]
@@ -74,10 +79,71 @@ def main() -> None:
                 f"{label}: {per * 1000:.2f} ms CPU per look, "
                 f"{100 * per / PERIOD:.2f} % of one core at one look per {PERIOD} s"
             )
+        stamp = getattr(graph, "stamp", None)  # None: a version that reads the graph every period only
+        if stamp is not None:
+            gap = float(getattr(graphwatch, "GRAPH_GAP", 0.1))
+            glances, cpu = 0, 0.0
+            end = time.monotonic() + args.seconds
+            while time.monotonic() < end:
+                before = time.process_time()
+                stamp()
+                cpu += time.process_time() - before
+                glances += 1
+            per = cpu / glances
+            print(
+                f"glance at the graph's nodes: {per * 1000:.3f} ms CPU, "
+                f"{100 * per / gap:.2f} % of one core at one glance per {gap} s"
+            )
+        idle = _idle_cpu(args.seconds)
+        served = _Served({robot_id(ns) or ns: ns for ns in found})
+        discovery = Discovery(served, graph, sig, _config, grace=10.0)
+        discovery.start()
+        time.sleep(1.0)  # the first look, which finds them all
+        scans = discovery.scans
+        busy = _idle_cpu(args.seconds)
+        scans = discovery.scans - scans
+        discovery.stop()
+        print(
+            f"discovery running, every robot served: {100 * (busy - idle):.2f} % of one core "
+            f"(the process {100 * busy:.2f} %, without discovery {100 * idle:.2f} %), {scans} looks in "
+            f"{args.seconds:g} s"
+        )
         node.destroy_node()
     finally:
         rclpy.shutdown(context=context)
         sim.stop()
+
+
+def _idle_cpu(seconds: float) -> float:
+    """This process's CPU (every thread: DDS's too) over `seconds` of wall time, as a share of one core."""
+    cpu, wall = time.process_time(), time.monotonic()
+    time.sleep(seconds)
+    return (time.process_time() - cpu) / (time.monotonic() - wall)
+
+
+def _config(robot: str, namespace: str) -> Any:
+    from td2adaptor.runtime.config import RuntimeConfig
+
+    return RuntimeConfig(robot=robot, namespace=namespace)
+
+
+class _Served:
+    """The fleet discovery hands its robots to, serving every robot found already (the steady state)."""
+
+    def __init__(self, namespaces: dict[str, str]) -> None:
+        self.served = {robot: _config(robot, ns) for robot, ns in namespaces.items()}
+
+    def robots(self, origin: str | None = None) -> dict[str, Any]:
+        return dict(self.served)
+
+    def origin(self, robot: str) -> str | None:
+        return "discovery" if robot in self.served else None
+
+    def apply(self, configs: list[Any], origin: str) -> Any:
+        from td2adaptor.runtime.node.fleet import Changes
+
+        self.served = {c.robot: c for c in configs}
+        return Changes()
 
 
 if __name__ == "__main__":

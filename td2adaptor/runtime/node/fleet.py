@@ -118,13 +118,15 @@ class Fleet:
             return list(self._engines.values())
 
     def robots(self, origin: str | None = None) -> dict[str, RuntimeConfig]:
-        """The configuration of each robot served (of one origin), by id."""
-        with self._lock:
-            return {r: e.config for r, e in self._engines.items() if origin is None or self._origin[r] == origin}
+        """The configuration of each robot served (of one origin), by id. Read without the fleet's lock, which a
+        start holds for seconds on a loaded machine: a shared fleet's member record (what its discovery sees) and
+        discovery's looks waited for the end of a start of other robots (issue 32). Each copy is taken at once
+        (the GIL), so a robot joining or leaving meanwhile is either in it or not."""
+        engines, origins = dict(self._engines), dict(self._origin)
+        return {r: e.config for r, e in engines.items() if origin is None or origins.get(r) == origin}
 
     def origin(self, robot: str) -> str | None:
-        with self._lock:
-            return self._origin.get(robot)
+        return self._origin.get(robot)  # without the lock, as `robots`
 
     # -- changing ------------------------------------------------------------------------------------------
 

@@ -3,9 +3,10 @@
 A robot is a namespace under which the graph shows the model's interfaces (`Signature`): a server for every
 service and action the model names under `{{robotName}}`, or, for a model without any, a publisher of every
 topic it subscribes to there. The edge node's own clients and subscriptions never count (servers and
-publishers only). Every `period` (and at once when a shared fleet asks: `look_now`) the watcher reads the graph
-once and hands the robots it saw, with those gone for less than `grace` seconds, to the fleet (`Fleet.apply`,
-origin "discovery"): a new robot joins, one gone for `grace` leaves (its missions in flight end, its TD is
+publishers only). Every `period`, at once when a shared fleet asks (`look_now`), and on ROS 2 within `GRAPH_GAP`
+of a change of the graph's nodes (`Ros2Graph.stamp`), the watcher reads the graph once and hands the robots it
+saw, with those gone for less than `grace` seconds, to the fleet (`Fleet.apply`, origin "discovery"): a new
+robot joins, one gone for `grace` leaves (its missions in flight end, its TD is
 cleared, its status goes `offline`).
 
 Reading the graph: on ROS 2 with rclpy's graph API on a node of the edge node's own context (no executor:
@@ -43,6 +44,11 @@ from td2adaptor.runtime.ros.words import DEFAULT_MASTER, master_silent
 log = logging.getLogger("td2adaptor.runtime.fleet")
 
 PERIOD = 0.5  # seconds between two readings of the graph
+#: seconds between two glances at a graph's nodes (`stamp`, far cheaper than a reading); after a change the graph
+#: is read at once, and again `TRAIL` seconds later (a process's node reaches the graph a moment before its
+#: interfaces, DDS tells each process of them one by one)
+GRAPH_GAP = 0.1
+TRAIL = (0.1, 0.3)
 RETRY = 30.0  # seconds before a robot that could not be started is tried again
 CALLER_ID = "/td2adaptor_discovery"
 
@@ -109,6 +115,15 @@ class Ros2Graph:
     def __init__(self, node: Any, name: str = "") -> None:
         self.node = node
         self.name = name
+
+    def stamp(self) -> Any:
+        """What changes when a node joins or leaves the graph (a robot's process starts or stops): its nodes. A
+        glance costs a small part of a reading (`robots`, which lists every service of the graph), so discovery
+        glances every `GRAPH_GAP` and reads the graph when the glance changed, rather than reading it more often:
+        a robot found only at the next `PERIOD` waited a quarter of a second on average (issue 32). rclpy gives
+        no handle on the graph's own guard condition, and the rmw's `ros_discovery_info` topic, which says each
+        change, has a DDS name no rclpy subscription can take (rcl makes every name absolute)."""
+        return frozenset(self.node.get_node_names_and_namespaces())
 
     def robots(self, sig: Signature, known: set[str]) -> set[str]:
         if sig.services or sig.actions:
@@ -207,6 +222,8 @@ class Discovery:
         self._kick = threading.Event()  # look now rather than at the end of the period (`look_now`)
         self._kicks: list[float] = []  # when to look again, sooner than the period (`look_now` with a delay)
         self._kicks_lock = threading.Lock()
+        #: the graph's `stamp` at the last look or glance (a graph without one is read every period only)
+        self._stamp: Any = None
         self._thread: threading.Thread | None = None
 
     def start(self) -> None:
@@ -230,17 +247,45 @@ class Discovery:
             self._thread = None
 
     def _run(self) -> None:
+        stamp = getattr(self.graph, "stamp", None)
         while not self._stop.is_set():
+            if callable(stamp):
+                self._changed(stamp)  # what the look reads (a node that comes during it: the next glance)
             try:
                 self.scan()
             except Exception:  # a bug must not end discovery for good
                 log.exception("discovery: a scan failed")
+            self._wait(time.monotonic() + self.period, stamp if callable(stamp) else None)
+
+    def _wait(self, until: float, stamp: Callable[[], Any] | None) -> None:
+        """Until `until` (the period's end), a kick (`look_now`), a change of the graph's nodes a glance saw
+        (`stamp`: then looks `TRAIL` seconds later too), or the stop."""
+        while not self._stop.is_set():
             with self._kicks_lock:
                 now = time.monotonic()
-                self._kicks = [t for t in self._kicks if t > now]
-                wait = min([self.period, *(t - now for t in self._kicks[:1])])
-            self._kick.wait(wait)
-            self._kick.clear()
+                due = min([until, *self._kicks[:1]])
+                if due <= now:
+                    self._kicks = [t for t in self._kicks if t > now]
+                    return
+            glance = stamp is not None and due - now > GRAPH_GAP
+            if self._kick.wait(GRAPH_GAP if glance else due - now):
+                self._kick.clear()
+                return
+            if glance and stamp is not None and self._changed(stamp):
+                with self._kicks_lock:  # not `look_now`: its kick would make a second look at once
+                    now = time.monotonic()
+                    self._kicks = sorted([*self._kicks, *(now + d for d in TRAIL)])
+                return
+
+    def _changed(self, stamp: Callable[[], Any]) -> bool:
+        """Whether the graph's nodes changed since the last look or glance."""
+        try:
+            now = stamp()
+        except Exception:  # noqa: BLE001 - the graph cannot be read now: the period's reading says why
+            return False
+        changed = self._stamp is not None and now != self._stamp
+        self._stamp = now
+        return changed
 
     def scan(self) -> None:
         """One reading of the graph, applied to the fleet; then the `on_look` hooks."""
