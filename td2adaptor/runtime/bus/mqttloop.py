@@ -60,14 +60,18 @@ _OK = MQTTErrorCode.MQTT_ERR_SUCCESS
 #: what a plain acknowledgement tells `on_publish` (never changed by it): paho makes both anew for each one
 _ACCEPTED = ReasonCode(PacketTypes.PUBACK)
 _NO_PROPERTIES = Properties(PacketTypes.PUBACK)  # type: ignore[no-untyped-call]
+#: MQTT 5's success codes of a PUBACK without properties, by their byte: "success" and "no matching subscribers"
+#: (0x10, what mosquitto answers for an event nobody listens to, as an edge node's WoT copy often is)
+_SUCCESSES = {0: _ACCEPTED, 0x10: ReasonCode(PacketTypes.PUBACK, identifier=0x10)}
 
 
 class ServedClient(mqtt.Client):
     """A paho client that writes nothing while `held`: paho writes by itself in one place, on a CONNACK when
     more messages wait than its in-flight window lets out (`loop_write` from inside the read). It reads a plain
-    PUBACK (the message id, success, no properties: what mosquitto sends) without paho's decoder, which makes
-    two reason codes and a property set for each, about half of the serving thread's time per acknowledgement
-    (a fleet's events are acknowledged a thousand times a second); any other goes to paho's."""
+    PUBACK (the message id, a success code of `_SUCCESSES`, no properties: what mosquitto sends) without paho's
+    decoder, which makes two reason codes and a property set for each, about half of the serving thread's time
+    per acknowledgement (a fleet's events are acknowledged a thousand times a second); any other goes to
+    paho's."""
 
     held = False
 
@@ -78,14 +82,15 @@ class ServedClient(mqtt.Client):
 
     def _handle_pubackcomp(self, cmd: Literal["PUBACK", "PUBCOMP"]) -> MQTTErrorCode:
         packet = self._in_packet["packet"]
-        if cmd != "PUBACK" or len(packet) not in (2, 3) or (len(packet) == 3 and packet[2] != 0):
+        if cmd != "PUBACK" or len(packet) not in (2, 3):
             return super()._handle_pubackcomp(cmd)
-        if len(packet) == 3 and self._protocol != mqtt.MQTTv5:
-            return super()._handle_pubackcomp(cmd)  # malformed for MQTT 3.1.1: paho refuses it
+        reason = _ACCEPTED if len(packet) == 2 else _SUCCESSES.get(packet[2])
+        if reason is None or (len(packet) == 3 and self._protocol != mqtt.MQTTv5):
+            return super()._handle_pubackcomp(cmd)  # a refusal; or malformed for MQTT 3.1.1: paho refuses it
         mid = packet[0] << 8 | packet[1]
         with self._out_message_mutex:
             if mid in self._out_messages:
-                return self._do_on_publish(mid, _ACCEPTED, _NO_PROPERTIES)
+                return self._do_on_publish(mid, reason, _NO_PROPERTIES)
         return _OK
 
 
