@@ -22,6 +22,7 @@ acknowledgement of a message.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import heapq
 import itertools
@@ -34,7 +35,7 @@ import ssl
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any, Literal
 
 import paho.mqtt.client as mqtt
@@ -63,6 +64,10 @@ _NO_PROPERTIES = Properties(PacketTypes.PUBACK)  # type: ignore[no-untyped-call]
 #: MQTT 5's success codes of a PUBACK without properties, by their byte: "success" and "no matching subscribers"
 #: (0x10, what mosquitto answers for an event nobody listens to, as an edge node's WoT copy often is)
 _SUCCESSES = {0: _ACCEPTED, 0x10: ReasonCode(PacketTypes.PUBACK, identifier=0x10)}
+#: the packets `ServedClient` writes together (paho does nothing once one of them is written): a QoS 1 or 2
+#: PUBLISH, a PUBACK; at most this many in one send
+_JOINED = frozenset({mqtt.PUBLISH, mqtt.PUBACK})
+JOIN_PACKETS = 64
 
 
 class ServedClient(mqtt.Client):
@@ -74,11 +79,51 @@ class ServedClient(mqtt.Client):
     paho's."""
 
     held = False
+    #: the threads in a `Link.batch` now: nothing is written until the last one ends its batch (and writes)
+    batching: set[int] | frozenset[int] = frozenset()
 
     def loop_write(self) -> MQTTErrorCode:
-        if self.held:
+        if self.held or self.batching:
             return _OK
         return super().loop_write()
+
+    def _packet_write(self) -> MQTTErrorCode:
+        """paho's, but the PUBLISH (QoS 1) and PUBACK packets waiting at the head of the queue go out in one
+        send, not one each: an event and its WoT copy (`Link.batch`), or a burst of acknowledgements, cost
+        the broker one wake-up and this process one system call (and, as the broker acknowledges them
+        together, one read of the serving thread). Anything else is paho's to write, one packet at a time. It
+        stops when a thread begins a batch meanwhile: the batch's end writes what waits."""
+        out = self._out_packet
+        while out and not self.batching:
+            joined: list[Any] = []
+            while out and len(joined) < JOIN_PACKETS:
+                command = out[0]["command"] & 0xF0
+                if command not in _JOINED or (command == mqtt.PUBLISH and not out[0]["qos"]):
+                    break
+                joined.append(out.popleft())
+            if not joined:
+                return super()._packet_write()
+            try:
+                written = self._sock_send(b"".join(p["packet"][p["pos"] :] for p in joined))
+            except (AttributeError, ValueError):
+                out.extendleft(reversed(joined))
+                return _OK
+            except BlockingIOError:
+                out.extendleft(reversed(joined))
+                return MQTTErrorCode.MQTT_ERR_AGAIN
+            except OSError as err:
+                out.extendleft(reversed(joined))
+                self._easy_log(mqtt.MQTT_LOG_ERR, "failed to receive on socket: %s", err)
+                return MQTTErrorCode.MQTT_ERR_CONN_LOST
+            for i, packet in enumerate(joined):
+                step = min(written, packet["to_process"])
+                written -= step
+                packet["pos"] += step
+                packet["to_process"] -= step
+                if packet["to_process"]:  # the socket took part of it: the rest when it is writable again
+                    out.extendleft(reversed(joined[i:]))
+                    return MQTTErrorCode.MQTT_ERR_AGAIN
+        return _OK
 
     def _handle_pubackcomp(self, cmd: Literal["PUBACK", "PUBCOMP"]) -> MQTTErrorCode:
         packet = self._in_packet["packet"]
@@ -115,6 +160,9 @@ class Link:
         self.may_reconnect: Callable[[], bool] | None = None
         self.done = threading.Event()  # the loop has forgotten it
         self.io = threading.RLock()  # held by whoever reads or writes the socket: the loop, or a publisher
+        self._batching: set[int] = set()  # threads publishing a batch (`batch`): writes wait for its end
+        if isinstance(client, ServedClient):
+            client.batching = self._batching
         client.on_socket_close = self._socket_closed
         client.on_socket_register_write = self._wants_write
         client.on_socket_unregister_write = self._wrote
@@ -157,10 +205,30 @@ class Link:
         publishes the will. For a connection that must not be trusted."""
         self.loop._close(self, clean=False)
 
+    @contextlib.contextmanager
+    def batch(self) -> Iterator[None]:
+        """(Any thread but the loop's) what this thread publishes inside is written at the end, together (see
+        `ServedClient._packet_write`): an event and its WoT copy go out in one send. Nothing is written on the
+        connection meanwhile (a batch is two publishes long): whoever ends the last batch writes what waits."""
+        me = threading.get_ident()
+        if me in self._batching or self.loop.on_thread():
+            yield
+            return
+        self._batching.add(me)
+        try:
+            yield
+        finally:
+            self._batching.discard(me)
+            if self.client.want_write():
+                self._wants_write(self.client, None, None)
+
     # paho's callbacks (any thread)
     def _wants_write(self, client: mqtt.Client, _userdata: Any, _sock: Any) -> None:
         """Something was queued: a publisher writes it at once, as paho does without a network thread, unless
-        the loop is reading or writing this connection right now (then the loop writes it)."""
+        the loop is reading or writing this connection right now (then the loop writes it), or the publisher
+        is in a `batch` (then at the batch's end)."""
+        if self._batching and threading.get_ident() in self._batching:
+            return
         if not self.loop.on_thread() and self.sock is not None and not self._held and self.io.acquire(False):
             try:
                 if self.sock is not None and not self._held:
