@@ -117,6 +117,8 @@ def test_to_plain_gives_the_same_for_a_message_type_it_met_before() -> None:
     assert to_plain(answer(2.5))["ratio"] == 2.5
     assert [type(v) for v in to_plain(answer(1.0))["ids"]] == [int, int]
     json.dumps(first, allow_nan=False)
+    header = {"seq": 7, "stamp": {"secs": 3, "nsecs": 4}, "frame_id": "map"}
+    assert to_plain(Header()) == to_plain(Header()) == header  # a genpy message type met before
 
 
 def test_layout_of_the_rb1_and_its_json_round_trip() -> None:

@@ -55,7 +55,8 @@ TRAIL_LIMIT = 1.0
 #: ROS 2 calls of one component in flight at once (more wait): a service's request and response readers keep the
 #: last 10 messages by default (rmw's services QoS), so a flood of concurrent calls to one service loses some
 CALLS_PER_COMPONENT = 4
-#: per message type: its field names (rosidl's get_fields_and_field_types builds a new dict at every call)
+#: per message type: its field names (rosidl's get_fields_and_field_types builds a new dict at every call; a genpy
+#: message's slots but its private ones)
 _FIELDS: dict[type, tuple[str, ...]] = {}
 
 
@@ -109,8 +110,9 @@ def _general(value: Any) -> Any:
     slots = getattr(type(value), "__slots__", None)
     if isinstance(slots, (list, tuple)) and list(slots) == ["secs", "nsecs"]:  # genpy Time / Duration
         return {"secs": int(value.secs), "nsecs": int(value.nsecs)}
-    if isinstance(slots, (list, tuple)) and slots and all(isinstance(s, str) for s in slots):
-        return {s: to_plain(getattr(value, s)) for s in slots if not s.startswith("_")}  # genpy message
+    if isinstance(slots, (list, tuple)) and slots and all(isinstance(s, str) for s in slots):  # genpy message
+        names = _FIELDS[type(value)] = tuple(s for s in slots if not s.startswith("_"))
+        return _message(value, names)
     if hasattr(value, "tolist"):  # numpy arrays and scalars, array.array (a rosidl sequence of numbers)
         return to_plain(value.tolist())
     if isinstance(value, (list, tuple)) or type(value).__name__ == "array":
