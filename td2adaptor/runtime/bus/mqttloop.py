@@ -464,7 +464,8 @@ class MqttLoop:
             return
         if link.delay is not None and client.is_connected():
             link.delay = None  # accepted: the next loss waits the shortest delay again
-        writing = not link.held and client.want_write()
+        # not while a thread publishes a batch: nothing is written then, and its end writes (or wakes the loop)
+        writing = not link.held and not link._batching and client.want_write()
         if writing != link.writing:
             link.writing = writing
             mask = selectors.EVENT_READ | (selectors.EVENT_WRITE if writing else 0)
