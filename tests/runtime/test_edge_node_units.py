@@ -64,6 +64,63 @@ def test_to_plain_gives_sequences_of_numbers_as_lists_with_no_number_that_is_not
     assert to_plain(copy) is not copy  # a new list: the message's own is never handed on
 
 
+class Stamp:  # the shape of a rosidl message: its field names from get_fields_and_field_types
+    def __init__(self) -> None:
+        self.sec, self.nanosec = 5, 6
+
+    @staticmethod
+    def get_fields_and_field_types() -> dict[str, str]:
+        return {"sec": "int32", "nanosec": "uint32"}
+
+
+class Answer:
+    def __init__(self, **fields: Any) -> None:
+        self.__dict__.update(fields)
+
+    @staticmethod
+    def get_fields_and_field_types() -> dict[str, str]:
+        return {n: "" for n in ("stamp", "state", "ratio", "flag", "none", "raw", "ids", "chars", "xs", "nested")}
+
+
+def test_to_plain_gives_the_same_for_a_message_type_it_met_before() -> None:
+    """The exact-type fast paths (a message type met before, its scalar fields taken as they are, integer
+    arrays) give what the general checks give the first time, every time."""
+
+    def answer(ratio: float) -> Answer:
+        return Answer(
+            stamp=Stamp(),
+            state="running",
+            ratio=ratio,
+            flag=True,
+            none=None,
+            raw=b"\x07",
+            ids=array.array("q", [1, -2]),
+            chars=array.array("u", "ab"),
+            xs=array.array("f", [0.5, float("inf")]),
+            nested=[Stamp(), {"k": float("nan")}],
+        )
+
+    expected = {
+        "stamp": {"sec": 5, "nanosec": 6},
+        "state": "running",
+        "ratio": None,
+        "flag": True,
+        "none": None,
+        "raw": [7],
+        "ids": [1, -2],
+        "chars": ["a", "b"],
+        "xs": [0.5, None],
+        "nested": [{"sec": 5, "nanosec": 6}, {"k": None}],
+    }
+    first = to_plain(answer(float("nan")))
+    assert first == expected and to_plain(answer(float("nan"))) == expected
+    assert to_plain(answer(2.5))["ratio"] == 2.5
+    assert [type(v) for v in to_plain(answer(1.0))["ids"]] == [int, int]
+    json.dumps(first, allow_nan=False)
+    header = {"seq": 7, "stamp": {"secs": 3, "nsecs": 4}, "frame_id": "map"}
+    assert to_plain(Header()) == to_plain(Header()) == header  # a genpy message type met before
+
+
 def test_layout_of_the_rb1_and_its_json_round_trip() -> None:
     layout = Layout.of(rb1_model())
     assert layout.components[:3] == ("GoToComponent", "PickComponent", "PlaceComponent")

@@ -10,6 +10,7 @@ import socket
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 from td2adaptor.runtime import RuntimeConfig, serve_fleet
 from td2adaptor.runtime.bus.bus import Message
@@ -341,4 +342,80 @@ def test_a_plain_acknowledgement_is_read_without_pahos_decoder(broker: Mosquitto
     finally:
         _packet.decode_puback = decode
         bus.close()
+        app.close()
+
+
+def test_an_acknowledgement_of_a_message_nobody_subscribes_to_is_read_without_pahos_decoder(broker: Mosquitto) -> None:
+    """An MQTT 5 broker acknowledges a message that matched no subscription with the success code "no matching
+    subscribers" (0x10): an edge node's WoT copy of each event, which often has no consumer, half of its
+    acknowledgements. Read as the plain one is (paho's decoder cost the serving thread about a tenth of its
+    time per query answered); the message is still completed (`flush`) and nothing is reported refused."""
+    from paho.mqtt import _packet
+
+    decoded = [0]
+    decode = _packet.decode_puback
+
+    def counting(*args: object) -> object:
+        decoded[0] += 1
+        return decode(*args)  # type: ignore[arg-type]
+
+    bus = MqttBus(parse_broker_url(broker.url), client_id="acks-unheard")
+    _packet.decode_puback = counting  # type: ignore[assignment]
+    try:
+        bus.connect()
+        for n in range(50):
+            bus.publish(f"unheard/{n % 3}", str(n).encode())
+        assert bus.flush(10.0), "every message acknowledged"
+        assert decoded[0] == 0, f"paho's decoder read {decoded[0]} of 50 acknowledgements"
+        assert bus.refused is None
+    finally:
+        _packet.decode_puback = decode
+        bus.close()
+
+
+def test_an_event_and_its_wot_copy_go_out_in_one_send(broker: Mosquitto) -> None:
+    """Each event an edge node publishes has a WoT copy: written one after the other, they cost the broker two
+    wake-ups and the node two system calls and two reads of acknowledgements. Written together, in one send
+    (`MqttBus.batch`); both arrive, the envelope first, and both are acknowledged (`flush`). An event published
+    from the serving thread itself, or on a bus the loop does not serve, is not held back (the unit tests of
+    the WoT topics cover the copy's content)."""
+    from td2adaptor.model.events import Kind
+    from td2adaptor.runtime.bus.thingbus import ThingBus
+    from td2adaptor.runtime.events import encode, envelope
+    from tests.runtime.rb1 import rb1_catalog
+
+    robot = "one_send"
+    catalog = rb1_catalog()
+    spec = catalog.find(Kind.STATE, "gotoRun")
+    bus = MqttBus(parse_broker_url(broker.url), client_id="one-send")
+    thing = ThingBus(bus, catalog, robot)
+    app = AppClient(broker, [f"td2adaptor/{robot}/#"])
+    try:
+        thing.connect()
+        assert bus.flush(10.0)
+        client: Any = bus._client
+        sends: list[tuple[int, str]] = []
+        send = client._sock_send
+
+        def counting(data: bytes) -> int:
+            sends.append((len(data), threading.current_thread().name))
+            return int(send(data))
+
+        client._sock_send = counting
+        for n in range(5):
+            payload = {"state": "running", "result": "ok", "terminal": False}
+            event = envelope(
+                Kind.STATE, robot=robot, source="t", payload=payload, affordance="gotoRun", correlation=f"c{n}"
+            )
+            thing.publish_event(spec.topic(robot), encode(event), event)
+        assert bus.flush(10.0), "every message acknowledged"
+        assert until(lambda: len(app.events) == 10, 10.0), app.events
+        assert len(sends) <= 5, f"{len(sends)} sends for 5 events and their WoT copies: {sends}"
+        topics = [topic for topic, _ in app.events]
+        assert topics[0::2] == [spec.topic(robot)] * 5 and all("wot-thing" in t for t in topics[1::2]), topics
+        assert [e.get("correlation", e.get("correlationId")) for _, e in app.events] == [
+            c for n in range(5) for c in (f"c{n}", f"c{n}")
+        ]
+    finally:
+        thing.close()
         app.close()

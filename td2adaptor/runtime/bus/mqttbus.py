@@ -24,6 +24,7 @@ acknowledgements go in the order the messages came, on the serving thread.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import logging
 import os
@@ -31,7 +32,7 @@ import socket
 import ssl
 import threading
 from collections import OrderedDict
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 import paho.mqtt.client as mqtt
@@ -798,6 +799,18 @@ class MqttBus:
             else:  # cleared: no longer ours to publish again
                 self._retained.pop(topic, None)
             self._send(client, topic, payload, retain, qos)
+
+    @contextlib.contextmanager
+    def batch(self) -> Iterator[None]:
+        """What this thread publishes inside goes out together at the end, in one write (an event and its WoT
+        copy: thingbus.py): one wake-up of the broker, and of this process for the acknowledgements, not two.
+        Nothing changes for a connection the serving loop does not serve (`DrivenBus`)."""
+        link = self._link
+        if link is None:
+            yield
+            return
+        with link.batch():
+            yield
 
     def _send(self, client: mqtt.Client, topic: str, payload: bytes, retain: bool, qos: int = 1) -> None:
         """Publish; at QoS 1 track the message id until its PUBACK (for `flush`)."""

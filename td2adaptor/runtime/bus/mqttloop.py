@@ -22,6 +22,7 @@ acknowledgement of a message.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import heapq
 import itertools
@@ -34,7 +35,7 @@ import ssl
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any, Literal
 
 import paho.mqtt.client as mqtt
@@ -60,32 +61,81 @@ _OK = MQTTErrorCode.MQTT_ERR_SUCCESS
 #: what a plain acknowledgement tells `on_publish` (never changed by it): paho makes both anew for each one
 _ACCEPTED = ReasonCode(PacketTypes.PUBACK)
 _NO_PROPERTIES = Properties(PacketTypes.PUBACK)  # type: ignore[no-untyped-call]
+#: MQTT 5's success codes of a PUBACK without properties, by their byte: "success" and "no matching subscribers"
+#: (0x10, what mosquitto answers for an event nobody listens to, as an edge node's WoT copy often is)
+_SUCCESSES = {0: _ACCEPTED, 0x10: ReasonCode(PacketTypes.PUBACK, identifier=0x10)}
+#: the packets `ServedClient` writes together (paho does nothing once one of them is written): a QoS 1 or 2
+#: PUBLISH, a PUBACK; at most this many in one send
+_JOINED = frozenset({mqtt.PUBLISH, mqtt.PUBACK})
+JOIN_PACKETS = 64
 
 
 class ServedClient(mqtt.Client):
     """A paho client that writes nothing while `held`: paho writes by itself in one place, on a CONNACK when
     more messages wait than its in-flight window lets out (`loop_write` from inside the read). It reads a plain
-    PUBACK (the message id, success, no properties: what mosquitto sends) without paho's decoder, which makes
-    two reason codes and a property set for each, about half of the serving thread's time per acknowledgement
-    (a fleet's events are acknowledged a thousand times a second); any other goes to paho's."""
+    PUBACK (the message id, a success code of `_SUCCESSES`, no properties: what mosquitto sends) without paho's
+    decoder, which makes two reason codes and a property set for each, about half of the serving thread's time
+    per acknowledgement (a fleet's events are acknowledged a thousand times a second); any other goes to
+    paho's."""
 
     held = False
+    #: the threads in a `Link.batch` now: nothing is written until the last one ends its batch (and writes)
+    batching: set[int] | frozenset[int] = frozenset()
 
     def loop_write(self) -> MQTTErrorCode:
-        if self.held:
+        if self.held or self.batching:
             return _OK
         return super().loop_write()
 
+    def _packet_write(self) -> MQTTErrorCode:
+        """paho's, but the PUBLISH (QoS 1) and PUBACK packets waiting at the head of the queue go out in one
+        send, not one each: an event and its WoT copy (`Link.batch`), or a burst of acknowledgements, cost
+        the broker one wake-up and this process one system call (and, as the broker acknowledges them
+        together, one read of the serving thread). Anything else is paho's to write, one packet at a time. It
+        stops when a thread begins a batch meanwhile: the batch's end writes what waits."""
+        out = self._out_packet
+        while out and not self.batching:
+            joined: list[Any] = []
+            while out and len(joined) < JOIN_PACKETS:
+                command = out[0]["command"] & 0xF0
+                if command not in _JOINED or (command == mqtt.PUBLISH and not out[0]["qos"]):
+                    break
+                joined.append(out.popleft())
+            if not joined:
+                return super()._packet_write()
+            try:
+                written = self._sock_send(b"".join(p["packet"][p["pos"] :] for p in joined))
+            except (AttributeError, ValueError):
+                out.extendleft(reversed(joined))
+                return _OK
+            except BlockingIOError:
+                out.extendleft(reversed(joined))
+                return MQTTErrorCode.MQTT_ERR_AGAIN
+            except OSError as err:
+                out.extendleft(reversed(joined))
+                self._easy_log(mqtt.MQTT_LOG_ERR, "failed to receive on socket: %s", err)
+                return MQTTErrorCode.MQTT_ERR_CONN_LOST
+            for i, packet in enumerate(joined):
+                step = min(written, packet["to_process"])
+                written -= step
+                packet["pos"] += step
+                packet["to_process"] -= step
+                if packet["to_process"]:  # the socket took part of it: the rest when it is writable again
+                    out.extendleft(reversed(joined[i:]))
+                    return MQTTErrorCode.MQTT_ERR_AGAIN
+        return _OK
+
     def _handle_pubackcomp(self, cmd: Literal["PUBACK", "PUBCOMP"]) -> MQTTErrorCode:
         packet = self._in_packet["packet"]
-        if cmd != "PUBACK" or len(packet) not in (2, 3) or (len(packet) == 3 and packet[2] != 0):
+        if cmd != "PUBACK" or len(packet) not in (2, 3):
             return super()._handle_pubackcomp(cmd)
-        if len(packet) == 3 and self._protocol != mqtt.MQTTv5:
-            return super()._handle_pubackcomp(cmd)  # malformed for MQTT 3.1.1: paho refuses it
+        reason = _ACCEPTED if len(packet) == 2 else _SUCCESSES.get(packet[2])
+        if reason is None or (len(packet) == 3 and self._protocol != mqtt.MQTTv5):
+            return super()._handle_pubackcomp(cmd)  # a refusal; or malformed for MQTT 3.1.1: paho refuses it
         mid = packet[0] << 8 | packet[1]
         with self._out_message_mutex:
             if mid in self._out_messages:
-                return self._do_on_publish(mid, _ACCEPTED, _NO_PROPERTIES)
+                return self._do_on_publish(mid, reason, _NO_PROPERTIES)
         return _OK
 
 
@@ -110,6 +160,9 @@ class Link:
         self.may_reconnect: Callable[[], bool] | None = None
         self.done = threading.Event()  # the loop has forgotten it
         self.io = threading.RLock()  # held by whoever reads or writes the socket: the loop, or a publisher
+        self._batching: set[int] = set()  # threads publishing a batch (`batch`): writes wait for its end
+        if isinstance(client, ServedClient):
+            client.batching = self._batching
         client.on_socket_close = self._socket_closed
         client.on_socket_register_write = self._wants_write
         client.on_socket_unregister_write = self._wrote
@@ -152,10 +205,30 @@ class Link:
         publishes the will. For a connection that must not be trusted."""
         self.loop._close(self, clean=False)
 
+    @contextlib.contextmanager
+    def batch(self) -> Iterator[None]:
+        """(Any thread but the loop's) what this thread publishes inside is written at the end, together (see
+        `ServedClient._packet_write`): an event and its WoT copy go out in one send. Nothing is written on the
+        connection meanwhile (a batch is two publishes long): whoever ends the last batch writes what waits."""
+        me = threading.get_ident()
+        if me in self._batching or self.loop.on_thread():
+            yield
+            return
+        self._batching.add(me)
+        try:
+            yield
+        finally:
+            self._batching.discard(me)
+            if self.client.want_write():
+                self._wants_write(self.client, None, None)
+
     # paho's callbacks (any thread)
     def _wants_write(self, client: mqtt.Client, _userdata: Any, _sock: Any) -> None:
         """Something was queued: a publisher writes it at once, as paho does without a network thread, unless
-        the loop is reading or writing this connection right now (then the loop writes it)."""
+        the loop is reading or writing this connection right now (then the loop writes it), or the publisher
+        is in a `batch` (then at the batch's end)."""
+        if self._batching and threading.get_ident() in self._batching:
+            return
         if not self.loop.on_thread() and self.sock is not None and not self._held and self.io.acquire(False):
             try:
                 if self.sock is not None and not self._held:
@@ -391,7 +464,8 @@ class MqttLoop:
             return
         if link.delay is not None and client.is_connected():
             link.delay = None  # accepted: the next loss waits the shortest delay again
-        writing = not link.held and client.want_write()
+        # not while a thread publishes a batch: nothing is written then, and its end writes (or wakes the loop)
+        writing = not link.held and not link._batching and client.want_write()
         if writing != link.writing:
             link.writing = writing
             mask = selectors.EVENT_READ | (selectors.EVENT_WRITE if writing else 0)

@@ -28,9 +28,11 @@ the members as the consumer sent them (`wot_problem`): `/procedure/goals/0/pose/
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from contextlib import AbstractContextManager
 from hashlib import sha256
 from typing import Any
 
@@ -77,6 +79,8 @@ class ThingBus:
         self._wot_tree = f"{root}/{robot}/{WOT_LEVEL}/"
         self._commands = set(command_filters(catalog, robot, root))
         self._wot_subscribed = False
+        #: an event and its WoT copy written together, where the bus can (MqttBus.batch)
+        self._batch: Callable[[], AbstractContextManager[Any]] = getattr(bus, "batch", contextlib.nullcontext)
 
     # -- Bus -----------------------------------------------------------------------------------------------
 
@@ -130,12 +134,15 @@ class ThingBus:
         self, topic: str, payload: bytes, event: Mapping[str, Any], *, retain: bool = False, qos: int = 1
     ) -> None:
         """`publish(topic, payload)` where `payload` is `event` encoded: the WoT form is made from `event`
-        itself (the same text as from `payload` read back, without parsing it again)."""
-        self.bus.publish(topic, payload, retain=retain, qos=qos)
+        itself (the same text as from `payload` read back, without parsing it again). Both are written
+        together (one send, `MqttBus.batch`)."""
         spec = self._outbound.get(topic)
         if spec is None or spec.kind is Kind.STATUS:
+            self.bus.publish(topic, payload, retain=retain, qos=qos)
             return
-        self._publish_wot(spec, event, retain, qos)
+        with self._batch():
+            self.bus.publish(topic, payload, retain=retain, qos=qos)
+            self._publish_wot(spec, event, retain, qos)
 
     def _publish_wot(self, spec: EventSpec, event: Any, retain: bool, qos: int) -> None:
         out = self.unwrap(spec, event)
