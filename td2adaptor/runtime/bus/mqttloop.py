@@ -115,6 +115,8 @@ class ServedClient(mqtt.Client):
                 out.extendleft(reversed(joined))
                 self._easy_log(mqtt.MQTT_LOG_ERR, "failed to receive on socket: %s", err)
                 return MQTTErrorCode.MQTT_ERR_CONN_LOST
+            with self._msgtime_mutex:  # paho's keepalive: something was sent (as paho's own write notes)
+                self._last_msg_out = mqtt.time_func()
             for i, packet in enumerate(joined):
                 step = min(written, packet["to_process"])
                 written -= step
