@@ -158,6 +158,10 @@ def test_a_goal_whose_server_restarted_meanwhile_ends_failed_saying_so(
         words = ends[0]["message"]
         assert words.startswith(f"the edge node restarted while it followed this goal ({goal})"), words
         assert f"the action server does not know goal {goal}" in words and words.endswith("unknown"), words
+        # the words docs/wot.md quotes, the same as on ROS 2 (before: "... on failed: /ns/fibonacci failed: the ...")
+        assert words.endswith(
+            f"), and following it on failed: the action server does not know goal {goal}: its outcome is unknown"
+        ), words
     finally:
         node.stop()
         robot.stop()

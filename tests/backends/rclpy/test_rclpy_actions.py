@@ -728,3 +728,38 @@ def test_rejoin_follows_a_goal_another_client_sent_by_its_id(
     assert stranger.outcome is not None and stranger.outcome.status == "lost"
     with pytest.raises(ValueError, match="32 hexadecimal digits"):
         other.rejoin_fibonacci("not-a-goal")
+
+
+def test_rejoin_tells_an_acceptance_only_of_a_goal_the_server_has_and_never_steps_its_status_back(
+    fibo_adaptor: ModuleType, fibo: Any, ros_node: Any
+) -> None:
+    """`rejoin_X` (issue 32, found by a new user's trial): a goal followed by its id counts as accepted once the
+    server shows it has it (its status, its feedback, its result). Before, `on_accepted` and `on_status("accepted")`
+    were told of an id the server never had, just before it ended lost, and a goal executing for seconds was told
+    `accepted` first (the edge node then answered a query of it `queued` after a restart)."""
+    other = fibo_adaptor.MathComponent(ros_node, ROBOT, timeout=10.0, wait_timeout=15.0)
+    told: list[str] = []
+    ended = threading.Event()
+    stranger = other.rejoin_fibonacci(
+        "cd" * 16,
+        on_accepted=lambda: told.append("accepted"),
+        on_status=lambda status: told.append(f"status {status}"),
+        on_done=lambda outcome: (told.append(outcome.status), ended.set()),
+    )
+    assert ended.wait(15.0)
+    assert told == ["lost"], told
+    assert stranger.status != "accepted"
+
+    sent = fibo.start_fibonacci(fibo.construct_fibonacci_Goal(order=40))  # 2 s
+    next(iter(sent.feedback(timeout=5.0)))
+    followed: list[str] = []
+    done = threading.Event()
+    other.rejoin_fibonacci(
+        sent.goal_id,
+        on_accepted=lambda: followed.append("accepted"),
+        on_status=lambda status: followed.append(f"status {status}"),
+        on_done=lambda outcome: (followed.append(outcome.status), done.set()),
+    )
+    assert done.wait(15.0)
+    assert followed[0] == "accepted" and followed[-1] == "succeeded", followed
+    assert "status accepted" not in followed, followed  # it executed all along

@@ -468,3 +468,25 @@ def test_50_concurrent_goals_start_no_thread(master: Master, path: list[Path], s
     )
     sequence = [0, 1, 1, 2, 3]
     goal_scenarios.check_concurrent(out, [sequence[: i + 1] for i in range(5)], sequence)
+
+
+def test_rejoin_of_a_goal_the_server_does_not_know_tells_no_acceptance_and_the_plain_words(
+    master: Master, path: list[Path], server: None
+) -> None:
+    """`rejoin_X` (issue 32, found by a new user's trial on ROS 1): an id the server does not list ends lost with
+    no `on_accepted` and no status told first (before: accepted, then `executing`, then lost), and its reason is
+    the plain words, as on ROS 2 (before: empty, so the edge node said "... following it on failed: /ns/action
+    failed: the action server does not know goal ...")."""
+    out = client(
+        master,
+        path,
+        "import threading\n"
+        "told = []\n"
+        "ended = threading.Event()\n"
+        "h = c.rejoin_fibonacci('/nobody-1-2.000', on_accepted=lambda: told.append('accepted'),\n"
+        "    on_status=lambda status: told.append('status ' + status),\n"
+        "    on_done=lambda o: (told.append(o.status), told.append(o.reason), ended.set()))\n"
+        "ended.wait(60)\n"
+        "emit({'told': told})\n",
+    )
+    assert out["told"] == ["lost", "the action server does not know goal /nobody-1-2.000"], out

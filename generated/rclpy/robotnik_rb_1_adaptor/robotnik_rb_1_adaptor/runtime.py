@@ -1551,15 +1551,17 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
             self.transmit()
 
     def _attach(self) -> None:
-        """Follow a goal the server accepted from another client (`rejoin`): it counts as accepted, its status
-        and feedback come as the server broadcasts them, and its result request tells how it ends (or that the
-        server does not know it)."""
+        """Follow a goal the server accepted from another client (`rejoin`): its status and feedback come as the
+        server broadcasts them, and its result request tells how it ends (or that the server does not know it).
+        It counts as accepted only once the server shows it has the goal (its status, its feedback, its result):
+        an id the server never had is not told `on_accepted`, and a running goal's status is the server's
+        `executing`, never `accepted` for a moment (the edge node answered a query `queued` then)."""
         raw = self._client.handle_of(self._goal_id)
         with self._cond:
+            if self._outcome is not None:  # given up meanwhile
+                return
             self._raw = raw
             self._heard = time.monotonic()
-        if not self._accept():  # given up meanwhile
-            return
         self._ask_result(raw)
         with self._cond:
             unsent = [request for request in self._cancels if not request.sent]
@@ -1638,6 +1640,9 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
             return
         response = future.result()
         code, result = int(response.status), response.result
+        if code in (4, 5, 6) and self._rejoined:
+            with self._cond:  # the server had it: accepted, told together with its end (never `accepted` alone)
+                self._accepted = self._accepted or self._outcome is None
         if code == 4:
             self._end(GoalOutcome("succeeded", result), by_server=True)
         elif code == 5:
@@ -1656,6 +1661,8 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
     def feedback_message(self, feedback: FeedbackT) -> None:
         """One feedback message of the goal (the client's, in the executor's thread)."""
         self._heard = time.monotonic()
+        if self._rejoined:  # a goal followed by its id is the server's once it sends its feedback
+            self._accept("executing")
         self._feedback_in(feedback)
 
     def status_message(self, code: int) -> None:
@@ -1663,6 +1670,8 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         self._heard = time.monotonic()
         self._listed = True
         if code in (1, 2, 3):
+            if self._rejoined:  # a goal followed by its id is the server's once its status lists it
+                self._accept(GOAL_STATUS[code])
             self._set_status(GOAL_STATUS[code])
         elif code in (4, 5, 6):
             with self._cond:

@@ -298,7 +298,9 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         if code == _REJECTED:
             self._end(GoalOutcome("rejected", result, GoalRejected(self.action, text), text), by_server=True)
             return
-        self._accept("executing")  # ended without a report of it running first
+        if not self.rejoined or code in (_SUCCEEDED, _ABORTED, _PREEMPTED, _RECALLED):
+            self._accept("executing")  # ended without a report of it running first (a goal followed by its id
+            # that the server does not know was never accepted: no on_accepted, no status, only its end)
         if code == _SUCCEEDED:
             outcome: GoalOutcome[Any] = GoalOutcome("succeeded", result, None, text)
         elif code == _ABORTED:
@@ -307,7 +309,7 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
             outcome = GoalOutcome("canceled", result, GoalCanceled(self.action, result, text), text)
         elif self.rejoined:  # followed by its id: the server forgot it (it ended a while ago), or never had it
             failed = CallFailed(self.action, f"the action server does not know goal {self.goal_id}", result)
-            outcome = GoalOutcome("lost", result, failed, text)
+            outcome = GoalOutcome("lost", result, failed, text or failed.message)  # the words, as on ROS 2
         else:
             failed = CallFailed(self.action, f"the goal was lost (status {code}: the server forgot it)", result)
             outcome = GoalOutcome("lost", result, failed, text)
