@@ -46,7 +46,7 @@ class Timer:
     its heap once they are most of it: a long timer cancelled early (a quick call's guard, 25 s by default; a
     goal's mission timeout, 600 s) kept every object its callback reached alive until it was due, thousands of
     them in a busy fleet, and each full pass of Python's garbage collector walked them all while every thread
-    waited (100 RB-1s at 1 mission/s: about 60,000 more objects within 30 s; docs/fleet.md)."""
+    waited (100 RB-1s at 1 mission/s: about 60,000 more objects within 30 s; docs/performance.md)."""
 
     __slots__ = ("_loop", "args", "cancelled", "fn", "queued", "when")
 

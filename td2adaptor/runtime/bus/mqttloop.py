@@ -2,7 +2,7 @@
 
 paho's `loop_start()` gives each client a network thread of its own: a fleet of 100 robots in one process had
 100 of them, every publish woke its robot's thread, and under load most of their time went into waiting for
-the interpreter lock (docs/fleet.md). Here one thread (`td2adaptor-mqtt`) waits on every connection's socket
+the interpreter lock (docs/performance.md). Here one thread (`td2adaptor-mqtt`) waits on every connection's socket
 in one selector and does for each what paho's thread did: it reads what the broker sends (paho calls the bus's
 callbacks; its handlers only queue the messages), keeps the connection alive (`loop_misc`) and reconnects a
 lost one after paho's back-off (the first wait `reconnect_delay[0]`, doubling up to `reconnect_delay[1]`, from
