@@ -362,6 +362,12 @@ class Engine:
             self._queued -= 1
         if self._closed:
             return  # not acknowledged: the broker delivers it again to the robot's session's next connection
+        if msg.ack is not None and not self.bus.connected:
+            # the connection it came on is gone, and its acknowledgement with it: the broker delivers it again to
+            # the session's next connection, which may be another process's (a hung process of a shared fleet reads
+            # what waited in its socket after the session moved). Taken here, the guard and ledger it shares on one
+            # host would have that process take it for handled, and the answer would go on no connection
+            return
         try:
             self._handle(msg)
         except Exception:  # a bug here must cost one event, not the process
