@@ -13,6 +13,7 @@ connection was lost, the new owner's after that.
 
 from __future__ import annotations
 
+import json
 import threading
 import uuid
 from pathlib import Path
@@ -21,6 +22,8 @@ from typing import Any
 from td2adaptor.runtime import loop
 from td2adaptor.runtime.config import load_defaults, robot_config
 from td2adaptor.runtime.engine.engine import Engine
+from td2adaptor.runtime.engine.ledger import Ledger
+from td2adaptor.runtime.engine.replay import ReplayGuard, Verdict, digest
 from td2adaptor.runtime.events import now_rfc3339
 from td2adaptor.runtime.node.app import serve
 from td2adaptor.runtime.ros.port import StartResult
@@ -113,5 +116,75 @@ def test_a_command_read_on_a_connection_whose_session_moved_is_left_to_the_new_o
         for engine in engines:
             engine.stop()
         loop.release(shared)
+        app.close()
+        broker.stop()
+
+
+def test_an_invoke_another_run_took_but_has_not_answered_is_answered_with_its_end_once_written(tmp_path: Path) -> None:
+    """The other order (the resumed process came to the command just before it learnt its connection was gone):
+    the other run has the id and the invoke's mission open in the robot's store, and no answer yet; the answer it
+    writes would go on no connection. The process that holds the session now answers with that end once the
+    ledger has it (before, it answered nothing: "its first feedback event, about to come, answers it"). The other
+    run is the guard and ledger another process's engine writes, on the same state directory."""
+    broker = Mosquitto(tmp_path / "broker")
+    broker.start()
+    settings = {"bus": broker.url, "poll_period": 0.05, "property_period": 0, "presence_period": 0}
+    defaults = load_defaults(env={}, overrides={**settings, "state_dir": str(tmp_path / "state")})
+    config = robot_config(defaults, ROBOT)
+    model = rb1_model()
+    starts: list[Any] = []
+    port = CountingPort(model, sim(0.3))
+    port.starts = starts
+    app = AppClient(broker, [f"td2adaptor/{ROBOT}/#"])
+    engine = serve(model, port, config)
+    assert config.ids_file is not None
+    guard = ReplayGuard(config.ids_file, window=config.freshness_window, skew=config.clock_skew)
+    ledger = Ledger(config.ids_file, keep=60)
+    try:
+        event_id = uuid.uuid4().hex
+        sent = now_rfc3339()
+        event = {
+            "id": event_id,
+            "time": sent,
+            "correlation": event_id,
+            "payload": {"procedure": {"goals": [{"pose": {"x": 2.5, "y": 3.0}}]}},
+        }
+        assert guard.check(event_id, INVOKE, sent, digest(event)) is Verdict.NEW  # the other run took it first
+        key = ledger.open(
+            event_id=event_id,
+            topic=INVOKE,
+            kind="procedure",
+            component="GoToComponent",
+            action="gotoRun",
+            correlation=event_id,
+        )
+        app.send(INVOKE, event)
+        assert until(lambda: engine.idle() and engine.outbox.stats.get("duplicates", 0) >= 1, 20)
+        end = {
+            "type": "feedback",
+            "affordance": "gotoRun",
+            "robot": ROBOT,
+            "id": uuid.uuid4().hex,
+            "time": now_rfc3339(),
+            "source": f"td2adaptor/{ROBOT}",
+            "correlation": event_id,
+            "payload": {"state": "failed", "message": "not run here", "reason": "unreachable", "terminal": True},
+        }
+        # the other run ends it, and publishes its end on a connection that is gone
+        ledger.event(
+            key, mission=None, goal=None, state="failed", seq=1, reserved=1, latest=json.dumps(end), terminal=True
+        )
+        ledger.done(key)
+
+        def ended() -> list[dict[str, Any]]:
+            return [e for _t, e in list(app.events) if e.get("type") == "feedback" and e.get("correlation") == event_id]
+
+        assert until(lambda: bool(ended()), 20), app.events
+        assert [e["id"] for e in ended()] == [end["id"]]  # that run's end, as it wrote it
+        assert starts == []  # not run here: the other run took it
+    finally:
+        guard.close()
+        ledger.close()
+        engine.stop()
         app.close()
         broker.stop()

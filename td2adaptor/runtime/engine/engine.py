@@ -65,6 +65,8 @@ log = logging.getLogger("td2adaptor.runtime")
 #: seconds a `busy` refusal waits for the robot to answer the start of the mission it names, so that it can
 #: name it by its mission id (the robot answers in milliseconds; one that takes longer is named by its action)
 BUSY_WAIT = 0.25
+#: seconds between two looks at the ledger for the end another run owes to an invoke it took (`_answer_later`)
+ANSWER_LOOK = 0.5
 
 
 _REFUSALS = {
@@ -449,7 +451,7 @@ class Engine:
             if spec.kind is Kind.INVOKE and isinstance(event_id, str):
                 if record is _UNREAD:
                     record = self.ledger.latest(event_id, msg.topic)
-                self._answer_again(event_id, msg.topic, record)
+                self._answer_again(event_id, msg.topic, record, inherited=verdict is Verdict.INHERITED)
             else:
                 log.info("duplicate event %s on %s ignored", event_id, msg.topic)
             return
@@ -548,16 +550,37 @@ class Engine:
             )
         return not taken
 
-    def _answer_again(self, event_id: str, topic: str, record: Record | None) -> None:
+    def _answer_again(self, event_id: str, topic: str, record: Record | None, *, inherited: bool = False) -> None:
         """An invoke sent again under its id (a redelivery, or a sender that lost track, also across a restart
         of this node): answered with the last feedback event of its mission (`record`, the ledger's) again, as
-        it was published."""
+        it was published. One another live run took (`inherited`: a process of a shared fleet on this host) and
+        has not answered yet is answered from here once that run wrote its end (`_answer_later`)."""
+        if inherited and record is not None and record.latest is None:
+            self._answer_later(event_id, topic, time.monotonic() + self.config.mission_timeout)
+            return
         if record is None or record.latest is None:  # its first feedback event, about to come, answers it
             log.info("invoke %s on %s again: its mission has no feedback yet", event_id, topic)
             return
         log.info("invoke %s on %s again: its last feedback event again (%s)", event_id, topic, record.state)
         self.outbox.count("answered-again")
         self.outbox.send(self.catalog.find(Kind.FEEDBACK, record.action), record.latest.encode("utf-8"))
+
+    def _answer_later(self, event_id: str, topic: str, until: float) -> None:
+        """(the loop) An invoke another run took before this one got it: this run holds the robot's session now,
+        so that run's answer may go on no connection (a hung process that resumed took it from a connection whose
+        session had moved, just before it learnt so): its end is sent from here once the ledger has it (a second
+        copy, under the same event id, when that run's did reach the broker). Looked for until `until`."""
+        if self._closed:
+            return
+        record = self.ledger.latest(event_id, topic)
+        if record is not None and record.latest is not None and record.phase != "running":
+            self._answer_again(event_id, topic, record)
+            return
+        shared = self._shared
+        if shared is None or time.monotonic() >= until:
+            log.warning("invoke %s on %s: the run that took it wrote no end for it", event_id, topic)
+            return
+        shared.loop.call_later(ANSWER_LOOK, self._answer_later, event_id, topic, until)
 
     def _recover(self) -> None:
         """Finish what the last run of this node left (see ledger.py): follow each procedure mission again
