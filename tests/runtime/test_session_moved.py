@@ -19,6 +19,8 @@ import uuid
 from pathlib import Path
 from typing import Any
 
+import pytest
+
 from td2adaptor.runtime import loop
 from td2adaptor.runtime.config import load_defaults, robot_config
 from td2adaptor.runtime.engine.engine import Engine
@@ -120,7 +122,10 @@ def test_a_command_read_on_a_connection_whose_session_moved_is_left_to_the_new_o
         broker.stop()
 
 
-def test_an_invoke_another_run_took_but_has_not_answered_is_answered_with_its_end_once_written(tmp_path: Path) -> None:
+@pytest.mark.parametrize("queued", [False, True], ids=["no-feedback-yet", "queued-already"])
+def test_an_invoke_another_run_took_but_has_not_ended_is_answered_with_its_end_once_written(
+    tmp_path: Path, queued: bool
+) -> None:
     """The other order (the resumed process came to the command just before it learnt its connection was gone):
     the other run has the id and the invoke's mission open in the robot's store, and no answer yet; the answer it
     writes would go on no connection. The process that holds the session now answers with that end once the
@@ -158,6 +163,20 @@ def test_an_invoke_another_run_took_but_has_not_answered_is_answered_with_its_en
             action="gotoRun",
             correlation=event_id,
         )
+        first = {"state": "queued", "result": "ok", "terminal": False, "seq": 1}
+        if queued:  # the other run's first feedback (a procedure's start), before it learnt its connection was gone
+            ledger.event(
+                key,
+                mission=None,
+                goal=None,
+                state="queued",
+                seq=1,
+                reserved=1,
+                latest=json.dumps(
+                    {"type": "feedback", "id": uuid.uuid4().hex, "correlation": event_id, "payload": first}
+                ),
+                terminal=False,
+            )
         app.send(INVOKE, event)
         assert until(lambda: engine.idle() and engine.outbox.stats.get("duplicates", 0) >= 1, 20)
         end = {
@@ -168,19 +187,29 @@ def test_an_invoke_another_run_took_but_has_not_answered_is_answered_with_its_en
             "time": now_rfc3339(),
             "source": f"td2adaptor/{ROBOT}",
             "correlation": event_id,
-            "payload": {"state": "failed", "message": "not run here", "reason": "unreachable", "terminal": True},
+            "payload": {
+                "state": "failed",
+                "message": "not run here",
+                "reason": "unreachable",
+                "terminal": True,
+                "seq": 2,
+            },
         }
         # the other run ends it, and publishes its end on a connection that is gone
         ledger.event(
-            key, mission=None, goal=None, state="failed", seq=1, reserved=1, latest=json.dumps(end), terminal=True
+            key, mission=None, goal=None, state="failed", seq=2, reserved=2, latest=json.dumps(end), terminal=True
         )
         ledger.done(key)
 
         def ended() -> list[dict[str, Any]]:
             return [e for _t, e in list(app.events) if e.get("type") == "feedback" and e.get("correlation") == event_id]
 
-        assert until(lambda: bool(ended()), 20), app.events
-        assert [e["id"] for e in ended()] == [end["id"]]  # that run's end, as it wrote it
+        def terminal() -> list[dict[str, Any]]:
+            return [e for e in ended() if e["payload"].get("terminal")]
+
+        assert until(lambda: bool(terminal()), 20), app.events
+        assert [e["id"] for e in terminal()] == [end["id"]]  # that run's end, as it wrote it
+        assert [e["payload"]["seq"] for e in ended()] == ([1, 2] if queued else [2])
         assert starts == []  # not run here: the other run took it
     finally:
         guard.close()

@@ -554,16 +554,16 @@ class Engine:
         """An invoke sent again under its id (a redelivery, or a sender that lost track, also across a restart
         of this node): answered with the last feedback event of its mission (`record`, the ledger's) again, as
         it was published. One another live run took (`inherited`: a process of a shared fleet on this host) and
-        has not answered yet is answered from here once that run wrote its end (`_answer_later`)."""
-        if inherited and record is not None and record.latest is None:
-            self._answer_later(event_id, topic, time.monotonic() + self.config.mission_timeout)
-            return
+        has not ended yet is also answered from here with its end, once that run wrote it (`_answer_later`)."""
+        follow = inherited and record is not None and record.phase == "running" and not self._follows(record.key)
         if record is None or record.latest is None:  # its first feedback event, about to come, answers it
             log.info("invoke %s on %s again: its mission has no feedback yet", event_id, topic)
-            return
-        log.info("invoke %s on %s again: its last feedback event again (%s)", event_id, topic, record.state)
-        self.outbox.count("answered-again")
-        self.outbox.send(self.catalog.find(Kind.FEEDBACK, record.action), record.latest.encode("utf-8"))
+        else:
+            log.info("invoke %s on %s again: its last feedback event again (%s)", event_id, topic, record.state)
+            self.outbox.count("answered-again")
+            self.outbox.send(self.catalog.find(Kind.FEEDBACK, record.action), record.latest.encode("utf-8"))
+        if follow:
+            self._answer_later(event_id, topic, time.monotonic() + self.config.mission_timeout)
 
     def _answer_later(self, event_id: str, topic: str, until: float) -> None:
         """(the loop) An invoke another run took before this one got it: this run holds the robot's session now,
@@ -573,7 +573,9 @@ class Engine:
         if self._closed:
             return
         record = self.ledger.latest(event_id, topic)
-        if record is not None and record.latest is not None and record.phase != "running":
+        if record is None or self._follows(record.key):
+            return  # this run follows it now (its recovery): its end is this run's to send
+        if record.latest is not None and record.phase != "running":
             self._answer_again(event_id, topic, record)
             return
         shared = self._shared
@@ -581,6 +583,10 @@ class Engine:
             log.warning("invoke %s on %s: the run that took it wrote no end for it", event_id, topic)
             return
         shared.loop.call_later(ANSWER_LOOK, self._answer_later, event_id, topic, until)
+
+    def _follows(self, key: str) -> bool:
+        """Whether this run follows the mission of ledger row `key` (it runs, or its recovery took it up)."""
+        return any(m.key == key for m in self.missions.running())
 
     def _recover(self) -> None:
         """Finish what the last run of this node left (see ledger.py): follow each procedure mission again
