@@ -122,15 +122,22 @@ def test_a_command_read_on_a_connection_whose_session_moved_is_left_to_the_new_o
         broker.stop()
 
 
-@pytest.mark.parametrize("queued", [False, True], ids=["no-feedback-yet", "queued-already"])
+@pytest.mark.parametrize(
+    ("queued", "handed"),
+    [(False, False), (True, False), (True, True)],
+    ids=["no-feedback-yet", "queued-already", "handed-over-before-the-end"],
+)
 def test_an_invoke_another_run_took_but_has_not_ended_is_answered_with_its_end_once_written(
-    tmp_path: Path, queued: bool
+    tmp_path: Path, queued: bool, handed: bool
 ) -> None:
     """The other order (the resumed process came to the command just before it learnt its connection was gone):
     the other run has the id and the invoke's mission open in the robot's store, and no answer yet; the answer it
     writes would go on no connection. The process that holds the session now answers with that end once the
     ledger has it (before, it answered nothing: "its first feedback event, about to come, answers it"). The other
-    run is the guard and ledger another process's engine writes, on the same state directory."""
+    run is the guard and ledger another process's engine writes, on the same state directory. `handed`: the
+    process stops serving the robot before that end is written (a hand-over a moment after its takeover): it
+    leaves the invoke unacknowledged, and the robot's next connection answers it (before, it was acknowledged and
+    nobody answered it)."""
     broker = Mosquitto(tmp_path / "broker")
     broker.start()
     settings = {"bus": broker.url, "poll_period": 0.05, "property_period": 0, "presence_period": 0}
@@ -142,6 +149,7 @@ def test_an_invoke_another_run_took_but_has_not_ended_is_answered_with_its_end_o
     port.starts = starts
     app = AppClient(broker, [f"td2adaptor/{ROBOT}/#"])
     engine = serve(model, port, config)
+    engines = [engine]
     assert config.ids_file is not None
     guard = ReplayGuard(config.ids_file, window=config.freshness_window, skew=config.clock_skew)
     ledger = Ledger(config.ids_file, keep=60)
@@ -195,11 +203,16 @@ def test_an_invoke_another_run_took_but_has_not_ended_is_answered_with_its_end_o
                 "seq": 2,
             },
         }
+        if handed:  # this process hands the robot over before the other run wrote the end
+            engine.stop()
+            engines.remove(engine)
         # the other run ends it, and publishes its end on a connection that is gone
         ledger.event(
             key, mission=None, goal=None, state="failed", seq=2, reserved=2, latest=json.dumps(end), terminal=True
         )
         ledger.done(key)
+        if handed:  # the robot's next connection (its next owner) gets the invoke again
+            engines.append(serve(model, port, config))
 
         def ended() -> list[dict[str, Any]]:
             return [e for _t, e in list(app.events) if e.get("type") == "feedback" and e.get("correlation") == event_id]
@@ -214,6 +227,7 @@ def test_an_invoke_another_run_took_but_has_not_ended_is_answered_with_its_end_o
     finally:
         guard.close()
         ledger.close()
-        engine.stop()
+        for served in engines:
+            served.stop()
         app.close()
         broker.stop()
