@@ -370,3 +370,30 @@ def test_an_invoke_an_earlier_run_remembered_and_never_took_runs_once_and_a_quer
     finally:
         engine.stop()
     check_outbound(app.events)
+
+
+def test_two_runs_that_share_the_store_and_check_one_id_at_once_agree_on_who_has_it(tmp_path: Path) -> None:
+    """Two processes of a shared fleet on one host share a robot's store (state_dir) and may both be given one
+    command (a hung process that resumes reads what waited in its socket after the session moved): the second
+    to remember it between its own look and its own write gets the first's verdict, not a database error (issue
+    32: "internal error" on a resumed process, seen in loops of the hang test). SQLite's statement trace puts the
+    other run's check between the two statements."""
+    store = tmp_path / "rb_00.ids.sqlite3"
+    first = ReplayGuard(store, window=60, skew=5)
+    other = ReplayGuard(store, window=60, skew=5)
+    theirs: list[Verdict] = []
+
+    def between(sql: str) -> None:  # the first run's write is about to run: the other run checks first
+        if sql.startswith("INSERT") and "INTO seen" in sql and not theirs:
+            theirs.append(other.check("cmd-1", "robot/x", now_text(), "d1"))
+
+    first._db.set_trace_callback(between)
+    try:
+        assert first.check("cmd-1", "robot/x", now_text(), "d1") is Verdict.INHERITED
+        assert theirs == [Verdict.NEW]
+        first._db.set_trace_callback(None)
+        assert other.check("cmd-1", "robot/x", now_text(), "d1") is Verdict.DUPLICATE  # still the other's
+        assert first.check("cmd-1", "robot/y", now_text(), "d1") is Verdict.REUSED
+    finally:
+        first.close()
+        other.close()

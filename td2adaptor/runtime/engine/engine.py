@@ -65,6 +65,11 @@ log = logging.getLogger("td2adaptor.runtime")
 #: seconds a `busy` refusal waits for the robot to answer the start of the mission it names, so that it can
 #: name it by its mission id (the robot answers in milliseconds; one that takes longer is named by its action)
 BUSY_WAIT = 0.25
+#: seconds between two looks at the ledger for the end another run owes to an invoke it took (`_answer_later`)
+ANSWER_LOOK = 0.5
+#: seconds an invoke whose end another run owes stays unacknowledged meanwhile (`_answer_later`): a run that stops
+#: first leaves it to the robot's next connection; then it is acknowledged, and its end still sent when written
+ANSWER_HOLD = 10.0
 
 
 _REFUSALS = {
@@ -140,6 +145,7 @@ class Engine:
         self.on_stop: list[Callable[[], None]] = []  # run first by stop() (e.g. leaving a TD directory)
         self.on_halt: list[Callable[[str], None]] = []  # told why, when the bus stops serving the broker (halt)
         self.failure: str | None = None  # why the bus stopped serving the broker, if it did
+        self._ack: Callable[[], None] | None = None  # (the loop) the acknowledgement of the message being handled
         self.offline: Message | None = None  # the status stop() publishes (default: plain `offline`)
         #: (the loop) why an invoke of this affordance cannot reach the robot now (its ROS server is not there,
         #: runtime/node/presence.py), or None: such an invoke is answered at once instead of after a timeout
@@ -362,13 +368,21 @@ class Engine:
             self._queued -= 1
         if self._closed:
             return  # not acknowledged: the broker delivers it again to the robot's session's next connection
+        if msg.ack is not None and not self.bus.connected:
+            # the connection it came on is gone, and its acknowledgement with it: the broker delivers it again to
+            # the session's next connection, which may be another process's (a hung process of a shared fleet reads
+            # what waited in its socket after the session moved). Taken here, the guard and ledger it shares on one
+            # host would have that process take it for handled, and the answer would go on no connection
+            return
+        self._ack = msg.ack  # `_answer_again` may hold it back (`_answer_later`)
         try:
             self._handle(msg)
         except Exception:  # a bug here must cost one event, not the process
             log.exception("internal error on %s", msg.topic)
             self.outbox.error("internal", INTERNAL, topic=msg.origin or msg.topic, raw=msg.payload)
-        if msg.ack is not None:  # admitted or answered: the broker may forget it once that is kept
-            self.kept(msg.ack)
+        ack, self._ack = self._ack, None
+        if ack is not None:  # admitted or answered: the broker may forget it once that is kept
+            self.kept(ack)
 
     def _handle(self, msg: Message) -> None:
         self.outbox.count("in")
@@ -443,7 +457,7 @@ class Engine:
             if spec.kind is Kind.INVOKE and isinstance(event_id, str):
                 if record is _UNREAD:
                     record = self.ledger.latest(event_id, msg.topic)
-                self._answer_again(event_id, msg.topic, record)
+                self._answer_again(event_id, msg.topic, record, inherited=verdict is Verdict.INHERITED)
             else:
                 log.info("duplicate event %s on %s ignored", event_id, msg.topic)
             return
@@ -542,16 +556,57 @@ class Engine:
             )
         return not taken
 
-    def _answer_again(self, event_id: str, topic: str, record: Record | None) -> None:
+    def _answer_again(self, event_id: str, topic: str, record: Record | None, *, inherited: bool = False) -> None:
         """An invoke sent again under its id (a redelivery, or a sender that lost track, also across a restart
         of this node): answered with the last feedback event of its mission (`record`, the ledger's) again, as
-        it was published."""
+        it was published. One another live run took (`inherited`: a process of a shared fleet on this host) and
+        has not ended yet is also answered from here with its end, once that run wrote it (`_answer_later`)."""
+        follow = inherited and record is not None and record.phase == "running" and not self._follows(record.key)
         if record is None or record.latest is None:  # its first feedback event, about to come, answers it
             log.info("invoke %s on %s again: its mission has no feedback yet", event_id, topic)
-            return
-        log.info("invoke %s on %s again: its last feedback event again (%s)", event_id, topic, record.state)
-        self.outbox.count("answered-again")
-        self.outbox.send(self.catalog.find(Kind.FEEDBACK, record.action), record.latest.encode("utf-8"))
+        else:
+            log.info("invoke %s on %s again: its last feedback event again (%s)", event_id, topic, record.state)
+            self.outbox.count("answered-again")
+            self.outbox.send(self.catalog.find(Kind.FEEDBACK, record.action), record.latest.encode("utf-8"))
+        if follow:
+            ack, self._ack = self._ack, None
+            now = time.monotonic()
+            self._answer_later(event_id, topic, now + self.config.mission_timeout, ack, now + ANSWER_HOLD)
+
+    def _answer_later(
+        self,
+        event_id: str,
+        topic: str,
+        until: float,
+        ack: Callable[[], None] | None = None,
+        hold: float = 0.0,
+    ) -> None:
+        """(the loop) An invoke another run took before this one got it: this run holds the robot's session now,
+        so that run's answer may go on no connection (a hung process that resumed took it from a connection whose
+        session had moved, just before it learnt so): its end is sent from here once the ledger has it (a second
+        copy, under the same event id, when that run's did reach the broker). Looked for until `until`. The
+        invoke's `ack` waits until then, or `hold` at most: a run that stops first (the robot handed over) leaves
+        the invoke to the robot's next connection, which answers it in turn."""
+        if self._closed:
+            return  # not acknowledged (unless `hold` is over): the next connection gets it again
+        record = self.ledger.latest(event_id, topic)
+        done = record is None or self._follows(record.key)  # else this run follows it now: its end is its own
+        if not done and record is not None and record.latest is not None and record.phase != "running":
+            self._answer_again(event_id, topic, record)
+            done = True
+        shared = self._shared
+        if not done and (shared is None or time.monotonic() >= until):
+            log.warning("invoke %s on %s: the run that took it wrote no end for it", event_id, topic)
+            done = True
+        if ack is not None and (done or time.monotonic() >= hold):
+            self.kept(ack)
+            ack = None
+        if not done and shared is not None:
+            shared.loop.call_later(ANSWER_LOOK, self._answer_later, event_id, topic, until, ack, hold)
+
+    def _follows(self, key: str) -> bool:
+        """Whether this run follows the mission of ledger row `key` (it runs, or its recovery took it up)."""
+        return any(m.key == key for m in self.missions.running())
 
     def _recover(self) -> None:
         """Finish what the last run of this node left (see ledger.py): follow each procedure mission again

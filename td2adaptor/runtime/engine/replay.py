@@ -198,16 +198,22 @@ class ReplayGuard:
         with self._lock:
             self._prune(now)
             row = self._db.execute("SELECT topic, digest, run FROM seen WHERE id = ?", (event_id,)).fetchone()
-            if row is not None:
-                same = row[0] == topic and (row[1] is None or digest is None or row[1] == digest)
-                if not same:
-                    return Verdict.REUSED
-                return Verdict.DUPLICATE if row[2] == self.run else Verdict.INHERITED
-            self._db.execute(
-                "INSERT INTO seen (id, topic, until, digest, run) VALUES (?, ?, ?, ?, ?)",
-                (event_id, topic, until, digest, self.run),
-            )
-        return Verdict.NEW
+            if row is None:
+                added = self._db.execute(
+                    "INSERT OR IGNORE INTO seen (id, topic, until, digest, run) VALUES (?, ?, ?, ?, ?)",
+                    (event_id, topic, until, digest, self.run),
+                )
+                if added.rowcount == 1:
+                    return Verdict.NEW
+                # another run sharing the store (a shared fleet's other process on this host, given the same
+                # command on the robot's session) remembered it between the two statements: its verdict counts
+                row = self._db.execute("SELECT topic, digest, run FROM seen WHERE id = ?", (event_id,)).fetchone()
+                if row is None:  # and it was pruned since: the engine asks its ledger whether it was taken
+                    return Verdict.INHERITED
+        same = row[0] == topic and (row[1] is None or digest is None or row[1] == digest)
+        if not same:
+            return Verdict.REUSED
+        return Verdict.DUPLICATE if row[2] == self.run else Verdict.INHERITED
 
     def adopt(self, event_id: str, topic: str, sent: str | None, digest: str | None = None) -> None:
         """Make an `inherited` id (`check`'s arguments) this run's: the command it names runs here (a second
