@@ -150,6 +150,15 @@ class ThingBus:
             text = json.dumps(out[1], separators=(",", ":"), ensure_ascii=False, allow_nan=False)
             self.bus.publish(out[0], text.encode("utf-8"), retain=retain, qos=qos)
 
+    def when_flushed(self, then: Callable[[], None]) -> None:
+        """`then()` once the broker has everything published so far (the bus's `when_flushed`; at once on a bus
+        without it)."""
+        flushed = getattr(self.bus, "when_flushed", None)
+        if flushed is None:
+            then()
+        else:
+            flushed(then)
+
     def flush(self, timeout: float) -> bool:
         return self.bus.flush(timeout)
 

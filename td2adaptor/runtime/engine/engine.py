@@ -293,6 +293,7 @@ class Engine:
         if self.failure is not None:
             return
         self.failure = reason
+        self.outbox.abandon()
         for hook in list(self.on_halt):
             try:
                 hook(reason)

@@ -45,6 +45,8 @@ class Outbox:
         self.last_error: tuple[str, str, float] | None = None  # code, message, time.time() (the robot's status)
         self.on_end: list[Callable[[Mission, str], None]] = []  # told each mission's end and its state (metrics)
         self._lock = threading.Lock()
+        self._unsent: set[str] = set()  # missions whose terminal event the broker has not acknowledged yet
+        self._gone = False  # the bus stopped serving for good (`abandon`)
 
     def count(self, key: str, n: int = 1) -> None:
         with self._lock:
@@ -148,8 +150,40 @@ class Outbox:
         self._record(m, data, terminal, changed)
         self.send(spec, data, event=event)
         if terminal:
-            self.ledger.done(m.key)
+            self._done_when_sent(m.key)
             self._ended(m)
+
+    def _done_when_sent(self, key: str) -> None:
+        """The mission's ledger row is done once the broker has its terminal event (QoS 1 acknowledged), not
+        when the bus client has it: a node killed or frozen in between (the packet still in its queue or its
+        socket) left a row `done` whose event never reached anyone, and nothing sent it again. Until then the
+        row stays `ending`, and a next start (or the next owner of the robot) sends the same event again."""
+        flushed = getattr(self.bus, "when_flushed", None)
+        with self._lock:
+            if flushed is not None and not self._gone:
+                self._unsent.add(key)
+        if flushed is None or self._gone:
+            self.ledger.done(key)
+            return
+        flushed(lambda: self._sent(key))
+
+    def _sent(self, key: str) -> None:
+        with self._lock:
+            if key not in self._unsent:  # abandoned meanwhile: done already
+                return
+            self._unsent.discard(key)
+        self.ledger.done(key)
+
+    def abandon(self) -> None:
+        """The bus stopped serving the broker for good (another process took the robot's session over: the
+        engine's halt): what it has not delivered never will be, and it is the next owner's to end those
+        missions. Their rows are done now, and so is every end from now on: sent again at a later start (a
+        robot handed back), such an end would be a second one."""
+        with self._lock:
+            self._gone = True
+            keys, self._unsent = self._unsent, set()
+        for key in keys:
+            self.ledger.done(key)
 
     def _ended(self, m: Mission) -> None:
         for hook in self.on_end:
