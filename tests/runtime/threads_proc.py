@@ -170,7 +170,9 @@ def main() -> None:
     broker = LocalBroker() if local else None
     robots = [f"fleet_{i:03d}" for i in range(count)]
     path = {r: PATHS[i % len(PATHS)] for i, r in enumerate(robots)}
-    sims = {r: sim(5.0 if path[r] == "finished" else 60.0, robot_id=r) for r in robots}
+    # a finished mission runs long enough for a poll to see it running on a loaded machine (at load 20-28, 16
+    # of 100 missions of 5 s went queued -> finished)
+    sims = {r: sim(10.0 if path[r] == "finished" else 60.0, robot_id=r) for r in robots}
     ports = {r: SimPort(model, sims[r]) for r in robots}
 
     def config(robot: str) -> RuntimeConfig:
