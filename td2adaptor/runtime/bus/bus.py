@@ -40,6 +40,17 @@ class Message:
 Handler = Callable[[Message], None]
 
 
+def when_flushed(bus: object, then: Callable[[], None]) -> None:
+    """`then()` once the broker has everything `bus` published so far, without waiting for it: the bus's own
+    `when_flushed` (MqttBus: on its serving thread, once the acknowledgements came), or at once on a bus that
+    has none (one whose publish is delivered when it returns)."""
+    flushed = getattr(bus, "when_flushed", None)
+    if flushed is None:
+        then()
+    else:
+        flushed(then)
+
+
 class Bus(Protocol):
     def connect(self) -> None:
         """Connect (or attach to the local broker); raises `BusError` with a clear message on failure."""

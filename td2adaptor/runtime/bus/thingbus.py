@@ -38,7 +38,7 @@ from typing import Any
 
 from td2adaptor.model.events import ALL_ROBOTS, TOPIC_ROOT, EventCatalog, EventSpec, Kind, command_filters
 from td2adaptor.model.wot import CORRELATION, WOT_LEVEL, takes_correlation, wot_command_filters, wot_topic
-from td2adaptor.runtime.bus.bus import Bus, Handler, Message
+from td2adaptor.runtime.bus.bus import Bus, Handler, Message, when_flushed
 from td2adaptor.runtime.events import MAX_ERRORS, Problem, loads, new_id, now_rfc3339, pointer, references
 
 log = logging.getLogger("td2adaptor.runtime")
@@ -153,11 +153,7 @@ class ThingBus:
     def when_flushed(self, then: Callable[[], None]) -> None:
         """`then()` once the broker has everything published so far (the bus's `when_flushed`; at once on a bus
         without it)."""
-        flushed = getattr(self.bus, "when_flushed", None)
-        if flushed is None:
-            then()
-        else:
-            flushed(then)
+        when_flushed(self.bus, then)
 
     def flush(self, timeout: float) -> bool:
         return self.bus.flush(timeout)

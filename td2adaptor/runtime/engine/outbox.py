@@ -16,10 +16,11 @@ import logging
 import threading
 import time
 from collections.abc import Callable, Mapping
+from functools import partial
 from typing import Any
 
 from td2adaptor.model.events import EventCatalog, EventSpec, Kind
-from td2adaptor.runtime.bus.bus import Bus, BusError
+from td2adaptor.runtime.bus.bus import Bus, BusError, when_flushed
 from td2adaptor.runtime.bus.thingbus import ThingBus
 from td2adaptor.runtime.config import RuntimeConfig
 from td2adaptor.runtime.engine.ledger import SEQ_BLOCK, Ledger
@@ -158,14 +159,14 @@ class Outbox:
         when the bus client has it: a node killed or frozen in between (the packet still in its queue or its
         socket) left a row `done` whose event never reached anyone, and nothing sent it again. Until then the
         row stays `ending`, and a next start (or the next owner of the robot) sends the same event again."""
-        flushed = getattr(self.bus, "when_flushed", None)
         with self._lock:
-            if flushed is not None and not self._gone:
+            gone = self._gone
+            if not gone:
                 self._unsent.add(key)
-        if flushed is None or self._gone:
+        if gone:
             self.ledger.done(key)
             return
-        flushed(lambda: self._sent(key))
+        when_flushed(self.bus, partial(self._sent, key))
 
     def _sent(self, key: str) -> None:
         with self._lock:

@@ -27,7 +27,7 @@ from typing import Any
 
 import orjson
 
-from td2adaptor.runtime.bus.bus import Bus, Message
+from td2adaptor.runtime.bus.bus import Bus, Message, when_flushed
 from td2adaptor.runtime.engine.replay import Verdict, parse_time
 from td2adaptor.runtime.ros.port import PortUnavailable
 
@@ -276,11 +276,7 @@ class Recorder:
     def when_acknowledged(self, then: Callable[[], None]) -> None:
         """`then()` once the broker has every entry published so far, without waiting for it (the engine's
         loop: a command's acknowledgement, a goal's start)."""
-        flushed = getattr(self.bus, "when_flushed", None)
-        if flushed is None:
-            then()
-        else:
-            flushed(then)
+        when_flushed(self.bus, then)
 
 
 class RecordingGuard:
