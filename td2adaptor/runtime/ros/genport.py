@@ -558,7 +558,11 @@ class GeneratedPort:
                 feedback_grace=self.feedback_grace,
             )
 
-        handle = guarded(run)
+        return self._follow(component, action, follower, guarded(run))
+
+    def _follow(self, component: str, action: str, follower: GoalFollower, handle: Any) -> str:
+        """Follow the goal of the generated package's `handle` (started or rejoined) through `follower`: the goal
+        id, the follower kept until the goal ends."""
         if self.server_timeout is not None and hasattr(handle, "server_timeout"):
             handle.server_timeout = self.server_timeout  # before the ticker's first look: that is after an answer
         follower.ready(handle)
@@ -584,13 +588,7 @@ class GeneratedPort:
                 feedback_grace=self.feedback_grace,
             )
 
-        handle = self._guarded(component, run)
-        if self.server_timeout is not None and hasattr(handle, "server_timeout"):
-            handle.server_timeout = self.server_timeout
-        follower.ready(handle)
-        with self._goals_lock:
-            if not follower.closed:  # ended already: nothing to keep
-                self._goals[(component, action, follower.goal_id)] = follower
+        self._follow(component, action, follower, self._guarded(component, run))
 
     def _follower(self, component: str, action: str, goal: str) -> GoalFollower | None:
         with self._goals_lock:
