@@ -377,7 +377,7 @@ def test_two_runs_that_share_the_store_and_check_one_id_at_once_agree_on_who_has
     command (a hung process that resumes reads what waited in its socket after the session moved): the second
     to remember it between its own look and its own write gets the first's verdict, not a database error (issue
     32: "internal error" on a resumed process, seen in loops of the hang test). SQLite's statement trace puts the
-    other run's check between the two statements."""
+    other run's check right before the first run's write."""
     store = tmp_path / "rb_00.ids.sqlite3"
     first = ReplayGuard(store, window=60, skew=5)
     other = ReplayGuard(store, window=60, skew=5)

@@ -197,19 +197,18 @@ class ReplayGuard:
         until = (stamp if stamp is not None else now) + self.window + self.skew
         with self._lock:
             self._prune(now)
+            # remembered in one statement, so that two runs sharing the store (a shared fleet's processes on one
+            # host, both given the same command on the robot's session) that check one id at once agree: the
+            # first to write it has it, the other gets its verdict
+            added = self._db.execute(
+                "INSERT OR IGNORE INTO seen (id, topic, until, digest, run) VALUES (?, ?, ?, ?, ?)",
+                (event_id, topic, until, digest, self.run),
+            )
+            if added.rowcount == 1:
+                return Verdict.NEW
             row = self._db.execute("SELECT topic, digest, run FROM seen WHERE id = ?", (event_id,)).fetchone()
-            if row is None:
-                added = self._db.execute(
-                    "INSERT OR IGNORE INTO seen (id, topic, until, digest, run) VALUES (?, ?, ?, ?, ?)",
-                    (event_id, topic, until, digest, self.run),
-                )
-                if added.rowcount == 1:
-                    return Verdict.NEW
-                # another run sharing the store (a shared fleet's other process on this host, given the same
-                # command on the robot's session) remembered it between the two statements: its verdict counts
-                row = self._db.execute("SELECT topic, digest, run FROM seen WHERE id = ?", (event_id,)).fetchone()
-                if row is None:  # and it was pruned since: the engine asks its ledger whether it was taken
-                    return Verdict.INHERITED
+        if row is None:  # another run pruned it in between: the engine asks its ledger whether it was taken
+            return Verdict.INHERITED
         same = row[0] == topic and (row[1] is None or digest is None or row[1] == digest)
         if not same:
             return Verdict.REUSED
