@@ -82,16 +82,47 @@ def once(events: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return list({e["id"]: e for e in events}.values())
 
 
+class Rig:
+    """The robot's process, its edge node on a state directory and the application that watches its events."""
+
+    def __init__(self, build: tuple[Model, Path, Path], master: Master, broker: Mosquitto, robot: str, state: Path):
+        self.build, self.master, self.name = build, master, robot
+        self.robot = robot_process(master, build[2], robot)
+        self.node = Node(build, master, broker, robot, state)
+        self.app = AppClient(broker.url, [f"td2adaptor/{robot}/#"])
+
+    def goal(self, order: int, count: int) -> str:
+        """A goal sent once the node is started, seen `running` `count` times."""
+        event_id = send_goal(self.app, self.name, order)
+        self.app.wait(lambda ev: running(ev, event_id, count), timeout=30)
+        return event_id
+
+    def restart_robot(self) -> None:
+        """The robot restarts: its new action server never had the goals of the old one."""
+        self.robot.stop()
+        self.robot = robot_process(self.master, self.build[2], self.name)
+
+    def end(self, event_id: str) -> dict[str, Any]:
+        """The goal's one terminal event, once it came."""
+        self.app.wait(terminal("feedback", event_id), timeout=60)
+        ends = [e["payload"] for e in once(feedback(self.app.events, event_id)) if e["payload"]["terminal"]]
+        assert len(ends) == 1, ends
+        return ends[0]
+
+    def close(self) -> None:
+        self.node.stop()
+        self.robot.stop()
+        self.app.close()
+
+
 def test_a_goal_in_flight_is_followed_on_by_the_node_started_again(
     build: tuple[Model, Path, Path], master: Master, broker: Mosquitto, tmp_path: Path
 ) -> None:
-    robot = robot_process(master, build[2], "rejoin_one")
-    node = Node(build, master, broker, "rejoin_one", tmp_path / "state")
-    app = AppClient(broker.url, ["td2adaptor/rejoin_one/#"])
+    rig = Rig(build, master, broker, "rejoin_one", tmp_path / "state")
+    node, app = rig.node, rig.app
     try:
         node.start()
-        event_id = send_goal(app, "rejoin_one", 200)  # 10 s
-        app.wait(lambda ev: running(ev, event_id, 3), timeout=30)
+        event_id = rig.goal(200, 3)  # 10 s
         node.stop()  # the node goes away; the goal goes on in the server
         before = len(once(feedback(app.events, event_id)))
         assert not any(e["payload"]["terminal"] for e in feedback(app.events, event_id))
@@ -108,54 +139,39 @@ def test_a_goal_in_flight_is_followed_on_by_the_node_started_again(
         assert end["result"] == "succeeded" and end["output"] == {"sequence": sequence(40)}, end
         assert sum(e["payload"]["terminal"] for e in events) == 1
     finally:
-        node.stop()
-        robot.stop()
-        app.close()
+        rig.close()
 
 
 def test_a_goal_that_ended_while_no_node_followed_it_ends_as_its_status_says(
     build: tuple[Model, Path, Path], master: Master, broker: Mosquitto, tmp_path: Path
 ) -> None:
-    robot = robot_process(master, build[2], "rejoin_two")
-    node = Node(build, master, broker, "rejoin_two", tmp_path / "state")
-    app = AppClient(broker.url, ["td2adaptor/rejoin_two/#"])
+    rig = Rig(build, master, broker, "rejoin_two", tmp_path / "state")
     try:
-        node.start()
-        event_id = send_goal(app, "rejoin_two", 20)  # 1 s
-        app.wait(lambda ev: running(ev, event_id, 1), timeout=30)
-        node.stop()
-        robot.wait_for(lambda e: e.get("event") == "end" and e.get("ns") == "rejoin_two", timeout=30)
-        node.start()  # within actionlib's status_list_timeout (5 s) of the end
-        app.wait(terminal("feedback", event_id), timeout=60)
-        ends = [e["payload"] for e in once(feedback(app.events, event_id)) if e["payload"]["terminal"]]
-        assert len(ends) == 1, ends
-        assert (ends[0]["state"], ends[0].get("result")) == ("finished", "succeeded"), ends[0]
+        rig.node.start()
+        event_id = rig.goal(20, 1)  # 1 s
+        rig.node.stop()
+        rig.robot.wait_for(lambda e: e.get("event") == "end" and e.get("ns") == "rejoin_two", timeout=30)
+        rig.node.start()  # within actionlib's status_list_timeout (5 s) of the end
+        end = rig.end(event_id)
+        assert (end["state"], end.get("result")) == ("finished", "succeeded"), end
     finally:
-        node.stop()
-        robot.stop()
-        app.close()
+        rig.close()
 
 
 def test_a_goal_whose_server_restarted_meanwhile_ends_failed_saying_so(
     build: tuple[Model, Path, Path], master: Master, broker: Mosquitto, tmp_path: Path
 ) -> None:
-    robot = robot_process(master, build[2], "rejoin_three")
-    node = Node(build, master, broker, "rejoin_three", tmp_path / "state")
-    app = AppClient(broker.url, ["td2adaptor/rejoin_three/#"])
+    rig = Rig(build, master, broker, "rejoin_three", tmp_path / "state")
     try:
-        node.start()
-        event_id = send_goal(app, "rejoin_three", 400)  # 20 s
-        app.wait(lambda ev: running(ev, event_id, 1), timeout=30)
-        goal = feedback(app.events, event_id)[0]["payload"]["goal"]
-        node.stop()
-        robot.stop()  # the robot restarts: its new action server never had the goal
-        robot = robot_process(master, build[2], "rejoin_three")
-        node.start()
-        app.wait(terminal("feedback", event_id), timeout=60)
-        ends = [e["payload"] for e in once(feedback(app.events, event_id)) if e["payload"]["terminal"]]
-        assert len(ends) == 1, ends
-        assert (ends[0]["state"], ends[0]["reason"]) == ("failed", "unreachable"), ends[0]
-        words = ends[0]["message"]
+        rig.node.start()
+        event_id = rig.goal(400, 1)  # 20 s
+        goal = feedback(rig.app.events, event_id)[0]["payload"]["goal"]
+        rig.node.stop()
+        rig.restart_robot()
+        rig.node.start()
+        end = rig.end(event_id)
+        assert (end["state"], end["reason"]) == ("failed", "unreachable"), end
+        words = end["message"]
         assert words.startswith(f"the edge node restarted while it followed this goal ({goal})"), words
         assert f"the action server does not know goal {goal}" in words and words.endswith("unknown"), words
         # the words docs/wot.md quotes, the same as on ROS 2 (before: "... on failed: /ns/fibonacci failed: the ...")
@@ -163,6 +179,4 @@ def test_a_goal_whose_server_restarted_meanwhile_ends_failed_saying_so(
             f"), and following it on failed: the action server does not know goal {goal}: its outcome is unknown"
         ), words
     finally:
-        node.stop()
-        robot.stop()
-        app.close()
+        rig.close()

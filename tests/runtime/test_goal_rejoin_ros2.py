@@ -130,111 +130,118 @@ def check_followed_on(events: list[dict[str, Any]], before: int, order: int) -> 
     return end
 
 
+class Restarting:
+    """One robot's `td2adaptor run` on a state directory, killed with kill -9 mid-goal and started again, and the
+    application that watches the robot's events."""
+
+    def __init__(self, build: tuple[Model, Path, Path], broker: Mosquitto, tmp_path: Path, robot: str) -> None:
+        self.build, self.robot = build, robot
+        self.config = node_config(tmp_path / "node.yaml", broker, tmp_path / "state", {robot: robot})
+        self.environ = env.child_env([])
+        self.app = AppClient(broker.url, [f"td2adaptor/{robot}/#"], client_id=f"{robot}-app")
+        self.runs = [RunProcess(run_args(build, self.config), env=self.environ)]
+
+    def ready(self) -> None:
+        """The node is ready and the robot's action server answers goals through it."""
+        self.runs[-1].wait_ready()
+        goals_answered(self.app, self.robot)
+
+    def goal(self, order: int, count: int) -> str:
+        """A goal sent and seen `running` `count` times."""
+        event_id = start_goal(self.app, self.robot, order)
+        self.app.wait(lambda ev: running(ev, event_id, count), timeout=30)
+        return event_id
+
+    def kill(self) -> None:
+        self.runs[-1].proc.kill()
+        self.runs[-1].proc.wait(10)
+
+    def again(self) -> RunProcess:
+        run = RunProcess(run_args(self.build, self.config), env=self.environ)
+        self.runs.append(run)
+        run.wait_ready()
+        return run
+
+    def ends(self, event_id: str) -> list[dict[str, Any]]:
+        """The goal's terminal events once one came, told apart by content (a redelivery repeats one)."""
+        self.app.wait(terminal("feedback", event_id), timeout=60)
+        ends = [e["payload"] for e in feedback(self.app.events, event_id) if e["payload"]["terminal"]]
+        assert len({json.dumps(p, sort_keys=True) for p in ends}) == 1, ends
+        return ends
+
+    def close(self) -> None:
+        for run in self.runs:
+            run.close()
+        self.app.close()
+
+
 @pytest.mark.parametrize("robots", [("rejoin_a",)], indirect=True)
 def test_a_goal_in_flight_is_followed_on_by_the_restarted_node(
     fibo_run: tuple[Model, Path, Path], robots: Process, broker: Mosquitto, tmp_path: Path
 ) -> None:
-    config = node_config(tmp_path / "node.yaml", broker, tmp_path / "state", {"rejoin_a": "rejoin_a"})
-    environ = env.child_env([])
-    app = AppClient(broker.url, ["td2adaptor/rejoin_a/#"], client_id="rejoin-app")
-    node = RunProcess(run_args(fibo_run, config), env=environ)
-    again: RunProcess | None = None
+    rig = Restarting(fibo_run, broker, tmp_path, "rejoin_a")
     try:
-        node.wait_ready()
-        goals_answered(app, "rejoin_a")
-        event_id = start_goal(app, "rejoin_a")
-        app.wait(lambda ev: running(ev, event_id), timeout=30)
-        node.proc.kill()
-        node.proc.wait(10)
-        before = len({e["id"] for e in feedback(app.events, event_id)})
-        assert not any(e["payload"]["terminal"] for e in feedback(app.events, event_id))
+        rig.ready()
+        event_id = rig.goal(LONG, 3)
+        rig.kill()
+        before = len({e["id"] for e in feedback(rig.app.events, event_id)})
+        assert not any(e["payload"]["terminal"] for e in feedback(rig.app.events, event_id))
 
         started = time.monotonic()
-        again = RunProcess(run_args(fibo_run, config), env=environ)
-        again.wait_ready()
-        assert until(lambda: len({e["id"] for e in feedback(app.events, event_id)}) > before, 60)
+        again = rig.again()
+        assert until(lambda: len({e["id"] for e in feedback(rig.app.events, event_id)}) > before, 60)
         print(f"start again -> the goal's feedback relayed again: {time.monotonic() - started:.2f} s")
-        app.wait(terminal("feedback", event_id), timeout=60)
-        check_followed_on(feedback(app.events, event_id), before, LONG)
+        rig.ends(event_id)
+        check_followed_on(feedback(rig.app.events, event_id), before, LONG)
         assert "following fibonacci goal" in again.output(), again.output()[-3000:]
     finally:
-        if again is not None:
-            again.close()
-        node.close()
-        app.close()
+        rig.close()
 
 
 @pytest.mark.parametrize("robots", [("rejoin_b",)], indirect=True)
 def test_a_goal_that_ended_while_no_node_followed_it_gets_its_real_end(
     fibo_run: tuple[Model, Path, Path], robots: Process, broker: Mosquitto, tmp_path: Path
 ) -> None:
-    config = node_config(tmp_path / "node.yaml", broker, tmp_path / "state", {"rejoin_b": "rejoin_b"})
-    environ = env.child_env([])
-    app = AppClient(broker.url, ["td2adaptor/rejoin_b/#"], client_id="rejoin-app-b")
-    node = RunProcess(run_args(fibo_run, config), env=environ)
-    again: RunProcess | None = None
+    rig = Restarting(fibo_run, broker, tmp_path, "rejoin_b")
     try:
-        node.wait_ready()
-        goals_answered(app, "rejoin_b")
+        rig.ready()
         robots.drain()
-        event_id = start_goal(app, "rejoin_b", 100)  # 5 s: killed well before its end
-        app.wait(lambda ev: running(ev, event_id, 1), timeout=30)
-        node.proc.kill()
-        node.proc.wait(10)
+        event_id = rig.goal(100, 1)  # 5 s: killed well before its end
+        rig.kill()
         robots.wait_for(lambda e: e.get("event") == "end" and e.get("ns") == "rejoin_b", timeout=30)
-        assert not any(e["payload"]["terminal"] for e in feedback(app.events, event_id))
+        assert not any(e["payload"]["terminal"] for e in feedback(rig.app.events, event_id))
 
-        again = RunProcess(run_args(fibo_run, config), env=environ)
-        again.wait_ready()
-        app.wait(terminal("feedback", event_id), timeout=60)
-        ends = [e["payload"] for e in feedback(app.events, event_id) if e["payload"]["terminal"]]
-        assert len({json.dumps(p, sort_keys=True) for p in ends}) == 1, ends
-        assert (ends[0]["state"], ends[0].get("result")) == ("finished", "succeeded"), ends[0]
-        assert ends[0]["output"] == {"sequence": sequence(40)}
+        rig.again()
+        end = rig.ends(event_id)[0]
+        assert (end["state"], end.get("result")) == ("finished", "succeeded"), end
+        assert end["output"] == {"sequence": sequence(40)}
     finally:
-        if again is not None:
-            again.close()
-        node.close()
-        app.close()
+        rig.close()
 
 
 def test_a_goal_whose_server_forgot_it_ends_failed_saying_so(
     fibo_run: tuple[Model, Path, Path], ros2_domain: int, broker: Mosquitto, tmp_path: Path
 ) -> None:
-    config = node_config(tmp_path / "node.yaml", broker, tmp_path / "state", {"rejoin_c": "rejoin_c"})
-    environ = env.child_env([])
-    app = AppClient(broker.url, ["td2adaptor/rejoin_c/#"], client_id="rejoin-app-c")
     robot = robot_process("rejoin_c")
-    node = RunProcess(run_args(fibo_run, config), env=environ)
-    again: RunProcess | None = None
+    rig = Restarting(fibo_run, broker, tmp_path, "rejoin_c")
     try:
-        node.wait_ready()
-        goals_answered(app, "rejoin_c")
-        event_id = start_goal(app, "rejoin_c")
-        app.wait(lambda ev: running(ev, event_id, 1), timeout=30)
-        goal = feedback(app.events, event_id)[0]["payload"]["goal"]
-        node.proc.kill()
-        node.proc.wait(10)
+        rig.ready()
+        event_id = rig.goal(LONG, 1)
+        goal = feedback(rig.app.events, event_id)[0]["payload"]["goal"]
+        rig.kill()
         robot.stop()  # the robot restarts: its new action server never had the goal
         robot = robot_process("rejoin_c")
 
-        again = RunProcess(run_args(fibo_run, config), env=environ)
-        again.wait_ready()
-        app.wait(terminal("feedback", event_id), timeout=60)
-        ends = [e["payload"] for e in feedback(app.events, event_id) if e["payload"]["terminal"]]
-        assert len({json.dumps(p, sort_keys=True) for p in ends}) == 1, ends
-        end = ends[0]
+        rig.again()
+        end = rig.ends(event_id)[0]
         assert (end["state"], end["reason"]) == ("failed", "unreachable"), end
         words = end["message"]
         assert words.startswith(f"the edge node restarted while it followed this goal ({goal})"), words
         assert f"the action server does not know goal {goal}" in words, words
         assert words.endswith("its outcome is unknown"), words
     finally:
-        if again is not None:
-            again.close()
-        node.close()
+        rig.close()
         robot.stop()
-        app.close()
 
 
 SHARED = {"rejoin_s1": "rejoin_s1", "rejoin_s2": "rejoin_s2"}
