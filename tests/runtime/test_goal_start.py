@@ -88,9 +88,10 @@ def test_a_goal_given_up_while_its_feedback_streams_in_gets_no_event_after_its_t
     and its terminal event (failed, timeout) is its last one, whichever thread came first (the goal's lock)."""
     broker = LocalBroker()
     port = Watched(action_model(), sim(robot_id=ROBOT), readers={}, writers={}, actions=SimActions(step=0.001))
-    config = RuntimeConfig(robot=ROBOT, bus="local", state_dir="", mission_timeout=0.2)
+    config = RuntimeConfig(robot=ROBOT, bus="local", state_dir="", mission_timeout=0.5)
     engine = serve(action_model(), port, config, broker=broker)
     app = Recorder(broker, [f"{TOPIC}/feedback"], "goal-timeout-app")
+    streamed = 0
     try:
         # five goals given up, then a short one: an event of theirs published late would be in before its end
         for i, order in enumerate([100000] * 5 + [1]):
@@ -105,7 +106,9 @@ def test_a_goal_given_up_while_its_feedback_streams_in_gets_no_event_after_its_t
             assert [p["seq"] for p in payloads] == list(range(1, len(payloads) + 1))
             assert [p["terminal"] for p in payloads] == [False] * (len(payloads) - 1) + [True]
             assert (payloads[-1]["state"], payloads[-1]["reason"]) == ("failed", "timeout")
-            assert len(payloads) > 3  # feedback came before the timeout
+            streamed += len(payloads) > 3  # feedback came before the timeout
+        # on a loaded machine a goal's 0.5 s may pass before its server thread runs: the race needs only some
+        assert streamed >= 2, streamed
     finally:
         app.close()
         engine.stop()
