@@ -11,10 +11,14 @@
 
 The robot is tests/runtime/fibo_ros2.py (an rclpy ActionServer of test_msgs/action/Fibonacci) in its own
 process; the edge node is `td2adaptor run` in a process of its own, as deployed (both robots in one process, a
-fleet file), and the application (an MQTT client) and the baseline client are here. `--edge inline` runs the
-edge node in this process instead (engine, MQTT client and rclpy node next to the application and the baseline:
-all of them then share one interpreter lock). Needs the ROS 2 extra and mosquitto.
-Run: `.venv/bin/python bench/edge_node_actions_ros2.py [--runs N] [--edge process|inline]`.
+fleet file), and the application (an MQTT client) and the baseline client are here. By default the two robots
+and the baseline share one action server, so the edge process has two action clients of it: each takes every
+status array and feedback message the server publishes (and wakes for the other's responses), which a
+deployment, one server per robot, does not pay; `--servers own` gives each of the three its own server
+(namespace) in the robot's process. `--edge inline` runs the edge node in this process instead (engine, MQTT
+client and rclpy node next to the application and the baseline: all of them then share one interpreter lock).
+Needs the ROS 2 extra and mosquitto.
+Run: `.venv/bin/python bench/edge_node_actions_ros2.py [--runs N] [--edge process|inline] [--servers shared|own]`.
 """
 
 from __future__ import annotations
@@ -67,12 +71,12 @@ FLOOD = 2000  # feedback messages of the throughput goal, 1 ms apart
 class RawClient:
     """A hand-written rclpy ActionClient (the baseline): times to the first feedback and to the result."""
 
-    def __init__(self, node: Any) -> None:
+    def __init__(self, node: Any, namespace: str = NS) -> None:
         from rclpy.action import ActionClient
         from test_msgs.action import Fibonacci
 
         self.goal_type = Fibonacci.Goal
-        self.client = ActionClient(node, Fibonacci, f"/{NS}/fibonacci")
+        self.client = ActionClient(node, Fibonacci, f"/{namespace}/fibonacci")
         assert self.client.wait_for_server(timeout_sec=30), "no action server"
 
     def run(self, order: int) -> tuple[float, float, int]:
@@ -114,6 +118,12 @@ def main() -> None:
         help="process: the edge node is `td2adaptor run` in a process of its own, as deployed (default); inline: "
         "it runs in this process, next to the application and the baseline client",
     )
+    parser.add_argument(
+        "--servers",
+        choices=("shared", "own"),
+        default="shared",
+        help="shared: the baseline and both robots use one action server (default); own: each its own (see above)",
+    )
     args = parser.parse_args()
     if not env.ros2_available():
         print("ROS 2 Jazzy wheels not installed (bash .ci/setup-ros2.sh): skipped")
@@ -128,14 +138,18 @@ def main() -> None:
     for rel, data in load_backend("rclpy").generate(model, GenOptions(), Diagnostics()):
         (work / "src" / rel).parent.mkdir(parents=True, exist_ok=True)
         (work / "src" / rel).write_bytes(data)
-    robot = Process([sys.executable, "-m", "tests.runtime.fibo_ros2", NS], env.child_env([]))
+    own = args.servers == "own"
+    spaces = {r: (f"{NS}_{i}" if own else NS) for i, r in enumerate(GRACES)}
+    raw_ns = f"{NS}_raw" if own else NS
+    served = sorted({raw_ns, *spaces.values()})
+    robot = Process([sys.executable, "-m", "tests.runtime.fibo_ros2", *served], env.child_env([]))
     try:
         robot.wait_for(lambda e: e.get("event") == "ready", 30)
         with mosquitto() as url:
             configs = [
                 RuntimeConfig(
                     robot=robot,
-                    namespace=NS,
+                    namespace=spaces[robot],
                     bus=url,
                     poll_period=0.5,
                     property_period=0,
@@ -150,8 +164,8 @@ def main() -> None:
                     c.robot: FEEDBACK_GRACE["ros2"] if c.goal_feedback_grace is None else c.goal_feedback_grace
                     for c in configs
                 }
-                with edge_process(td, src, url, graces, work):
-                    run(list, graces, url, args.runs)
+                with edge_process(td, src, url, graces, work, spaces):
+                    run(list, graces, url, args.runs, raw_ns)
             else:
                 link = connect(model, model.package_name, configs, ros=2, package_paths=[src])
                 try:
@@ -160,6 +174,7 @@ def main() -> None:
                         {c.robot: link.ports[c.robot].feedback_grace for c in configs},
                         url,
                         args.runs,
+                        raw_ns,
                     )
                 finally:
                     link.close()
@@ -168,12 +183,14 @@ def main() -> None:
 
 
 @contextlib.contextmanager
-def edge_process(td: Path, src: Path, url: str, graces: dict[str, float], work: Path) -> Iterator[None]:
-    """`td2adaptor run` serving the robots of `graces` (one process for both, as a fleet file says), until
-    both are online on the bus."""
+def edge_process(
+    td: Path, src: Path, url: str, graces: dict[str, float], work: Path, spaces: dict[str, str]
+) -> Iterator[None]:
+    """`td2adaptor run` serving the robots of `graces` (one process for both, as a fleet file says; each robot's
+    server in its namespace of `spaces`), until both are online on the bus."""
     config = work / "edge.yaml"
     robots = "".join(
-        f"  - robot: {robot}\n    namespace: {NS}\n    goal_feedback_grace: {grace}\n"
+        f"  - robot: {robot}\n    namespace: {spaces[robot]}\n    goal_feedback_grace: {grace}\n"
         for robot, grace in graces.items()
     )
     config.write_text(f"bus: {url}\npoll_period: 0.5\nproperty_period: 0\nstate_dir: ''\nrobots:\n{robots}")
@@ -214,7 +231,7 @@ def edge_process(td: Path, src: Path, url: str, graces: dict[str, float], work: 
             proc.kill()
 
 
-def run(start: Callable[[], list[Any]], graces: dict[str, float], url: str, runs: int) -> None:
+def run(start: Callable[[], list[Any]], graces: dict[str, float], url: str, runs: int, raw_ns: str = NS) -> None:
     """Measure; `start()` starts the edge nodes that run in this process (stopped at the end), if any."""
     import rclpy
     from rclpy.context import Context
@@ -232,10 +249,11 @@ def run(start: Callable[[], list[Any]], graces: dict[str, float], url: str, runs
     app = MqttBus(parse_broker_url(url), client_id="actions-bench-app", clean_start=True)
     app.subscribe("td2adaptor/+/MathComponent/fibonacci/+", replies)
     app.connect()
-    print(f"python {sys.version.split()[0]}, {time.strftime('%Y-%m-%d')}, {runs} runs, flood of {FLOOD}")
+    servers = "one action server each" if raw_ns != NS else "one action server for all"
+    print(f"python {sys.version.split()[0]}, {time.strftime('%Y-%m-%d')}, {runs} runs, flood of {FLOOD}, {servers}")
     robots = list(graces)
     try:
-        raw = RawClient(node)
+        raw = RawClient(node, raw_ns)
         raw.run(ORDER)  # warm-up: discovery on both sides
         for robot in robots:
             edge(app, replies, robot, f"warm-{robot}", ORDER)

@@ -537,6 +537,65 @@ def test_a_response_that_beats_rclpys_bookkeeping_is_not_lost(
     assert race.was_held
 
 
+def _waiting(client: Any, context: Any, timeout: float) -> tuple[bool, ...]:
+    """What of rclpy's action `client` waits in the middleware (feedback, status, goal, cancel and result
+    response), after at most `timeout` seconds of a wait set of its own (nothing is taken)."""
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
+    count = client.get_num_entities()
+    with context.handle:
+        wait_set = _rclpy.WaitSet(
+            count.num_subscriptions,
+            count.num_guard_conditions,
+            count.num_timers,
+            count.num_clients,
+            count.num_services,
+            count.num_events,
+            context.handle,
+        )
+        wait_set.clear_entities()
+        client.add_to_wait_set(wait_set)
+        wait_set.wait(int(timeout * 1e9))
+        return tuple(client._client_handle.is_ready(wait_set))
+
+
+def test_feedback_waiting_beside_a_status_array_is_told_before_the_array_is_taken(
+    fibo: Any, ros_node: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A server publishes its status array (every goal it keeps, for 15 minutes by default) on each change of
+    any goal, right before a goal's first feedback; converting an array of a hundred goals costs the executor
+    about a millisecond. When a turn finds feedback and a status array waiting, the feedback is told first
+    and the array taken after it. The executor is held in the goal's on_accepted until the server's status
+    array and first feedback both wait (a wait set of the test's own looks, taking nothing), so one turn
+    finds both (with the result, as it happens: the server's next array is its last)."""
+    client = _rclpy_client(fibo)
+    fibo.send_fibonacci(fibo.construct_fibonacci_Goal(order=1)).result(timeout=10.0)  # the server is known
+    told: list[str] = []
+    statuses = client._statuses
+    monkeypatch.setattr(client, "_statuses", lambda array: (told.append("status"), statuses(array)))
+    both: list[bool] = []
+
+    def on_accepted() -> None:  # the executor's thread: no turn until both wait
+        deadline = time.monotonic() + 10.0
+        while time.monotonic() < deadline and not both:
+            feedback, status = _waiting(client, ros_node.context, 0.1)[:2]
+            if feedback and status:
+                both.append(True)
+        told.clear()
+
+    done = threading.Event()
+    fibo.start_fibonacci(
+        fibo.construct_fibonacci_Goal(order=3),
+        on_accepted=on_accepted,
+        on_feedback=lambda _message: told.append("feedback"),
+        on_done=lambda _outcome: done.set(),
+    )
+    assert done.wait(10.0), "the goal never ended"
+    assert both, "the server's status array and first feedback never waited together"
+    assert "feedback" in told and "status" in told, told
+    assert told.index("feedback") < told.index("status"), told
+
+
 def test_a_blocking_calls_waiter_is_woken_in_the_turn_that_completed_its_future(
     fibo_adaptor: ModuleType, ros_node: Any
 ) -> None:

@@ -1082,6 +1082,9 @@ class _ActionClientApi(Protocol):
     def send_goal_async(self, goal: Any, feedback_callback: Any = None, goal_uuid: Any = None) -> Any: ...
 
 
+#: the key of `_RequestingActionClient.take_data`'s data that says a status array waits to be taken in `execute`
+_STATUS_LATER = "status_after_feedback"
+
 #: guards the counts of requests being sent (`_RequestingActionClient._sending`)
 _SENDING_LOCK = threading.Lock()
 
@@ -1106,7 +1109,10 @@ class _RequestingActionClient(ActionClient):
     first: a burst of feedback would cost a turn per message and its tail would come after the result (rclpy
     then drops it: it forgets a goal's feedback callback with its result). Here a turn takes up to
     FEEDBACK_DRAIN messages, every waiting one when it also took a result, and hands them to the goals being
-    followed (`follow`) before the goals learn of the result; status messages reach them too.
+    followed (`follow`) before the goals learn of the result; status messages reach them too. A status array
+    waiting beside feedback is taken after the feedback is told: a server lists every goal it keeps (rclpy's
+    keeps ended ones 15 minutes) on each change, and converting a hundred of them costs the executor about a
+    millisecond, which a goal's first feedback would otherwise wait for.
 
     A goal request whose goal shows up in the server's status list was accepted, even when its response never
     comes: right after discovery a Fast DDS server may answer before it has matched the client's reply reader,
@@ -1189,8 +1195,12 @@ class _RequestingActionClient(ActionClient):
 
     def take_data(self) -> Any:
         """The executor's call (rclpy's Waitable API): rclpy's takes, with the feedback as a list of every
-        message waiting (see the class docstring)."""
+        message waiting (see the class docstring); a status array waiting beside feedback is left for `execute`
+        to take once the feedback is told."""
         base: Any = super()
+        later = bool(getattr(self, "_is_feedback_ready", False) and getattr(self, "_is_status_ready", False))
+        if later:
+            self._is_status_ready = False  # rclpy's flag from is_ready: its take_data skips the status
         data: dict[str, Any] = base.take_data()
         first = data.pop("feedback", None)
         feedback = [] if first is None else [first]
@@ -1198,7 +1208,17 @@ class _RequestingActionClient(ActionClient):
             feedback += self._take_feedback(FEEDBACK_DEPTH if "result" in data else FEEDBACK_DRAIN - len(feedback))
         if feedback:
             data["feedback"] = feedback
+        if later:
+            data[_STATUS_LATER] = True
         return data
+
+    def _take_status(self) -> Any:
+        """The server's status array waiting in the middleware, if any (rclpy's take, done later: `take_data`)."""
+        handle: Any = getattr(self, "_client_handle", None)
+        action_type: Any = getattr(self, "_action_type", None)
+        if handle is None or action_type is None:
+            return None
+        return handle.take_status(action_type.Impl.GoalStatusMessage)
 
     def _take_feedback(self, most: int) -> list[Any]:
         """At most `most` more feedback messages waiting in the middleware (none with another rclpy, whose
@@ -1217,21 +1237,27 @@ class _RequestingActionClient(ActionClient):
 
     async def execute(self, taken_data: Any) -> None:
         """The executor's call (rclpy's Waitable API) with the data taken: rclpy's own handling of the
-        responses and the status, the feedback to the goals, then the when_done callbacks of the futures rclpy
-        completed (a goal's result among them: after the feedback taken with it)."""
+        responses and the status, the feedback to the goals, the status array that waited beside the feedback
+        (taken now: converting a server's array of every goal it keeps costs more than the feedback's whole
+        way out), then the when_done callbacks of the futures rclpy completed (a goal's result among them:
+        after the feedback taken with it)."""
         messages: list[Any] = taken_data.pop("feedback", [])  # a list: see take_data
+        later = taken_data.pop(_STATUS_LATER, False)
         if "goal" in taken_data and taken_data["goal"][0] in self._recovered:
             self._recovered.discard(taken_data["goal"][0])  # completed from the status list already
             del taken_data["goal"]
         base: Any = super()
         await base.execute(taken_data)
         if "status" in taken_data:
-            self._accepted_by_status(taken_data["status"])
-            self._statuses(taken_data["status"])
+            self._status_array(taken_data["status"])
         for message in messages:
             goal = self._following.get(bytes(message.goal_id.uuid))
             if goal is not None:
                 goal.feedback_message(message.feedback)
+        status = self._take_status() if later else None
+        if status is not None:
+            await base.execute({"status": status})
+            self._status_array(status)
         with _SENDING_LOCK:
             if not self._waiting:
                 return
@@ -1241,6 +1267,11 @@ class _RequestingActionClient(ActionClient):
             )
         for future, once in done:
             once(future)
+
+    def _status_array(self, statuses: Any) -> None:
+        """A GoalStatusArray taken: the goal requests it shows accepted, then each followed goal's status."""
+        self._accepted_by_status(statuses)
+        self._statuses(statuses)
 
     def _statuses(self, statuses: Any) -> None:
         """A GoalStatusArray: each followed goal it lists learns its status."""
