@@ -187,12 +187,16 @@ class Share:
         members that see them."""
         if origin == "discovery":
             return self._see(configs)
+        after = {c.robot: c for c in configs}
         with self._lock:
-            self._candidates = {c.robot: c for c in configs}
+            before, self._candidates = self._candidates, after
         try:
-            return self.reconcile()
+            changes = self.reconcile()
         finally:
             self._wake.set()  # a robot just listed is given out once it settled
+        changes.listed = sorted(set(after) - set(before) - set(changes.added))
+        changes.unlisted = sorted(set(before) - set(after) - set(changes.removed))
+        return changes
 
     def robots(self, origin: str | None = None) -> dict[str, RuntimeConfig]:
         """The robots this process lists (of one origin): what discovery compares its look with."""
