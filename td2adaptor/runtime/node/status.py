@@ -179,6 +179,11 @@ class StatusKeeper:
                 )
         self._publish()
 
+    def published(self) -> dict[str, Any]:
+        """The payload of the last status published (a copy; {} before the first): a hand-over's status says the
+        robot's side and last error as it stood (share.py)."""
+        return dict(self._last or {})
+
     def payload(self) -> dict[str, Any]:
         """The status payload as it stands (without `state` and `thing`, which `status_event` adds)."""
         out: dict[str, Any] = {}
