@@ -513,4 +513,6 @@ def _summarise(diagnostics: Sequence[Diagnostic], source: str, given: Sequence[s
     counts = Counter(d.code for d in rest)
     codes = ", ".join(f"{code} x{n}" for code, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
     command = shlex.join(["td2adaptor", "validate", source, *given])
-    click.echo(f"... and {len(rest)} more ({codes}); `{command}` lists them", err=True)
+    shown = bool(errors) or first is not None  # nothing above the verdict: no "... and N more" of nothing
+    lead = f"... and {len(rest)} more" if shown else f"{len(rest)} notes"
+    click.echo(f"{lead} ({codes}); `{command}` lists them", err=True)
