@@ -270,6 +270,11 @@ def test_fleet_status_says_clearly_when_the_broker_is_unreachable_or_wants_crede
         )
         assert wrong.returncode == 1 and "refused user 'operator'" in wrong.stderr
         assert "S3cr3t" not in wrong.stderr + wrong.stdout  # never a secret
+        # one line each: the connection's own log lines ("... refused the connection: Not authorized", "lost the
+        # MQTT broker ... (Protocol error); reconnecting" from a command that then exits) said it again, or wrong
+        for failed in (refused, wrong):
+            assert failed.stderr.strip().splitlines() == [failed.stderr.strip().splitlines()[-1]], failed.stderr
+            assert failed.stderr.startswith("td2adaptor fleet status: "), failed.stderr
         ok = run_cli(
             "fleet",
             "status",
