@@ -352,12 +352,11 @@ def test_a_process_that_claims_a_robot_another_one_is_claiming_leaves_it_to_that
     assert codes == [0, 0], codes
 
 
-def test_a_hand_over_status_counts_the_goals_in_flight_and_the_next_owner_says_them_from_its_first_status(
-    broker: Mosquitto, tmp_path: Path
-) -> None:
+def test_a_hand_over_status_counts_the_goals_in_flight(broker: Mosquitto, tmp_path: Path) -> None:
     """A robot handed over with a ROS action goal in flight (the next owner follows it on) said `online,
-    missions: 0` in its hand-over status and in the next owner's first status, then `missions: 1` a moment later
-    (a new user's lift fleet: 0.5-0.9 s of 0 during a rebalance, as `fleet status` and a dashboard show it)."""
+    missions: 0` in its hand-over status until the next owner's first status (a new user's lift fleet: 0.5-0.9 s
+    of 0 during a rebalance, as `fleet status` and a dashboard show it). The next owner's first status is
+    test_goal_rejoin.py's: here each process simulates its own action servers, so b cannot follow a's goals."""
     watcher = Watcher(broker)
     sender = AppClient(broker, ["test/nothing"])
     robots = ["rb_00", "rb_01"]
@@ -378,8 +377,6 @@ def test_a_hand_over_status_counts_the_goals_in_flight_and_the_next_owner_says_t
         seen = [p for _t, r, p in watcher.statuses() if r == moved]
         handover = [p for p in seen if p.get("handover")]
         assert handover and all(p["missions"] == 1 for p in handover), handover
-        first = next(p for p in seen if (p.get("owner") or {}).get("pid") == b.pid)
-        assert first["state"] == "online" and first["missions"] == 1, first
         no_traceback(procs)
     finally:
         sender.close()
