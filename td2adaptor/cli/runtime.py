@@ -217,7 +217,10 @@ def run(
 
     def load() -> list[Any]:
         if discover and not robot and not names_robots(config_file):
-            return []  # only the robots discovery finds
+            # only the robots discovery finds; the file's settings checked all the same: a reading of a broken
+            # file (a YAML error, `poll_period: -1`) said "reloaded: no change" instead of "not reloaded: <why>"
+            load_defaults(config_file, overrides=overrides)
+            return []
         return load_fleet(config_file, overrides=overrides)
 
     try:
