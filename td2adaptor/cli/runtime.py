@@ -217,7 +217,10 @@ def run(
 
     def load() -> list[Any]:
         if discover and not robot and not names_robots(config_file):
-            return []  # only the robots discovery finds
+            # only the robots discovery finds; the file's settings checked all the same: a reading of a broken
+            # file (a YAML error, `poll_period: -1`) said "reloaded: no change" instead of "not reloaded: <why>"
+            load_defaults(config_file, overrides=overrides)
+            return []
         return load_fleet(config_file, overrides=overrides)
 
     try:
@@ -513,4 +516,6 @@ def _summarise(diagnostics: Sequence[Diagnostic], source: str, given: Sequence[s
     counts = Counter(d.code for d in rest)
     codes = ", ".join(f"{code} x{n}" for code, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
     command = shlex.join(["td2adaptor", "validate", source, *given])
-    click.echo(f"... and {len(rest)} more ({codes}); `{command}` lists them", err=True)
+    shown = bool(errors) or first is not None  # nothing above the verdict: no "... and N more" of nothing
+    lead = f"... and {len(rest)} more" if shown else f"{len(rest)} notes"
+    click.echo(f"{lead} ({codes}); `{command}` lists them", err=True)

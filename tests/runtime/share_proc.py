@@ -153,8 +153,8 @@ def main() -> None:
     def reload() -> None:  # as FleetFile does: off the signal handler
         with reloading:
             wanted = Path(listed or "").read_text().split()
-            logging.getLogger("td2adaptor.runtime.share").info("reloaded: %s", " ".join(wanted))
-            share.apply([robot_config(defaults, robot) for robot in wanted])
+            changes = share.apply([robot_config(defaults, robot) for robot in wanted])
+            logging.getLogger("td2adaptor.runtime.share").info("reloaded: %s: %s", " ".join(wanted), changes.describe())
 
     if listed:
         signal.signal(signal.SIGHUP, lambda *_: threading.Thread(target=reload, daemon=True).start())

@@ -105,6 +105,16 @@ def test_demo_refuses_what_cannot_work() -> None:
     assert code == 0 and "warehouse" in out
 
 
+def test_run_counts_notes_alone_as_notes_not_as_more_of_nothing() -> None:
+    """A Thing Model with notes only (infos): `run` printed "valid (0 errors, 0 warnings)", then "... and 3 more
+    (ROS428 x1, ...)", more of nothing shown (a new user's lift)."""
+    tm = str(EXAMPLE / "rb1.tm.json")
+    code, out = run("run", tm, *IFACE, "--robot", "r1", "--bus", "nope://x")
+    assert code == 1
+    (summary,) = [line for line in out.splitlines() if "lists them" in line]
+    assert summary.startswith("3 notes (") and "ROS428 x1" in summary, summary
+
+
 def test_run_summarises_the_tds_warnings_instead_of_reprinting_them() -> None:
     dialect = str(EXAMPLE / "td.reference-dialect.json")
     given = [*IFACE, "--set", "robotName=r 1"]  # the input options run got, one with a space

@@ -328,6 +328,14 @@ def test_discovery_serves_a_robot_that_appears_in_the_ros_graph_and_retires_it_w
     try:
         run.wait_ready()
         assert "serving no robot yet" in run.output()
+        # a file of settings only that no longer reads is refused as a fleet file is (it was "reloaded: no
+        # change", a new user's lift fleet with `poll_period: -1`), and discovery goes on
+        good = settings.read_text(encoding="utf-8")
+        settings.write_text(good.replace("poll_period: 0.1", "poll_period: -1"), encoding="utf-8")
+        run.proc.send_signal(signal.SIGHUP)
+        assert until(lambda: "not reloaded (SIGHUP)" in run.output(), 20), run.output()
+        assert "poll_period must be positive" in run.output() and "reloaded (SIGHUP): no change" not in run.output()
+        settings.write_text(good, encoding="utf-8")
         robot = sim_process(rb1_prefix, ("disc_a",), domain=int(domain))
         appeared = time.monotonic()  # the simulated robot said it is ready
         watch.wait_status("disc_a", "online", timeout=30)

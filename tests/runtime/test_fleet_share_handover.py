@@ -350,3 +350,34 @@ def test_a_process_that_claims_a_robot_another_one_is_claiming_leaves_it_to_that
         watcher.close()
         broker.stop()
     assert codes == [0, 0], codes
+
+
+def test_a_hand_over_status_counts_the_goals_in_flight(broker: Mosquitto, tmp_path: Path) -> None:
+    """A robot handed over with a ROS action goal in flight (the next owner follows it on) said `online,
+    missions: 0` in its hand-over status until the next owner's first status (a new user's lift fleet: 0.5-0.9 s
+    of 0 during a rebalance, as `fleet status` and a dashboard show it). The next owner's first status is
+    test_goal_rejoin.py's: here each process simulates its own action servers, so b cannot follow a's goals."""
+    watcher = Watcher(broker)
+    sender = AppClient(broker, ["test/nothing"])
+    robots = ["rb_00", "rb_01"]
+    procs: list[Proc] = []
+    try:
+        a = Proc(broker, tmp_path, "a", robots, SHARE_ACTIONS="1")
+        procs.append(a)
+        wait(lambda: all(history(watcher, r)[-1:] == [("online", a.pid, None)] for r in robots), 30, a)
+        for robot in robots:  # 400 steps of 0.05 s: still running when the robot moves
+            event = {"id": uuid.uuid4().hex, "time": now_rfc3339(), "payload": {"order": 400}}
+            sender.send(f"td2adaptor/{robot}/MathComponent/fibonacci", event)
+        running = lambda: {t.split("/")[1] for _w, t, e in watcher.timed() if t.endswith("/fibonacci/feedback")}  # noqa: E731
+        wait(lambda: running() == set(robots), 30, a, what="goals running")
+        b = Proc(broker, tmp_path, "b", robots, SHARE_ACTIONS="1")
+        procs.append(b)
+        wait(lambda: any(history(watcher, r)[-1][1] == b.pid for r in robots), 30, a, b, what="one robot moved to b")
+        (moved,) = [r for r in robots if history(watcher, r)[-1][1] == b.pid]
+        seen = [p for _t, r, p in watcher.statuses() if r == moved]
+        handover = [p for p in seen if p.get("handover")]
+        assert handover and all(p["missions"] == 1 for p in handover), handover
+        no_traceback(procs)
+    finally:
+        sender.close()
+        stop_all(procs, watcher)

@@ -80,3 +80,27 @@ def test_a_robot_the_members_stop_listing_a_moment_apart_moves_no_other_robot_ba
     finally:
         codes = stop_all(procs, watcher)
     assert codes == [0, 0]
+
+
+def test_a_reload_that_lists_a_new_robot_says_so_where_it_said_no_change(broker: Mosquitto, tmp_path: Path) -> None:
+    """In a shared fleet a robot the reloaded file lists is given out a moment later (the settling), not by the
+    reload itself, so `run` logged "fleet file fleet.yaml reloaded (SIGHUP): no change" for a file that had just
+    gained a robot (a new user's lift fleet: lift7 was served 0.8 s later). The reload now says what it listed."""
+    watcher = Watcher(broker)
+    procs: list[Proc] = []
+    try:
+        a = Proc(broker, tmp_path, "a", [])
+        procs.append(a)
+        b = Proc(broker, tmp_path, "b", [])
+        procs.append(b)
+        a.reload(["rb_new"])
+        b.reload(["rb_new"])
+        wait(lambda: (history(watcher, "rb_new")[-1:] or [("",)])[0][0] == "online", 30, a, b, what="rb_new served")
+        for proc in (a, b):
+            wait(lambda: "reloaded: rb_new:" in proc.log(), 10, proc, what="the reload logged")  # noqa: B023
+            line = next(x for x in proc.log().splitlines() if "reloaded: rb_new:" in x)
+            assert "no change" not in line and ("lists rb_new now" in line or "added rb_new" in line), line
+        assert any("lists rb_new now" in proc.log() for proc in (a, b))  # given out after the reload
+        no_traceback(procs)
+    finally:
+        stop_all(procs, watcher)

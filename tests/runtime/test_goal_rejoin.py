@@ -39,8 +39,9 @@ class Node:
         self.app = Recorder(self.broker, [f"{TOPIC}/#"], "rejoin-app")
         self.engine: Engine | None = None
 
-    def start(self, actions: SimActions | None = None) -> Engine:
+    def start(self, actions: SimActions | None = None, *, watched: bool = False) -> Engine:
         port = SimPort(self.model, sim(robot_id=ROBOT), readers={}, writers={}, actions=actions or self.actions)
+        port.watched = watched  # its presence looked at (node/presence.py): the status says `robot`
         config = RuntimeConfig(robot=ROBOT, bus="local", state_dir=str(self.state), call_timeout=2.0)
         self.engine = serve(self.model, port, config, broker=self.broker)
         return self.engine
@@ -166,3 +167,32 @@ def test_a_goal_the_server_does_not_know_ends_failed_saying_so(tmp_path: Path) -
         assert len(node.terminals("g-4")) == 1
     finally:
         node.close()
+
+
+def test_the_first_status_after_a_restart_counts_the_goal_followed_on_and_says_whether_the_robot_is_there(
+    tmp_path: Path,
+) -> None:
+    """The first `online` status of the restarted node said `missions: 0` (and no `robot`) for 10-30 ms while
+    the node followed a goal on: it went out on connecting, before the recovery took the goal up (a new user's
+    `fleet status` saw 1, offline, 0, 1). Now the status keeper publishes the first one, after the recovery and
+    the first look at the robot."""
+    node = Node(tmp_path)
+    status = Recorder(node.broker, [f"td2adaptor/{ROBOT}/status"], "status-watch")
+    try:
+        node.start(watched=True)
+        node.send("", {"id": "g-s", "correlation": "g-s", "payload": {"order": 200}})  # 10 s
+        assert until(lambda: _running(node, "g-s", 2), 20), node.feedback("g-s")
+        node.stop()
+        stopped = len(status.events)
+        node.start(watched=True)
+        status.wait(lambda ev: any(e["payload"]["state"] == "online" for _, e in ev[stopped:]))
+        first = next(e["payload"] for _, e in status.events[stopped:] if e["payload"]["state"] == "online")
+        assert first["missions"] == 1 and first.get("robot") == "present", first
+        node.send(
+            "/cancel",
+            {"id": "c-s", "correlation": "c-s", "payload": {"goal": node.feedback("g-s")[0]["payload"]["goal"]}},
+        )
+        assert node.ended("g-s")["payload"]["state"] == "cancelled"
+    finally:
+        node.close()
+        status.close()

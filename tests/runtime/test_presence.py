@@ -134,6 +134,30 @@ def test_a_robot_not_discovered_yet_at_start_is_not_said_absent_until_the_grace_
             app.close()
 
 
+def test_a_robot_missing_at_start_is_said_absent_once_discovery_settles_not_after_call_timeout(
+    broker: Mosquitto,
+) -> None:
+    """A node restarted with no robot there: its status had no `robot` member for `call_timeout` (10 s), until
+    the grace of the refusals ended (a new user's dock charger). Now the word waits for discovery only
+    (`DISCOVERY_SETTLE`, 2 s); the invokes still wait for their server until `call_timeout`."""
+    from td2adaptor.runtime.node.presence import DISCOVERY_SETTLE
+
+    robot = "pres_gone"
+    port = SimPort(rb1_model(), sim(0.05))
+    port.watched, port.down = True, True  # not there at all
+    app = AppClient(broker, [f"td2adaptor/{robot}/#"])
+    engine = serve(rb1_model(), port, config(broker, robot=robot, call_timeout=10.0))
+    started = time.monotonic()
+    try:
+        app.wait(lambda ev: statuses(ev, robot)[-1:] and statuses(ev, robot)[-1].get("robot") == "absent", timeout=8)
+        took = time.monotonic() - started
+        assert DISCOVERY_SETTLE - 0.2 <= took < DISCOVERY_SETTLE + 3.0, took  # not before it, nor 10 s later
+        assert "gotoRun" in statuses(app.events, robot)[-1]["missing"]
+    finally:
+        engine.stop()
+        app.close()
+
+
 def test_a_second_owner_of_a_robot_is_refused_and_a_stale_record_is_not(broker: Mosquitto) -> None:
     model = rb1_model()
     engine = serve(model, SimPort(model, sim(0.3)), config(broker))
@@ -246,6 +270,11 @@ def test_fleet_status_says_clearly_when_the_broker_is_unreachable_or_wants_crede
         )
         assert wrong.returncode == 1 and "refused user 'operator'" in wrong.stderr
         assert "S3cr3t" not in wrong.stderr + wrong.stdout  # never a secret
+        # one line each: the connection's own log lines ("... refused the connection: Not authorized", "lost the
+        # MQTT broker ... (Protocol error); reconnecting" from a command that then exits) said it again, or wrong
+        for failed in (refused, wrong):
+            assert failed.stderr.strip().splitlines() == [failed.stderr.strip().splitlines()[-1]], failed.stderr
+            assert failed.stderr.startswith("td2adaptor fleet status: "), failed.stderr
         ok = run_cli(
             "fleet",
             "status",

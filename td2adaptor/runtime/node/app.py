@@ -96,9 +96,13 @@ def open_bus(
     broker: LocalBroker | None = None,
     env: Mapping[str, str] | None = None,
     announce: Sequence[Message] = (),
+    online: bool = True,
 ) -> Bus:
     """`local` (the process-wide in-process broker, or `broker`) or MQTT, secured as the TD says; `announce`
-    (retained messages) is published on every connection, before the online status.
+    (retained messages) is published on every connection, before the online status. `online=False`: the first
+    connection publishes no online status (`serve`: the robot's status keeper publishes the first one, once the
+    missions the last run left are followed again and the robot's ROS side was looked at), the next ones publish
+    the last status published.
 
     Raises `SecurityError` when the configuration does not satisfy the TD's security definitions. When the TD
     requires authentication, every connection of the MQTT bus first checks that the broker refuses anonymous
@@ -108,7 +112,7 @@ def open_bus(
     from td2adaptor.runtime.node.status import owner_fields
 
     will = status_event(config, model, "offline", **owner_fields())  # the last owner: the process that died
-    birth = status_event(config, model, "online", **owner_fields(), missions=0)
+    birth = status_event(config, model, "online", **owner_fields(), missions=0) if online else None
     if config.bus == "local":
         return LocalBus(broker, config.mqtt_client_id, will=will, birth=birth, announce=announce)
     from td2adaptor.runtime.bus.mqttbus import MqttBus  # paho only when it is used
@@ -172,7 +176,9 @@ def serve(
     catalog = build_catalog(model, port_distro(port) if distro is None else distro)
     td = td_message(config, model, catalog, env=env)
     announce = () if td is None else (td,)
-    raw = open_bus(config, model, broker=broker, env=env, announce=announce)
+    # no online status on connecting: the first one says what the recovery follows (engine.start) and what the
+    # first look at the robot saw (status.py); an `online, missions: 0` before it was wrong for a moment
+    raw = open_bus(config, model, broker=broker, env=env, announce=announce, online=False)
     bus = thing_bus(
         raw,
         catalog,

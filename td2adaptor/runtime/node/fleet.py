@@ -57,6 +57,10 @@ class Changes:
     removed: list[str] = field(default_factory=list)
     replaced: list[str] = field(default_factory=list)
     failed: dict[str, str] = field(default_factory=dict)
+    #: a shared fleet's (share.py): the robots this process lists now, or no longer, that the share gives out
+    #: (or retires) a moment later, not in this change: said so, where the log said "no change"
+    listed: list[str] = field(default_factory=list)
+    unlisted: list[str] = field(default_factory=list)
 
     def __bool__(self) -> bool:
         return bool(self.added or self.removed or self.replaced or self.failed)
@@ -64,6 +68,10 @@ class Changes:
     def describe(self) -> str:
         parts = [f"{what} {', '.join(ids)}" for what, ids in self._parts() if ids]
         parts += [f"{robot} not started ({why})" for robot, why in self.failed.items()]
+        if self.listed:
+            parts.append(f"lists {', '.join(self.listed)} now (the shared fleet gives each to one of its processes)")
+        if self.unlisted:
+            parts.append(f"no longer lists {', '.join(self.unlisted)} (retired once no process of the fleet lists it)")
         return "; ".join(parts) or "no change"
 
     def _parts(self) -> list[tuple[str, list[str]]]:

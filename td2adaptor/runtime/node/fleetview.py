@@ -144,6 +144,7 @@ def read_view(
     tls = TlsOptions(tls_ca_file) if tls_ca_file else None
     security = ConnectionSecurity(env.get(ENV_USERNAME) or None, env.get(ENV_PASSWORD) or None, tls)
     bus = MqttBus.sessionless(address, security, "fleet", mqtt_version=mqtt_version, connect_timeout=timeout)
+    bus.probe = True  # a refusal is this command's one line (`fleet status`), not also the connection's log lines
     got: dict[str, bytes] = {}
     members: dict[tuple[str, str], bytes] = {}
     lock = threading.Lock()

@@ -19,9 +19,11 @@ robot's status then says `online` and `robot: absent`, and an invoke is answered
 
 `Presence` keeps what the last look saw. An action whose server has never been seen is refused only once the
 node has run longer than `grace` (its calls' own wait for a server): at start-up, discovery takes a moment,
-and an invoke then waits for the server as it always did. For the same reason the word is not known meanwhile
-(`word()` None: the status has no `robot` member): a robot that is there said `absent` for the first second or
-two of every start, while nothing was refused.
+and an invoke then waits for the server as it always did. The word is not known (`word()` None: the status has
+no `robot` member) only while discovery may still be finding the servers: for `DISCOVERY_SETTLE` seconds at
+most (or `grace`, when shorter). Without it a robot that is there said `absent` for the first second or two of
+every start; with `grace` instead, one that is not there had no word for `call_timeout` (10 s: a restart that
+found no robot).
 """
 
 from __future__ import annotations
@@ -39,6 +41,9 @@ from td2adaptor.runtime.node.ros1nodes import TimeoutTransport, alive
 
 #: what a look at the robot's ROS side says: each action (TD affordance) and whether its server is there
 Probe = Callable[[], Mapping[str, bool]]
+#: seconds ROS 2 discovery may take at start-up to show a robot's servers that are there (typically within a
+#: second or two): an unseen server counts as `absent` in the status after this, not after `call_timeout`
+DISCOVERY_SETTLE = 2.0
 PRESENT, PARTIAL, ABSENT = PRESENCE_WORDS
 
 
@@ -216,9 +221,12 @@ class Presence:
     """What the last look saw (`update`) and what follows from it: the status word, the missing actions, and
     whether an invoke of an action is refused (`absent`). Used on the engine's loop only."""
 
-    def __init__(self, robot: str, grace: float, clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(
+        self, robot: str, grace: float, clock: Callable[[], float] = time.monotonic, settle: float | None = None
+    ) -> None:
         self.robot = robot
         self.grace = grace
+        self.settle = grace if settle is None else min(settle, grace)  # how long the word may wait for discovery
         self.clock = clock
         self.started = clock()
         self.ready: dict[str, bool] | None = None  # None: not looked yet
@@ -237,7 +245,7 @@ class Presence:
 
     def word(self) -> str | None:
         """`present`, `partial` or `absent`; None before the first look, and while an action's server was never
-        seen within `grace` of the start (not discovered yet, as `absent` says: not known to be gone)."""
+        seen within `settle` of the start (not discovered yet, as `absent` says: not known to be gone)."""
         if self.ready is None or self._discovering():
             return None
         there = sum(self.ready.values())
@@ -246,7 +254,7 @@ class Presence:
     def _discovering(self) -> bool:
         ready = self.ready or {}
         unseen = any(not there and name not in self._seen for name, there in ready.items())
-        return unseen and self.clock() - self.started < self.grace
+        return unseen and self.clock() - self.started < self.settle
 
     def missing(self) -> list[str]:
         return sorted(name for name, there in (self.ready or {}).items() if not there)

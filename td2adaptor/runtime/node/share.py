@@ -187,12 +187,16 @@ class Share:
         members that see them."""
         if origin == "discovery":
             return self._see(configs)
+        after = {c.robot: c for c in configs}
         with self._lock:
-            self._candidates = {c.robot: c for c in configs}
+            before, self._candidates = self._candidates, after
         try:
-            return self.reconcile()
+            changes = self.reconcile()
         finally:
             self._wake.set()  # a robot just listed is given out once it settled
+        changes.listed = sorted(set(after) - set(before) - set(changes.added))
+        changes.unlisted = sorted(set(before) - set(after) - set(changes.removed))
+        return changes
 
     def robots(self, origin: str | None = None) -> dict[str, RuntimeConfig]:
         """The robots this process lists (of one origin): what discovery compares its look with."""
@@ -932,7 +936,7 @@ class Share:
         """Hand `robot` over to `winner`: its missions in flight are left to it (the ledger, or the admitted
         entries on another host: admitted.py), the TD stays, the status stays online. Without a winner (no member
         lists it, or this one no longer does) retire it: missions ended, TD cleared, `offline` saying `retired`."""
-        from td2adaptor.runtime.node.status import owner_fields
+        from td2adaptor.runtime.node.status import keepers, owner_fields
 
         with self._lock:
             record = self._members.get(winner or "")
@@ -945,12 +949,15 @@ class Share:
             with self._lock:  # until it is taken (`_unclaimed`)
                 self._handed[robot] = (engine.config, time.monotonic())
             engine.td = None  # stays retained: the next owner publishes the same TD
+            # the robot's side and its missions in flight as the last status said (they go on: the next owner
+            # follows them), where it said `missions: 0` and no `robot` until the next owner's first status
+            keeper = next((k for k in keepers() if k.engine is engine), None)
+            now = {**(keeper.published() if keeper is not None else {}), **owner_fields()}
             engine.offline = status_event(
                 engine.config,
                 engine.model,
                 "online",
-                **owner_fields(),
-                missions=0,
+                **{**now, "missions": len(engine.missions.running())},
                 handover={"node": winner, "to": who, "time": _now()},
             )
         if winner is None:

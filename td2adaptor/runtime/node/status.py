@@ -27,7 +27,7 @@ from td2adaptor.runtime.engine.engine import Engine, status_event
 from td2adaptor.runtime.engine.missions import Mission
 from td2adaptor.runtime.loop import Shared, Timer, acquire, release
 from td2adaptor.runtime.node.owner import this_process
-from td2adaptor.runtime.node.presence import Presence, Probe
+from td2adaptor.runtime.node.presence import DISCOVERY_SETTLE, Presence, Probe
 
 log = logging.getLogger("td2adaptor.runtime")
 
@@ -81,18 +81,19 @@ class StatusKeeper:
         self.probe = probe
         config = engine.config
         self.period = config.presence_period
-        self.presence = Presence(config.robot, grace=config.call_timeout)
+        self.presence = Presence(config.robot, grace=config.call_timeout, settle=DISCOVERY_SETTLE)
         self._shared: Shared | None = None
         self._timer: Timer | None = None
         self._looking = False  # a look is under way on the pool
         self._stopped = False
-        self._last: dict[str, Any] | None = {**owner_fields(), "missions": 0}  # published last (the birth: app.py)
+        birth = getattr(raw, "birth", None)  # none from `serve` (app.py): the first `_publish` is the first status
+        #: the payload published last (the birth's, when the bus publishes one on connecting)
+        self._last: dict[str, Any] | None = {**owner_fields(), "missions": 0} if birth is not None else None
         self.durations = Durations()
         self._on_presence: list[Callable[[str | None], None]] = []  # told the robot's ROS side when it changes
         self._told: str | None = None  # the word the hooks and the log were told last (it also changes with time)
         self._offline: Message | None = None  # the `offline` made at the start (stop() stamps it anew)
         engine.outbox.on_end.append(self._ended)
-        birth = getattr(raw, "birth", None)
         self._ours: deque[bytes] = deque([birth.payload] if birth is not None else [], maxlen=OURS_KEPT)
 
     def start(self) -> None:
@@ -177,6 +178,11 @@ class StatusKeeper:
                     "robot %s: ROS side %s%s", self.engine.config.robot, now, f" (missing {missing})" * bool(missing)
                 )
         self._publish()
+
+    def published(self) -> dict[str, Any]:
+        """The payload of the last status published (a copy; {} before the first): a hand-over's status says the
+        robot's side and last error as it stood (share.py)."""
+        return dict(self._last or {})
 
     def payload(self) -> dict[str, Any]:
         """The status payload as it stands (without `state` and `thing`, which `status_event` adds)."""

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import array
 import importlib
+import inspect
 import math
 import threading
 from collections.abc import Callable, Iterable, Mapping
@@ -356,6 +357,7 @@ class GeneratedPort:
         self.layout.check(module, distro)
         self.components: dict[str, Any] = {}
         self._locks: dict[str, threading.BoundedSemaphore] = {}
+        self._constructors: dict[tuple[str, str], Callable[..., Any]] = {}  # `_construct`'s, by component and name
         self._goals: dict[tuple[str, str, str], GoalFollower] = {}
         self._goals_lock = threading.Lock()
         for name in self.layout.components:
@@ -377,6 +379,14 @@ class GeneratedPort:
         except (KeyError, AttributeError):
             raise PortCallFailed(f"the adaptor has no {component}.{name}") from None
 
+    def _construct(self, component: str, name: str) -> Callable[..., Any]:
+        """The generated constructor `name`, called with the message's own field names (`by_field`)."""
+        key = (component, name)
+        construct = self._constructors.get(key)
+        if construct is None:
+            construct = self._constructors[key] = by_field(self._method(component, name))
+        return construct
+
     def _guarded(self, component: str, fn: Callable[[], Any]) -> Any:
         try:
             with self._locks[component]:
@@ -387,7 +397,7 @@ class GeneratedPort:
             raise _mapped(component, exc) from exc
 
     def start(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> StartResult:
-        construct = self._method(component, api.CONSTRUCT_REQUEST(action))
+        construct = self._construct(component, api.CONSTRUCT_REQUEST(action))
         call = self._method(component, api.CALL(action))
 
         return self._guarded(component, lambda: _start_result(call(construct(**payload), timeout=timeout)))  # type: ignore[no-any-return]
@@ -404,7 +414,7 @@ class GeneratedPort:
         return self.query(component, action, mission_id, timeout)
 
     def call(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> Mapping[str, Any]:
-        construct = self._method(component, api.CONSTRUCT_REQUEST(action))
+        construct = self._construct(component, api.CONSTRUCT_REQUEST(action))
         call = self._method(component, api.CALL(action))
         if (component, action) in self.layout.runs:
             return self.start(component, action, payload, timeout).response
@@ -474,7 +484,7 @@ class GeneratedPort:
 
         try:
             if payload is not None:
-                kwargs["request"] = self._method(component, api.CONSTRUCT_REQUEST(action))(**payload)
+                kwargs["request"] = self._construct(component, api.CONSTRUCT_REQUEST(action))(**payload)
             sent = bool(then(on_done=done, **kwargs))
         except Exception as exc:  # noqa: BLE001 - a payload the request does not take: the call fails at once
             if not told:
@@ -505,7 +515,7 @@ class GeneratedPort:
         return method(callback)  # type: ignore[no-any-return]
 
     def write_property(self, component: str, name: str, value: Any) -> None:
-        construct = self._method(component, api.CONSTRUCT_MESSAGE(name))
+        construct = self._construct(component, api.CONSTRUCT_MESSAGE(name))
         publish = self._method(component, api.PUBLISH(name))
         fields = value if isinstance(value, Mapping) else {"data": value}
         self._guarded(component, lambda: publish(construct(**fields)))
@@ -543,7 +553,7 @@ class GeneratedPort:
         listener: GoalListener,
         guarded: Callable[[Callable[[], Any]], Any],
     ) -> str:
-        construct = self._method(component, api.CONSTRUCT_GOAL(action))
+        construct = self._construct(component, api.CONSTRUCT_GOAL(action))
         start = self._method(component, api.START(action))
         follower = GoalFollower(listener)
 
@@ -625,3 +635,22 @@ class GeneratedPort:
             close = getattr(instance, "close", None)
             if callable(close):
                 close()
+
+
+def by_field(construct: Callable[..., Any]) -> Callable[..., Any]:
+    """`construct` (a generated `construct_*` method) taking the message's own field names: the generator gives
+    a field named like a Python keyword or builtin, or like a parameter of its methods, a trailing `_`
+    (`open_`, `goal_`: backends/_python/names.py), and the events carry the ROS names (`open`, `goal`). Before,
+    such an invoke failed with "construct_setDoor_Msg() got an unexpected keyword argument 'open'"."""
+    try:
+        params = inspect.signature(construct).parameters
+    except (TypeError, ValueError):  # no signature to read: called as it is
+        return construct
+    renamed = {p[:-1]: p for p in params if p.endswith("_") and len(p) > 1 and p[:-1] not in params}
+    if not renamed:
+        return construct
+
+    def by_name(**fields: Any) -> Any:
+        return construct(**{renamed.get(name, name): value for name, value in fields.items()})
+
+    return by_name

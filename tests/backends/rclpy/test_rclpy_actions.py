@@ -808,6 +808,10 @@ def test_rejoin_tells_an_acceptance_only_of_a_goal_the_server_has_and_never_step
     assert ended.wait(15.0)
     assert told == ["lost"], told
     assert stranger.status != "accepted"
+    # no result: the server's answer for a goal it does not know is a default one (zeros an application could
+    # take for real values; a new user's dock charger ended lost with `final_percent: 0.0`)
+    assert stranger.outcome.result is None, stranger.outcome
+    assert getattr(stranger.outcome.error, "response", None) is None
 
     sent = fibo.start_fibonacci(fibo.construct_fibonacci_Goal(order=40))  # 2 s
     next(iter(sent.feedback(timeout=5.0)))

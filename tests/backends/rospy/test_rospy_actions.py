@@ -487,6 +487,7 @@ def test_rejoin_of_a_goal_the_server_does_not_know_tells_no_acceptance_and_the_p
         "    on_status=lambda status: told.append('status ' + status),\n"
         "    on_done=lambda o: (told.append(o.status), told.append(o.reason), ended.set()))\n"
         "ended.wait(60)\n"
-        "emit({'told': told})\n",
+        "emit({'told': told, 'result': repr(h.outcome.result)})\n",
     )
     assert out["told"] == ["lost", "the action server does not know goal /nobody-1-2.000"], out
+    assert out["result"] == "None", out  # a lost goal has no result (not a default one of zeros)

@@ -1681,9 +1681,9 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         elif code == 6:
             self._end(GoalOutcome("aborted", result, GoalAborted(self.action, result)), by_server=True)
         elif self._rejoined:  # followed by its id: the server forgot it (it ended long ago), or never had it
-            self._lose(CallFailed(self.action, f"the action server does not know goal {self.goal_id}", result), result)
-        else:  # the server does not know the goal (any more)
-            self._lose(CallFailed(self.action, f"the goal ended with status {code}", result), result)
+            self._lose(CallFailed(self.action, f"the action server does not know goal {self.goal_id}"))
+        else:  # the server does not know the goal (any more); its `result` is a default one (zeros): none
+            self._lose(CallFailed(self.action, f"the goal ended with status {code}"))
 
     def _lose(self, error: AdaptorError, result: Any = None, unless_accepted: bool = False) -> bool:
         reason = str(getattr(error, "reason", "") or getattr(error, "message", "") or error)

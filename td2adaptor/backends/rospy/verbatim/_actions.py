@@ -308,11 +308,11 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         elif code in (_PREEMPTED, _RECALLED):
             outcome = GoalOutcome("canceled", result, GoalCanceled(self.action, result, text), text)
         elif self.rejoined:  # followed by its id: the server forgot it (it ended a while ago), or never had it
-            failed = CallFailed(self.action, f"the action server does not know goal {self.goal_id}", result)
-            outcome = GoalOutcome("lost", result, failed, text or failed.message)  # the words, as on ROS 2
-        else:
-            failed = CallFailed(self.action, f"the goal was lost (status {code}: the server forgot it)", result)
-            outcome = GoalOutcome("lost", result, failed, text)
+            failed = CallFailed(self.action, f"the action server does not know goal {self.goal_id}")
+            outcome = GoalOutcome("lost", None, failed, text or failed.message)  # the words, as on ROS 2
+        else:  # no result, as on ROS 2: whatever result message came with it is not the goal's
+            failed = CallFailed(self.action, f"the goal was lost (status {code}: the server forgot it)")
+            outcome = GoalOutcome("lost", None, failed, text)
         self._end(outcome, by_server=True)
 
     def deliver(self, feedback: FeedbackT) -> None:
