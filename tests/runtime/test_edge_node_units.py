@@ -152,6 +152,8 @@ def test_failures_are_told_in_user_words_never_class_names() -> None:
     assert describe(PortUnavailable("service gotoRun is gone")) == "the robot is not reachable: service gotoRun is gone"
     assert describe(PortCallFailed("refused")) == "the robot call failed: refused"
     assert describe(NoValue()) == "the robot has published no value yet"
+    # the request could not be built (a field the message type refuses): the robot never saw it
+    assert describe(TypeError("bad field")) == "the edge node could not make the robot call: bad field"
     assert describe(RuntimeError("a bug")) == INTERNAL  # the details go to the log, not to users
     for exc in (silent, PortUnavailable(), PortTimeout(), PortCallFailed(), NoValue(), KeyError("k")):
         text = describe(_port_error(exc) if exc is silent else exc)

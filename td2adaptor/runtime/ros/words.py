@@ -35,8 +35,10 @@ def describe(exc: BaseException) -> str:
         lead = "the robot did not answer in time"
     elif isinstance(exc, NoValue):
         lead = "the robot has published no value yet"
-    elif isinstance(exc, (PortError, TypeError, ValueError, KeyError)):
+    elif isinstance(exc, PortError):
         lead = "the robot call failed"
+    elif isinstance(exc, (TypeError, ValueError, KeyError)):  # building the request or reading the answer
+        lead = "the edge node could not make the robot call"
     else:
         return INTERNAL
     return f"{lead}: {text}" if text else lead
