@@ -61,7 +61,7 @@ POLL_PERIOD = 0.02
 #: history depth per this many seconds loses messages it would not have)
 SUBSCRIPTIONS_PERIOD = 0.005
 #: and this much more per subscription of the node: that pass grows with the subscriptions (about 4 us each of
-#: the reader's CPU, most of it in rmw's wait), and 100 RB-1s' 200 property subscriptions at one message a
+#: the reader's CPU, half of it in rmw's wait), and 100 RB-1s' 200 property subscriptions at one message a
 #: second each woke the reader about 75 times a second for one or two messages (6 % of a core at idle); so a
 #: wake every 40 ms for them, every 5 ms up to 25 subscriptions: the passes cost at most about 2 % of a core
 #: however many subscriptions the node has (a topic of such a node loses messages beyond its history depth
