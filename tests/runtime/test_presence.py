@@ -346,3 +346,43 @@ def test_the_offline_status_of_a_stop_is_stamped_when_the_node_stopped_not_when_
     times = [e["time"] for t, e in app.events if t == f"td2adaptor/{ROBOT}/status"]
     app.close()
     assert times[-1] >= max(times), times  # ISO 8601 UTC with milliseconds: text order is time order
+
+
+def test_the_robots_of_a_process_are_looked_at_together_once_per_period_not_each_on_its_own(
+    broker: Mosquitto,
+) -> None:
+    """A fleet's idle process woke three threads per robot and period for its looks (the robot's timer on the
+    loop, its look on the call pool, its answer posted back: 300 wake-ups a second for 100 robots, each for
+    microseconds of work). Now the robots of one process are looked at together: one pool task per period,
+    whatever the number of robots, and each robot's status still follows its own ROS side."""
+    from td2adaptor.runtime.loop import acquire, release
+
+    model = rb1_model()
+    robots = [f"pres_many_{i}" for i in range(8)]
+    ports = {robot: SimPort(model, sim(0.3)) for robot in robots}
+    for port in ports.values():
+        port.watched = True
+    app = AppClient(broker, ["td2adaptor/+/status"])
+    engines = [serve(model, ports[robot], config(broker, robot=robot)) for robot in robots]
+    shared = acquire()
+    submitted: list[float] = []
+    submit = shared.pool.submit
+    try:
+        for robot in robots:
+            app.wait(lambda ev: (statuses(ev, robot)[-1:] or [{}])[0].get("robot") == "present")  # noqa: B023
+        shared.pool.submit = lambda task: (submitted.append(time.monotonic()), submit(task))[1]  # type: ignore[method-assign]
+        time.sleep(1.0)  # ten periods of 0.1 s
+        shared.pool.submit = submit  # type: ignore[method-assign]
+        periods = 1.0 / 0.1
+        assert len(submitted) <= periods + 3, f"{len(submitted)} pool tasks in {periods:.0f} periods for 8 robots"
+        ports[robots[3]].down = True  # one robot's ROS side goes: only its status says so
+        app.wait(lambda ev: statuses(ev, robots[3])[-1].get("robot") == "absent", timeout=5)
+        assert all(statuses(app.events, r)[-1].get("robot") == "present" for r in robots if r != robots[3])
+        ports[robots[3]].down = False
+        app.wait(lambda ev: statuses(ev, robots[3])[-1].get("robot") == "present", timeout=5)
+    finally:
+        shared.pool.submit = submit  # type: ignore[method-assign]
+        release(shared)
+        for engine in engines:
+            engine.stop()
+        app.close()

@@ -126,3 +126,42 @@ def until(predicate: Callable[[], bool], timeout: float) -> bool:
             return False
         time.sleep(0.02)
     return True
+
+
+def test_a_property_event_and_its_wot_form_go_out_in_one_send(broker: Mosquitto) -> None:
+    """A fleet's idle node publishes 200 property events a second (100 RB-1s, two properties each at one message
+    a second), each with its WoT form: written one after the other, two sends and two acknowledgements to read
+    for each. On the robot's own connection they go out together, in one send, as the engine's events do
+    (`MqttBus.batch`); both still arrive, envelope first."""
+    model = rb1_model()
+    config = RuntimeConfig(robot="onesend", bus=broker.url, property_period=0, state_dir="", call_timeout=2)
+    engine = serve(model, SimPort(model, sim(0.2)), config)
+    spec = engine.catalog.find(Kind.PROPERTY, "availability")
+    topic, wot = spec.topic("onesend"), f"td2adaptor/onesend/{WOT_LEVEL}/{spec.component}/availability"
+    app = AppClient(broker, [topic, wot])
+    client: Any = engine.bus.bus._client  # type: ignore[attr-defined]
+    streams = PropertyStreams(engine.outbox, engine.port, engine.model, [])
+    streams.start()
+    sends: list[int] = []
+    send = client._sock_send
+    try:
+        assert streams.out is None, "the robot's own connection"
+        slot = _Slot(engine.outbox, spec)
+
+        def counting(data: bytes) -> int:
+            sends.append(len(data))
+            return int(send(data))
+
+        client._sock_send = counting
+        for n in range(20):
+            slot.emit({"value": n})
+        assert until(lambda: [p["value"] for p in payloads(app, topic)] == list(range(20)), 10.0)
+        assert until(lambda: len([t for t, _ in app.events if t == wot]) == 20, 10.0), "the WoT form too"
+        mine = [t for t, _ in app.events if t in (topic, wot)]
+        assert mine == [topic, wot] * 20, "each event before its WoT form"
+        assert len(sends) <= 20, f"{len(sends)} sends for 20 property events and their WoT forms"
+    finally:
+        client._sock_send = send
+        streams.stop()
+        app.close()
+        engine.stop()

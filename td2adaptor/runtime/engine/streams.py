@@ -10,8 +10,8 @@ through the generated component's per-message callback (`on_<property>`, the por
 * one publishing thread per process (`Pump`, shared by every robot the process serves) converts each message
   once (`plain`, or for serialized messages the type's compiled CDR decoder, cdr.py: the values
   `genport.to_plain` gives), encodes it once and splices that text into the event envelope and the WoT form,
-  and publishes both: the same event, byte for byte, as the engine's own `encode(envelope(...))` and
-  `ThingBus` would give, at `property_qos`;
+  and publishes both, in one send on the robot's connection as `ThingBus` does: the same event, byte for
+  byte, as the engine's own `encode(envelope(...))` and `ThingBus` would give, at `property_qos`;
 * on MQTT 5 each robot's streams publish on the robot's own connection, written to its socket at once by the
   publishing thread (mqttloop.py): the connection asks for no-local, so the broker does not send the values back
   to the node (whose command filters match their topics), as it did while they had a connection of their own;
@@ -29,6 +29,7 @@ through the generated component's per-message callback (`on_<property>`, the por
 
 from __future__ import annotations
 
+import contextlib
 import heapq
 import itertools
 import json
@@ -38,6 +39,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Mapping
+from contextlib import AbstractContextManager
 from typing import TYPE_CHECKING, Any
 
 from td2adaptor.model import Model
@@ -153,10 +155,12 @@ class _Slot:
         self.last_text = text
         event = f'{self.head}{new_id()}","time":"{now_rfc3339()}{self.middle}{text}}}'
         bus = self.out or self.bus
-        try:  # the envelope and the WoT form, without parsing the event again
-            bus.publish(self.topic, event.encode("utf-8"), retain=True, qos=self.qos)
-            if self.wot is not None:
-                bus.publish(self.wot, text.encode("utf-8"), retain=True, qos=self.qos)
+        together: Callable[[], AbstractContextManager[Any]] = getattr(bus, "batch", contextlib.nullcontext)
+        try:  # the envelope and the WoT form, without parsing the event again, in one send (`MqttBus.batch`)
+            with together():
+                bus.publish(self.topic, event.encode("utf-8"), retain=True, qos=self.qos)
+                if self.wot is not None:
+                    bus.publish(self.wot, text.encode("utf-8"), retain=True, qos=self.qos)
         except (BusError, ValueError) as exc:
             log.error("could not publish a property event: %s", exc)
             return

@@ -114,6 +114,16 @@ def graph_served(node: Any, clock: Callable[[], float] = time.monotonic) -> froz
         reader.release()
 
 
+#: the probes that never wait on the network (a ROS 2 graph read in the process, the simulated robot's switch)
+_QUICK: weakref.WeakSet[Callable[[], Mapping[str, bool]]] = weakref.WeakSet()
+
+
+def quick(probe: Probe) -> bool:
+    """Whether `probe` never waits on the network, so that the looks of many robots may be made one after the
+    other on one thread (status.py); a ROS 1 look asks its master over XML-RPC (up to `MASTER_TIMEOUT`)."""
+    return probe in _QUICK
+
+
 def ros2_probe(model: Any, namespace: str, node: Any, actions: Iterable[str]) -> Probe | None:
     """The look at a ROS 2 robot through the graph of the node its port uses: each service of `actions` has a
     server, and each ROS action's `_action/send_goal` service has one (every rclpy and rclcpp action server
@@ -134,13 +144,19 @@ def ros2_probe(model: Any, namespace: str, node: Any, actions: Iterable[str]) ->
         except Exception:  # noqa: BLE001 - a node or context shut down: the servers count as gone
             return dict.fromkeys(names, False)
 
+    _QUICK.add(look)
     return look
 
 
 def sim_probe(port: Any, actions: Iterable[str]) -> Probe:
     """The simulated robot's `down` switch: every action's server gone, or every one there."""
     names = list(actions)
-    return lambda: dict.fromkeys(names, not port.down)
+
+    def look() -> dict[str, bool]:
+        return dict.fromkeys(names, not port.down)
+
+    _QUICK.add(look)
+    return look
 
 
 #: seconds one look at a ROS 1 master may take; and how long its answer serves every robot on that master

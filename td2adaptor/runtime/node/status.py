@@ -11,10 +11,19 @@
 A `StatusKeeper` looks at the robot every `presence_period` on the process's engine loop (a timer, and the look
 itself on the call pool: no thread of its own) and publishes the status when something in it changed, at most
 once per period. It keeps the bus's birth message (published again at every reconnection) the current status.
+
+The robots a process serves are looked at together (`_Looks`, one per loop and period): one timer, one pool
+task that looks at each robot in turn, and one posted answer per period, whatever the number of robots. Each
+robot's own timer, pool task and answer woke three threads per robot and second (300 wake-ups a second for
+100 robots at idle, each for microseconds of work), and their looks, spread over the second, read the ROS 2
+graph four times a second instead of once. A look that may block (ROS 1: the master over XML-RPC, up to 2 s)
+is no part of the batch: it keeps its own pool task, so that a master that does not answer delays no other
+robot's look.
 """
 
 from __future__ import annotations
 
+import functools
 import logging
 import threading
 from collections import deque
@@ -27,7 +36,7 @@ from td2adaptor.runtime.engine.engine import Engine, status_event
 from td2adaptor.runtime.engine.missions import Mission
 from td2adaptor.runtime.loop import Shared, Timer, acquire, release
 from td2adaptor.runtime.node.owner import this_process
-from td2adaptor.runtime.node.presence import DISCOVERY_SETTLE, Presence, Probe
+from td2adaptor.runtime.node.presence import DISCOVERY_SETTLE, Presence, Probe, quick
 
 log = logging.getLogger("td2adaptor.runtime")
 
@@ -83,8 +92,8 @@ class StatusKeeper:
         self.period = config.presence_period
         self.presence = Presence(config.robot, grace=config.call_timeout, settle=DISCOVERY_SETTLE)
         self._shared: Shared | None = None
-        self._timer: Timer | None = None
-        self._looking = False  # a look is under way on the pool
+        self._looks: _Looks | None = None  # the process's periodic looks this robot is part of
+        self._looking = False  # a look of this robot is under way on the pool (the loop's)
         self._stopped = False
         birth = getattr(raw, "birth", None)  # none from `serve` (app.py): the first `_publish` is the first status
         #: the payload published last (the birth's, when the bus publishes one on connecting)
@@ -106,7 +115,10 @@ class StatusKeeper:
         engine.offline = self._offline = status_event(engine.config, engine.model, "offline", **owner_fields())
         with _keepers_lock:
             _keepers[engine.config.robot] = self
-        self._shared.loop.post(self._tick)
+        if self.period > 0:
+            self._looks = _Looks.join(self._shared, self.period, self)
+        else:
+            self._shared.loop.post(self._tick)
 
     def follow_presence(self, hook: Callable[[str | None], None]) -> None:
         """Tell `hook` the robot's ROS side now (if a look found it yet) and at every change: a hook added after
@@ -124,8 +136,9 @@ class StatusKeeper:
         engine = self.engine
         if self._offline is not None and engine.offline is self._offline:
             engine.offline = status_event(engine.config, engine.model, "offline", **owner_fields())
-        if self._timer is not None:
-            self._timer.cancel()
+        looks, self._looks = self._looks, None
+        if looks is not None:
+            looks.leave(self)
         with _keepers_lock:
             if _keepers.get(self.engine.config.robot) is self:
                 del _keepers[self.engine.config.robot]
@@ -136,28 +149,18 @@ class StatusKeeper:
     # -- on the loop -----------------------------------------------------------------------------------------
 
     def _tick(self) -> None:
-        shared = self._shared
-        if self._stopped or shared is None:
-            return
-        if self.probe is not None and self.period > 0 and not self._looking:
-            self._looking = True
-            shared.pool.submit(self._look)
-        else:
+        """(the loop) Once, when the robot is not looked at periodically: publish its status."""
+        if not self._stopped and self._shared is not None:
             self._publish()
-        if self.period > 0:
-            self._timer = shared.loop.call_later(self.period, self._tick)
 
-    def _look(self) -> None:
-        """(the pool) Look at the robot's ROS side; the loop takes the answer."""
+    def _look(self) -> Mapping[str, bool] | None:
+        """(the pool) Look at the robot's ROS side (None: the look failed and says nothing; the next one may)."""
         assert self.probe is not None
         try:
-            ready: Mapping[str, bool] | None = self.probe()
+            return self.probe()
         except Exception:  # noqa: BLE001 - a failed look says nothing; the next one may
             log.exception("robot %s: looking at its ROS side failed", self.engine.config.robot)
-            ready = None
-        shared = self._shared
-        if shared is not None:
-            shared.loop.post(self._seen, ready)
+            return None
 
     def _seen(self, ready: Mapping[str, bool] | None) -> None:
         self._looking = False
@@ -225,6 +228,92 @@ class StatusKeeper:
         topic = f"{self.engine.config.topic_root}/{self.engine.config.robot}/status"
         seen = read_statuses(probe_bus(raw.address, raw.security, raw.mqtt_version), [topic])
         return taken_by(self.engine.config.robot, seen.get(topic), list(self._ours))
+
+
+class _Looks:
+    """Every `presence_period` (`period`), the looks at the robots of one loop that share that period, as one
+    timer of the loop, one pool task for every look that does not block (`presence.quick`) and one answer posted
+    back (see the module docstring); a look that may block has a pool task of its own, as before."""
+
+    _all: dict[tuple[int, float], _Looks] = {}  # by the loop's id and the period: while a robot is part of them
+    _all_lock = threading.Lock()
+
+    def __init__(self, shared: Shared, period: float) -> None:
+        self.shared = shared
+        self.period = period
+        self.keepers: dict[StatusKeeper, None] = {}  # in the order they joined (guarded by _all_lock)
+        self.timer: Timer | None = None
+        self.looking = False  # the batch is under way on the pool (the loop's)
+        self.started = False
+
+    @classmethod
+    def join(cls, shared: Shared, period: float, keeper: StatusKeeper) -> _Looks:
+        """`keeper`'s robot is looked at with the others of `shared`'s loop every `period` from now on (its
+        first look at the next turn of the loop, as a robot's first look was)."""
+        with cls._all_lock:
+            looks = cls._all.get((id(shared.loop), period))
+            if looks is None or looks.shared is not shared:
+                looks = cls._all[id(shared.loop), period] = _Looks(shared, period)
+            looks.keepers[keeper] = None
+            start, looks.started = not looks.started, True
+        shared.loop.post(looks._tick if start else looks._first, keeper)
+        return looks
+
+    def leave(self, keeper: StatusKeeper) -> None:
+        """`keeper` stopped: not looked at any more; the last one to leave ends the timer."""
+        with _Looks._all_lock:
+            self.keepers.pop(keeper, None)
+            if self.keepers:
+                return
+            if _Looks._all.get((id(self.shared.loop), self.period)) is self:
+                del _Looks._all[id(self.shared.loop), self.period]
+            timer, self.timer = self.timer, None
+        if timer is not None:
+            timer.cancel()
+
+    def _first(self, keeper: StatusKeeper) -> None:
+        """(the loop) A robot that joined running looks: looked at alone once, then with the others."""
+        self._send([keeper])
+
+    def _tick(self, _joined: StatusKeeper | None = None) -> None:
+        """(the loop) Look at every robot (the period's timer)."""
+        with _Looks._all_lock:
+            keepers = list(self.keepers)
+            if not keepers:
+                return
+        self._send(keepers)
+        with _Looks._all_lock:
+            if self.keepers:
+                self.timer = self.shared.loop.call_later(self.period, self._tick)
+
+    def _send(self, keepers: list[StatusKeeper]) -> None:
+        batch: list[StatusKeeper] = []
+        for keeper in keepers:
+            if keeper._stopped:
+                continue
+            if keeper.probe is None or keeper._looking:
+                keeper._publish()
+                continue
+            keeper._looking = True
+            if quick(keeper.probe):
+                batch.append(keeper)
+            else:
+                self.shared.pool.submit(functools.partial(self._alone, keeper))
+        if batch:
+            self.shared.pool.submit(functools.partial(self._batch, batch))
+
+    def _batch(self, keepers: list[StatusKeeper]) -> None:
+        """(the pool) Look at each robot in turn; the loop takes the answers at once."""
+        self.shared.loop.post(self._seen, [(keeper, keeper._look()) for keeper in keepers])
+
+    def _alone(self, keeper: StatusKeeper) -> None:
+        """(the pool) A look that may block (see `presence.quick`)."""
+        self.shared.loop.post(self._seen, [(keeper, keeper._look())])
+
+    @staticmethod
+    def _seen(answers: list[tuple[StatusKeeper, Mapping[str, bool] | None]]) -> None:
+        for keeper, ready in answers:
+            keeper._seen(ready)
 
 
 def watch(engine: Engine, raw: Bus, port: Any) -> StatusKeeper:
