@@ -223,6 +223,10 @@ class Counter:
         self.bus.close()
 
 
+class NotOnline(Exception):
+    """A step whose edge node did not have every robot online in time: said in words, the other steps go on."""
+
+
 @dataclass
 class Mode:
     """How the edge node relays the properties: `msg` (per message, `interval` the property_interval) or `sample`
@@ -322,7 +326,11 @@ def measure(ctx: dict[str, Any], counter: Counter, robots: int, period: Mode, wi
             while len(counter.online) < robots and time.monotonic() < deadline and edge.poll() is None:
                 time.sleep(0.1)
             if len(counter.online) < robots:
-                raise RuntimeError(f"edge node not online ({edge.poll()}); see {ctx['work']}")
+                raise NotOnline(
+                    f"{robots} robots, {period}: not measured: {len(counter.online)} of {robots} robots online after "
+                    f"120 s (edge node {'still starting' if edge.poll() is None else f'exit {edge.poll()}'}; its "
+                    f"log in {ctx['work']})"
+                )
             time.sleep(3.0)  # discovery, first messages
             a, n0, c0, t0 = pub.last("published"), counter.n, cpu_seconds(edge.pid), time.monotonic()
             time.sleep(window)
@@ -407,6 +415,7 @@ def main() -> None:
         f"{ODOM_HZ} Hz + scan of {BEAMS} ranges {SCAN_HZ} Hz = {PER_ROBOT} msg/s, {args.window:g} s windows"
     )
     steps: list[Step] = []
+    failed: list[str] = []  # the steps not measured, in words
     with mosquitto() as url:
         counter = Counter(url)
         ctx = {"work": work, "td": td, "src": src, "url": url, "env": env.child_env([])}
@@ -416,7 +425,11 @@ def main() -> None:
                     mode = Mode("msg", 0.0, executor, qos)
                     for n in counts:
                         first = executor == "single" and qos == int(args.qos.split(",")[0])
-                        steps.append(measure(ctx, counter, n, mode, args.window, with_floor=first))
+                        try:
+                            steps.append(measure(ctx, counter, n, mode, args.window, with_floor=first))
+                        except NotOnline as exc:
+                            failed.append(str(exc))
+                            break
                         if steps[-1].events < 0.95 * steps[-1].sent:
                             break  # saturated: it no longer relays every message
             top = max(steps, key=lambda s: s.events)
@@ -425,10 +438,17 @@ def main() -> None:
                 Mode("sample", 0.005),
                 Mode("sample", 1.0),
             ):
-                steps.append(measure(ctx, counter, top.robots, mode, args.window, with_floor=False))
+                try:
+                    steps.append(measure(ctx, counter, top.robots, mode, args.window, with_floor=False))
+                except NotOnline as exc:
+                    failed.append(str(exc))
         finally:
             counter.close()
     report(steps)
+    for line in failed:
+        print(line)
+    if failed:
+        sys.exit(1)  # the logs stay for a look
     shutil.rmtree(work, ignore_errors=True)
 
 
