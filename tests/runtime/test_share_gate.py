@@ -32,12 +32,15 @@ from typing import Any
 import pytest
 
 import td2adaptor
+from td2adaptor.backends.events.generator import generate as events
+from td2adaptor.diagnostics import Diagnostics
+from td2adaptor.generation.backend import GenOptions
 from td2adaptor.model import Model
 from td2adaptor.runtime import loop
 from td2adaptor.runtime.bus.drivenbus import DrivenBus
 from td2adaptor.runtime.bus.mqttbus import MqttBus
 from td2adaptor.runtime.bus.mqttloop import shared as serving_loop
-from td2adaptor.runtime.bus.security import parse_broker_url
+from td2adaptor.runtime.bus.security import ConnectionSecurity, parse_broker_url
 from td2adaptor.runtime.config import load_defaults, robot_config
 from td2adaptor.runtime.engine.engine import Engine
 from td2adaptor.runtime.events import now_rfc3339
@@ -51,7 +54,7 @@ from tests.lowering.test_procedures import INTERFACES
 from tests.runtime.broker import Mosquitto
 from tests.runtime.client import AppClient
 from tests.runtime.edge import bus_of, until
-from tests.runtime.rb1 import rb1_model, sim
+from tests.runtime.rb1 import rb1_model, sim, td_with_security
 from tests.runtime.test_edge_node_plain_services import plain_td
 from tests.runtime.threads_proc import action_model
 
@@ -218,4 +221,36 @@ def test_a_command_read_on_a_connection_whose_session_moved_unnoticed_is_not_run
             engine.stop()
         loop.release(engine_loop)
         member.close()
+        broker.stop()
+
+
+@pytest.mark.parametrize("version", ["5", "3.1.1"])
+def test_the_robot_connections_round_trip_is_answered_under_the_generated_acl(tmp_path: Path, version: str) -> None:
+    """The round trip is an UNSUBSCRIBE from a topic no ACL grants: the broker answers it all the same (a denial
+    is an answer too), in both MQTT versions; a connection that is gone answers False, at once."""
+    model = td_with_security(tmp_path, {"basic_sc": {"scheme": "basic"}})
+    diags = Diagnostics()
+    tree = events(model, GenOptions(extra=(("events.robots", [ROBOT]), ("events.fleet", "shared"))), diags)
+    acl = tmp_path / "mosquitto.acl"
+    acl.write_bytes(tree.files[f"{model.package_name}/mosquitto.acl"])
+    broker = Mosquitto(tmp_path / "broker", users={ROBOT: "pass"}, acl=acl)
+    broker.start()
+    security = ConnectionSecurity(username=ROBOT, password="pass")
+    bus = MqttBus(parse_broker_url(broker.url), security, client_id=f"td2adaptor-{ROBOT}", mqtt_version=version)
+    try:
+        bus.connect()
+        told: list[bool] = []
+        answered = threading.Event()
+
+        def then(fine: bool) -> None:
+            told.append(fine)
+            answered.set()
+
+        bus.round_trip(then)
+        assert answered.wait(10) and told == [True], told
+        bus.close()
+        bus.round_trip(told.append)
+        assert told == [True, False], told
+    finally:
+        bus.close()
         broker.stop()
