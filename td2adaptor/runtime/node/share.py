@@ -349,7 +349,9 @@ class Share:
                     return
                 if node not in self._members:
                     log.info("fleet %s: member %s joined", self.name, node)
-                    self._beats.setdefault(node, time.monotonic())  # a `timeout` of grace for its first beat
+                    # a `timeout` of grace for its first beat, also when it rejoins (its beats before it left are
+                    # stale: it was taken as gone at once, until its next beat)
+                    self._beats[node] = time.monotonic()
                 self._members[node] = record
                 self._gone.discard(node)
                 mine = self._mine()
