@@ -710,17 +710,17 @@ class MqttBus:
         """(serving thread) Send `round_trip`'s request: its answer is read on this thread, after this."""
         client, epoch = self._client, self._epoch
         if client is None or not self._connected:
-            then(False)
+            self._told(then, False)
             return
         rc, mid = client.unsubscribe(ROUND_TRIP)  # not under a lock of ours (see subscribe)
         if rc is not MQTTErrorCode.MQTT_ERR_SUCCESS or mid is None:
-            then(False)
+            self._told(then, False)
             return
         with self._inbox_lock:
             if epoch == self._epoch:  # else lost meanwhile (on a publisher's thread): `_trips_lost` ran already
                 self._trips[mid] = (epoch, then)
                 return
-        then(False)
+        self._told(then, False)
 
     def _on_unsubscribe(
         self, _client: mqtt.Client, _userdata: Any, mid: int, _reasons: Any, _props: Properties | None
