@@ -215,6 +215,7 @@ class MqttBus:
         self._flushed: list[tuple[set[int], Callable[[], None]]] = []  # `when_flushed`: what each still waits for
         #: (`round_trip`) UNSUBSCRIBE message id -> (the connection it was sent on, who waits for its answer)
         self._trips: dict[int, tuple[int, Callable[[bool], None]]] = {}
+        self._unsubacked: dict[int, int] = {}  # UNSUBSCRIBE message id -> its connection: answered before registered
 
     @classmethod
     def sessionless(
@@ -699,28 +700,24 @@ class MqttBus:
         its socket read up to then (node/share.py: a goal is sent only then). A connection whose session another
         client took over never answers: mosquitto just closes its socket, which may still look open here; the
         answer cannot come before the socket's end is read. The request is an UNSUBSCRIBE from `ROUND_TRIP`, which
-        nobody subscribes to: no other client sees anything of it. `then` runs on the serving thread (or here)."""
-        link = self._link
-        if link is None:  # no serving thread (`DrivenBus`): nothing reads an answer but its owner
-            then(self._connected)
+        nobody subscribes to: no other client sees anything of it. Sent from this thread, as a publish is; `then`
+        runs on the serving thread (or here)."""
+        client = self._client
+        if self._link is None or client is None or not self._connected:  # (`DrivenBus`: no thread reads answers)
+            self._told(then, self._link is None and self._connected)
             return
-        link.loop.call_soon(functools.partial(self._trip, then))
-
-    def _trip(self, then: Callable[[bool], None]) -> None:
-        """(serving thread) Send `round_trip`'s request: its answer is read on this thread, after this."""
-        client, epoch = self._client, self._epoch
-        if client is None or not self._connected:
-            self._told(then, False)
-            return
+        with self._inbox_lock:
+            epoch = self._epoch
         rc, mid = client.unsubscribe(ROUND_TRIP)  # not under a lock of ours (see subscribe)
         if rc is not MQTTErrorCode.MQTT_ERR_SUCCESS or mid is None:
             self._told(then, False)
             return
         with self._inbox_lock:
-            if epoch == self._epoch:  # else lost meanwhile (on a publisher's thread): `_trips_lost` ran already
+            early = self._unsubacked.pop(mid, None)  # answered already, on the serving thread
+            if early is None and epoch == self._epoch:
                 self._trips[mid] = (epoch, then)
                 return
-        self._told(then, False)
+        self._told(then, early == epoch)  # else lost meanwhile: `_trips_lost` ran already
 
     def _on_unsubscribe(
         self, _client: mqtt.Client, _userdata: Any, mid: int, _reasons: Any, _props: Properties | None
@@ -728,6 +725,10 @@ class MqttBus:
         with self._inbox_lock:
             trip = self._trips.pop(mid, None)
             current = self._epoch
+            if trip is None:  # before `round_trip` had its message id
+                if len(self._unsubacked) >= 64:
+                    self._unsubacked.clear()
+                self._unsubacked[mid] = current
         if trip is not None:
             self._told(trip[1], trip[0] == current)
 
@@ -735,6 +736,7 @@ class MqttBus:
         """The connection is gone: no `round_trip` sent on it will be answered."""
         with self._inbox_lock:
             trips, self._trips = self._trips, {}
+            self._unsubacked.clear()
         for _epoch, then in trips.values():
             self._told(then, False)
 
