@@ -203,8 +203,10 @@ def test_a_command_read_on_a_connection_whose_session_moved_unnoticed_is_not_run
             done = threading.Event()
             engine_loop.loop.post(done.set)  # what the gate posted is handled before this
             assert done.wait(20)
-        # run already, or waiting for the robot connection's answer (what waits for the serving loop)
-        assert until(lambda: bool(ran()) or bool(serving._calls), 20)
+        # run already (before: nothing asked the robot connection), or its round trip sent on the connection whose
+        # socket's end is not read yet, waiting for an answer
+        assert until(lambda: bool(ran()) or bool(getattr(robot_bus, "_trips", None)), 20)
+        assert robot_bus.connected  # still not noticed
         # the broker has the entry (read on a pool thread, which waits there), or it ran without waiting for it
         assert until(lambda: bool(ran()) or not member._pending, 20)
         free_serving.set()  # the process reads the end of its robot connection
