@@ -68,6 +68,23 @@ class Hosts:
         return [r for r, (_s, pid) in self.watcher.owners().items() if pid == proc.pid]
 
 
+def stop(proc: subprocess.Popen[str]) -> None:
+    """SIGSTOP `proc`, and wait until every thread of it has stopped: the kernel wakes one thread to take a stop
+    signal, which stops the others once it runs, so on a loaded machine the others go on for a while (a command
+    sent right after the signal was admitted 7 ms later in one loop run, and its goal never sent: that process
+    stopped while its gate waited, and the other ended it `failed` with the takeover's words)."""
+    proc.send_signal(signal.SIGSTOP)
+    tasks = Path(f"/proc/{proc.pid}/task")
+
+    def state(stat: Path) -> str:
+        try:
+            return stat.read_text().rsplit(")", 1)[1].split()[0]
+        except (OSError, IndexError):
+            return "T"  # a thread that ended meanwhile
+
+    assert until(lambda: all(state(t / "stat") in ("T", "t") for t in tasks.iterdir()), 20)
+
+
 @contextmanager
 def two_hosts(tmp_path: Path) -> Iterator[Hosts]:
     broker = Mosquitto(tmp_path / "broker")
@@ -98,8 +115,8 @@ def test_a_resumed_process_runs_nothing_it_read_on_a_session_taken_over(
         broker, procs, watcher, sender, frozen, other = hosts.parts()
         theirs, others = hosts.robots_of(frozen), hosts.robots_of(other)
         stopped = time.monotonic()  # what came before (the first shares' hand-overs) is no grab
-        frozen.send_signal(signal.SIGSTOP)
         try:
+            stop(frozen)
             sent = []
             for n, robot in enumerate(theirs):  # one each (a robot runs one at a time), into the hung process's
                 event_id = uuid.uuid4().hex  # socket: read by nobody yet
@@ -183,8 +200,8 @@ def test_a_resumed_process_leaves_the_entry_of_a_goal_taken_over_to_its_new_owne
             ]
 
         assert until(lambda: "running" in states(), 30), procs.logs()
-        frozen.send_signal(signal.SIGSTOP)
         try:
+            stop(frozen)
             assert until(lambda: served_by(watcher, {other.pid}, ROBOTS), 20), (watcher.owners(), procs.logs())
             assert until(lambda: event_id in watcher.terminals(), 30), procs.logs()
         finally:

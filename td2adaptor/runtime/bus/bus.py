@@ -51,6 +51,17 @@ def when_flushed(bus: object, then: Callable[[], None]) -> None:
         flushed(then)
 
 
+def round_trip(bus: object, then: Callable[[bool], None]) -> None:
+    """`then(True)` once the broker answered a request `bus` sends now, `then(False)` if its connection is lost
+    first (MqttBus `round_trip`), or `then(True)` at once on a bus whose session nobody can take over (no such
+    method: the in-process broker)."""
+    trip = getattr(bus, "round_trip", None)
+    if trip is None:
+        then(True)
+    else:
+        trip(then)
+
+
 class Bus(Protocol):
     def connect(self) -> None:
         """Connect (or attach to the local broker); raises `BusError` with a clear message on failure."""

@@ -60,6 +60,8 @@ _AUTH_REFUSALS = {134, 135}  # Bad user name or password, Not authorized (paho m
 MQTT_VERSIONS = ("5", "3.1.1")
 #: topics whose matching handlers a client remembers (then it forgets them all and starts again)
 ROUTES_KEPT = 4096
+#: the topic filter `round_trip` unsubscribes from: one nobody subscribes to (the broker answers all the same)
+ROUND_TRIP = ".td2adaptor/round-trip"
 
 
 def _no_delay(_client: mqtt.Client, _userdata: Any, sock: Any) -> None:
@@ -211,6 +213,9 @@ class MqttBus:
         self._inbox_lock = threading.Lock()  # paho may tell a connection's loss on a publisher's thread
         self._epoch = 0  # the connection's number: an acknowledgement is for the connection its message came on
         self._flushed: list[tuple[set[int], Callable[[], None]]] = []  # `when_flushed`: what each still waits for
+        #: (`round_trip`) UNSUBSCRIBE message id -> (the connection it was sent on, who waits for its answer)
+        self._trips: dict[int, tuple[int, Callable[[bool], None]]] = {}
+        self._unsubacked: dict[int, int] = {}  # UNSUBSCRIBE message id -> its connection: answered before registered
 
     @classmethod
     def sessionless(
@@ -279,6 +284,7 @@ class MqttBus:
         client.on_message = self._on_message
         client.on_publish = self._on_publish
         client.on_subscribe = self._on_subscribe
+        client.on_unsubscribe = self._on_unsubscribe
         client.on_socket_open = _no_delay
         return client
 
@@ -528,6 +534,7 @@ class MqttBus:
         )
         self._connected = False
         self._held = None  # never handled
+        self._trips_lost()
         log.error("%s", self.refused)
         link = self._link
         if link is None:
@@ -549,6 +556,7 @@ class MqttBus:
         self.refused = why if first else f"stopped serving: after reconnecting, {why}"
         self._connected = False
         self._held = None  # never handled
+        self._trips_lost()
         link = self._link
         if not first:
             log.error("%s", self.refused)
@@ -684,6 +692,59 @@ class MqttBus:
         with self._inbox_lock:
             self._epoch += 1
             self._inbox.clear()
+        self._trips_lost()
+
+    def round_trip(self, then: Callable[[bool], None]) -> None:
+        """`then(True)` once the broker answered a request this connection sends now, `then(False)` once the
+        connection is lost first (or is not there): whether this connection still served its session a moment ago,
+        its socket read up to then (node/share.py: a goal is sent only then). A connection whose session another
+        client took over never answers: mosquitto just closes its socket, which may still look open here; the
+        answer cannot come before the socket's end is read. The request is an UNSUBSCRIBE from `ROUND_TRIP`, which
+        nobody subscribes to: no other client sees anything of it. Sent from this thread, as a publish is; `then`
+        runs on the serving thread (or here)."""
+        client = self._client
+        if self._link is None or client is None or not self._connected:  # (`DrivenBus`: no thread reads answers)
+            self._told(then, self._link is None and self._connected)
+            return
+        with self._inbox_lock:
+            epoch = self._epoch
+        rc, mid = client.unsubscribe(ROUND_TRIP)  # not under a lock of ours (see subscribe)
+        if rc is not MQTTErrorCode.MQTT_ERR_SUCCESS or mid is None:
+            self._told(then, False)
+            return
+        with self._inbox_lock:
+            early = self._unsubacked.pop(mid, None)  # answered already, on the serving thread
+            if early is None and epoch == self._epoch:
+                self._trips[mid] = (epoch, then)
+                return
+        self._told(then, early == epoch)  # else lost meanwhile: `_trips_lost` ran already
+
+    def _on_unsubscribe(
+        self, _client: mqtt.Client, _userdata: Any, mid: int, _reasons: Any, _props: Properties | None
+    ) -> None:
+        with self._inbox_lock:
+            trip = self._trips.pop(mid, None)
+            current = self._epoch
+            if trip is None:  # before `round_trip` had its message id
+                if len(self._unsubacked) >= 64:
+                    self._unsubacked.clear()
+                self._unsubacked[mid] = current
+        if trip is not None:
+            self._told(trip[1], trip[0] == current)
+
+    def _trips_lost(self) -> None:
+        """The connection is gone: no `round_trip` sent on it will be answered."""
+        with self._inbox_lock:
+            trips, self._trips = self._trips, {}
+            self._unsubacked.clear()
+        for _epoch, then in trips.values():
+            self._told(then, False)
+
+    def _told(self, then: Callable[[bool], None], answered: bool) -> None:
+        try:
+            then(answered)
+        except Exception:  # noqa: BLE001 - never let a hook kill the thread that serves connections
+            log.exception("after a round trip to %s", self.address)
 
     def when_flushed(self, then: Callable[[], None]) -> None:
         """`then()` (on the serving thread, or here at once) once everything published so far is acknowledged
@@ -849,6 +910,7 @@ class MqttBus:
             return
         self._stop(client)  # a normal disconnect: the broker drops the will
         self._connected = False
+        self._trips_lost()
 
 
 def accepts_anonymous(

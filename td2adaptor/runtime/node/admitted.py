@@ -330,10 +330,14 @@ class RecordingLedger:
 
 
 class AckedPort:
-    """The robot's port, whose procedure missions start only once the broker has their entries, and never once
-    the robot's session was taken over (`taken`): a process that hung and resumes reads the commands the broker
-    wrote into its socket meanwhile before the "Session taken over" behind them, and the next owner got them too.
-    The broker's round trip for the entry gives the robot's connection the time to read that."""
+    """The robot's port, whose procedure missions and plain calls start only once the broker has their entries,
+    and which runs nothing (nor writes a property) once the robot's session was taken over: a process that hung
+    and resumes reads the commands the broker wrote into its socket meanwhile before the end of that socket
+    (mosquitto just closes a connection whose session another client took), and the next owner got them too and
+    ran them. The member connection's acknowledgement of the entry says nothing of the robot's connection (its
+    closed socket may be read later): a round trip on the robot's own connection (`trip`: share.py, MqttBus
+    `round_trip`) says whether that connection still served its session, and `taken` whether it is still there.
+    The port's calls without a waiting thread (`QuickCall`) are declined, so that these go through here."""
 
     def __init__(
         self,
@@ -342,26 +346,57 @@ class AckedPort:
         robot: str,
         taken: Callable[[], bool] = lambda: False,
         withdraw: Callable[[], None] = lambda: None,
+        trip: Callable[[Callable[[bool], None]], None] | None = None,
     ) -> None:
         self._port = port
         self._acknowledged = acknowledged
         self._robot = robot
         self._taken = taken
         self._withdraw = withdraw
+        self._trip = trip
 
     def start(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> Any:
-        if not self._acknowledged():
+        self._may_run("the invoke started", entry=True)
+        return self._port.start(component, action, payload, timeout)
+
+    def call(self, component: str, action: str, payload: Mapping[str, Any], timeout: float) -> Any:
+        self._may_run("the invoke started", entry=True)
+        return self._port.call(component, action, payload, timeout)
+
+    def write_property(self, component: str, name: str, value: Any) -> None:
+        self._may_run("the property was written", entry=False)  # a write has no entry (invokes only)
+        self._port.write_property(component, name, value)
+
+    def try_start(self, *_args: Any) -> bool:
+        return False  # on the call pool (`start`): the waits above hold a thread
+
+    def try_call(self, *_args: Any) -> bool:
+        return False  # as `try_start` (`call`)
+
+    def _may_run(self, what: str, *, entry: bool) -> None:
+        """(a pool thread) Wait for the broker's acknowledgement of the entry (`entry`) and the round trip on the
+        robot's connection, sent at once so that both come together; raise when the session may be another's."""
+        answered, served = threading.Event(), [True]
+        if self._trip is not None:
+
+            def told(fine: bool) -> None:
+                served[0] = fine
+                answered.set()
+
+            self._trip(told)
+        if entry and not self._acknowledged():
             log.warning(
                 "robot %s: the broker did not acknowledge the admitted invoke in time; starting it", self._robot
             )
-        if self._taken():
-            log.warning("robot %s: its connection was lost before the invoke started: not run here", self._robot)
+        if self._trip is not None and not answered.wait(ACK_TIMEOUT):
+            log.warning("robot %s: the broker did not answer on the robot's connection in time", self._robot)
+        if not served[0] or self._taken():
+            log.warning("robot %s: its connection was lost before %s: not run here", self._robot, what)
             self._withdraw()
             raise PortUnavailable(
                 "the edge node lost its connection to the broker, and another one of the fleet may serve the robot "
                 "now: not run here"
             )
-        return self._port.start(component, action, payload, timeout)
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._port, name)

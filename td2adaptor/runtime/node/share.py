@@ -35,11 +35,12 @@ import time
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from datetime import datetime, timezone
+from functools import partial
 from typing import Any
 
 import orjson
 
-from td2adaptor.runtime.bus.bus import Bus, Message
+from td2adaptor.runtime.bus.bus import Bus, Message, round_trip
 from td2adaptor.runtime.config import ConfigError, RuntimeConfig
 from td2adaptor.runtime.engine.engine import Engine, status_event
 from td2adaptor.runtime.node.admitted import (
@@ -352,7 +353,9 @@ class Share:
                     return
                 if node not in self._members:
                     log.info("fleet %s: member %s joined", self.name, node)
-                    self._beats.setdefault(node, time.monotonic())  # a `timeout` of grace for its first beat
+                    # a `timeout` of grace for its first beat, also when it rejoins (its beats before it left are
+                    # stale: it was taken as gone at once, until its next beat)
+                    self._beats[node] = time.monotonic()
                 self._members[node] = record
                 self._gone.discard(node)
                 mine = self._mine()
@@ -854,18 +857,31 @@ class Share:
         # the robot's connection stopped serving (its session taken over): what its engine ends from now on (the
         # stop's "retired" end of a goal in flight) is the next owner's to record, not written over its entries
         engine.on_halt.append(lambda _reason: recorder.withdraw())
-        engine.port = AckedPort(engine.port, recorder.acknowledged, config.robot, taken, recorder.withdraw)
+        trip = partial(round_trip, raw)
+        engine.port = AckedPort(engine.port, recorder.acknowledged, config.robot, taken, recorder.withdraw, trip)
         engine.kept = recorder.when_acknowledged  # a command is acknowledged once its entry is the broker's
 
         def gate(go: Callable[[bool], None]) -> None:  # a ROS action goal: sent as AckedPort starts a procedure
-            def settled() -> None:
-                if not taken():
+            # once the broker has its entry (member connection) and answered a request on the robot's own
+            # connection, sent now: a session taken over meanwhile never answers there, and the end of that
+            # connection's socket is read first (the member's acknowledgement says nothing of it)
+            left, served = [2], [True]
+            lock = threading.Lock()
+
+            def settled(answered: bool = True) -> None:
+                with lock:
+                    left[0] -= 1
+                    served[0] = served[0] and answered
+                    if left[0]:
+                        return
+                if served[0] and not taken():
                     go(True)
                     return
                 log.warning("robot %s: its connection was lost before the goal was sent: not run here", config.robot)
                 recorder.withdraw()
                 go(False)
 
+            trip(settled)
             recorder.when_acknowledged(settled)
 
         engine.gate = gate
