@@ -9,7 +9,9 @@ connections, their ports and their missions. A robot whose settings changed rest
 Who asks: the fleet file at start and on reload (origin "file"), discovery ("discovery", runtime/node/
 graphwatch.py) and admin requests on the bus ("admin", runtime/node/admin.py). Each origin manages its own
 robots: a reloaded file never removes a robot discovery found. One change runs at a time (a lock); hooks
-(`on_added`, `on_removed`) hear of each robot that started or stopped, after the fact.
+(`on_added`, `on_removed`) hear of each robot that started or stopped, after the fact. A shared fleet (share.py)
+starts robots with `join` instead, whose slow part (the robots' ROS side, their bus connections) runs outside the
+lock: a set of robots starts while another one's start is under way, and robots leave meanwhile.
 """
 
 from __future__ import annotations
@@ -109,6 +111,7 @@ class Fleet:
         self._engines: dict[str, Engine] = {}
         self._origin: dict[str, str] = {}
         self._links: dict[str, RosLink] = {}  # the grown link of a robot that joined at run time
+        self._pending: set[str] = set()  # robots a `join` is starting: not started by another one meanwhile
         self._closed = False
 
     # -- reading -------------------------------------------------------------------------------------------
@@ -201,6 +204,29 @@ class Fleet:
             changes.replaced = [r for r in changes.replaced if r in started]
         return changes
 
+    def join(self, configs: Sequence[RuntimeConfig], origin: str) -> Changes:
+        """Start `configs` (together, on one ROS node, as `apply`), with the fleet's lock held only to note them
+        and to register each engine: a shared fleet starts a set of robots while an earlier set's start is under
+        way, and lets robots go meanwhile (issue 32: a robot claimed during a start of others waited 0.2-1 s for
+        its end). A robot served or being started already is not started again (`Changes.failed`); nothing else
+        is touched."""
+        changes = Changes()
+        with self._lock:
+            self._check_open()
+            fresh: list[RuntimeConfig] = []
+            for config in configs:
+                if config.robot in self._engines or config.robot in self._pending:
+                    changes.failed[config.robot] = "served already"
+                else:
+                    fresh.append(config)
+            self._pending.update(c.robot for c in fresh)
+        try:
+            changes.added += self._start_all(fresh, origin, changes.failed)
+        finally:
+            with self._lock:
+                self._pending.difference_update(c.robot for c in fresh)
+        return changes
+
     def stop(self) -> None:
         """The process stops: every robot goes offline (missions left to the robot, followed again by the next
         run, ledger.py), then the ports close. No change is taken afterwards."""
@@ -271,9 +297,12 @@ class Fleet:
                 link.close()
         except Exception as exc:
             for robot in started:
-                self._engines.pop(robot).stop()
-                self._origin.pop(robot, None)
-                self._links.pop(robot, None)
+                with self._lock:
+                    engine = self._engines.pop(robot, None)
+                    self._origin.pop(robot, None)
+                    self._links.pop(robot, None)
+                if engine is not None:
+                    engine.stop()
             if link is not None:
                 link.close()
             if isinstance(exc, FleetError):
@@ -298,8 +327,7 @@ class Fleet:
         10-26, where the robots that joined must be served within 2 s)."""
         if len(configs) <= 1:
             for config in configs:
-                started[config.robot] = self._serve(config, link.ports[config.robot], origin)
-                self._links[config.robot] = link
+                started[config.robot] = self._keep(config, self._engine(config, link.ports[config.robot]), origin, link)
             return
         made: dict[str, Engine] = {}
         failure: BaseException | None = None
@@ -310,11 +338,14 @@ class Fleet:
                     made[robot] = job.result()
                 except BaseException as exc:  # noqa: BLE001 - the first is raised once every start ended
                     failure = failure or exc
-        for config in configs:  # in the order asked, on this thread (the fleet's lock is held here)
+        for config in configs:  # in the order asked, on this thread
             engine = made.get(config.robot)
-            if engine is not None:
-                started[config.robot] = self._keep(config, engine, origin)
-                self._links[config.robot] = link
+            if engine is None:
+                continue
+            try:
+                started[config.robot] = self._keep(config, engine, origin, link)
+            except FleetError as exc:  # the fleet stopped meanwhile (a `join`)
+                failure = failure or exc
         if failure is not None:
             raise failure
 
@@ -324,9 +355,19 @@ class Fleet:
     def _serve(self, config: RuntimeConfig, port: RobotPort, origin: str) -> Engine:
         return self._keep(config, self._engine(config, port), origin)
 
-    def _keep(self, config: RuntimeConfig, engine: Engine, origin: str) -> Engine:
-        self._engines[config.robot] = engine
-        self._origin[config.robot] = origin
+    def _keep(self, config: RuntimeConfig, engine: Engine, origin: str, link: RosLink | None = None) -> Engine:
+        """Register a robot's engine that serves already (under the lock: a `join` registers from its own
+        thread); stopped instead when the fleet stopped meanwhile (a `join` outlived the process's stop)."""
+        with self._lock:
+            closed = self._closed
+            if not closed:
+                self._engines[config.robot] = engine
+                self._origin[config.robot] = origin
+                if link is not None:
+                    self._links[config.robot] = link
+        if closed:
+            engine.stop()
+            raise FleetError(config.robot, "the edge node is stopping")
         if self.on_halt is not None:
             engine.on_halt.append(partial(self.on_halt, config.robot))
             if engine.failure is not None:  # halted before the hook was in place
