@@ -95,7 +95,8 @@ def test_a_robot_is_handed_over_during_the_slow_start_of_another_which_is_served
         for robot, t in over.items():
             assert t < x, (robot, t - listed, x - listed, a.log(), b.log())
             # online throughout: by a, by a handed over to b, by b
-            assert history(watcher, robot) == [("online", a.pid, None), ("online", a.pid, b.node), ("online", b.pid, None)]
+            handed = [("online", a.pid, None), ("online", a.pid, b.node), ("online", b.pid, None)]
+            assert history(watcher, robot) == handed
         # the robot whose start was under way is served by a at its end, started once
         assert history(watcher, "rs_x") == [("online", a.pid, None)]
         assert a.log_path.read_text().count("starting rs_x") == 1, a.log()
