@@ -610,6 +610,8 @@ class Share:
                 claims.append(config)
                 taken.append((robot, status))
         self._waiting = {r: t for r, t in self._waiting.items() if plan.get(r) == self.me.node and r not in served}
+        if self._stop.is_set():  # leaving (a reload's round after `stop`): nothing more is started
+            claims = []
         start, started = self._begin(claims, taken, replaced) if claims else (None, Changes())
         for config in self._unclaimed(statuses, listed, set(self.fleet.robots(ORIGIN))):
             if self._retire_unclaimed(config):
