@@ -292,6 +292,7 @@ class Fleet:
                     link.release(config.robot)
                     continue
                 admitted.append(config)
+            self._check_open()  # a `join`'s ROS side came up after the process began to stop: not served
             self._serve_all(admitted, link, origin, started)
             if not started:
                 link.close()
