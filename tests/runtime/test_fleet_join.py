@@ -62,7 +62,7 @@ def test_a_set_joins_while_another_sets_start_is_under_way_and_no_robot_starts_t
         # during that start: another set starts (the slow robot, asked again, is not started a second time)
         changes = fleet.join([robot_config(defaults, "slow"), robot_config(defaults, "quick")], "file")
         assert changes.added == ["quick"], changes.describe()
-        assert changes.failed == {"slow": "served already"}
+        assert changes.failed == {"slow": "starting or stopping already"}
         assert set(fleet.robots()) == {"old", "quick"}
         assert fleet.remove("old")  # and a robot leaves, without waiting for the slow start either
         assert first.is_alive()  # the slow start is still under way

@@ -104,3 +104,31 @@ def test_a_robot_is_handed_over_during_the_slow_start_of_another_which_is_served
     finally:
         codes = stop_all(procs, watcher)
     assert codes == [0, 0]
+
+
+def test_a_robot_claimed_in_the_round_that_retires_another_starts_before_that_ones_slow_stop_ended(
+    broker: Mosquitto, tmp_path: Path
+) -> None:
+    watcher = Watcher(broker)
+    procs: list[Proc] = []
+    try:
+        slow = {"SHARE_SETTLE": "0.1", "SHARE_NEW_SETTLE": "0", "SHARE_CLOSE_DELAY": str(START)}
+        a = Proc(broker, tmp_path, "a", ["rb_00"], SHARE_SLOW_CLOSE="rb_00", **slow)
+        procs.append(a)
+        wait(lambda: history(watcher, "rb_00") == [("online", a.pid, None)], 20, a, what="a serves rb_00")
+        a.reload(["rs_y"])  # one round: rb_00 retired (its port takes START to close), rs_y claimed
+        began = time.monotonic()
+        wait(lambda: online_at(watcher, "rs_y", a.pid) < float("inf"), 30, a, what="rs_y online")
+        y = online_at(watcher, "rs_y", a.pid) - began
+        wait(lambda: "rb_00: no longer served" in a.log(), 30, a, what="rb_00 stopped")
+        stopped = time.monotonic() - began
+        print(f"rs_y online {y:.2f} s after the reload; rb_00's stop ended {stopped:.2f} s after it")
+        # before: the round claimed rs_y only once rb_00's stop had ended, and its start took the fleet's lock, which
+        # that stop held
+        assert y < START / 2, (y, a.log())
+        assert [s for s, _pid, _to in history(watcher, "rb_00")] == ["online", "offline"]
+        assert history(watcher, "rs_y") == [("online", a.pid, None)]
+        no_traceback(procs)
+    finally:
+        codes = stop_all(procs, watcher)
+    assert codes == [0]

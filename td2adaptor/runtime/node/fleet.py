@@ -111,7 +111,7 @@ class Fleet:
         self._engines: dict[str, Engine] = {}
         self._origin: dict[str, str] = {}
         self._links: dict[str, RosLink] = {}  # the grown link of a robot that joined at run time
-        self._pending: set[str] = set()  # robots a `join` is starting: not started by another one meanwhile
+        self._pending: set[str] = set()  # robots a `join` starts or `remove` stops: not started again meanwhile
         self._closed = False
 
     # -- reading -------------------------------------------------------------------------------------------
@@ -155,17 +155,24 @@ class Fleet:
 
     def remove(self, robot: str, why: str = "was removed from the edge node's fleet", *, retire: bool = True) -> bool:
         """Stop serving `robot` (see the module docstring); False when it was not served. `retire=False`: its
-        missions in flight are left to the next owner of the robot (a hand-over, share.py), as at a stop."""
+        missions in flight are left to the next owner of the robot (a hand-over, share.py), as at a stop. The stop
+        (its last status acknowledged, its port closed: seconds on a loaded machine) runs outside the fleet's lock,
+        so a `join` of other robots meanwhile does not wait for it; the robot is not started again until it ended."""
         with self._lock:
             engine = self._engines.pop(robot, None)
             if engine is None:
                 return False
             self._origin.pop(robot, None)
+            self._pending.add(robot)  # leaving (`join`)
+        try:
             try:
                 engine.stop(retire=retire_words(robot, why) if retire else None)
             finally:
                 self._release(robot)
-            log.info("robot %s: no longer served (%s)", robot, why)
+        finally:
+            with self._lock:
+                self._pending.discard(robot)
+        log.info("robot %s: no longer served (%s)", robot, why)
         self._tell(self.on_removed, robot)
         return True
 
@@ -215,8 +222,10 @@ class Fleet:
             self._check_open()
             fresh: list[RuntimeConfig] = []
             for config in configs:
-                if config.robot in self._engines or config.robot in self._pending:
+                if config.robot in self._engines:
                     changes.failed[config.robot] = "served already"
+                elif config.robot in self._pending:
+                    changes.failed[config.robot] = "starting or stopping already"
                 else:
                     fresh.append(config)
             self._pending.update(c.robot for c in fresh)

@@ -587,20 +587,20 @@ class Share:
             self.fleet.remove(robot, "was taken over by another process of the fleet")
         served = self.fleet.robots(ORIGIN)
         changes = Changes()
+        leaving: dict[str, str | None] = {}  # robot -> the member it is handed over to (None: retired)
         for robot in served:
             if robot in busy:
                 continue
             winner = plan.get(robot) if robot in candidates else None  # no longer listed here: retired, not handed on
             if winner != self.me.node:
-                self._release(robot, winner)
-                changes.removed.append(robot)
+                leaving[robot] = winner
         claims: list[RuntimeConfig] = []
         taken: list[tuple[str, Status | None]] = []
         replaced: list[str] = []
         for robot, config in candidates.items():
             if plan.get(robot) != self.me.node or robot in busy:
                 continue
-            if robot in served and robot not in changes.removed:
+            if robot in served and robot not in leaving:
                 if served[robot] != config:  # its settings changed (the fleet file read again): it restarts
                     claims.append(config)
                     replaced.append(robot)
@@ -613,6 +613,9 @@ class Share:
         if self._stop.is_set():  # leaving (a reload's round after `stop`): nothing more is started
             claims = []
         start, started = self._begin(claims, taken, replaced) if claims else (None, Changes())
+        for robot, winner in leaving.items():  # once the claimed robots' start began: each stop takes a while
+            self._release(robot, winner)
+            changes.removed.append(robot)
         for config in self._unclaimed(statuses, listed, set(self.fleet.robots(ORIGIN))):
             if self._retire_unclaimed(config):
                 changes.removed.append(config.robot)
