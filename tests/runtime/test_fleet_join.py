@@ -93,3 +93,45 @@ def test_a_start_that_ends_after_the_fleet_stopped_leaves_nothing_served(broker:
     finally:
         graph.go.set()
         fleet.stop()
+
+
+class SlowClose(SimPort):
+    """A simulated robot whose port closes only when the test lets it (a slow ROS teardown)."""
+
+    go = threading.Event()
+
+    def close(self) -> None:
+        assert self.go.wait(30)
+
+
+def test_a_robot_leaving_slowly_keeps_no_other_from_joining_and_is_not_started_again_before_it_left(
+    broker: Mosquitto, tmp_path: Path
+) -> None:
+    defaults = load_defaults(env={}, overrides={"bus": broker.url, "state_dir": str(tmp_path)})
+    model = rb1_model()
+    SlowClose.go = threading.Event()
+
+    def grow(configs: Sequence[RuntimeConfig]) -> RosLink:
+        port = {"leaving": SlowClose}
+        return RosLink(ports={c.robot: port.get(c.robot, SimPort)(model, sim()) for c in configs})
+
+    fleet = Fleet(model, RosLink(grow=grow), distro="ros2")
+    try:
+        assert fleet.join([robot_config(defaults, "leaving")], "file").added == ["leaving"]
+        removing = threading.Thread(target=fleet.remove, args=("leaving",), daemon=True)
+        removing.start()
+        assert until(lambda: "leaving" not in fleet.robots(), 10)
+        # its port still closes: another robot joins meanwhile; it is not started again, by no way of starting one
+        changes = fleet.join([robot_config(defaults, "other"), robot_config(defaults, "leaving")], "file")
+        assert changes.added == ["other"], changes.describe()
+        assert changes.failed == {"leaving": "starting or stopping already"}
+        again = fleet.apply([robot_config(defaults, "leaving")], "admin")
+        assert again.failed == {"leaving": "starting or stopping already"}, again.describe()
+        assert removing.is_alive()
+        SlowClose.go.set()
+        removing.join(30)
+        assert fleet.join([robot_config(defaults, "leaving")], "file").added == ["leaving"]  # once it left
+        assert set(fleet.robots()) == {"other", "leaving"}
+    finally:
+        SlowClose.go.set()
+        fleet.stop()

@@ -151,6 +151,8 @@ class Fleet:
             self._check_open()
             if config.robot in self._engines:
                 raise FleetError(config.robot, "served already")
+            if config.robot in self._pending:  # its stop (`remove`) or a `join` is under way on another thread
+                raise FleetError(config.robot, "starting or stopping already")
             return self._grow([config], origin)[config.robot]
 
     def remove(self, robot: str, why: str = "was removed from the edge node's fleet", *, retire: bool = True) -> bool:
@@ -200,6 +202,8 @@ class Fleet:
                 other = self._origin.get(robot)
                 if other is not None and other != origin:
                     changes.failed[robot] = f"served already (its {other})"
+                elif robot in self._pending:  # its stop (`remove`) is under way on another thread
+                    changes.failed[robot] = "starting or stopping already"
                 elif robot not in mine:
                     fresh.append(config)
                 elif mine[robot] != config:
