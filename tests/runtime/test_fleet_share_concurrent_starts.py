@@ -132,3 +132,33 @@ def test_a_robot_claimed_in_the_round_that_retires_another_starts_before_that_on
     finally:
         codes = stop_all(procs, watcher)
     assert codes == [0]
+
+
+def test_a_robot_found_while_another_is_retired_slowly_is_served_before_that_ones_stop_ended(
+    broker: Mosquitto, tmp_path: Path
+) -> None:
+    graph = tmp_path / "a.graph"
+    graph.write_text("\n")
+    watcher = Watcher(broker)
+    procs: list[Proc] = []
+    try:
+        slow = {"SHARE_SETTLE": "0.1", "SHARE_NEW_SETTLE": "0", "SHARE_CLOSE_DELAY": str(START)}
+        a = Proc(broker, tmp_path, "a", ["rb_00"], SHARE_FOUND_FILE=str(graph), SHARE_SLOW_CLOSE="rb_00", **slow)
+        procs.append(a)
+        wait(lambda: history(watcher, "rb_00") == [("online", a.pid, None)], 20, a, what="a serves rb_00")
+        a.reload([])  # rb_00 is retired: its port takes START to close
+        wait(lambda: [s for s, _pid, _to in history(watcher, "rb_00")] == ["online", "offline"], 20, a, what="retired")
+        graph.write_text("rs_y\n")  # its graph shows a robot during that stop
+        shown = time.monotonic()
+        wait(lambda: online_at(watcher, "rs_y", a.pid) < float("inf"), 30, a, what="rs_y online")
+        y = online_at(watcher, "rs_y", a.pid) - shown
+        wait(lambda: "rb_00: no longer served" in a.log(), 30, a, what="rb_00 stopped")
+        stopped = time.monotonic() - shown
+        print(f"rs_y online {y:.2f} s after the graph showed it; rb_00's stop ended {stopped:.2f} s after it")
+        # before: the round that retired rb_00 stopped it, and the next round, which claims rs_y, came only after
+        assert y < START / 2, (y, a.log())
+        assert history(watcher, "rs_y") == [("online", a.pid, None)]
+        no_traceback(procs)
+    finally:
+        codes = stop_all(procs, watcher)
+    assert codes == [0]

@@ -169,7 +169,8 @@ class Share:
         #: robots this process is starting (its record says so: `_free`, `_admit`), from the claim to the end of their
         #: start (`_start`): of every set whose start is under way, several at once (`_begin`)
         self._starting: set[str] = set()
-        self._starts: set[threading.Thread] = set()  # the starts under way (`stop` waits for them)
+        self._leaving: set[str] = set()  # robots this process hands over or retires now (`_let_go`)
+        self._starts: set[threading.Thread] = set()  # the starts and hand-overs under way (`stop` waits for them)
         self._recording = threading.Lock()  # one record built and published at a time: the last built is the last sent
         fleet.on_added.append(self._watch)
         fleet.prepare = self._prepare
@@ -574,7 +575,7 @@ class Share:
         way, with what it will have done. A robot whose start is under way is left alone (neither claimed again
         nor handed over): the round its end wakes looks at it."""
         with self._lock:
-            busy = set(self._starting)  # before `served`: a start that ends meanwhile registered its robots first
+            busy = self._starting | self._leaving  # before `served`: a start that ends meanwhile registered them first
             live = self._live()
             plan, candidates = self._plan(live)
             statuses = dict(self._statuses)
@@ -613,9 +614,9 @@ class Share:
         if self._stop.is_set():  # leaving (a reload's round after `stop`): nothing more is started
             claims = []
         start, started = self._begin(claims, taken, replaced) if claims else (None, Changes())
-        for robot, winner in leaving.items():  # once the claimed robots' start began: each stop takes a while
-            self._release(robot, winner)
-            changes.removed.append(robot)
+        if leaving:  # once the claimed robots' start began
+            self._let_go(leaving)
+            changes.removed += leaving
         for config in self._unclaimed(statuses, listed, set(self.fleet.robots(ORIGIN))):
             if self._retire_unclaimed(config):
                 changes.removed.append(config.robot)
@@ -643,6 +644,32 @@ class Share:
             self._starts.add(thread)
         thread.start()
         return thread, started
+
+    def _let_go(self, leaving: dict[str, str | None]) -> None:
+        """Hand `leaving` over (or retire them, None) on a thread of their own (`_release`): each robot's stop (its
+        last status acknowledged, its port closed) took 0.1-0.6 s on a loaded machine, and a robot found ready
+        meanwhile waited for the next round. Until they are stopped they are left alone (`_reconcile`: `busy`)."""
+        with self._lock:
+            self._leaving |= set(leaving)
+
+        def run() -> None:
+            try:
+                for robot, winner in leaving.items():
+                    try:
+                        self._release(robot, winner)
+                    except Exception:  # noqa: BLE001 - the others are let go all the same
+                        log.exception("fleet %s: letting robot %s go failed", self.name, robot)
+            finally:
+                with self._lock:
+                    self._leaving -= set(leaving)
+                    self._starts.discard(threading.current_thread())
+                self._publish_record()
+                self._wake.set()
+
+        thread = threading.Thread(target=run, name="td2adaptor-share-release", daemon=True)
+        with self._lock:
+            self._starts.add(thread)
+        thread.start()
 
     def _start(
         self, claims: list[RuntimeConfig], taken: list[tuple[str, Status | None]], replaced: list[str], out: Changes
