@@ -716,6 +716,8 @@ class Share:
         due: list[RuntimeConfig] = []
         with self._lock:
             for robot, (config, since) in list(self._handed.items()):
+                if robot in self._leaving:  # its hand-over still stops it (`_let_go`): served here until then
+                    continue
                 status = statuses.get(robot)
                 if not _still_handing(status, self.me.node) or robot in served:
                     del self._handed[robot]
