@@ -16,7 +16,9 @@ With `SHARE_ROBOTS_FILE` (robot ids, separated by white space) the robots are th
 count, and SIGHUP reads it again (as `run` reads its fleet file again). `SHARE_SETTLE` (seconds) is how long the
 process waits at its start before it takes its share (a process slow to take what is handed over to it), and
 `SHARE_GROW_DELAY` how long each robot's ROS side takes to come up (a slow ROS graph: its claim takes that long);
-the log says `starting <robots>` as it begins.
+the log says `starting <robots>` as it begins. With `SHARE_SLOW` (robot ids) only a set of robots with one of those
+takes that long, the others come up at once. With `SHARE_CLOSE_DELAY` (seconds) the port of each robot of
+`SHARE_SLOW_CLOSE` (robot ids) takes that long to close when the robot leaves (a slow ROS teardown).
 
 With `SHARE_FOUND_FILE` (robot ids) the process also discovers robots (graphwatch.py's `Discovery`), its "graph" that
 file, read at each look: a test lists a robot there as a ROS graph would show it; `SHARE_GRAPH` names that graph
@@ -89,6 +91,10 @@ class LoggedPort(SimPort):
         return goal
 
     robot = ""
+    close_delay = 0.0
+
+    def close(self) -> None:
+        time.sleep(self.close_delay)
 
 
 def main() -> None:
@@ -119,16 +125,21 @@ def main() -> None:
         candidates = [replace(c, username=c.robot, password=passwords[c.robot]) for c in candidates]
 
     delay = float(os.environ.get("SHARE_GROW_DELAY", "0"))
+    slow = set(os.environ.get("SHARE_SLOW", "").split())
+    slow_close = set(os.environ.get("SHARE_SLOW_CLOSE", "").split())
+    close_delay = float(os.environ.get("SHARE_CLOSE_DELAY", "0"))
 
     def grow(configs: Sequence[RuntimeConfig]) -> RosLink:
         logging.getLogger("td2adaptor.runtime.share").info("starting %s", " ".join(c.robot for c in configs))
-        time.sleep(delay)
+        if not slow or slow & {c.robot for c in configs}:
+            time.sleep(delay)
         ports = {}
         for c in configs:
             port = LoggedPort(model, sim(0.3))
             if actions is not None:  # no properties there, one ROS action
                 port = LoggedPort(model, sim(0.3), readers={}, writers={}, actions=actions)
             port.robot = c.robot
+            port.close_delay = close_delay if c.robot in slow_close else 0.0
             ports[c.robot] = port
         return RosLink(ports=dict(ports))
 

@@ -9,7 +9,9 @@ connections, their ports and their missions. A robot whose settings changed rest
 Who asks: the fleet file at start and on reload (origin "file"), discovery ("discovery", runtime/node/
 graphwatch.py) and admin requests on the bus ("admin", runtime/node/admin.py). Each origin manages its own
 robots: a reloaded file never removes a robot discovery found. One change runs at a time (a lock); hooks
-(`on_added`, `on_removed`) hear of each robot that started or stopped, after the fact.
+(`on_added`, `on_removed`) hear of each robot that started or stopped, after the fact. A shared fleet (share.py)
+starts robots with `join` instead, whose slow part (the robots' ROS side, their bus connections) runs outside the
+lock: a set of robots starts while another one's start is under way, and robots leave meanwhile.
 """
 
 from __future__ import annotations
@@ -117,6 +119,7 @@ class Fleet:
         self._engines: dict[str, Engine] = {}
         self._origin: dict[str, str] = {}
         self._links: dict[str, RosLink] = {}  # the grown link of a robot that joined at run time
+        self._pending: set[str] = set()  # robots a `join` starts or `remove` stops: not started again meanwhile
         self._closed = False
 
     # -- reading -------------------------------------------------------------------------------------------
@@ -156,21 +159,30 @@ class Fleet:
             self._check_open()
             if config.robot in self._engines:
                 raise FleetError(config.robot, "served already")
+            if config.robot in self._pending:  # its stop (`remove`) or a `join` is under way on another thread
+                raise FleetError(config.robot, "starting or stopping already")
             return self._grow([config], origin)[config.robot]
 
     def remove(self, robot: str, why: str = "was removed from the edge node's fleet", *, retire: bool = True) -> bool:
         """Stop serving `robot` (see the module docstring); False when it was not served. `retire=False`: its
-        missions in flight are left to the next owner of the robot (a hand-over, share.py), as at a stop."""
+        missions in flight are left to the next owner of the robot (a hand-over, share.py), as at a stop. The stop
+        (its last status acknowledged, its port closed: seconds on a loaded machine) runs outside the fleet's lock,
+        so a `join` of other robots meanwhile does not wait for it; the robot is not started again until it ended."""
         with self._lock:
             engine = self._engines.pop(robot, None)
             if engine is None:
                 return False
             self._origin.pop(robot, None)
+            self._pending.add(robot)  # leaving (`join`)
+        try:
             try:
                 engine.stop(retire=retire_words(robot, why) if retire else None)
             finally:
                 self._release(robot)
-            log.info("robot %s: no longer served (%s)", robot, why)
+        finally:
+            with self._lock:
+                self._pending.discard(robot)
+        log.info("robot %s: no longer served (%s)", robot, why)
         self._tell(self.on_removed, robot)
         return True
 
@@ -198,6 +210,8 @@ class Fleet:
                 other = self._origin.get(robot)
                 if other is not None and other != origin:
                     changes.failed[robot] = f"served already (its {other})"
+                elif robot in self._pending:  # its stop (`remove`) is under way on another thread
+                    changes.failed[robot] = "starting or stopping already"
                 elif robot not in mine:
                     fresh.append(config)
                 elif mine[robot] != config:
@@ -207,6 +221,31 @@ class Fleet:
             started = self._start_all(fresh, origin, changes.failed)
             changes.added += [r for r in started if r not in changes.replaced]
             changes.replaced = [r for r in changes.replaced if r in started]
+        return changes
+
+    def join(self, configs: Sequence[RuntimeConfig], origin: str) -> Changes:
+        """Start `configs` (together, on one ROS node, as `apply`), with the fleet's lock held only to note them
+        and to register each engine: a shared fleet starts a set of robots while an earlier set's start is under
+        way, and lets robots go meanwhile (issue 32: a robot claimed during a start of others waited 0.2-1 s for
+        its end). A robot served or being started already is not started again (`Changes.failed`); nothing else
+        is touched."""
+        changes = Changes()
+        with self._lock:
+            self._check_open()
+            fresh: list[RuntimeConfig] = []
+            for config in configs:
+                if config.robot in self._engines:
+                    changes.failed[config.robot] = "served already"
+                elif config.robot in self._pending:
+                    changes.failed[config.robot] = "starting or stopping already"
+                else:
+                    fresh.append(config)
+            self._pending.update(c.robot for c in fresh)
+        try:
+            changes.added += self._start_all(fresh, origin, changes.failed)
+        finally:
+            with self._lock:
+                self._pending.difference_update(c.robot for c in fresh)
         return changes
 
     def stop(self) -> None:
@@ -274,14 +313,18 @@ class Fleet:
                     link.release(config.robot)
                     continue
                 admitted.append(config)
+            self._check_open()  # a `join`'s ROS side came up after the process began to stop: not served
             self._serve_all(admitted, link, origin, started)
             if not started:
                 link.close()
         except Exception as exc:
             for robot in started:
-                self._engines.pop(robot).stop()
-                self._origin.pop(robot, None)
-                self._links.pop(robot, None)
+                with self._lock:
+                    engine = self._engines.pop(robot, None)
+                    self._origin.pop(robot, None)
+                    self._links.pop(robot, None)
+                if engine is not None:
+                    engine.stop()
             if link is not None:
                 link.close()
             if isinstance(exc, FleetError):
@@ -306,8 +349,7 @@ class Fleet:
         10-26, where the robots that joined must be served within 2 s)."""
         if len(configs) <= 1:
             for config in configs:
-                started[config.robot] = self._serve(config, link.ports[config.robot], origin)
-                self._links[config.robot] = link
+                started[config.robot] = self._keep(config, self._engine(config, link.ports[config.robot]), origin, link)
             return
         made: dict[str, Engine] = {}
         failure: BaseException | None = None
@@ -318,11 +360,14 @@ class Fleet:
                     made[robot] = job.result()
                 except BaseException as exc:  # noqa: BLE001 - the first is raised once every start ended
                     failure = failure or exc
-        for config in configs:  # in the order asked, on this thread (the fleet's lock is held here)
+        for config in configs:  # in the order asked, on this thread
             engine = made.get(config.robot)
-            if engine is not None:
-                started[config.robot] = self._keep(config, engine, origin)
-                self._links[config.robot] = link
+            if engine is None:
+                continue
+            try:
+                started[config.robot] = self._keep(config, engine, origin, link)
+            except FleetError as exc:  # the fleet stopped meanwhile (a `join`)
+                failure = failure or exc
         if failure is not None:
             raise failure
 
@@ -332,9 +377,19 @@ class Fleet:
     def _serve(self, config: RuntimeConfig, port: RobotPort, origin: str) -> Engine:
         return self._keep(config, self._engine(config, port), origin)
 
-    def _keep(self, config: RuntimeConfig, engine: Engine, origin: str) -> Engine:
-        self._engines[config.robot] = engine
-        self._origin[config.robot] = origin
+    def _keep(self, config: RuntimeConfig, engine: Engine, origin: str, link: RosLink | None = None) -> Engine:
+        """Register a robot's engine that serves already (under the lock: a `join` registers from its own
+        thread); stopped instead when the fleet stopped meanwhile (a `join` outlived the process's stop)."""
+        with self._lock:
+            closed = self._closed
+            if not closed:
+                self._engines[config.robot] = engine
+                self._origin[config.robot] = origin
+                if link is not None:
+                    self._links[config.robot] = link
+        if closed:
+            engine.stop()
+            raise FleetError(config.robot, "the edge node is stopping")
         if self.on_halt is not None:
             engine.on_halt.append(partial(self.on_halt, config.robot))
             if engine.failure is not None:  # halted before the hook was in place

@@ -24,6 +24,7 @@ import itertools
 import os
 import re
 import sys
+import threading
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -179,14 +180,16 @@ def connect_ros2(model: Model, package: str, configs: Sequence[RuntimeConfig], *
     layout = Layout.of(model)
     contexts: dict[int | None, Any] = {}  # one rclpy context per domain id, the link's to shut down
     graph_nodes: dict[int | None, Any] = {}
+    making = threading.Lock()  # a shared fleet grows the link from several threads at once (share.py `_begin`)
 
     def context_of(domain: int | None) -> Any:
-        if domain not in contexts:
-            context = Context()
-            rclpy.init(context=context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
-            link.closers.append(functools.partial(rclpy.shutdown, context=context))
-            contexts[domain] = context
-        return contexts[domain]
+        with making:
+            if domain not in contexts:
+                context = Context()
+                rclpy.init(context=context, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
+                link.closers.append(functools.partial(rclpy.shutdown, context=context))
+                contexts[domain] = context
+            return contexts[domain]
 
     def attach(into: RosLink, members: Sequence[RuntimeConfig], node_name: str) -> None:
         """One rclpy node for `members` in their domain's context, their ports on it, then spun."""

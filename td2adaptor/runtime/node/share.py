@@ -52,7 +52,7 @@ from td2adaptor.runtime.node.admitted import (
     admitted_topic,
     seed,
 )
-from td2adaptor.runtime.node.fleet import Changes, Fleet
+from td2adaptor.runtime.node.fleet import Changes, Fleet, FleetError
 from td2adaptor.runtime.node.owner import Owner, lives, this_process
 from td2adaptor.runtime.node.shareplan import (
     Status,
@@ -167,8 +167,12 @@ class Share:
         self._look_now: Callable[..., None] | None = None  # this process's discovery, to look at once (`follow`)
         self._graph = ""  # which ROS graph its discovery reads (graphwatch.py `Graph.name`; "": unknown)
         self._taken: set[str] = set()  # robots whose session another member took: let go at the next round
-        #: robots this process is starting (its record says so: `_free`, `_admit`), from the claim to the `apply`'s end
+        #: robots this process is starting (its record says so: `_free`, `_admit`), from the claim to the end of their
+        #: start (`_start`): of every set whose start is under way, several at once (`_begin`)
         self._starting: set[str] = set()
+        self._leaving: set[str] = set()  # robots this process hands over or retires now (`_let_go`)
+        self._starts: set[threading.Thread] = set()  # the starts and hand-overs under way (`stop` waits for them)
+        self._recording = threading.Lock()  # one record built and published at a time: the last built is the last sent
         fleet.on_added.append(self._watch)
         fleet.prepare = self._prepare
         fleet.admit = self._admit
@@ -317,6 +321,10 @@ class Share:
         self._wake.set()
         if self._thread is not None:
             self._thread.join(30)
+        with self._lock:
+            starts = list(self._starts)
+        for start in starts:  # what they start is served, then handed over below
+            start.join(30)
         with self._changing:
             with self._lock:
                 plan, _mine = self._plan(self._live() - {self.me.node})
@@ -448,7 +456,8 @@ class Share:
         while not self._stop.is_set():
             self._wake.clear()
             try:
-                self.reconcile()
+                with self._changing:
+                    self._reconcile()  # what it claims starts on a thread of its own, which wakes this one at its end
                 self._sweep()
                 self._forget()
             except Exception:  # one failed round must not end the share: the next wake tries again
@@ -460,9 +469,16 @@ class Share:
             self._wake.wait(wait)
 
     def reconcile(self) -> Changes:
-        """Release what is no longer ours (hand-over), then claim what is ours and free."""
+        """Release what is no longer ours (hand-over), then claim what is ours and free; returns once the robots it
+        claimed are started (the share's own thread does not wait for that: `_run`)."""
         with self._changing:
-            return self._reconcile()
+            changes, start, started = self._reconcile()
+        if start is not None:
+            start.join()
+            changes.added += started.added
+            changes.replaced += started.replaced
+            changes.failed.update(started.failed)
+        return changes
 
     def _plan(self, live: set[str]) -> tuple[dict[str, str], dict[str, RuntimeConfig]]:
         """(under the lock) Who serves which robot among `live`, each robot among the members that list it (their
@@ -561,8 +577,12 @@ class Share:
             can[self.me.node] = set(mine)
         return can
 
-    def _reconcile(self) -> Changes:
+    def _reconcile(self) -> tuple[Changes, threading.Thread | None, Changes]:
+        """(under `_changing`) One round: the changes made, and the start of the robots claimed (`_begin`), under
+        way, with what it will have done. A robot whose start is under way is left alone (neither claimed again
+        nor handed over): the round its end wakes looks at it."""
         with self._lock:
+            busy = self._starting | self._leaving  # before `served`: a start that ends meanwhile registered them first
             live = self._live()
             plan, candidates = self._plan(live)
             statuses = dict(self._statuses)
@@ -574,53 +594,125 @@ class Share:
         for robot in lost:  # another member holds its session now: its status is that member's, not ours to touch
             self.fleet.remove(robot, "was taken over by another process of the fleet")
         served = self.fleet.robots(ORIGIN)
-        released: list[str] = []
+        changes = Changes()
+        leaving: dict[str, str | None] = {}  # robot -> the member it is handed over to (None: retired)
         for robot in served:
+            if robot in busy:
+                continue
             winner = plan.get(robot) if robot in candidates else None  # no longer listed here: retired, not handed on
             if winner != self.me.node:
-                self._release(robot, winner)
-                released.append(robot)
-        wanted: list[RuntimeConfig] = []
+                leaving[robot] = winner
+        claims: list[RuntimeConfig] = []
         taken: list[tuple[str, Status | None]] = []
+        replaced: list[str] = []
         for robot, config in candidates.items():
-            if plan.get(robot) != self.me.node:
+            if plan.get(robot) != self.me.node or robot in busy:
                 continue
-            if robot in served and robot not in released:
-                wanted.append(config)
+            if robot in served and robot not in leaving:
+                if served[robot] != config:  # its settings changed (the fleet file read again): it restarts
+                    claims.append(config)
+                    replaced.append(robot)
                 continue
             status = statuses.get(robot)
             if self._free(robot, status, live, gone):
-                wanted.append(config)
+                claims.append(config)
                 taken.append((robot, status))
         self._waiting = {r: t for r, t in self._waiting.items() if plan.get(r) == self.me.node and r not in served}
-        claimed = {robot for robot, _status in taken}
-        if claimed:  # the others leave them to this process while it starts them (`_free`, `_admit`)
-            with self._lock:
-                self._starting = claimed
-            self._publish_record()
-        try:
-            changes = self.fleet.apply(wanted, ORIGIN)
-        finally:
-            with self._lock:
-                self._starting = set()
-            if claimed:
-                self._publish_record()
-        changes.removed += released
-        for robot, status in taken:
-            if robot in changes.added:
-                self._took(robot, status)
+        if self._stop.is_set():  # leaving (a reload's round after `stop`): nothing more is started
+            claims = []
+        start, started = self._begin(claims, taken, replaced) if claims else (None, Changes())
+        if leaving:  # once the claimed robots' start began
+            self._let_go(leaving)
+            changes.removed += leaving
         for config in self._unclaimed(statuses, listed, set(self.fleet.robots(ORIGIN))):
             if self._retire_unclaimed(config):
                 changes.removed.append(config.robot)
         for config in self._orphans(statuses, listed, live):
             if self._retireorphaned(config):
                 changes.removed.append(config.robot)
+        self._changed(changes)
+        return changes, start, started
+
+    def _begin(
+        self, claims: list[RuntimeConfig], taken: list[tuple[str, Status | None]], replaced: list[str]
+    ) -> tuple[threading.Thread, Changes]:
+        """Start `claims` on a thread of their own (`_start`), so that the next round claims and starts other robots,
+        and hands robots over, while this start is under way (issue 32: a robot claimed during a start waited for
+        its end, 0.2-1 s on a loaded machine). Its record says `starting` first: the others leave them to this
+        process meanwhile (`_free`, `_admit`)."""
+        with self._lock:
+            self._starting |= {c.robot for c in claims}
+        self._publish_record()
+        started = Changes()
+        thread = threading.Thread(
+            target=self._start, args=(claims, taken, replaced, started), name="td2adaptor-share-start", daemon=True
+        )
+        with self._lock:
+            self._starts.add(thread)
+        thread.start()
+        return thread, started
+
+    def _let_go(self, leaving: dict[str, str | None]) -> None:
+        """Hand `leaving` over (or retire them, None) on a thread of their own (`_release`): each robot's stop (its
+        last status acknowledged, its port closed) took 0.1-0.6 s on a loaded machine, and a robot found ready
+        meanwhile waited for the next round. Until they are stopped they are left alone (`_reconcile`: `busy`)."""
+        with self._lock:
+            self._leaving |= set(leaving)
+
+        def run() -> None:
+            try:
+                for robot, winner in leaving.items():
+                    try:
+                        self._release(robot, winner)
+                    except Exception:  # noqa: BLE001 - the others are let go all the same
+                        log.exception("fleet %s: letting robot %s go failed", self.name, robot)
+            finally:
+                with self._lock:
+                    self._leaving -= set(leaving)
+                    self._starts.discard(threading.current_thread())
+                self._publish_record()
+                self._wake.set()
+
+        thread = threading.Thread(target=run, name="td2adaptor-share-release", daemon=True)
+        with self._lock:
+            self._starts.add(thread)
+        thread.start()
+
+    def _start(
+        self, claims: list[RuntimeConfig], taken: list[tuple[str, Status | None]], replaced: list[str], out: Changes
+    ) -> None:
+        """(a start's thread) Start `claims` (the `replaced` ones stopped first: their settings changed), then say
+        so: the record (no longer `starting` them, serving them), the log, and a round of the share."""
+        robots = {c.robot for c in claims}
+        try:
+            for robot in replaced:
+                self.fleet.remove(robot, "restarts with changed settings")
+            try:
+                changes = self.fleet.join(claims, ORIGIN)
+            except FleetError as exc:  # the edge node is stopping
+                changes = Changes(failed=dict.fromkeys(robots, exc.why))
+            for robot, status in taken:
+                if robot in changes.added:
+                    self._took(robot, status)
+            out.replaced = [r for r in replaced if r in changes.added]
+            out.added = [r for r in changes.added if r not in replaced]
+            out.failed = changes.failed
+        except Exception:  # noqa: BLE001 - the next round claims what was not started
+            log.exception("fleet %s: starting %s failed", self.name, ", ".join(sorted(robots)))
+        finally:
+            with self._lock:
+                self._starting -= robots
+                self._starts.discard(threading.current_thread())
+            self._publish_record()
+            self._wake.set()
+        self._changed(out)
+
+    def _changed(self, changes: Changes) -> None:
         if changes:
             log.info("fleet %s: %s", self.name, changes.describe())
             self._publish_record()
             for hook in list(self.on_change):
                 hook(changes)
-        return changes
 
     def _unclaimed(self, statuses: Mapping[str, Status], listed: set[str], served: set[str]) -> list[RuntimeConfig]:
         """The robots this process handed over that are still "online, handed over" by it, and that no live
@@ -631,6 +723,8 @@ class Share:
         due: list[RuntimeConfig] = []
         with self._lock:
             for robot, (config, since) in list(self._handed.items()):
+                if robot in self._leaving:  # its hand-over still stops it (`_let_go`): served here until then
+                    continue
                 status = statuses.get(robot)
                 if not _still_handing(status, self.me.node) or robot in served:
                     del self._handed[robot]
@@ -1004,6 +1098,10 @@ class Share:
             return sorted({**self._found, **self._candidates})
 
     def _publish_record(self) -> None:
+        with self._recording:  # several threads publish it (the share's, a start's, discovery's)
+            self._publish()
+
+    def _publish(self) -> None:
         record = {
             "owner": self.me.to_json(),
             "fleet": self.name,
