@@ -492,9 +492,12 @@ def scenario_at_scale(adaptor_build: tuple[Path, Path], rb1_prefix: Path, tmp_pa
         missions.stop()
 
         ends: dict[str, list[str]] = {}
+        why: Counter[str] = Counter()  # the words of the ends that are not `finished` (their first 60 characters)
         for _topic, e in list(watch.app.events):
             if e.get("type") == "feedback" and (e.get("payload") or {}).get("terminal"):
                 ends.setdefault(str(e.get("correlation")), []).append(e["payload"].get("state", ""))
+                if e["payload"].get("state") != "finished":
+                    why[str(e["payload"].get("message", ""))[:60]] += 1
         sent = [i for v in missions.sent.values() for i in v]
         lost = [i for i in sent if i not in ends]
         twice = [i for i in sent if len(ends.get(i, [])) > 1]
@@ -509,6 +512,7 @@ def scenario_at_scale(adaptor_build: tuple[Path, Path], rb1_prefix: Path, tmp_pa
             "missions": len(sent),
             "sent_again": missions.resent,
             "ends": dict(states),
+            "not_finished_why": dict(why),
             "lost": len(lost),
             "answered_twice": len(twice),
             "commands_run_twice": sum(duplicated.values()),
