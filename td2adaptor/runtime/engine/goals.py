@@ -10,7 +10,8 @@ goal is `lost`: on ROS 2 after `action_server_timeout` of silence; through the R
 bridge dies): `unreachable`), with the server's result in `output` and its status word in `result`. A cancel
 event asks the server to cancel the goal followed and is answered with a state event once the server
 answered (the terminal feedback follows when the server ends the goal); a query answers with the goal's
-current state, or with the end of the last goal. Every decision that fails a goal is logged. A goal the last
+current state, or with the end of the last goal (of an earlier one, or of one the last run of the node saw end: as
+the ledger recorded its terminal event, while it keeps it). Every decision that fails a goal is logged. A goal the last
 run of the node (or the robot's last owner in a shared fleet) left in flight is followed on by its id
 (`rejoin`, when the port can: `GoalRejoin`): no `queued` event again, its feedback numbered on from the
 ledger's, its real end; lost (the server does not know it, or is gone), it ends `failed` with words that say
@@ -34,6 +35,7 @@ package keeps the goal's feedback (one buffer) and tells it in order.
 
 from __future__ import annotations
 
+import json
 import logging
 import threading
 from collections.abc import Callable, Mapping
@@ -41,7 +43,7 @@ from dataclasses import dataclass, field
 from functools import partial
 from typing import Any
 
-from td2adaptor.model.events import GOAL_WORDS, EventSpec, Kind
+from td2adaptor.model.events import GOAL_WORDS, TERMINAL_STATES, EventSpec, Kind
 from td2adaptor.runtime.engine.context import RobotContext
 from td2adaptor.runtime.engine.missions import Mission
 from td2adaptor.runtime.loop import Timer
@@ -466,14 +468,38 @@ class GoalRunner:
         self._answer_ended(spec, wanted, correlation)
 
     def _answer_ended(self, spec: EventSpec, wanted: Any, correlation: str | None) -> None:
+        """A query or cancel of a goal not followed: answered with its end if this run or the ledger knows it."""
         action = spec.affordance or ""
         ended = self._last.get(action)
-        if ended is not None and wanted in (None, ended.goal):
+        if ended is None or wanted not in (None, ended.goal):
+            ended = self._recorded(spec, wanted)
+        if ended is not None:
             self.ctx.outbox.state(action, ended.status, correlation, None, {"goal": ended.goal})
             return
         which = f"goal {wanted}" if wanted is not None else "goal"
         message = f"{spec.kind.value}: no {action} {which} is known to this node"
         self._refuse(spec.kind, action, spec.component or "", "unsupported", message, correlation)
+
+    def _recorded(self, spec: EventSpec, wanted: Any) -> _Ended | None:
+        """How the goal `wanted` (None: the action's latest) ended, as its terminal feedback event in the ledger
+        said: a goal that ended before the node's restart (or before the action's next goal) while the ledger
+        keeps its row (ledger.py `ended_goal`)."""
+        if wanted is not None and not isinstance(wanted, str):
+            return None
+        record = self.ctx.outbox.ledger.ended_goal(spec.component or "", spec.affordance or "", wanted)
+        if record is None or record.goal is None or record.latest is None:
+            return None
+        try:
+            payload = json.loads(record.latest).get("payload")
+        except (ValueError, AttributeError):
+            return None
+        if not isinstance(payload, Mapping) or payload.get("state") not in TERMINAL_STATES:
+            return None
+        words = {k: payload.get(k) for k in ("result", "message", "last_event")}
+        text = {k: v if isinstance(v, str) else "" for k, v in words.items()}
+        reason = payload.get("reason") if isinstance(payload.get("reason"), str) else None
+        status = ProcedureStatus(str(payload["state"]), text["result"], text["message"], text["last_event"], reason)
+        return _Ended(record.goal, status)
 
     def _refuse(
         self, kind: Kind, action: str, component: str, code: str, message: str, correlation: str | None

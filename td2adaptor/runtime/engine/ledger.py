@@ -18,6 +18,8 @@ At the next start, `pending()` gives every mission not done: the engine follows 
 mission id is known) and a ROS action goal (by the goal id the server gave it), or ends it `failed` ("the edge
 node restarted ..."), and publishes again a terminal event it had stored but maybe not sent. Done rows are
 dropped after `keep` seconds (the replay window: a resent invoke older than that is refused as expired anyway).
+Until then a ROS action goal's row also answers a query or cancel of the goal by its id once this run no longer
+follows it (`ended_goal`: a goal that ended in the last run, or before the action's next goal).
 """
 
 from __future__ import annotations
@@ -58,6 +60,7 @@ CREATE TABLE IF NOT EXISTS missions (
 );
 CREATE INDEX IF NOT EXISTS missions_by_event ON missions (event_id);
 CREATE INDEX IF NOT EXISTS missions_by_phase ON missions (phase);
+CREATE INDEX IF NOT EXISTS missions_by_goal ON missions (goal);
 """
 
 
@@ -163,6 +166,20 @@ class Ledger:
     def latest(self, event_id: str, topic: str) -> Record | None:
         """The mission an invoke with this id (on this topic) started, if the ledger has it."""
         found = self._records("SELECT * FROM missions WHERE event_id = ? AND topic = ?", (event_id, topic))
+        return found[0] if found else None
+
+    def ended_goal(self, component: str, action: str, goal: str | None) -> Record | None:
+        """The row of the ROS action goal `goal` of `component`'s `action` (None: its latest goal) once its
+        terminal event is stored, if the ledger still keeps it (done rows: `keep` seconds)."""
+        sql = (
+            "SELECT * FROM missions WHERE kind = 'goal' AND component = ? AND action = ? AND goal IS NOT NULL "
+            "AND state IN ('finished', 'cancelled', 'failed') AND latest IS NOT NULL "
+            "AND (phase = 'ending' OR (phase = 'done' AND until >= ?))"
+        )
+        args: tuple[object, ...] = (component, action, self.clock())
+        if goal is not None:
+            sql, args = sql + " AND goal = ?", (*args, goal)
+        found = self._records(sql + " ORDER BY started DESC LIMIT 1", args)
         return found[0] if found else None
 
     def _records(self, sql: str, args: tuple[object, ...]) -> list[Record]:
