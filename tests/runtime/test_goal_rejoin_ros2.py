@@ -6,6 +6,7 @@ while the goal runs. The node that serves the robot next follows the goal on by 
 * the same node started again on its state directory: the rest of the goal's feedback and its one `finished`;
 * a goal that ended while no node followed it: the restarted node publishes its real end (the server still
   has its result);
+* a goal that ended before the kill: a query and a cancel of it by its id are answered with its end (the ledger's);
 * a robot whose action server restarted meanwhile (it does not know the goal): `failed`, with words that say so;
 * a shared fleet (`run --share`, each process with a state directory of its own, as on two hosts): the process
   that takes the robot over after its owner's kill -9 follows the goal on from the admitted entries.
@@ -18,6 +19,7 @@ import sys
 import time
 import uuid
 from collections.abc import Iterator
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -215,6 +217,50 @@ def test_a_goal_that_ended_while_no_node_followed_it_gets_its_real_end(
         end = rig.ends(event_id)[0]
         assert (end["state"], end.get("result")) == ("finished", "succeeded"), end
         assert end["output"] == {"sequence": sequence(40)}
+    finally:
+        rig.close()
+
+
+def answers(events: list[Event], correlation: str) -> list[dict[str, Any]]:
+    """The state or error events that answer the query or cancel `correlation` (a redelivery counted once)."""
+    found = {
+        e["id"]: e for _, e in events if e.get("type") in ("state", "error") and e.get("correlation") == correlation
+    }
+    return list(found.values())
+
+
+def answered(correlation: str, events: list[Event]) -> bool:
+    return bool(answers(events, correlation))
+
+
+@pytest.mark.parametrize("robots", [("rejoin_d",)], indirect=True)
+def test_a_goal_that_ended_before_a_kill_is_answered_with_its_end_by_the_restarted_node(
+    fibo_run: tuple[Model, Path, Path], robots: Process, broker: Mosquitto, tmp_path: Path
+) -> None:
+    """A query and a cancel of a goal that ended in the last run, by its id: its end, from the ledger (a new
+    user's finding: they were refused `unsupported`, "no fibonacci goal G is known to this node")."""
+    rig = Restarting(fibo_run, broker, tmp_path, "rejoin_d")
+    try:
+        rig.ready()
+        event_id = rig.goal(5, 1)
+        end = rig.ends(event_id)[0]
+        assert (end["state"], end.get("result")) == ("finished", "succeeded"), end
+        rig.kill()
+        rig.again()
+        for kind in ("query", "cancel"):
+            correlation = f"{kind}-{uuid.uuid4().hex[:8]}"
+            event = {
+                "id": correlation,
+                "time": now_rfc3339(),
+                "correlation": correlation,
+                "payload": {"goal": end["goal"]},
+            }
+            rig.app.send(f"{goal_topic(rig.robot)}/{kind}", event)
+            (answer,) = answers(rig.app.wait(partial(answered, correlation), timeout=30), correlation)
+            assert answer["type"] == "state", answer
+            payload = answer["payload"]
+            assert (payload["state"], payload["result"], payload["goal"]) == ("finished", "succeeded", end["goal"])
+            assert payload["terminal"] is True and payload["message"] == end["message"], payload
     finally:
         rig.close()
 
