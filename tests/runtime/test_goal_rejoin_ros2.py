@@ -348,3 +348,51 @@ def test_a_goal_in_flight_is_followed_on_by_the_process_that_takes_the_robot_ove
         for run in runs:
             run.close()
         app.close()
+
+
+HANDED = {"ended_s1": "ended_s1", "ended_s2": "ended_s2"}
+
+
+@pytest.mark.parametrize("robots", [tuple(HANDED.values())], indirect=True)
+def test_a_goal_that_ended_before_its_owner_died_is_answered_with_its_end_by_the_process_that_took_over(
+    fibo_run: tuple[Model, Path, Path], robots: Process, broker: Mosquitto, tmp_path: Path
+) -> None:
+    """Each process with a state directory of its own (as on two hosts): the new owner's ledger learnt the ended
+    goal from the admitted entries on the broker (node/admitted.py `seed`), and answers a query of it by its id."""
+    configs = [
+        node_config(tmp_path / f"node{i}.yaml", broker, tmp_path / f"state{i}", HANDED, fleet="ended") for i in range(2)
+    ]
+    environ = env.child_env([])
+    app = AppClient(broker.url, ["td2adaptor/+/status", *(f"td2adaptor/{r}/#" for r in HANDED)], client_id="ended-app")
+    runs = [RunProcess(run_args(fibo_run, config, "--share"), env=environ) for config in configs]
+
+    def owner(robot: str) -> tuple[str, int | None]:
+        found = [e["payload"] for t, e in list(app.events) if t == f"td2adaptor/{robot}/status"]
+        return (found[-1]["state"], (found[-1].get("owner") or {}).get("pid")) if found else ("", None)
+
+    try:
+        for run in runs:
+            run.wait_ready()
+        pids = {run.proc.pid for run in runs}
+        assert until(lambda: {owner(r) for r in HANDED} == {("online", pid) for pid in pids}, 60), app.events[-4:]
+        victim = next(run for run in runs if run.proc.pid == owner("ended_s1")[1])
+        survivor = next(run for run in runs if run is not victim)
+        goals_answered(app, "ended_s1")
+        event_id = start_goal(app, "ended_s1", 5)
+        app.wait(terminal("feedback", event_id), timeout=60)
+        end = next(e["payload"] for e in feedback(app.events, event_id) if e["payload"]["terminal"])
+        assert (end["state"], end.get("result")) == ("finished", "succeeded"), end
+        victim.proc.kill()
+        victim.proc.wait(10)
+        assert until(lambda: owner("ended_s1") == ("online", survivor.proc.pid), 60), owner("ended_s1")
+        correlation = f"query-{uuid.uuid4().hex[:8]}"
+        event = {"id": correlation, "time": now_rfc3339(), "correlation": correlation, "payload": {"goal": end["goal"]}}
+        app.send(f"{goal_topic('ended_s1')}/query", event)
+        (answer,) = answers(app.wait(partial(answered, correlation), timeout=30), correlation)
+        assert answer["type"] == "state", answer
+        payload = answer["payload"]
+        assert (payload["state"], payload["result"], payload["goal"]) == ("finished", "succeeded", end["goal"])
+    finally:
+        for run in runs:
+            run.close()
+        app.close()
