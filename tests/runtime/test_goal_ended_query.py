@@ -9,6 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from td2adaptor.runtime.engine.ledger import Ledger
 from tests.runtime.edge import Recorder, until
 from tests.runtime.test_goal_rejoin import ROBOT, Node
 
@@ -68,3 +69,35 @@ def test_a_goal_that_ended_in_the_last_run_is_answered_with_its_end_after_a_rest
     finally:
         node.close()
         errors.close()
+
+
+def test_the_ledger_keeps_an_ended_goal_for_its_retention_only() -> None:
+    """`ended_goal` finds a goal once its terminal event is stored, by its id or as the action's latest, and no
+    longer once its row is past `keep` (pruned or not: the answer must not depend on when the prune ran)."""
+    now = [1000.0]
+    ledger = Ledger(None, keep=30.0, clock=lambda: now[0])
+    try:
+
+        def goal(goal: str, state: str, terminal: bool) -> str:
+            key = ledger.open(event_id=goal, topic="t", kind="goal", component="C", action="a", correlation=None)
+            ledger.event(key, mission=None, goal=goal, state=state, seq=1, reserved=1, latest="{}", terminal=terminal)
+            now[0] += 1
+            return key
+
+        done = goal("g1", "finished", True)
+        ending = goal("g2", "cancelled", True)
+        goal("g3", "running", False)  # in flight: not ended
+        assert ledger.ended_goal("C", "a", "g3") is None
+        assert ledger.ended_goal("C", "b", "g1") is None and ledger.ended_goal("D", "a", "g1") is None
+        ledger.done(done)
+        found = ledger.ended_goal("C", "a", "g1")
+        assert found is not None and found.state == "finished"
+        latest = ledger.ended_goal("C", "a", None)
+        assert latest is not None and latest.goal == "g2"  # stored, maybe not sent yet: ended all the same
+        now[0] += 20
+        ledger.done(ending)
+        now[0] += 11  # past g1's retention (30 s after its end), not g2's
+        assert ledger.ended_goal("C", "a", "g1") is None
+        assert ledger.ended_goal("C", "a", "g2") is not None
+    finally:
+        ledger.close()
