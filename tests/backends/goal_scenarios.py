@@ -272,7 +272,8 @@ def check_concurrent(out: dict[str, Any], feedback: list[list[int]], result: lis
     assert out["ended"]
     for story in out["goals"]:
         check_story(story, out["caller"])
-        assert story["feedback"] == feedback and story["done"] == [["succeeded", result, None]]
+        told = (story["feedback"], story["done"], story["kinds"][-6:])
+        assert story["feedback"] == feedback and story["done"] == [["succeeded", result, None]], told
     assert out["threads_peak"] <= out["threads_before"], (out["threads_before"], out["threads_peak"])
     assert out["threads_after"] <= out["threads_before"], (out["threads_before"], out["threads_after"])
 
