@@ -50,6 +50,13 @@ def keepers() -> list[StatusKeeper]:
         return list(_keepers.values())
 
 
+def keeper_of(engine: Engine) -> StatusKeeper | None:
+    """The status keeper of `engine`'s robot, while it keeps one."""
+    with _keepers_lock:
+        keeper = _keepers.get(engine.config.robot)
+    return keeper if keeper is not None and keeper.engine is engine else None
+
+
 def owner_fields() -> dict[str, Any]:
     """The status members that name this process (the birth, the will and every status in between)."""
     return {"owner": this_process().to_json()}
@@ -243,7 +250,6 @@ class _Looks:
         self.period = period
         self.keepers: dict[StatusKeeper, None] = {}  # in the order they joined (guarded by _all_lock)
         self.timer: Timer | None = None
-        self.looking = False  # the batch is under way on the pool (the loop's)
         self.started = False
 
     @classmethod
@@ -256,7 +262,10 @@ class _Looks:
                 looks = cls._all[id(shared.loop), period] = _Looks(shared, period)
             looks.keepers[keeper] = None
             start, looks.started = not looks.started, True
-        shared.loop.post(looks._tick if start else looks._first, keeper)
+        if start:
+            shared.loop.post(looks._tick)
+        else:
+            shared.loop.post(looks._batch_of, [keeper])  # looked at alone once, then with the others
         return looks
 
     def leave(self, keeper: StatusKeeper) -> None:
@@ -271,22 +280,20 @@ class _Looks:
         if timer is not None:
             timer.cancel()
 
-    def _first(self, keeper: StatusKeeper) -> None:
-        """(the loop) A robot that joined running looks: looked at alone once, then with the others."""
-        self._send([keeper])
-
-    def _tick(self, _joined: StatusKeeper | None = None) -> None:
+    def _tick(self) -> None:
         """(the loop) Look at every robot (the period's timer)."""
         with _Looks._all_lock:
             keepers = list(self.keepers)
             if not keepers:
                 return
-        self._send(keepers)
+        self._batch_of(keepers)
         with _Looks._all_lock:
             if self.keepers:
                 self.timer = self.shared.loop.call_later(self.period, self._tick)
 
-    def _send(self, keepers: list[StatusKeeper]) -> None:
+    def _batch_of(self, keepers: list[StatusKeeper]) -> None:
+        """(the loop) Look at `keepers`' robots: those whose look does not block in one pool task, each other on
+        its own, the robots without a look (or with one under way) publish their status as it stands."""
         batch: list[StatusKeeper] = []
         for keeper in keepers:
             if keeper._stopped:
@@ -297,18 +304,14 @@ class _Looks:
             keeper._looking = True
             if quick(keeper.probe):
                 batch.append(keeper)
-            else:
-                self.shared.pool.submit(functools.partial(self._alone, keeper))
+            else:  # a look that may block (see `presence.quick`): a task of its own
+                self.shared.pool.submit(functools.partial(self._look, [keeper]))
         if batch:
-            self.shared.pool.submit(functools.partial(self._batch, batch))
+            self.shared.pool.submit(functools.partial(self._look, batch))
 
-    def _batch(self, keepers: list[StatusKeeper]) -> None:
+    def _look(self, keepers: list[StatusKeeper]) -> None:
         """(the pool) Look at each robot in turn; the loop takes the answers at once."""
         self.shared.loop.post(self._seen, [(keeper, keeper._look()) for keeper in keepers])
-
-    def _alone(self, keeper: StatusKeeper) -> None:
-        """(the pool) A look that may block (see `presence.quick`)."""
-        self.shared.loop.post(self._seen, [(keeper, keeper._look())])
 
     @staticmethod
     def _seen(answers: list[tuple[StatusKeeper, Mapping[str, bool] | None]]) -> None:
