@@ -390,13 +390,21 @@ class AckedPort:
             )
         if self._trip is not None and not answered.wait(ACK_TIMEOUT):
             log.warning("robot %s: the broker did not answer on the robot's connection in time", self._robot)
-        if not served[0] or self._taken():
-            log.warning("robot %s: its connection was lost before %s: not run here", self._robot, what)
-            self._withdraw()
+        if not self.serves(served[0], what):
             raise PortUnavailable(
                 "the edge node lost its connection to the broker, and another one of the fleet may serve the robot "
                 "now: not run here"
             )
+
+    def serves(self, answered: bool, what: str) -> bool:
+        """Whether the robot's connection still serves its session (`answered`: the round trip on it came back),
+        so that `what` may be done here; if not, say so and withdraw this process's entries (a ROS goal's gate,
+        share.py, decides the same way)."""
+        if answered and not self._taken():
+            return True
+        log.warning("robot %s: its connection was lost before %s: not run here", self._robot, what)
+        self._withdraw()
+        return False
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._port, name)

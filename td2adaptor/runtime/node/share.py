@@ -640,16 +640,15 @@ class Share:
         and hands robots over, while this start is under way (issue 32: a robot claimed during a start waited for
         its end, 0.2-1 s on a loaded machine). Its record says `starting` first: the others leave them to this
         process meanwhile (`_free`, `_admit`)."""
+        robots = {c.robot for c in claims}
         with self._lock:
-            self._starting |= {c.robot for c in claims}
+            self._starting |= robots
         self._publish_record()
         started = Changes()
-        thread = threading.Thread(
-            target=self._start, args=(claims, taken, replaced, started), name="td2adaptor-share-start", daemon=True
+        work = partial(self._start, claims, taken, replaced, started)
+        thread = self._aside(
+            "td2adaptor-share-start", work, self._starting, robots, then=partial(self._changed, started)
         )
-        with self._lock:
-            self._starts.add(thread)
-        thread.start()
         return thread, started
 
     def _let_go(self, leaving: dict[str, str | None]) -> None:
@@ -660,29 +659,49 @@ class Share:
             self._leaving |= set(leaving)
 
         def run() -> None:
+            for robot, winner in leaving.items():
+                try:
+                    self._release(robot, winner)
+                except Exception:  # noqa: BLE001 - the others are let go all the same
+                    log.exception("fleet %s: letting robot %s go failed", self.name, robot)
+
+        self._aside("td2adaptor-share-release", run, self._leaving, set(leaving))
+
+    def _aside(
+        self,
+        name: str,
+        work: Callable[[], None],
+        marked: set[str],
+        robots: set[str],
+        then: Callable[[], None] | None = None,
+    ) -> threading.Thread:
+        """Run `work` (a start or a hand-over) on a thread of its own that `stop` waits for; at its end `robots`
+        leave `marked` (`_starting`, `_leaving`: left alone by the rounds until then), the record says so, a
+        round of the share looks at them, then `then()`."""
+
+        def run() -> None:
             try:
-                for robot, winner in leaving.items():
-                    try:
-                        self._release(robot, winner)
-                    except Exception:  # noqa: BLE001 - the others are let go all the same
-                        log.exception("fleet %s: letting robot %s go failed", self.name, robot)
+                work()
             finally:
                 with self._lock:
-                    self._leaving -= set(leaving)
+                    marked.difference_update(robots)
                     self._starts.discard(threading.current_thread())
                 self._publish_record()
                 self._wake.set()
+            if then is not None:
+                then()
 
-        thread = threading.Thread(target=run, name="td2adaptor-share-release", daemon=True)
+        thread = threading.Thread(target=run, name=name, daemon=True)
         with self._lock:
             self._starts.add(thread)
         thread.start()
+        return thread
 
     def _start(
         self, claims: list[RuntimeConfig], taken: list[tuple[str, Status | None]], replaced: list[str], out: Changes
     ) -> None:
-        """(a start's thread) Start `claims` (the `replaced` ones stopped first: their settings changed), then say
-        so: the record (no longer `starting` them, serving them), the log, and a round of the share."""
+        """(a start's thread, `_aside`) Start `claims` (the `replaced` ones stopped first: their settings changed);
+        what it did goes into `out`, which the log and the hooks hear of once the record says so (`_begin`)."""
         robots = {c.robot for c in claims}
         try:
             for robot in replaced:
@@ -699,13 +718,6 @@ class Share:
             out.failed = changes.failed
         except Exception:  # noqa: BLE001 - the next round claims what was not started
             log.exception("fleet %s: starting %s failed", self.name, ", ".join(sorted(robots)))
-        finally:
-            with self._lock:
-                self._starting -= robots
-                self._starts.discard(threading.current_thread())
-            self._publish_record()
-            self._wake.set()
-        self._changed(out)
 
     def _changed(self, changes: Changes) -> None:
         if changes:
@@ -952,7 +964,8 @@ class Share:
         # stop's "retired" end of a goal in flight) is the next owner's to record, not written over its entries
         engine.on_halt.append(lambda _reason: recorder.withdraw())
         trip = partial(round_trip, raw)
-        engine.port = AckedPort(engine.port, recorder.acknowledged, config.robot, taken, recorder.withdraw, trip)
+        port = AckedPort(engine.port, recorder.acknowledged, config.robot, taken, recorder.withdraw, trip)
+        engine.port = port
         engine.kept = recorder.when_acknowledged  # a command is acknowledged once its entry is the broker's
 
         def gate(go: Callable[[bool], None]) -> None:  # a ROS action goal: sent as AckedPort starts a procedure
@@ -968,12 +981,7 @@ class Share:
                     served[0] = served[0] and answered
                     if left[0]:
                         return
-                if served[0] and not taken():
-                    go(True)
-                    return
-                log.warning("robot %s: its connection was lost before the goal was sent: not run here", config.robot)
-                recorder.withdraw()
-                go(False)
+                go(port.serves(served[0], "the goal was sent"))
 
             trip(settled)
             recorder.when_acknowledged(settled)
@@ -1046,7 +1054,7 @@ class Share:
         """Hand `robot` over to `winner`: its missions in flight are left to it (the ledger, or the admitted
         entries on another host: admitted.py), the TD stays, the status stays online. Without a winner (no member
         lists it, or this one no longer does) retire it: missions ended, TD cleared, `offline` saying `retired`."""
-        from td2adaptor.runtime.node.status import keepers, owner_fields
+        from td2adaptor.runtime.node.status import keeper_of, owner_fields
 
         with self._lock:
             record = self._members.get(winner or "")
@@ -1061,7 +1069,7 @@ class Share:
             engine.td = None  # stays retained: the next owner publishes the same TD
             # the robot's side and its missions in flight as the last status said (they go on: the next owner
             # follows them), where it said `missions: 0` and no `robot` until the next owner's first status
-            keeper = next((k for k in keepers() if k.engine is engine), None)
+            keeper = keeper_of(engine)
             now = {**(keeper.published() if keeper is not None else {}), **owner_fields()}
             engine.offline = status_event(
                 engine.config,
