@@ -34,6 +34,8 @@ from td2adaptor.runtime.node.roslink import RosLink
 from td2adaptor.runtime.ros.port import RobotPort
 
 log = logging.getLogger("td2adaptor.runtime.fleet")
+#: why a robot is not started: its start (`join`) or its stop (`remove`) is under way on another thread
+STARTING_OR_STOPPING = "starting or stopping already"
 #: seconds a stopping process waits, for all its robots together, for what is still in flight (calls, the
 #: offline status's acknowledgement)
 STOP_TIMEOUT = 5.0
@@ -157,10 +159,9 @@ class Fleet:
         nothing of it is left)."""
         with self._lock:
             self._check_open()
-            if config.robot in self._engines:
-                raise FleetError(config.robot, "served already")
-            if config.robot in self._pending:  # its stop (`remove`) or a `join` is under way on another thread
-                raise FleetError(config.robot, "starting or stopping already")
+            busy = self._busy(config.robot)
+            if busy is not None:
+                raise FleetError(config.robot, busy)
             return self._grow([config], origin)[config.robot]
 
     def remove(self, robot: str, why: str = "was removed from the edge node's fleet", *, retire: bool = True) -> bool:
@@ -211,7 +212,7 @@ class Fleet:
                 if other is not None and other != origin:
                     changes.failed[robot] = f"served already (its {other})"
                 elif robot in self._pending:  # its stop (`remove`) is under way on another thread
-                    changes.failed[robot] = "starting or stopping already"
+                    changes.failed[robot] = STARTING_OR_STOPPING
                 elif robot not in mine:
                     fresh.append(config)
                 elif mine[robot] != config:
@@ -234,10 +235,9 @@ class Fleet:
             self._check_open()
             fresh: list[RuntimeConfig] = []
             for config in configs:
-                if config.robot in self._engines:
-                    changes.failed[config.robot] = "served already"
-                elif config.robot in self._pending:
-                    changes.failed[config.robot] = "starting or stopping already"
+                busy = self._busy(config.robot)
+                if busy is not None:
+                    changes.failed[config.robot] = busy
                 else:
                     fresh.append(config)
             self._pending.update(c.robot for c in fresh)
@@ -247,6 +247,13 @@ class Fleet:
             with self._lock:
                 self._pending.difference_update(c.robot for c in fresh)
         return changes
+
+    def _busy(self, robot: str) -> str | None:
+        """(under the lock) Why `robot` cannot be started now: served, or started or stopped by another thread (a
+        `join`, a `remove`); None when it can."""
+        if robot in self._engines:
+            return "served already"
+        return STARTING_OR_STOPPING if robot in self._pending else None
 
     def stop(self) -> None:
         """The process stops: every robot goes offline (missions left to the robot, followed again by the next
@@ -349,7 +356,7 @@ class Fleet:
         10-26, where the robots that joined must be served within 2 s)."""
         if len(configs) <= 1:
             for config in configs:
-                started[config.robot] = self._keep(config, self._engine(config, link.ports[config.robot]), origin, link)
+                started[config.robot] = self._serve(config, link.ports[config.robot], origin, link)
             return
         made: dict[str, Engine] = {}
         failure: BaseException | None = None
@@ -374,8 +381,8 @@ class Fleet:
     def _engine(self, config: RuntimeConfig, port: RobotPort) -> Engine:
         return serve(self.model, port, config, broker=self.broker, distro=self.distro, prepare=self.prepare)
 
-    def _serve(self, config: RuntimeConfig, port: RobotPort, origin: str) -> Engine:
-        return self._keep(config, self._engine(config, port), origin)
+    def _serve(self, config: RuntimeConfig, port: RobotPort, origin: str, link: RosLink | None = None) -> Engine:
+        return self._keep(config, self._engine(config, port), origin, link)
 
     def _keep(self, config: RuntimeConfig, engine: Engine, origin: str, link: RosLink | None = None) -> Engine:
         """Register a robot's engine that serves already (under the lock: a `join` registers from its own
