@@ -1695,9 +1695,10 @@ class GoalHandle(GoalRecord[ResultT, FeedbackT]):
         else:  # the server does not know the goal (any more); its `result` is a default one (zeros): none
             self._lose(CallFailed(self.action, f"the goal ended with status {code}"))
 
-    def _lose(self, error: AdaptorError, result: Any = None, unless_accepted: bool = False) -> bool:
+    def _lose(self, error: AdaptorError, unless_accepted: bool = False) -> bool:
+        """End the goal `lost` (no result: whatever the server may send with it is not the goal's)."""
         reason = str(getattr(error, "reason", "") or getattr(error, "message", "") or error)
-        return self._end(GoalOutcome("lost", result, error, reason), by_server=False, unless_accepted=unless_accepted)
+        return self._end(GoalOutcome("lost", None, error, reason), by_server=False, unless_accepted=unless_accepted)
 
     def feedback_message(self, feedback: FeedbackT) -> None:
         """One feedback message of the goal (the client's, in the executor's thread)."""
