@@ -10,9 +10,10 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from td2adaptor.model.events import Kind
+from td2adaptor.model.events import EventSpec, Kind
 from td2adaptor.model.wot import WOT_LEVEL
 from td2adaptor.runtime import RuntimeConfig, serve
+from td2adaptor.runtime.engine.engine import Engine
 from td2adaptor.runtime.engine.streams import PropertyStreams, Pump, _Slot
 from td2adaptor.runtime.ros.simport import SimPort
 from tests.runtime.broker import Mosquitto
@@ -20,17 +21,23 @@ from tests.runtime.client import AppClient
 from tests.runtime.rb1 import rb1_model, sim
 
 
+def availability_node(broker: Mosquitto, robot: str) -> tuple[Engine, EventSpec, str, str, AppClient]:
+    """A node serving the simulated RB-1 `robot` on `broker`, its `availability` property's spec, envelope and WoT
+    topics, and an application that subscribes to both."""
+    model = rb1_model()
+    config = RuntimeConfig(robot=robot, bus=broker.url, property_period=0, state_dir="", call_timeout=2)
+    engine = serve(model, SimPort(model, sim(0.2)), config)
+    spec = engine.catalog.find(Kind.PROPERTY, "availability")
+    topic, wot = spec.topic(robot), f"td2adaptor/{robot}/{WOT_LEVEL}/{spec.component}/availability"
+    return engine, spec, topic, wot, AppClient(broker, [topic, wot])
+
+
 def test_the_nodes_own_property_values_do_not_come_back_to_it(broker: Mosquitto) -> None:
     """The node's command filters match the topics of its property values (envelope and WoT form). Published on
     a connection of their own, each value came back to the node twice, to be read and dropped (200 a second for
     a fleet of 100 RB-1s); on the robot's own connection, which asks for no-local, none comes back. Subscribers
     still get both forms."""
-    model = rb1_model()
-    config = RuntimeConfig(robot="echo", bus=broker.url, property_period=0, state_dir="", call_timeout=2)
-    engine = serve(model, SimPort(model, sim(0.2)), config)
-    spec = engine.catalog.find(Kind.PROPERTY, "availability")
-    topic, wot = spec.topic("echo"), f"td2adaptor/echo/{WOT_LEVEL}/{spec.component}/availability"
-    app = AppClient(broker, [topic, wot])
+    engine, spec, topic, wot, app = availability_node(broker, "echo")
     client: Any = engine.bus.bus._client  # type: ignore[attr-defined]
     heard: list[str] = []
     on_message = client.on_message
@@ -133,12 +140,7 @@ def test_a_property_event_and_its_wot_form_go_out_in_one_send(broker: Mosquitto)
     a second), each with its WoT form: written one after the other, two sends and two acknowledgements to read
     for each. On the robot's own connection they go out together, in one send, as the engine's events do
     (`MqttBus.batch`); both still arrive, envelope first."""
-    model = rb1_model()
-    config = RuntimeConfig(robot="onesend", bus=broker.url, property_period=0, state_dir="", call_timeout=2)
-    engine = serve(model, SimPort(model, sim(0.2)), config)
-    spec = engine.catalog.find(Kind.PROPERTY, "availability")
-    topic, wot = spec.topic("onesend"), f"td2adaptor/onesend/{WOT_LEVEL}/{spec.component}/availability"
-    app = AppClient(broker, [topic, wot])
+    engine, spec, topic, wot, app = availability_node(broker, "onesend")
     client: Any = engine.bus.bus._client  # type: ignore[attr-defined]
     streams = PropertyStreams(engine.outbox, engine.port, engine.model, [])
     streams.start()
